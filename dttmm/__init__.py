@@ -1,0 +1,27 @@
+"""dttmm — planar manipulators with flexible links by the discrete time transfer matrix method.
+
+Overview::
+
+    import dttmm
+    case = dttmm.load_case("experiments/cases/three_link.toml")
+    res = dttmm.simulate(case, elements_per_link=16, h=1e-3)
+    res.tip_deflection[-1], res.meta["iterations_mean"]
+"""
+__version__ = "0.1.0"
+
+from .case import Case, case_from_dict, case_to_dict, load_case, save_case
+from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
+from .errors import InputError, SimulationError
+from .model import Hub, Link, Manipulator, Payload, Section
+from .result import Result, make_result, tip_deflection
+from .scenario import Scenario
+from .solver import accelerations, simulate
+
+__all__ = [
+    "Case", "load_case", "save_case", "case_from_dict", "case_to_dict",
+    "Section", "Hub", "Payload", "Link", "Manipulator", "Scenario",
+    "Drive", "Constant", "BangBang", "Sine", "SpinUp", "Table",
+    "Result", "make_result", "tip_deflection",
+    "InputError", "SimulationError",
+    "simulate", "accelerations",
+]

@@ -1,0 +1,153 @@
+"""The physical model of a planar manipulator with flexible links (SI units, radians).
+
+All classes are frozen dataclasses validated on construction; make variants with
+:func:`dataclasses.replace`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ._validate import finite_vector, non_negative, positive
+from .errors import InputError
+
+__all__ = ["Section", "Hub", "Payload", "Link", "Manipulator"]
+
+
+@dataclass(frozen=True)
+class Section:
+    """Uniform Euler-Bernoulli beam data of one link.
+
+    Parameters
+    ----------
+    length : float
+        Link length L (m).
+    EI : float
+        Bending stiffness (N·m²).
+    rhoA : float
+        Mass per unit length (kg/m).
+    EA : float or None
+        Axial stiffness (N); ``None`` makes the link inextensible (no axial coordinate).
+    damping : float
+        Stiffness-proportional (Kelvin-Voigt) coefficient μ (s): D = μK.
+    """
+
+    length: float
+    EI: float
+    rhoA: float
+    EA: float | None = None
+    damping: float = 0.0
+    _where: str = field(default="section", repr=False, compare=False)
+
+    def __post_init__(self):
+        w = self._where
+        object.__setattr__(self, "length", positive(f"{w}.length", self.length))
+        object.__setattr__(self, "EI", positive(f"{w}.EI", self.EI))
+        object.__setattr__(self, "rhoA", positive(f"{w}.rhoA", self.rhoA))
+        if self.EA is not None:
+            object.__setattr__(self, "EA", positive(f"{w}.EA", self.EA))
+        object.__setattr__(self, "damping", non_negative(f"{w}.damping", self.damping))
+
+    @classmethod
+    def from_material(cls, length, E, rho, width, thickness, *, EA=True, damping=0.0,
+                      where="section") -> "Section":
+        """Rectangular section from Young's modulus E (Pa), density ρ (kg/m³), width and
+        thickness (m). ``EA=True`` derives E·A; ``EA=None`` makes the link inextensible."""
+        E = positive(f"{where}.E", E)
+        rho = positive(f"{where}.rho", rho)
+        b = positive(f"{where}.width", width)
+        t = positive(f"{where}.thickness", thickness)
+        ea = E * b * t if EA is True else EA
+        return cls(length, E * b * t**3 / 12.0, rho * b * t, ea, damping, _where=where)
+
+    @property
+    def mass(self) -> float:
+        return self.rhoA * self.length
+
+    @property
+    def extensible(self) -> bool:
+        return self.EA is not None
+
+
+@dataclass(frozen=True)
+class Hub:
+    """Rigid body at a link root, on the outboard side of the joint (kg, kg·m² about the joint)."""
+
+    mass: float = 0.0
+    inertia: float = 0.0
+    _where: str = field(default="hub", repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "mass", non_negative(f"{self._where}.mass", self.mass))
+        object.__setattr__(self, "inertia", non_negative(f"{self._where}.inertia", self.inertia))
+
+
+@dataclass(frozen=True)
+class Payload:
+    """Rigid body at a link tip, fixed to the tip cross-section (kg, kg·m² about the tip)."""
+
+    mass: float = 0.0
+    inertia: float = 0.0
+    _where: str = field(default="payload", repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "mass", non_negative(f"{self._where}.mass", self.mass))
+        object.__setattr__(self, "inertia", non_negative(f"{self._where}.inertia", self.inertia))
+
+
+@dataclass(frozen=True)
+class Link:
+    """One flexible link: its beam, an optional hub at the root and payload at the tip."""
+
+    beam: Section
+    hub: Hub | None = None
+    payload: Payload | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.beam, Section):
+            raise InputError("link.beam", self.beam, "must be a dttmm.Section")
+        if self.hub is not None and not isinstance(self.hub, Hub):
+            raise InputError("link.hub", self.hub, "must be a dttmm.Hub or None")
+        if self.payload is not None and not isinstance(self.payload, Payload):
+            raise InputError("link.payload", self.payload, "must be a dttmm.Payload or None")
+
+    @property
+    def hub_mass(self) -> float:
+        return self.hub.mass if self.hub else 0.0
+
+    @property
+    def hub_inertia(self) -> float:
+        return self.hub.inertia if self.hub else 0.0
+
+    @property
+    def payload_mass(self) -> float:
+        return self.payload.mass if self.payload else 0.0
+
+    @property
+    def payload_inertia(self) -> float:
+        return self.payload.inertia if self.payload else 0.0
+
+
+@dataclass(frozen=True)
+class Manipulator:
+    """A planar serial arm: n revolute joints (about z) and n flexible links, base first.
+
+    Joint i sits at the root of link i; joint 1 at the origin of the ground frame.
+    ``gravity`` is the gravitational acceleration in the plane (m/s²).
+    """
+
+    links: tuple[Link, ...]
+    gravity: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self):
+        links = tuple(self.links)
+        if not links:
+            raise InputError("model.links", self.links, "needs at least one link")
+        for i, link in enumerate(links):
+            if not isinstance(link, Link):
+                raise InputError(f"model.links[{i}]", link, "must be a dttmm.Link")
+        object.__setattr__(self, "links", links)
+        object.__setattr__(self, "gravity", finite_vector("model.gravity", self.gravity, 2))
+
+    @property
+    def n_links(self) -> int:
+        return len(self.links)
