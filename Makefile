@@ -22,3 +22,9 @@ test-slow: $(STAMP)
 
 clean:
 	rm -rf $(VENV) build *.egg-info
+
+report: $(STAMP)
+	OPENBLAS_NUM_THREADS=1 $(BIN)/dttmm report --quick --out out/report
+
+bench: $(STAMP)
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest benchmarks -q --benchmark-only --benchmark-json=data/bench/bench-$$(date +%Y%m%d-%H%M%S).json
