@@ -36,6 +36,7 @@ class SweepOut:
     loads: np.ndarray      # (n_cuts, 3): (Qx, Qy, M) at each element root and each link tip
     torque: np.ndarray     # (n,) joint torques (law value or computed for motion joints)
     cond: float = np.nan   # condition number of the final 3×3 system (plain sweep)
+    final_system: np.ndarray | None = None  # the plain sweep's final matrix (always 3×3)
 
 
 def _elastic_rhs(lk, lkn, cq, cv, e_hat, ed_hat):
@@ -219,7 +220,7 @@ def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, t
             ic += 1
         loads[ic] = (cuts[ic][1] @ wi)[3:]
         ic += 1
-    return SweepOut(qdd, loads, torque, cond)
+    return SweepOut(qdd, loads, torque, cond, A3)
 
 
 SWEEPS = {"riccati": riccati, "plain": plain}
