@@ -241,7 +241,12 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     wall0 = time.perf_counter()
 
     q, qd = sysm.initial_state()
-    out = sysm.accelerations(q, qd, 0.0)
+    try:
+        out = sysm.accelerations(q, qd, 0.0)
+    except np.linalg.LinAlgError as exc:
+        meta.update(success=False, failure=str(exc))
+        raise SimulationError(f"initial acceleration solve failed ({exc})", t=0.0, step=0,
+                              component="step system", partial=rec.result(0.0, 0, meta, upto=0)) from None
     qdd = out.qdd
     q[sysm.im], qd[sysm.im] = sysm.drv.motions(0.0)[st.motion, 0], sysm.drv.motions(0.0)[st.motion, 1]
     s_prev = (q.copy(), qd.copy(), out.torque.copy(), out.loads.copy())

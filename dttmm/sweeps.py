@@ -117,6 +117,18 @@ def riccati(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat,
     return SweepOut(qdd, loads, torque)
 
 
+def _equilibrated_cond(A):
+    """2-norm condition number after scaling rows and columns to unit norm (the unknowns are
+    forces and accelerations of very different size; plain cond would measure units)."""
+    if not np.all(np.isfinite(A)):
+        return np.inf
+    c = np.linalg.norm(A, axis=0)
+    As = A / np.where(c > 0, c, 1.0)
+    r = np.linalg.norm(As, axis=1)
+    As = As / np.where(r > 0, r, 1.0)[:, None]
+    return float(np.linalg.cond(As))
+
+
 def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, tau, acc_presc) -> SweepOut:
     """The paper's plain transfer sweep with a constant 3×3 final system."""
     n = st.n_links
@@ -190,7 +202,7 @@ def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, t
         B[3:] -= lk.M_pay @ B[:3]
         B[3:, 3] += Q_g(lk.m_pay)
     A3 = B[3:, :3]
-    cond = float(np.linalg.cond(A3))
+    cond = _equilibrated_cond(A3)
     u = np.linalg.solve(A3, -B[3:, 3])
     w = np.append(u, 1.0)
     # back-substitution of the joint eliminations: w at every stage

@@ -1,0 +1,113 @@
+"""The rigid arm of a case as URDF (``dttmm urdf CASE``), for robotics tools.
+
+Layout (all joints and links in the x–y plane, z up out of the plane):
+
+* ``base`` — the ground; ``joint{i}`` — revolute about z at the tip of link i−1 (at the
+  origin for i = 1), with wide limits so that parsers make a plain 1-DOF joint (a
+  ``continuous`` joint would become a (cos, sin) joint in Pinocchio);
+* ``link{i}`` — the link as a uniform rigid rod: mass ρA·L at L/2, inertia mL²/12 about
+  y and z of its centre;
+* ``hub{i}`` / ``payload{i}`` — rigid bodies on fixed joints at the link root / tip
+  (mass, inertia about z), present when the case has them;
+* ``link{i}_tip`` — massless marker at each link tip, and ``tip`` at the end-effector.
+
+Gravity is not part of URDF: the file records ``model.gravity`` in a comment only, and the
+loading tool must set it (for Pinocchio: ``model.gravity.linear = [gx, gy, 0]``; its default
+is −z, which does nothing to a planar arm). The flexibility of the links (EI, EA, damping)
+has no URDF form and is dropped.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from .case import Case, load_case
+from .errors import InputError
+from .model import Manipulator
+
+__all__ = ["case_to_urdf", "main"]
+
+_WIDE = "1e9"  # joint limits (rad, N·m, rad/s) wide enough never to act
+
+
+def _num(x: float) -> str:
+    return repr(float(x))  # shortest round-trip form: the file holds the case's values exactly
+
+
+def _origin(parent: ET.Element, x: float = 0.0):
+    ET.SubElement(parent, "origin", xyz=f"{_num(x)} 0 0", rpy="0 0 0")
+
+
+def _link(robot, name, mass=None, com_x=0.0, iyy=0.0, izz=0.0):
+    link = ET.SubElement(robot, "link", name=name)
+    if mass is not None:
+        inertial = ET.SubElement(link, "inertial")
+        _origin(inertial, com_x)
+        ET.SubElement(inertial, "mass", value=_num(mass))
+        ET.SubElement(inertial, "inertia", ixx="0", ixy="0", ixz="0",
+                      iyy=_num(iyy), iyz="0", izz=_num(izz))
+    return link
+
+
+def _fixed(robot, name, parent, child, x=0.0):
+    joint = ET.SubElement(robot, "joint", name=name, type="fixed")
+    _origin(joint, x)
+    ET.SubElement(joint, "parent", link=parent)
+    ET.SubElement(joint, "child", link=child)
+
+
+def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
+    """URDF text of the rigid arm of ``case`` (a Case or a Manipulator); see the module notes."""
+    model = case.model if isinstance(case, Case) else case
+    if not isinstance(model, Manipulator):
+        raise InputError("case", case, "must be a dttmm.Case or dttmm.Manipulator")
+    name = name or (case.name if isinstance(case, Case) and case.name else "arm")
+    robot = ET.Element("robot", name=name)
+    gx, gy = model.gravity
+    robot.append(ET.Comment(f" gravity (m/s^2, not part of URDF; set it in the loading tool): "
+                            f"[{_num(gx)}, {_num(gy)}, 0.0] "))
+    _link(robot, "base")
+    parent, x = "base", 0.0
+    for i, link in enumerate(model.links, start=1):
+        L, m = link.beam.length, link.beam.mass
+        joint = ET.SubElement(robot, "joint", name=f"joint{i}", type="revolute")
+        _origin(joint, x)
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=f"link{i}")
+        ET.SubElement(joint, "axis", xyz="0 0 1")
+        ET.SubElement(joint, "limit", lower="-" + _WIDE, upper=_WIDE, effort=_WIDE, velocity=_WIDE)
+        _link(robot, f"link{i}", m, L / 2, m * L * L / 12, m * L * L / 12)
+        if link.hub is not None:
+            _fixed(robot, f"hub{i}_joint", f"link{i}", f"hub{i}")
+            _link(robot, f"hub{i}", link.hub.mass, izz=link.hub.inertia)
+        if link.payload is not None:
+            _fixed(robot, f"payload{i}_joint", f"link{i}", f"payload{i}", L)
+            _link(robot, f"payload{i}", link.payload.mass, izz=link.payload.inertia)
+        _fixed(robot, f"link{i}_tip_joint", f"link{i}", f"link{i}_tip", L)
+        _link(robot, f"link{i}_tip")
+        parent, x = f"link{i}", L
+    _fixed(robot, "tip_joint", parent, "tip", x)
+    _link(robot, "tip")
+    ET.indent(robot)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def main(argv=None) -> int:
+    """``dttmm urdf CASE [--out FILE]``: print (or write) the rigid arm of a case as URDF."""
+    p = argparse.ArgumentParser(prog="dttmm urdf", description="Print the rigid arm of a case as URDF "
+                                "(gravity is noted in a comment: URDF has no field for it).")
+    p.add_argument("case", help="case TOML file")
+    p.add_argument("--out", metavar="FILE", help="write to FILE instead of standard output")
+    a = p.parse_args(argv)
+    try:
+        text = case_to_urdf(load_case(a.case))
+    except (InputError, OSError) as exc:
+        print(f"dttmm urdf: {exc}", file=sys.stderr)
+        return 2
+    if a.out:
+        Path(a.out).write_text(text)
+    else:
+        sys.stdout.write(text)
+    return 0

@@ -1,0 +1,255 @@
+"""Exudyn flexible reference models (ANCF cable, geometrically exact beam).
+
+Fast tier: rigid limits against closed forms, cantilever statics, input and failure handling,
+consistency of a short 3-link run. Slow tier (-m slow): ANCF vs GE on the 3-link case, k-convergence,
+the Kane-Ryan-Banerjee spin-up.
+"""
+import dataclasses
+import math
+import os
+
+import numpy as np
+import pytest
+
+pytest.importorskip("exudyn")
+
+import dttmm  # noqa: E402
+from dttmm import (BangBang, Case, Constant, Drive, Hub, InputError, Link, Manipulator,  # noqa: E402
+                   Payload, Scenario, Section, SimulationError, Sine, SpinUp)
+from reference_models import exudyn_ancf, exudyn_beam  # noqa: E402
+
+CASES = os.path.join(os.path.dirname(__file__), "..", "experiments", "cases")
+METHODS = [pytest.param(exudyn_ancf, id="ancf"), pytest.param(exudyn_beam, id="beam")]
+
+# aluminium strip 50 mm x 2 mm
+EI_AL, RHOA_AL, EA_AL = 2.3333333333333335, 0.27, 7.0e6
+
+
+def _extra_rotary_inertia(res, length):
+    """Rotary inertia the element adds about the joint beyond ρA·L³/3 (GE beam: ρI·L)."""
+    return res.meta.get("cross_section_inertia", 0.0) * length
+
+
+def _single(EI, *, EA=EA_AL, hub=Hub(0.0, 0.01), payload=None, drive, duration, output_step=1e-3,
+            gravity=(0.0, 0.0), damping=0.0, L=1.0):
+    link = Link(Section(L, EI, RHOA_AL, EA, damping), hub, payload)
+    return Case(Manipulator((link,), gravity), Scenario(duration, output_step, (drive,)))
+
+
+# --------------------------------------------------------------------------------------------
+# rigid limits and statics (closed forms)
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("EA", [EA_AL, None], ids=["extensible", "inextensible"])
+@pytest.mark.parametrize("mod", METHODS)
+def test_rigid_limit_bang_bang_hub_angle(mod, EA):
+    """EI x 1e5: the hub follows the rigid rotor J = J_hub + ρA L³/3 under ±1 N·m bang-bang."""
+    case = _single(EI_AL * 1e5, EA=EA, drive=Drive("torque", BangBang((1.0, -1.0), (0.5,))), duration=1.0)
+    res = mod.simulate(case, elements_per_link=2, h=1e-3)
+    J = 0.01 + RHOA_AL / 3.0 + _extra_rotary_inertia(res, 1.0)
+    t = res.t
+    angle = np.where(t <= 0.5, 0.5 * t**2 / J, 0.125 / J + 0.5 * (t - 0.5) / J - 0.5 * (t - 0.5) ** 2 / J)
+    rate = np.where(t <= 0.5, t / J, (0.5 - (t - 0.5)) / J)
+    assert res.meta["success"] and res.meta["restarts"] == [0.5]
+    assert res.n_steps == 1000 and np.allclose(res.t, case.scenario.output_times)
+    assert np.max(np.abs(res.joint_angle[:, 0] - angle)) < 1e-4        # of 2.5 rad swept
+    late = t >= 0.9                                                     # after the switch transient
+    assert np.max(np.abs(res.joint_rate[late, 0] - rate[late])) < 1e-3  # of 5 rad/s peak
+    assert np.max(np.abs(res.tip_deflection)) < 1e-4
+    if EA is None:
+        assert res.meta["axial_stiffness"] == [pytest.approx(1e6 * EI_AL * 1e5)]
+
+
+@pytest.mark.parametrize("mod", METHODS)
+def test_motion_joint_torque_is_rigid_inverse_dynamics(mod):
+    """Prescribed smooth spin-up of a stiff link with payload: τ = J_total·α̈ (sign and size)."""
+    law = SpinUp(3.0, 0.5)
+    case = _single(EI_AL * 1e5, payload=Payload(0.1, 0.001), drive=Drive("motion", law), duration=0.5)
+    res = mod.simulate(case, elements_per_link=2, h=1e-3)
+    J = 0.01 + RHOA_AL / 3.0 + 0.1 * 1.0**2 + 0.001 + _extra_rotary_inertia(res, 1.0)
+    ang, rate, acc = np.array([law.motion(t) for t in res.t]).T
+    tau = J * acc                                     # peak 2.41 N·m at t = 0.25 s
+    assert np.max(np.abs(res.joint_torque[:, 0] - tau)) < 1e-3 * np.max(np.abs(tau))
+    assert np.max(np.abs(res.joint_angle[:, 0] - ang)) < 1e-9
+    assert np.max(np.abs(res.joint_rate[:, 0] - rate)) < 1e-4
+
+
+@pytest.mark.parametrize("mod,k", [pytest.param(exudyn_ancf, 4, id="ancf"),
+                                   pytest.param(exudyn_beam, 16, id="beam")])
+def test_held_cantilever_under_gravity(mod, k):
+    """Joint held at 0 by a motion drive, gravity, damping: static tip deflection ρA g L⁴/(8EI)
+    and holding torque ρA g L²/2 once the vibration has decayed."""
+    EI, g = EI_AL * 100.0, 9.81
+    case = _single(EI, hub=None, drive=Drive("motion", Constant(0.0)), duration=0.4, output_step=1e-2,
+                   gravity=(0.0, -g), damping=0.01)
+    res = mod.simulate(case, elements_per_link=k, h=1e-3)
+    w_static = RHOA_AL * g / (8 * EI)                  # 1.42e-3 m, small: linear theory holds
+    assert res.tip_deflection[-1, 0] == pytest.approx(-w_static, rel=1e-2)
+    assert res.joint_torque[-1, 0] == pytest.approx(RHOA_AL * g / 2, rel=1e-3)
+
+
+@pytest.mark.parametrize("mod", METHODS)
+def test_damping_removes_residual_vibration(mod):
+    """Kelvin-Voigt damping μ = 0.01 s: the vibration left after a torque pulse decays."""
+    drive = Drive("torque", BangBang((1.0, 0.0), (0.1,)))
+    amp = []
+    for mu in (0.0, 0.01):
+        case = _single(EI_AL, drive=drive, duration=0.6, output_step=1e-2, damping=mu)
+        res = mod.simulate(case, elements_per_link=2, h=1e-3)
+        late = res.t >= 0.4
+        v = res.tip_deflection[late, 0]
+        amp.append(np.max(np.abs(v - v.mean())))
+    assert amp[0] > 1e-3                 # undamped: the pulse leaves a visible vibration
+    assert amp[1] < 0.2 * amp[0]
+
+
+# --------------------------------------------------------------------------------------------
+# multi-link consistency, initial state, output grid
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("mod", METHODS)
+def test_three_link_short_run_is_consistent(mod, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    case = dttmm.load_case(os.path.join(CASES, "three_link.toml"))
+    case = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, duration=0.1))
+    res = mod.simulate(case, elements_per_link=2, h=1e-3)
+    assert list(tmp_path.iterdir()) == []                      # nothing written
+    assert res.t.shape == (101,) and np.allclose(res.t, case.scenario.output_times)
+    for name in ("joint_angle", "joint_rate", "joint_torque", "tip_deflection"):
+        arr = getattr(res, name)
+        assert arr.shape == (101, 3) and np.isfinite(arr).all(), name
+    assert np.max(np.abs(res.link_root[:, 0])) < 1e-12         # joint 1 at the origin
+    assert np.max(np.abs(res.link_root[:, 1:] - res.link_tip[:, :-1])) < 1e-9
+    assert np.array_equal(res.end_effector, res.link_tip[:, -1])
+    law_tau = np.array([[d.torque(t, t > 0) for d in case.scenario.drives] for t in res.t])
+    assert np.array_equal(res.joint_torque, law_tau)
+    # straight, horizontal reference configuration at rest
+    assert np.allclose(res.link_tip[0], [[0.5, 0.0], [1.0, 0.0], [1.5, 0.0]], atol=1e-12)
+    assert np.allclose(res.joint_angle[0], 0.0, atol=1e-12) and np.allclose(res.joint_rate[0], 0.0, atol=1e-12)
+    # gravity pulls the arm down
+    assert res.end_effector[-1, 1] < 0.0
+    m = res.meta
+    assert m["method"] == mod.METHOD and m["success"] and m["steps"] == m["steps_taken"] == 100
+    assert m["elements_per_link"] == 2 and m["h"] == 1e-3 and m["rho_inf"] == 0.8
+    assert m["newton_iterations"] > 0 and m["ode2_size"] > 0 and m["exudyn"]
+
+
+@pytest.mark.parametrize("mod", METHODS)
+def test_initial_angles_and_rates_are_a_rigid_motion(mod):
+    """Initial joint angles set the straight reference configuration; initial joint rates give
+    every node the velocity of the rigidly rotating chain (else the stiff links would ring)."""
+    links = (Link(Section(0.5, EI_AL * 1e4, RHOA_AL, EA_AL), Hub(0.0, 0.01)),
+             Link(Section(0.5, EI_AL * 1e4, RHOA_AL, EA_AL), Hub(0.1, 0.005), Payload(0.1, 0.0)))
+    drives = (Drive("torque", Constant(0.0), initial_angle=0.3, initial_rate=1.0),
+              Drive("torque", Constant(0.0), initial_angle=-0.5, initial_rate=2.0))
+    case = Case(Manipulator(links), Scenario(0.05, 1e-3, drives))
+    res = mod.simulate(case, elements_per_link=2, h=1e-3)
+    p1 = 0.5 * np.array([math.cos(0.3), math.sin(0.3)])
+    p2 = p1 + 0.5 * np.array([math.cos(-0.2), math.sin(-0.2)])
+    assert np.allclose(res.link_tip[0], [p1, p2], atol=1e-12)
+    assert np.allclose(res.joint_angle[0], [0.3, -0.5], atol=1e-12)
+    assert np.allclose(res.joint_rate[0], [1.0, 2.0], atol=1e-9)
+    assert np.max(np.abs(res.tip_deflection)) < 1e-5    # a non-rigid start would ring at ~mm
+
+
+@pytest.mark.parametrize("mod", METHODS)
+def test_switch_off_the_output_grid_restarts_there(mod):
+    """A switch at 10.5 ms (on the 0.5 ms step grid, off the 1 ms output grid): the integrator
+    restarts there and the output rows are the same whatever the output step."""
+    drive = Drive("torque", BangBang((1.0, -1.0), (0.0105,)))
+    coarse = _single(EI_AL, drive=drive, duration=0.02, output_step=1e-3)
+    fine = _single(EI_AL, drive=drive, duration=0.02, output_step=5e-4)
+    a = mod.simulate(coarse, elements_per_link=2, h=5e-4)
+    b = mod.simulate(fine, elements_per_link=2, h=5e-4)
+    assert a.meta["restarts"] == [0.0105] and a.n_steps == 40
+    assert np.allclose(a.t, coarse.scenario.output_times)
+    assert np.array_equal(a.joint_angle, b.joint_angle[::2])
+    assert np.array_equal(a.tip_deflection, b.tip_deflection[::2])
+
+
+# --------------------------------------------------------------------------------------------
+# bad input and failures
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("kw,field", [
+    (dict(elements_per_link=0, h=1e-3), "elements_per_link"),
+    (dict(elements_per_link=1.5, h=1e-3), "elements_per_link"),
+    (dict(elements_per_link=True, h=1e-3), "elements_per_link"),
+    (dict(elements_per_link=2, h=0.0), "h"),
+    (dict(elements_per_link=2, h=-1e-3), "h"),
+    (dict(elements_per_link=2, h=float("nan")), "h"),
+    (dict(elements_per_link=2, h=0.5), "h"),          # longer than the duration
+    (dict(elements_per_link=2, h=3e-4), "h"),         # does not divide the output step
+    (dict(elements_per_link=2, h=1e-3, rho_inf=1.5), "rho_inf"),
+    (dict(elements_per_link=2, h=1e-3, newton_abs_tol=-1.0), "newton_abs_tol"),
+    (dict(elements_per_link=2, h=1e-3, newton_max_iterations=0), "newton_max_iterations"),
+])
+@pytest.mark.parametrize("mod", METHODS)
+def test_bad_input_is_refused(mod, kw, field):
+    case = _single(EI_AL, drive=Drive("torque", Constant(1.0)), duration=0.1)
+    with pytest.raises(InputError) as exc:
+        mod.simulate(case, **kw)
+    assert exc.value.field == field and field in str(exc.value)
+
+
+def test_beam_options_are_checked():
+    case = _single(EI_AL, drive=Drive("torque", Constant(1.0)), duration=0.1)
+    for name in ("shear_ratio", "cross_section_inertia"):
+        with pytest.raises(InputError, match=name):
+            exudyn_beam.simulate(case, elements_per_link=2, h=1e-3, **{name: 0.0})
+
+
+@pytest.mark.parametrize("kw", [dict(newton_max_iterations=1),
+                                dict(newton_abs_tol=1e-16, newton_rel_tol=1e-16)],
+                         ids=["max_iterations", "tolerance"])
+@pytest.mark.parametrize("mod", METHODS)
+def test_newton_failure_raises(mod, kw):
+    case = _single(EI_AL, drive=Drive("torque", Sine(1.0, 1.0)), duration=0.05)
+    with pytest.raises(SimulationError) as exc:
+        mod.simulate(case, elements_per_link=4, h=1e-3, **kw)
+    err = exc.value
+    assert err.component == "newton" and 0.0 < err.t <= 0.05 and err.step >= 0
+    assert "Exudyn" in str(err)
+    if err.partial is not None:
+        assert err.partial.meta["success"] is False and err.partial.t[-1] < err.t
+
+
+# --------------------------------------------------------------------------------------------
+# slow tier: cross-checks on the suite's cases
+# --------------------------------------------------------------------------------------------
+def _rms(a, b):
+    return np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2, axis=0))
+
+
+@pytest.fixture(scope="module")
+def three_link_runs():
+    case = dttmm.load_case(os.path.join(CASES, "three_link.toml"))
+    runs = {}
+    for mod in (exudyn_ancf, exudyn_beam):
+        for k in (8, 16, 32, 64):
+            runs[mod.METHOD, k] = mod.simulate(case, elements_per_link=k, h=1e-3)
+    return runs
+
+
+@pytest.mark.slow
+def test_three_link_ancf_and_beam_agree(three_link_runs):
+    a = three_link_runs["exudyn-ancf", 32]
+    b = three_link_runs["exudyn-beam", 32]
+    assert np.all(_rms(a.tip_deflection, b.tip_deflection) <= 1e-4)
+    assert np.max(np.abs(a.joint_angle - b.joint_angle)) < 1e-3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["exudyn-ancf", "exudyn-beam"])
+def test_three_link_converges_in_k(three_link_runs, method):
+    ref = three_link_runs[method, 64]
+    err = [np.max(_rms(three_link_runs[method, k].tip_deflection, ref.tip_deflection)) for k in (8, 16, 32)]
+    assert err[0] > err[1] > err[2]
+    assert err[2] < 1e-4
+
+
+@pytest.mark.slow
+def test_spin_up_ancf_is_bounded_with_the_known_peak():
+    """Kane-Ryan-Banerjee spin-up: peak |v| ≈ 0.400 m during spin-up, small and bounded after."""
+    case = dttmm.load_case(os.path.join(CASES, "spin_up.toml"))
+    res = exudyn_ancf.simulate(case, elements_per_link=8, h=5e-3)
+    v = res.tip_deflection[:, 0]
+    assert np.max(np.abs(v)) == pytest.approx(0.400, abs=2e-3)
+    assert np.max(np.abs(v[res.t > 15.0])) < 1e-2
