@@ -198,7 +198,13 @@ class Table:
         object.__setattr__(self, "values", vs)
 
     def __call__(self, t: float, left: bool = False) -> float:
-        return float(np.interp(t, self.times, self.values))
+        ts, vs = self.times, self.values
+        if t <= ts[0]:
+            return vs[0]
+        if t >= ts[-1]:
+            return vs[-1]
+        i = bisect.bisect_right(ts, t) - 1
+        return vs[i] + (vs[i + 1] - vs[i]) * (t - ts[i]) / (ts[i + 1] - ts[i])
 
     def motion(self, t: float, left: bool = False):
         if self._spline is None:
@@ -263,6 +269,9 @@ class Drive:
         _check_kind(self.law, self.kind, w)
         object.__setattr__(self, "initial_angle", finite(f"{w}.initial_angle", self.initial_angle))
         object.__setattr__(self, "initial_rate", finite(f"{w}.initial_rate", self.initial_rate))
+        if self.kind == "motion" and self.law.name == "sine" and math.isfinite(self.law.until):
+            raise InputError(f"{w}.until", self.law.until,
+                             "a motion drive cannot stop a sine abruptly (the angle or rate would jump)")
         if self.kind == "motion":
             a0, r0, _ = self.law.motion(0.0)
             for nm, given, lawv in (("initial_angle", self.initial_angle, a0),

@@ -1,0 +1,400 @@
+"""Rigid-link baseline by Pinocchio: the limit of infinitely stiff links.
+
+Every link is a uniform rigid rod (mass ρA·L, inertia mL²/12 about its centre); a hub is a
+rigid body at the link root (mass at the joint, inertia J about it), a payload one at the link
+tip. Joint i is revolute about z at the tip of link i−1 (joint 1 at the origin); q is the
+vector of joint angles (CCW). Gravity is ``model.gravity`` in the x–y plane.
+
+Torque-driven joints follow forward dynamics with τ = drive.torque(t); motion-driven joints
+follow their law and their torque comes from inverse dynamics (RNEA). With both kinds the free
+accelerations solve M_ff q̈_f = τ_f − b_f − M_fp q̈_p.
+
+Integrators: ``"rk4"`` and ``"newmark"`` (β = ¼, γ = ½, Newton on the joint-space equations)
+on the shared step schedule (a step ends exactly at each drive jump; the step ending there
+sees the left limit), and ``"dop853"`` (scipy's adaptive solver, restarted at every jump).
+
+Pinocchio is imported here only; ``dttmm`` itself never needs it.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pinocchio as pin
+from scipy.integrate import solve_ivp
+
+from dttmm.errors import InputError, SimulationError
+from dttmm.result import make_result
+from dttmm.timegrid import step_schedule, versions
+
+__all__ = ["INTEGRATORS", "build_model", "simulate"]
+
+#: integrator name -> its options and their defaults
+INTEGRATORS = {
+    "rk4": {},
+    "newmark": {"beta": 0.25, "gamma": 0.5, "tol": 1e-12, "max_iter": 25},
+    "dop853": {"rtol": 1e-12, "atol": 1e-12, "max_step": math.inf},
+}
+
+
+def build_model(manipulator) -> pin.Model:
+    """The rigid arm as a Pinocchio model with gravity set (joint ids 1..n, ``JointModelRZ``).
+
+    Frames ``link{i}_tip`` (i = 1..n) mark the link tips, ``tip`` the end-effector.
+    """
+    model = pin.Model()
+    parent, placement = 0, pin.SE3.Identity()
+    for i, link in enumerate(manipulator.links, start=1):
+        L, m = link.beam.length, link.beam.mass
+        jid = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i}")
+        rod = pin.Inertia(m, np.array([L / 2, 0.0, 0.0]), np.diag([0.0, m * L * L / 12, m * L * L / 12]))
+        model.appendBodyToJoint(jid, rod, pin.SE3.Identity())
+        if link.hub is not None:
+            hub = pin.Inertia(link.hub.mass, np.zeros(3), np.diag([0.0, 0.0, link.hub.inertia]))
+            model.appendBodyToJoint(jid, hub, pin.SE3.Identity())
+        tip = pin.SE3(np.eye(3), np.array([L, 0.0, 0.0]))
+        if link.payload is not None:
+            pay = pin.Inertia(link.payload.mass, np.zeros(3), np.diag([0.0, 0.0, link.payload.inertia]))
+            model.appendBodyToJoint(jid, pay, tip)
+        model.addJointFrame(jid)
+        # pure marker frames: append_inertia=False leaves the body untouched
+        model.addFrame(pin.Frame(f"link{i}_tip", jid, tip, pin.FrameType.OP_FRAME), False)
+        parent, placement = jid, tip
+    model.addFrame(pin.Frame("tip", parent, placement, pin.FrameType.OP_FRAME), False)
+    gx, gy = manipulator.gravity
+    model.gravity.linear = np.array([gx, gy, 0.0])  # Pinocchio's default is −z: no effect in the plane
+    return model
+
+
+class _Arm:
+    """Model, scratch data and the drive partition (free = torque joints, p = motion joints)."""
+
+    def __init__(self, case):
+        self.model = build_model(case.model)
+        self.data = self.model.createData()
+        self.drives = case.scenario.drives
+        self.n = len(self.drives)
+        self.f = np.array([i for i, d in enumerate(self.drives) if d.kind == "torque"], int)
+        self.p = np.array([i for i, d in enumerate(self.drives) if d.kind == "motion"], int)
+        self.free_drives = [self.drives[i] for i in self.f]
+        self.motion_drives = [self.drives[i] for i in self.p]
+        self.all_free = self.p.size == 0
+        self.ff = slice(None) if self.all_free else np.ix_(self.f, self.f)
+        # some Pinocchio versions fill only the upper triangle of M; test once, mirror if so
+        M = pin.crba(self.model, self.data, np.linspace(0.3, 1.1, self.n))
+        self.mirror = not np.array_equal(M, M.T)
+
+    def _sym(self, M):
+        return np.triu(M) + np.triu(M, 1).T if self.mirror else M
+
+    def tau_f(self, t, left=False):
+        return np.array([d.torque(t, left) for d in self.free_drives])
+
+    def prescribed(self, t, left=False):
+        """(α, α̇, α̈) of the motion joints at t, each (n_p,)."""
+        m = np.array([d.motion(t, left) for d in self.motion_drives]).reshape(-1, 3)
+        return m[:, 0], m[:, 1], m[:, 2]
+
+    def full(self, t, left, qf, vf, af=None):
+        """Full (q, v, a) from the free part and the motion laws."""
+        if self.all_free:
+            return qf, vf, af
+        q, v, a = np.empty(self.n), np.empty(self.n), np.empty(self.n)
+        q[self.p], v[self.p], a[self.p] = self.prescribed(t, left)
+        q[self.f], v[self.f] = qf, vf
+        a[self.f] = 0.0 if af is None else af
+        return q, v, a
+
+    def acc(self, t, left, qf, vf):
+        """Free accelerations q̈_f at t (left limit of the laws when ``left``)."""
+        if self.all_free:
+            return pin.aba(self.model, self.data, qf, vf, self.tau_f(t, left))
+        q, v, a = self.full(t, left, qf, vf)
+        if self.f.size == 0:
+            return np.zeros(0)
+        b = pin.rnea(self.model, self.data, q, v, a)  # = b + M[:, p] q̈_p with q̈_f = 0
+        M = self._sym(pin.crba(self.model, self.data, q))
+        return np.linalg.solve(M[self.ff], self.tau_f(t, left) - b[self.f])
+
+    def newmark_residual(self, t, tau_f, qf, vf, af, c_q, c_v):
+        """Residual τ(q, v, q̈)_f − τ_f at t (motion laws: left limit) and its Jacobian in q̈_f
+        for q_f = q_pred + c_q q̈_f, v_f = v_pred + c_v q̈_f."""
+        q, v, a = self.full(t, True, qf, vf, af)
+        tau = pin.rnea(self.model, self.data, q, v, a)
+        dq, dv, M = pin.computeRNEADerivatives(self.model, self.data, q, v, a)
+        M = self._sym(M)
+        if self.all_free:
+            return tau - tau_f, M + c_q * dq + c_v * dv
+        ff = self.ff
+        return tau[self.f] - tau_f, M[ff] + c_q * dq[ff] + c_v * dv[ff]
+
+
+def _check_options(integrator, options):
+    if integrator not in INTEGRATORS:
+        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
+    known = INTEGRATORS[integrator]
+    for key in options:
+        if key not in known:
+            raise InputError(key, options[key], f"is not an option of integrator {integrator!r} "
+                                                f"(options: {', '.join(known) or 'none'})")
+    opts = {**known, **options}
+    for key, val in opts.items():
+        try:
+            x = float(val)
+        except (TypeError, ValueError):
+            raise InputError(key, val, "must be a number") from None
+        if not x > 0:
+            raise InputError(key, val, "must be positive")
+    if integrator == "newmark":
+        opts["max_iter"] = int(opts["max_iter"])
+    return opts
+
+
+def _nonfinite(step, t, qf, vf, arm):
+    """stats["fail"] entry (message, step, t, component) for a non-finite state."""
+    bad = np.flatnonzero(~np.isfinite(np.concatenate([qf, vf])))
+    i = int(bad[0]) if bad.size else 0
+    what = "angle" if i < qf.size else "rate"
+    return "non-finite state", step, t, f"joint {int(arm.f[i % qf.size]) + 1} {what}"
+
+
+# -- fixed-step integrators: each returns node arrays (T, Q, V, A_right, A_left) -------------
+
+def _rk4(arm, q, v, T, restart, opts, stats):
+    N = T.size - 1
+    Q, V = np.empty((N + 1, q.size)), np.empty((N + 1, q.size))
+    Ar, Al = np.empty_like(Q), np.empty_like(Q)
+    jump = np.zeros(N + 1, bool)  # nodes where the left-limit acceleration differs
+    Q[0], V[0] = q, v
+    acc = arm.acc
+    for k in range(N):
+        t0, t1 = T[k], T[k + 1]
+        dt = t1 - t0
+        tm = t0 + 0.5 * dt
+        a1 = acc(t0, False, q, v)
+        q2, v2 = q + 0.5 * dt * v, v + 0.5 * dt * a1
+        a2 = acc(tm, False, q2, v2)
+        q3, v3 = q + 0.5 * dt * v2, v + 0.5 * dt * a2
+        a3 = acc(tm, False, q3, v3)
+        q4, v4 = q + dt * v3, v + dt * a3
+        a4 = acc(t1, True, q4, v4)  # left limit: a jump at t1 belongs to the next step
+        q = q + (dt / 6) * (v + 2 * v2 + 2 * v3 + v4)
+        v = v + (dt / 6) * (a1 + 2 * a2 + 2 * a3 + a4)
+        Ar[k] = a1
+        Q[k + 1], V[k + 1] = q, v
+        if not math.isfinite(float(q.sum() + v.sum())):
+            stats["fail"] = _nonfinite(k, t1, q, v, arm)
+            N = k
+            break
+        if restart[k] or k == N - 1:
+            Al[k + 1] = acc(t1, True, q, v)
+            jump[k + 1] = True
+    if "fail" not in stats:
+        Ar[N] = Al[N]  # no step starts at the last node
+    Al[~jump] = Ar[~jump]
+    return T[:N + 1], Q[:N + 1], V[:N + 1], Ar[:N + 1], Al[:N + 1]
+
+
+def _newmark(arm, q, v, T, restart, opts, stats):
+    beta, gamma, tol, max_iter = opts["beta"], opts["gamma"], opts["tol"], opts["max_iter"]
+    N = T.size - 1
+    Q, V = np.empty((N + 1, q.size)), np.empty((N + 1, q.size))
+    Ar, Al = np.empty_like(Q), np.empty_like(Q)
+    Q[0], V[0] = q, v
+    a = arm.acc(T[0], False, q, v)
+    Al[0] = a
+    iters = 0
+    for k in range(N):
+        t1 = T[k + 1]
+        dt = t1 - T[k]
+        Ar[k] = a
+        qp = q + dt * v + dt * dt * (0.5 - beta) * a
+        vp = v + dt * (1 - gamma) * a
+        cq, cv = beta * dt * dt, gamma * dt
+        an = a.copy()
+        tau1 = arm.tau_f(t1, True)
+        for it in range(1, max_iter + 1):
+            r, J = arm.newmark_residual(t1, tau1, qp + cq * an, vp + cv * an, an, cq, cv)
+            da = np.linalg.solve(J, -r)
+            an = an + da
+            if not math.isfinite(float(an.sum())):
+                break
+            if np.abs(da).max() <= tol * (1.0 + np.abs(an).max()):
+                break
+        else:
+            stats["fail"] = (f"Newmark Newton iteration did not converge in {max_iter} iterations "
+                             f"(last correction {np.abs(da).max():.3g} rad/s²)", k, t1,
+                             "joint accelerations")
+        iters += it
+        q, v = qp + cq * an, vp + cv * an
+        Q[k + 1], V[k + 1], Al[k + 1] = q, v, an
+        if "fail" not in stats and not math.isfinite(float(q.sum() + v.sum() + an.sum())):
+            stats["fail"] = _nonfinite(k, t1, q, v, arm)
+        if "fail" in stats:
+            stats["iterations_mean"] = iters / (k + 1)
+            return T[:k + 1], Q[:k + 1], V[:k + 1], Ar[:k + 1], Al[:k + 1]
+        # after a drive jump restart from the right-limit acceleration
+        a = arm.acc(t1, False, q, v) if restart[k] else an
+    Ar[N] = a
+    stats["iterations_mean"] = iters / max(N, 1)
+    return T, Q, V, Ar, Al
+
+
+def _hermite(T, Q, V, Ar, Al, t, h):
+    """States at times t from the step nodes: node values where t hits a node, otherwise
+    cubic Hermite on (q, q̇) and on (q̇, q̈) with the one-sided accelerations of the step."""
+    k = np.clip(np.searchsorted(T, t, side="right") - 1, 0, T.size - 2)
+    dt = T[k + 1] - T[k]
+    s = ((t - T[k]) / dt)[:, None]
+    d = dt[:, None]
+    h00, h10, h01, h11 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2, s * s * (3 - 2 * s), s * s * (s - 1)
+    q = h00 * Q[k] + h10 * d * V[k] + h01 * Q[k + 1] + h11 * d * V[k + 1]
+    v = h00 * V[k] + h10 * d * Ar[k] + h01 * V[k + 1] + h11 * d * Al[k + 1]
+    j = np.clip(np.searchsorted(T, t), 0, T.size - 1)
+    for jj in (j, np.maximum(j - 1, 0)):
+        hit = np.abs(T[jj] - t) <= 1e-9 * h
+        q[hit], v[hit] = Q[jj[hit]], V[jj[hit]]
+    return q, v
+
+
+def _dop853(arm, q, v, T_out, duration, h, breakpoints, opts, stats):
+    nf = q.size
+    edges = [0.0, *breakpoints, duration]
+    Qo, Vo = np.full((T_out.size, nf), np.nan), np.full((T_out.size, nf), np.nan)
+    y = np.concatenate([q, v])
+    steps = nfev = 0
+    done = np.zeros(T_out.size, bool)
+    for a, b in zip(edges[:-1], edges[1:]):
+        def fun(t, y, b=b):
+            return np.concatenate([y[nf:], arm.acc(t, t >= b, y[:nf], y[nf:])])
+
+        sol = solve_ivp(fun, (a, b), y, method="DOP853", rtol=opts["rtol"], atol=opts["atol"],
+                        max_step=opts["max_step"], first_step=min(h, b - a), dense_output=True)
+        steps += sol.t.size - 1
+        nfev += sol.nfev
+        ok = sol.status == 0 and np.all(np.isfinite(sol.y[:, -1]))
+        good_t = np.flatnonzero(np.isfinite(sol.y).all(axis=0))  # accepted steps before a failure
+        end = b if ok else (float(sol.t[good_t[-1]]) if good_t.size else a)
+        sel = (~done) & (T_out >= a - 1e-12 * duration) & (T_out <= end + 1e-12 * duration)
+        if sel.any() and sol.sol is not None:
+            ys = sol.sol(np.clip(T_out[sel], a, b))
+            Qo[sel], Vo[sel] = ys[:nf].T, ys[nf:].T
+            done |= sel
+        if not ok:
+            stats["fail"] = (f"solve_ivp failed: {sol.message}", steps, float(sol.t[-1]), "state")
+            break
+        y = sol.y[:, -1]
+    stats["nfev"], stats["steps"] = nfev, steps
+    return Qo, Vo, done
+
+
+def _outputs(arm, t, qf, vf):
+    """Everything the Result holds at the output times t (nt,), from the free states."""
+    model, data = arm.model, arm.data
+    n, nt = arm.n, t.size
+    q, v, tau = np.empty((nt, n)), np.empty((nt, n)), np.empty((nt, n))
+    root, tip = np.empty((nt, n, 2)), np.empty((nt, n, 2))
+    energy = np.empty(nt)
+    tips = [model.getFrameId(f"link{i}_tip") for i in range(1, n + 1)]
+    for s in range(nt):
+        qs, vs, as_ = arm.full(t[s], False, qf[s], vf[s])
+        q[s], v[s] = qs, vs
+        if arm.p.size:
+            a = as_.copy()
+            a[arm.f] = arm.acc(t[s], False, qf[s], vf[s])
+            tau[s] = pin.rnea(model, data, qs, vs, a)
+        if arm.f.size:  # the applied torques exactly (RNEA returns them up to round-off)
+            tau[s, arm.f] = arm.tau_f(t[s])
+        energy[s] = pin.computeMechanicalEnergy(model, data, qs, vs)  # also runs forward kinematics
+        pin.updateFramePlacements(model, data)
+        for i in range(n):
+            root[s, i] = data.oMi[i + 1].translation[:2]
+            tip[s, i] = data.oMf[tips[i]].translation[:2]
+    return q, v, tau, root, tip, energy
+
+
+def _integrate(arm, scen, h, T_end, restart, integrator, opts, stats):
+    """Run the integrator; return output times reached, free states there, steps, wall time."""
+    t_out = scen.output_times
+    qf0 = np.array([arm.drives[i].initial_angle for i in arm.f], float)
+    vf0 = np.array([arm.drives[i].initial_rate for i in arm.f], float)
+    nothing = arm.f.size == 0  # everything prescribed: nothing to integrate
+    t0 = time.perf_counter()
+    if integrator == "dop853":
+        if nothing:
+            stats["steps"] = stats["nfev"] = 0
+            z = np.zeros((t_out.size, 0))
+            return t_out, z, z, 0, time.perf_counter() - t0
+        qf, vf, good = _dop853(arm, qf0, vf0, t_out, scen.duration, float(h), scen.breakpoints,
+                               opts, stats)
+        wall = time.perf_counter() - t0
+        return t_out[good], qf[good], vf[good], stats["steps"], wall
+    T = np.concatenate([[0.0], T_end])
+    if nothing:
+        z = np.zeros((T.size, 0))
+        nodes = (T, z, z, z, z)
+    else:
+        nodes = (_rk4 if integrator == "rk4" else _newmark)(arm, qf0, vf0, T, restart, opts, stats)
+    wall = time.perf_counter() - t0
+    n_steps = nodes[0].size - 1
+    tg = t_out[t_out <= nodes[0][-1] + 1e-9 * h]
+    if n_steps == 0:  # failed in the first step
+        return tg, nodes[1][:1], nodes[2][:1], 0, wall
+    qf, vf = _hermite(*nodes, tg, float(h))
+    return tg, qf, vf, n_steps, wall
+
+
+def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
+    """Simulate a case with rigid links.
+
+    Parameters
+    ----------
+    case : dttmm.Case
+    h : float
+        Step size (s). For ``"dop853"`` the first trial step of each restart (the step size
+        is adaptive; limit it with the option ``max_step``).
+    integrator : ``"rk4"`` | ``"newmark"`` | ``"dop853"``
+    elements_per_link : ignored (rigid links); accepted for the common call.
+    **options
+        newmark: beta (¼), gamma (½), tol (1e-12, relative Newton correction), max_iter (25);
+        dop853: rtol (1e-12), atol (1e-12), max_step (inf).
+
+    Returns
+    -------
+    dttmm.Result on ``case.scenario.output_times``; tip deflections are exactly 0, ``energy``
+    is kinetic + gravitational potential (zero at y = 0). ``wall_time`` covers the time
+    stepping only.
+
+    Raises
+    ------
+    dttmm.InputError
+        h ≤ 0 or h > duration, unknown integrator or option.
+    dttmm.SimulationError
+        non-finite state or failed Newton iteration; ``partial`` holds the output samples
+        up to the last good step.
+    """
+    scen = case.scenario
+    opts = _check_options(integrator, options)
+    T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
+    arm = _Arm(case)
+    stats = {}
+    meta = {"method": "pinocchio-rigid", "h": float(h), "integrator": integrator,
+            "elements_per_link": None, "versions": {**versions(), "pinocchio": pin.__version__},
+            **opts}
+
+    with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
+        tg, qf, vf, n_steps, wall = _integrate(arm, scen, h, T_end, restart, integrator, opts, stats)
+    for key in ("nfev", "iterations_mean"):
+        if key in stats:
+            meta[key] = stats[key]
+    meta["success"] = "fail" not in stats
+    meta["n_steps"] = int(n_steps)
+    q, v, tau, root, tip, energy = _outputs(arm, tg, qf, vf)
+    res = make_result(t=tg, joint_angle=q, joint_rate=v, joint_torque=tau, link_root=root,
+                      link_root_angle=np.cumsum(q, axis=1), link_tip=tip, wall_time=wall,
+                      n_steps=n_steps, meta=meta, energy=energy)
+    if "fail" in stats:
+        msg, k, tf, comp = stats["fail"]
+        raise SimulationError(msg, t=tf, step=k, component=comp, partial=res)
+    return res
