@@ -85,6 +85,30 @@ def test_motion_joint_torque_is_rigid_inverse_dynamics(mod):
     assert np.max(np.abs(res.joint_rate[:, 0] - rate)) < 1e-4
 
 
+@pytest.mark.parametrize("mod", METHODS)
+def test_two_link_motor_reaction_and_held_joint_torque(mod):
+    """Stiff 2-link arm, joint 1 held by a motion drive, joint 2 driven by τ2 = 0.2 sin(4πt):
+    link 2 turns as a rigid rotor about joint 2, and joint 1 must supply the rate of change of
+    the angular momentum about the origin, τ1 = J2 α̈ + m2 (L2/2) L1 (α̈ cos α − α̇² sin α)
+    (this holds only if the motor's reaction −τ2 acts on the tip of link 1)."""
+    L1 = L2 = 0.5
+    links = (Link(Section(L1, EI_AL * 1e5, RHOA_AL, EA_AL), Hub(0.0, 0.01)),
+             Link(Section(L2, EI_AL * 1e5, RHOA_AL, EA_AL), Hub(0.0, 0.005)))
+    drives = (Drive("motion", Constant(0.0)), Drive("torque", Sine(0.2, 2.0)))
+    case = Case(Manipulator(links), Scenario(0.5, 1e-3, drives))
+    res = mod.simulate(case, elements_per_link=2, h=1e-3)
+    m2 = RHOA_AL * L2
+    J2 = 0.005 + m2 * L2**2 / 3 + _extra_rotary_inertia(res, L2)
+    w = 4 * np.pi
+    angle = 0.2 / J2 * (res.t / w - np.sin(w * res.t) / w**2)            # peak 0.49 rad
+    assert np.max(np.abs(res.joint_angle[:, 1] - angle)) < 1e-4
+    assert np.max(np.abs(res.joint_angle[:, 0])) < 1e-12
+    acc = 0.2 * np.sin(w * res.t) / J2
+    a, ad = res.joint_angle[:, 1], res.joint_rate[:, 1]
+    tau1 = J2 * acc + m2 * (L2 / 2) * L1 * (acc * np.cos(a) - ad**2 * np.sin(a))   # peak 0.41 N·m
+    assert np.max(np.abs(res.joint_torque[:, 0] - tau1)) < 5e-3 * np.max(np.abs(tau1))
+
+
 @pytest.mark.parametrize("mod,k", [pytest.param(exudyn_ancf, 4, id="ancf"),
                                    pytest.param(exudyn_beam, 16, id="beam")])
 def test_held_cantilever_under_gravity(mod, k):

@@ -1,0 +1,442 @@
+"""Shared model building for the Exudyn flexible reference models.
+
+``exudyn_ancf`` (ObjectANCFCable2D) and ``exudyn_beam`` (ObjectBeamGeometricallyExact2D) differ
+only in how one link's beam is meshed and how its ends are tied to the hub and tip bodies; the
+hubs, tip bodies, joints, drives, gravity, sensors, solver settings, failure checks and the
+conversion to :class:`dttmm.Result` live here.
+
+Model conventions (the suite's, see DESIGN.md):
+
+* Planar, counter-clockwise angles, joint 1 at the origin. In the reference configuration every
+  link is straight along its root direction θ_root,i = θ_tip,i−1 + α_i(0) (θ_tip,0 = 0).
+* Every link owns a rigid **hub** body at its root (``link.hub``: mass, inertia about the joint;
+  mass and inertia 0 when absent) and a rigid **tip body** at its tip carrying ``link.payload``
+  (mass 0 when absent); the tip body rotates with the tip cross-section.
+* Joint i is a revolute joint between the tip body of link i−1 (ground for i = 1) and hub i.
+  Torque drive: +τ(t) on hub i, −τ(t) on the tip body of link i−1 (nothing on the ground).
+  Motion drive: the relative rotation coordinate is prescribed by an ObjectConnectorCoordinate
+  whose offset user function gives α(t) − α(0) (node rotation coordinates are displacements
+  from the reference angle); its Lagrange multiplier equals minus the motor torque.
+* Initial velocities: rigid rotation of the whole chain with the initial joint rates.
+* Gravity: mass-proportional loads on every element and every rigid body with mass.
+* Kelvin–Voigt damping D = μK of the link: bending damping μ·EI, axial μ·EA (and shear μ·κGA).
+
+Time integration: Exudyn's generalized-α (spectral radius ``rho_inf``, default 0.8) with a fixed
+step h (adaptive step off: a Newton failure is an error, not a silent step halving), modified
+Newton, EigenSparse linear solver, one thread, nothing written to files, no graphics.
+
+Drive breakpoints (switches of bang-bang torques, the end of a sine law, …): a breakpoint that
+lies on the step grid ends an integration segment, and the next segment restarts the integrator
+there (state carried over, initial accelerations recomputed), as the suite's step schedule does
+(dttmm.timegrid): the step that ends at the switch sees the left limit of the law, the restart
+and the steps after it the right limit. Without the restart generalized-α drags a jump in the
+acceleration over several steps (O(h) error; measured 0.0125 rad/s in the hub rate of a rigid
+rotor with J = 0.1 kg·m² after a 2 N·m jump at h = 1e-3). A breakpoint off the step grid causes
+no restart: the law is evaluated as a left limit at step ends, so the jump takes effect at the
+first step end after it (listed in ``meta["breakpoints_off_grid"]``). The reported torque of a
+torque drive is the value that acted on the step ending at the output time (left limit; at
+t = 0 the right limit).
+
+Torque of a motion drive: minus the multiplier of the coordinate constraint (index-3 generalized-α).
+It is less accurate than the positions (it carries the high-frequency content of the stiff
+links; measured first order in h on a soft strip) and at t = 0 it reads 0, because no multiplier
+exists before the first step. The initial accelerations Exudyn computes ignore the prescribed
+α̈(0); for laws with α̈(0) ≠ 0 the start is slightly inconsistent (tip deflections still converge
+at second order in h, measured).
+
+Output grid: sensors are stored internally (every output step, or every step when a restart lies
+off the output grid); h must divide ``scenario.output_step`` (else :class:`dttmm.InputError`;
+no interpolation), and the run ends at the last output time.
+
+Newton: absolute tolerance scaled to the residual's round-off floor (see ``_default_abs_tol``),
+relative 1e-8, at most 25 iterations; a Newton failure, a short run, a sensor grid mismatch or a
+non-finite output raises :class:`dttmm.SimulationError` (with a partial Result when possible).
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from dttmm import InputError, SimulationError, make_result
+from dttmm.case import Case
+
+__all__ = ["simulate_exudyn", "check_discretisation", "stiff_axial_stiffness",
+           "INEXTENSIBLE_AXIAL_RATIO"]
+
+#: EA used for links given as inextensible (EA None): EA = ratio · EI / L².
+#: 1e6 corresponds to a slenderness L/r = 1000 (r the radius of gyration); the axial strain
+#: is then below F·L²/(1e6·EI), negligible against the bending deflections of the suite.
+INEXTENSIBLE_AXIAL_RATIO = 1.0e6
+
+_EPS = np.finfo(float).eps
+
+
+def stiff_axial_stiffness(beam, ratio: float = INEXTENSIBLE_AXIAL_RATIO) -> float:
+    """Axial stiffness EA (N) used for ``beam``: its own EA, or ratio·EI/L² when inextensible."""
+    if beam.EA is not None:
+        return float(beam.EA)
+    return float(ratio) * beam.EI / beam.length**2
+
+
+def check_discretisation(case, elements_per_link, h) -> tuple[int, float, int, int]:
+    """Validate (k, h) against the case. Returns (k, h, n_steps, steps_per_output)."""
+    if not isinstance(case, Case):
+        raise InputError("case", case, "must be a dttmm.Case")
+    if isinstance(elements_per_link, bool):
+        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
+    try:
+        integral = float(elements_per_link).is_integer()
+    except (TypeError, ValueError):
+        integral = False
+    if not integral:
+        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
+    k = int(elements_per_link)
+    if k < 1:
+        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
+    try:
+        h = float(h)
+    except (TypeError, ValueError):
+        raise InputError("h", h, "must be a real number") from None
+    if not math.isfinite(h) or h <= 0.0:
+        raise InputError("h", h, "must be positive and finite")
+    sc = case.scenario
+    if h > sc.duration * (1 + 1e-12):
+        raise InputError("h", h, f"must not exceed the duration {sc.duration}")
+    ratio = sc.output_step / h
+    per_out = int(round(ratio))
+    if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
+        raise InputError("h", h, f"must divide the output step {sc.output_step} "
+                                 "(the Exudyn models sample on the step grid, no interpolation)")
+    n_out = len(sc.output_times) - 1
+    return k, h, n_out * per_out, per_out
+
+
+def _rot(a: float) -> np.ndarray:
+    return np.array([math.cos(a), math.sin(a)])
+
+
+def _rigid_velocity(p, joints, rates) -> np.ndarray:
+    """Velocity of point p moving rigidly with joints (positions) turning at the given rates."""
+    v = np.zeros(2)
+    for r, w in zip(joints, rates):
+        d = np.asarray(p) - r
+        v += w * np.array([-d[1], d[0]])
+    return v
+
+
+class _Layout:
+    """Reference geometry and rigid initial velocities of the chain."""
+
+    def __init__(self, case: Case):
+        self.root, self.theta, self.omega, self.joint_pos, self.alpha0 = [], [], [], [], []
+        th, om, pos = 0.0, 0.0, np.zeros(2)
+        rates = []
+        for link, drive in zip(case.model.links, case.scenario.drives):
+            th += drive.initial_angle
+            om += drive.initial_rate
+            self.joint_pos.append(pos.copy())
+            rates.append(drive.initial_rate)
+            self.root.append(pos.copy())
+            self.theta.append(th)
+            self.omega.append(om)
+            self.alpha0.append(drive.initial_angle)
+            pos = pos + link.beam.length * _rot(th)
+        self._rates = rates
+
+    def point(self, i: int, s: float) -> np.ndarray:
+        """Reference position of arc length s along link i."""
+        return self.root[i] + s * _rot(self.theta[i])
+
+    def velocity(self, i: int, s: float) -> np.ndarray:
+        """Rigid initial velocity of arc length s along link i."""
+        return _rigid_velocity(self.point(i, s), self.joint_pos[: i + 1], self._rates[: i + 1])
+
+
+def _default_abs_tol(case, k, axial) -> float:
+    """Newton absolute tolerance on the residual (force units), scaled to its round-off floor.
+
+    The residual cannot fall below ~eps·K·|q| with K ≈ EA·k/L the stiffest element stiffness and
+    |q| ≈ the extent of the chain; the tolerance sits 10³ above that floor (for the aluminium
+    strip, L = 1 m, k = 64: 1e-4; k = 4: 6e-6), and never below 1e-8.
+    """
+    kmax = max(ea * k / link.beam.length for ea, link in zip(axial, case.model.links))
+    extent = sum(link.beam.length for link in case.model.links)
+    return max(1e3 * _EPS * kmax * max(extent, 1.0), 1e-8)
+
+
+def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_rel_tol=1e-8,
+                    newton_abs_tol=None, newton_max_iterations=25, modified_newton=True,
+                    inextensible_axial_ratio=INEXTENSIBLE_AXIAL_RATIO, element_options=None):
+    """Build the Exudyn model of ``case`` with ``element`` meshing each link, solve, return a Result.
+
+    ``element`` is an object with ``method`` (name), ``meta(case, k, axial)`` (dict) and
+    ``add_link(mbs, exu, ii, link, layout, i, k, axial_stiffness, **element_options)`` returning
+    ``(hub_node, tip_node, elements, clamps)``: ``hub_node``/``tip_node`` are NodeRigidBody2D
+    numbers at the link root and tip on which the hub and tip bodies are placed; ``elements`` are
+    the beam objects (for gravity); ``clamps`` is None when those nodes are beam nodes, or the
+    (root, tip) beam nodes to which the hub and tip bodies are clamped by an ObjectJointGeneric
+    locking x, y and the rotation about z (MarkerNodeRigid on the beam node).
+    """
+    k, h, n_steps, per_out = check_discretisation(case, elements_per_link, h)
+    try:
+        rho_inf = float(rho_inf)
+    except (TypeError, ValueError):
+        raise InputError("rho_inf", rho_inf, "must be a number in [0, 1]") from None
+    if not 0.0 <= rho_inf <= 1.0:
+        raise InputError("rho_inf", rho_inf, "must be in [0, 1]")
+    for name, val in (("newton_rel_tol", newton_rel_tol),) + (
+            (("newton_abs_tol", newton_abs_tol),) if newton_abs_tol is not None else ()):
+        if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
+            raise InputError(name, val, "must be a positive number")
+    if isinstance(newton_max_iterations, bool) or not isinstance(newton_max_iterations, int) \
+            or newton_max_iterations < 1:
+        raise InputError("newton_max_iterations", newton_max_iterations, "must be an integer >= 1")
+    if not (isinstance(inextensible_axial_ratio, (int, float)) and inextensible_axial_ratio > 0):
+        raise InputError("inextensible_axial_ratio", inextensible_axial_ratio, "must be positive")
+
+    try:
+        import exudyn as exu
+        import exudyn.itemInterface as ii
+    except ImportError as exc:
+        raise ImportError(f"{element.method} needs the exudyn package (pip install 'dttmm[exudyn]'): "
+                          f"{exc}") from exc
+
+    model, sc = case.model, case.scenario
+    n = model.n_links
+    t_out = sc.output_times
+    t_end = float(n_steps * h)
+    g = [float(model.gravity[0]), float(model.gravity[1]), 0.0]
+    has_gravity = g[0] != 0.0 or g[1] != 0.0
+    axial = [stiff_axial_stiffness(l.beam, inextensible_axial_ratio) for l in model.links]
+    abs_tol = float(newton_abs_tol) if newton_abs_tol is not None else _default_abs_tol(case, k, axial)
+
+    layout = _Layout(case)
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddObject(ii.ObjectGround())
+    ground_node = mbs.AddNode(ii.NodePointGround())
+    m_ground_pos = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=ground, localPosition=[0, 0, 0]))
+    m_ground_coord = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=ground_node, coordinate=0))
+
+    def add_body(node, mass, inertia):
+        body = mbs.AddObject(ii.ObjectRigidBody2D(nodeNumber=node, mass=float(mass), inertia=float(inertia)))
+        if has_gravity and mass > 0:
+            mbs.AddLoad(ii.LoadMassProportional(markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)),
+                                                loadVector=g))
+        return body
+
+    hub_nodes, tip_nodes, hub_bodies, tip_bodies = [], [], [], []
+    for i, link in enumerate(model.links):
+        hub_node, tip_node, elements, clamps = element.add_link(mbs, exu, ii, link, layout, i, k, axial[i],
+                                                                **(element_options or {}))
+        hub_nodes.append(hub_node)
+        tip_nodes.append(tip_node)
+        hub_bodies.append(add_body(hub_node, link.hub_mass, link.hub_inertia))
+        tip_bodies.append(add_body(tip_node, link.payload_mass, link.payload_inertia))
+        if clamps is not None:
+            for body, beam_node in zip((hub_bodies[-1], tip_bodies[-1]), clamps):
+                m0 = mbs.AddMarker(ii.MarkerBodyRigid(bodyNumber=body))
+                m1 = mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=beam_node))
+                mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 0, 0, 0, 1]))
+        if has_gravity:
+            for e in elements:
+                mbs.AddLoad(ii.LoadMassProportional(markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)),
+                                                    loadVector=g))
+
+    # Integration segments: a drive breakpoint on the step grid ends a segment; the next segment
+    # restarts the integrator there (initial accelerations recomputed with the right limit).
+    t_bp_grid, t_bp_off = [], []
+    for b in sc.breakpoints:
+        if b >= t_end:
+            continue
+        (t_bp_grid if abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h) else t_bp_off).append(b)
+    seg_idx = [0] + [int(round(b / h)) for b in t_bp_grid] + [n_steps]
+    segments = [(a, b) for a, b in zip(seg_idx, seg_idx[1:]) if b > a]
+    seg_start = [0.0]  # start time of the running segment, read by the user functions
+
+    constraints = [None] * n
+    for i, drive in enumerate(sc.drives):
+        m_in = m_ground_pos if i == 0 else mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=tip_bodies[i - 1],
+                                                                                localPosition=[0, 0, 0]))
+        m_out = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=hub_bodies[i], localPosition=[0, 0, 0]))
+        mbs.AddObject(ii.ObjectJointRevolute2D(markerNumbers=[m_in, m_out]))
+        if drive.kind == "torque":
+            # right limit at the segment start, left limit everywhere after it (see module doc)
+            def tau_hub(mbs_, t, load, tau=drive.torque):
+                return [0.0, 0.0, tau(t, t > seg_start[0])]
+
+            def tau_tip(mbs_, t, load, tau=drive.torque):
+                return [0.0, 0.0, -tau(t, t > seg_start[0])]
+
+            m_hub = mbs.AddMarker(ii.MarkerBodyRigid(bodyNumber=hub_bodies[i]))
+            mbs.AddLoad(ii.LoadTorqueVector(markerNumber=m_hub, loadVector=[0, 0, 0],
+                                            loadVectorUserFunction=tau_hub))
+            if i > 0:
+                m_tip = mbs.AddMarker(ii.MarkerBodyRigid(bodyNumber=tip_bodies[i - 1]))
+                mbs.AddLoad(ii.LoadTorqueVector(markerNumber=m_tip, loadVector=[0, 0, 0],
+                                                loadVectorUserFunction=tau_tip))
+        else:
+            def offset(mbs_, t, item, off, motion=drive.motion, a0=layout.alpha0[i]):
+                return motion(t, t > seg_start[0])[0] - a0
+
+            c_in = m_ground_coord if i == 0 else mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=tip_nodes[i - 1],
+                                                                                       coordinate=2))
+            c_out = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=hub_nodes[i], coordinate=2))
+            constraints[i] = mbs.AddObject(ii.ObjectConnectorCoordinate(markerNumbers=[c_in, c_out],
+                                                                        offsetUserFunction=offset))
+
+    OV = exu.OutputVariableType
+    sens = lambda node, var: mbs.AddSensor(ii.SensorNode(nodeNumber=node, outputVariableType=var,
+                                                         storeInternal=True, writeToFile=False))
+    s_hub = [(sens(nd, OV.Position), sens(nd, OV.Rotation), sens(nd, OV.AngularVelocity)) for nd in hub_nodes]
+    s_tip = [(sens(nd, OV.Position), sens(nd, OV.Rotation), sens(nd, OV.AngularVelocity)) for nd in tip_nodes]
+    s_force = [None if c is None else
+               mbs.AddSensor(ii.SensorObject(objectNumber=c, outputVariableType=OV.Force,
+                                             storeInternal=True, writeToFile=False))
+               for c in constraints]
+    all_sensors = [x for tr in s_hub + s_tip for x in tr] + [x for x in s_force if x is not None]
+
+    mbs.Assemble()
+
+    s = exu.SimulationSettings()
+    ti = s.timeIntegration
+    ti.adaptiveStep = False
+    ti.verboseMode = 0
+    ti.generalizedAlpha.spectralRadius = rho_inf
+    ti.generalizedAlpha.computeInitialAccelerations = True
+    ti.newton.relativeTolerance = float(newton_rel_tol)
+    ti.newton.absoluteTolerance = abs_tol
+    ti.newton.maxIterations = int(newton_max_iterations)
+    ti.newton.useModifiedNewton = bool(modified_newton)
+    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+    s.parallel.numberOfThreads = 1
+    s.solution.file.write = False
+    # sensors are written from each segment start every writePeriod: the output step when all
+    # segments start on the output grid, else every step (rows off the grid are dropped)
+    on_out_grid = all(a % per_out == 0 for a, _ in segments)
+    s.solution.sensors.writePeriod = sc.output_step if on_out_grid else h
+    s.show.computationTime = False
+    s.show.statistics = False
+
+    ode2 = int(mbs.systemData.ODE2Size())
+    ae = int(mbs.systemData.AEsize())
+    meta = dict(method=element.method, elements_per_link=k, h=h, integrator="generalized-alpha",
+                rho_inf=rho_inf, adaptive_step=False, linear_solver="EigenSparse",
+                newton_rel_tol=float(newton_rel_tol), newton_abs_tol=abs_tol,
+                newton_max_iterations=int(newton_max_iterations), modified_newton=bool(modified_newton),
+                ode2_size=ode2, ae_size=ae, exudyn=exu.__version__,
+                restarts=[float(b) for b in t_bp_grid], breakpoints_off_grid=[float(b) for b in t_bp_off],
+                axial_stiffness=axial, inextensible_axial_ratio=float(inextensible_axial_ratio))
+    meta.update(element.meta(case, k, axial, **(element_options or {})))
+    try:
+        from dttmm.timegrid import versions
+        meta["versions"] = {**versions(), "exudyn": exu.__version__}
+    except Exception:  # versions() is informational only
+        meta["versions"] = {"exudyn": exu.__version__}
+
+    # --- solve, segment by segment ------------------------------------------------------------
+    wall = 0.0
+    steps_done = newton_total = jac_total = 0
+    t_reached = 0.0
+    rows = {sn: [] for sn in all_sensors}
+    failure = None
+    for a, b in segments:
+        ta, tb = a * h, b * h
+        seg_start[0] = ta
+        ti.startTime, ti.endTime, ti.numberOfSteps = ta, tb, b - a
+        err = None
+        t0 = time.perf_counter()
+        try:
+            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
+        except Exception as exc:  # Exudyn raises on some failures (e.g. singular Jacobian)
+            ok, err = False, exc
+        wall += time.perf_counter() - t0
+        it = mbs.sys["dynamicSolver"].it
+        done = int(it.currentStepIndex) - 1  # 1-based: N + 1 after a complete run of N steps
+        steps_done += max(done, 0)
+        newton_total += int(it.newtonStepsCount)
+        jac_total += int(it.newtonJacobiCount)
+        t_reached = float(it.currentTime)
+        for sn in all_sensors:
+            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
+            rows[sn].append(d if not rows[sn] else d[1:])  # a segment's first row repeats the last one
+        if err is not None or not ok:
+            failure = (f"SolveDynamic raised {type(err).__name__}: {err}" if err is not None
+                       else "SolveDynamic returned False (Newton did not converge)", "newton")
+            break
+        if done != b - a or not abs(t_reached - tb) <= 1e-9 * max(1.0, tb):
+            failure = (f"segment [{ta}, {tb}] stopped after {done} of {b - a} steps at t = {t_reached}",
+                       "time integration")
+            break
+        mbs.systemData.SetSystemState(mbs.systemData.GetSystemState(exu.ConfigurationType.Current),
+                                      exu.ConfigurationType.Initial)
+    meta.update(steps=n_steps, steps_taken=steps_done, newton_iterations=newton_total,
+                newton_iterations_per_step=(newton_total / steps_done if steps_done > 0 else float("nan")),
+                jacobians=jac_total, t_reached=t_reached, wall_time_solve=wall)
+
+    # --- outputs ------------------------------------------------------------------------------
+    def stored(sensor):
+        d = np.concatenate(rows[sensor], axis=0)
+        x = d[:, 0] / sc.output_step
+        keep = np.abs(x - np.round(x)) <= 1e-6 * per_out
+        return d[keep]
+
+    def series():
+        ts = stored(s_hub[0][0])[:, 0]
+        m = min(len(ts), len(t_out))
+        root = np.empty((m, n, 2)); tip = np.empty((m, n, 2))
+        th_root = np.empty((m, n)); th_tip = np.empty((m, n))
+        w_root = np.empty((m, n)); w_tip = np.empty((m, n))
+        tq = np.empty((m, n))
+        for i in range(n):
+            root[:, i] = stored(s_hub[i][0])[:m, 1:3]
+            th_root[:, i] = stored(s_hub[i][1])[:m, -1]
+            w_root[:, i] = stored(s_hub[i][2])[:m, -1]
+            tip[:, i] = stored(s_tip[i][0])[:m, 1:3]
+            th_tip[:, i] = stored(s_tip[i][1])[:m, -1]
+            w_tip[:, i] = stored(s_tip[i][2])[:m, -1]
+            d = sc.drives[i]
+            if d.kind == "torque":
+                # the value that acted on the step ending at the output time (left limit; right at t = 0)
+                tq[:, i] = [d.torque(float(tt), tt > 0) for tt in t_out[:m]]
+            else:
+                tq[:, i] = -stored(s_force[i])[:m, -1]
+        ja = th_root.copy(); jr = w_root.copy()
+        ja[:, 1:] -= th_tip[:, :-1]
+        jr[:, 1:] -= w_tip[:, :-1]
+        return ts[:m], dict(joint_angle=ja, joint_rate=jr, joint_torque=tq, link_root=root,
+                            link_root_angle=th_root, link_tip=tip)
+
+    def build(ts, fields, success):
+        return make_result(t=t_out[: len(ts)], **fields, wall_time=wall, n_steps=steps_done,
+                           meta={**meta, "success": success})
+
+    def fail(reason, t_fail, component):
+        partial = None
+        try:
+            ts, fields = series()
+            finite = all(np.isfinite(v).all() for v in fields.values())
+            if len(ts) and finite and np.allclose(ts, t_out[: len(ts)], rtol=0, atol=1e-6 * sc.output_step):
+                partial = build(ts, fields, False)
+        except Exception:  # the partial result is a courtesy; the error below is what matters
+            partial = None
+        # Exudyn's currentTime is the end of the step it attempted last
+        step = max(int(round(t_fail / h)) - 1, 0) if math.isfinite(t_fail) else steps_done
+        raise SimulationError(f"Exudyn {element.method}: {reason}", t=t_fail, step=step,
+                              component=component, partial=partial)
+
+    if failure is not None:
+        fail(failure[0], t_reached, failure[1])
+
+    ts, fields = series()
+    if len(ts) != len(t_out) or np.max(np.abs(ts - t_out)) > 1e-6 * sc.output_step:
+        fail(f"sensor rows ({len(ts)}) do not match the output grid ({len(t_out)} samples)",
+             float(ts[-1]) if len(ts) else 0.0, "sensors")
+    for name, arr in fields.items():
+        bad = ~np.isfinite(arr)
+        if bad.any():
+            row, *rest = np.argwhere(bad)[0]
+            fail(f"non-finite {name}", float(t_out[row]), f"{name}[{', '.join(map(str, rest))}]")
+    return build(ts, fields, True)
