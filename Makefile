@@ -16,6 +16,7 @@ venv: $(STAMP)
 
 test: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q
+	OPENBLAS_NUM_THREADS=1 DTTMM_BENCH_QUICK=1 $(BIN)/python -m pytest -q benchmarks --benchmark-disable
 
 test-slow: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -m slow
@@ -27,4 +28,6 @@ report: $(STAMP)
 	OPENBLAS_NUM_THREADS=1 $(BIN)/dttmm report --quick --out out/report
 
 bench: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest benchmarks -q --benchmark-only --benchmark-json=data/bench/bench-$$(date +%Y%m%d-%H%M%S).json
+	mkdir -p data/bench
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest benchmarks -q --benchmark-only \
+		--benchmark-json=data/bench/bench-$$(date +%Y%m%d-%H%M%S).json

@@ -1,0 +1,83 @@
+"""Shared set-up of the scaling benchmarks.
+
+Every benchmark runs a method on the same case for a fixed number of steps; the timed call is
+the whole ``simulate`` (model build included, it is small), and ``extra_info`` carries the
+solve-only time per step from ``Result.wall_time``, sizes, iterations and the error against
+the case's reference, so that timing and accuracy join in the report.
+
+``DTTMM_BENCH_QUICK=1`` (CI) shrinks the parameter lists so the suites run once, untimed, in
+seconds: they are checked to work, not measured.
+"""
+from __future__ import annotations
+
+import dataclasses as dc
+import os
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dttmm
+from experiments.methods import MethodUnavailable, resolve
+
+CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
+QUICK = os.environ.get("DTTMM_BENCH_QUICK", "") not in ("", "0")
+H = 1e-3
+N_STEPS = 10 if QUICK else 100
+
+
+def case(name: str, n_steps: int = N_STEPS, h: float = H) -> dttmm.Case:
+    c = dttmm.load_case(CASES / f"{name}.toml")
+    return dc.replace(c, scenario=dc.replace(c.scenario, duration=n_steps * h, output_step=h))
+
+
+def chain(n_links: int, n_steps: int = N_STEPS, h: float = H) -> dttmm.Case:
+    """n equal links of the three_link strip (hubs, payload at the end, gravity, sine torques)."""
+    base = dttmm.load_case(CASES / "three_link.toml")
+    mid = base.model.links[1]
+    links = [base.model.links[0]] + [mid] * (n_links - 2) + [base.model.links[2]] if n_links > 1 else \
+        [dc.replace(base.model.links[0], payload=base.model.links[2].payload)]
+    drives = tuple(dttmm.Drive("torque", dttmm.Sine(1.0 / (i + 1), 1.0, until=1.0)) for i in range(n_links))
+    return dttmm.Case(dc.replace(base.model, links=tuple(links)),
+                      dttmm.Scenario(n_steps * h, h, drives), f"chain{n_links}")
+
+
+@lru_cache(maxsize=None)
+def reference(name: str, n_steps: int = N_STEPS) -> dttmm.Result:
+    """DT-TMM at k = 64, h/4, converged: the benchmark window's reference (tip deflections)."""
+    c = case(name, n_steps) if not name.startswith("chain") else chain(int(name[5:]), n_steps)
+    return dttmm.simulate(c, elements_per_link=8 if QUICK else 64, h=H / 4, cut_loads=False, energy=False)
+
+
+def tip_error(res: dttmm.Result, ref: dttmm.Result) -> float:
+    """RMS over time of the tip deflections' difference (m), on the reference's grid."""
+    n = min(len(res.t), len(ref.t))
+    return float(np.sqrt(np.mean((res.tip_deflection[:n] - ref.tip_deflection[:n]) ** 2)))
+
+
+def run_benchmark(benchmark, method: str, c: dttmm.Case, k, h: float, ref_name: str | None, **options):
+    """Time ``method`` on ``c`` (one warm-up round: numba compiles, caches fill) and fill extra_info."""
+    try:
+        f = resolve(method)
+    except MethodUnavailable as exc:
+        pytest.skip(str(exc))
+    holder = {}
+
+    def target():
+        holder["res"] = f(c, k, h, **options)
+
+    benchmark.pedantic(target, rounds=1 if QUICK else 3, iterations=1, warmup_rounds=0 if QUICK else 1)
+    res = holder["res"]
+    n_el = (k or 0) * len(c.model.links)
+    info = benchmark.extra_info
+    info.update(method=method, case=c.name, elements_per_link=k, n_links=len(c.model.links), h=h,
+                n_steps=res.n_steps, n_dof=res.meta.get("n_dof"),
+                final_system_size=res.meta.get("final_system_size"),
+                iterations=res.meta.get("iterations_mean", res.meta.get("newton_iterations_per_step")),
+                solve_time=res.wall_time, time_per_step=res.wall_time / res.n_steps,
+                time_per_element_step=res.wall_time / res.n_steps / n_el if n_el else None,
+                options={k_: str(v) for k_, v in options.items()})
+    if ref_name is not None:
+        info["tip_error_l2"] = tip_error(res, reference(ref_name, res.n_steps))
+    return res
