@@ -1,0 +1,439 @@
+"""The global-equation solver (reference_models.global_newmark) against independent references:
+closed-form beam results, the rigid-body limit, Lagrange's equations, energy balance and an
+adaptive high-order integrator."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+import dttmm
+from dttmm import Case, Constant, Drive, Link, Manipulator, Scenario, Section
+from reference_models import global_newmark as gn
+
+CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
+
+
+# ----------------------------------------------------------------------------------------------
+# helpers
+# ----------------------------------------------------------------------------------------------
+
+def _load(name):
+    return dttmm.load_case(CASES / f"{name}.toml")
+
+
+def _with_beams(case, **changes):
+    """Copy of ``case`` with every link's Section changed by ``changes`` (callables of the old)."""
+    links = []
+    for link in case.model.links:
+        b = link.beam
+        new = {key: (fn(getattr(b, key)) if callable(fn) else fn) for key, fn in changes.items()}
+        links.append(dataclasses.replace(link, beam=dataclasses.replace(b, **new)))
+    return dataclasses.replace(case, model=dataclasses.replace(case.model, links=tuple(links)))
+
+
+def _shorten(case, duration, output_step):
+    return dataclasses.replace(case, scenario=dataclasses.replace(
+        case.scenario, duration=duration, output_step=output_step))
+
+
+def _single(beam, drive, *, gravity=(0.0, 0.0), duration=0.1, output_step=0.01, hub=None):
+    return Case(Manipulator((Link(beam, hub),), gravity), Scenario(duration, output_step, (drive,)))
+
+
+def _random_state(case, k, seed, scale=0.3):
+    n = len(gn.coordinate_names(case, k))
+    rng = np.random.default_rng(seed)
+    return rng.normal(size=n) * scale, rng.normal(size=n)
+
+
+def _hermite_mass(rhoA, l):
+    """Consistent mass of the Hermite beam on (w1, θ1, w2, θ2) and of the linear bar on (u1, u2)."""
+    Mb = rhoA * l / 420.0 * np.array([
+        [156, 22 * l, 54, -13 * l],
+        [22 * l, 4 * l * l, 13 * l, -3 * l * l],
+        [54, 13 * l, 156, -22 * l],
+        [-13 * l, -3 * l * l, -22 * l, 4 * l * l]])
+    Mu = rhoA * l / 6.0 * np.array([[2.0, 1.0], [1.0, 2.0]])
+    return Mb, Mu
+
+
+def _slope(hs, errs):
+    return np.polyfit(np.log(hs), np.log(errs), 1)[0]
+
+
+# ----------------------------------------------------------------------------------------------
+# (1) mass matrix
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("k", [1, 3])
+def test_mass_matrix_symmetric_positive_definite(k):
+    case = _load("three_link")
+    for seed in range(3):
+        q, _ = _random_state(case, k, seed)
+        M = gn.mass_matrix(case, k, q)
+        assert np.allclose(M, M.T, rtol=0, atol=1e-14 * np.abs(M).max())
+        assert np.linalg.eigvalsh(M).min() > 0
+
+
+def test_element_mass_at_rest_is_consistent_hermite_mass():
+    rhoA, l = 0.27, 0.4
+    # p = (x_I, y_I, θ, u, v, φ) → (u1, u2) = (x_I, x_I + u),
+    #                              (w1, θ1, w2, θ2) = (y_I, θ, y_I + lθ + v, θ + φ)
+    Tu = np.array([[1, 0, 0, 0, 0, 0], [1, 0, 0, 1, 0, 0]], float)
+    Tw = np.array([[0, 1, 0, 0, 0, 0], [0, 0, 1, 0, 0, 0], [0, 1, l, 0, 1, 0], [0, 0, 1, 0, 0, 1]], float)
+    Mb, Mu = _hermite_mass(rhoA, l)
+    expected = Tu.T @ Mu @ Tu + Tw.T @ Mb @ Tw
+    assert np.allclose(gn.element_mass(rhoA, l), expected, rtol=1e-13, atol=1e-15)
+
+
+def test_element_mass_rotates_with_the_frame():
+    rhoA, l, th = 0.27, 0.4, 0.7
+    e = (1e-3, 0.02, -0.05)
+    R = np.eye(6)
+    c, s = math.cos(th), math.sin(th)
+    R[:2, :2] = [[c, -s], [s, c]]
+    assert np.allclose(gn.element_mass(rhoA, l, th, e), R @ gn.element_mass(rhoA, l, 0.0, e) @ R.T,
+                       rtol=1e-13, atol=1e-15)
+
+
+def test_single_link_mass_at_rest_maps_hermite_mass_to_minimal_coordinates():
+    beam = Section(0.8, 2.0, 0.5, 1e6)
+    case = _single(beam, Drive("torque", Constant(0.0)), hub=dttmm.Hub(0.0, 0.03))
+    l = beam.length
+    # q = (α, u, v, φ): (u1, u2) = (0, u), (w1, θ1, w2, θ2) = (0, α, lα + v, α + φ)
+    Tu = np.array([[0, 0, 0, 0], [0, 1, 0, 0]], float)
+    Tw = np.array([[0, 0, 0, 0], [1, 0, 0, 0], [l, 0, 1, 0], [1, 0, 0, 1]], float)
+    Mb, Mu = _hermite_mass(beam.rhoA, l)
+    expected = Tu.T @ Mu @ Tu + Tw.T @ Mb @ Tw
+    expected[0, 0] += 0.03
+    assert np.allclose(gn.mass_matrix(case, 1, np.zeros(4)), expected, rtol=1e-13, atol=1e-15)
+
+
+def test_kinetic_energy_matches_point_velocities():
+    """½q̇ᵀMq̇ equals the kinetic energy of hubs and payload computed from finite-difference
+    velocities of the link frames, plus the beam part: checked on a chain of rigid-like links
+    where the beam part is ∫½ρA|ṙ|² of straight links."""
+    case = _with_beams(_load("three_link"), EA=None)
+    k = 2
+    q, qd = _random_state(case, k, 7)
+    names = gn.coordinate_names(case, k)
+    elastic = np.array([not n.startswith("alpha") for n in names])
+    q[elastic], qd[elastic] = 0.0, 0.0   # straight links: every beam point lies on the root line
+    eps = 1e-6
+    f1, f0 = gn.kinematics(case, k, q + eps * qd), gn.kinematics(case, k, q - eps * qd)
+    T = 0.0
+    for i, link in enumerate(case.model.links):
+        v_root = (f1["root"][i] - f0["root"][i]) / (2 * eps)
+        w = (f1["root_angle"][i] - f0["root_angle"][i]) / (2 * eps)
+        L, m = link.beam.length, link.beam.rhoA * link.beam.length
+        th = gn.kinematics(case, k, q)["root_angle"][i]
+        n_perp = np.array([-math.sin(th), math.cos(th)])
+        T += 0.5 * m * v_root @ v_root + m * L / 2 * w * (v_root @ n_perp) + 0.5 * m * L * L / 3 * w * w
+        T += 0.5 * link.hub_mass * v_root @ v_root + 0.5 * link.hub_inertia * w * w
+        if link.payload is not None:
+            v_tip = (f1["tip"][i] - f0["tip"][i]) / (2 * eps)
+            T += 0.5 * link.payload_mass * v_tip @ v_tip + 0.5 * link.payload_inertia * w * w
+    assert 0.5 * qd @ gn.mass_matrix(case, k, q) @ qd == pytest.approx(T, rel=1e-8)
+
+
+# ----------------------------------------------------------------------------------------------
+# Lagrange's equations: velocity terms and gravity from M(q) and the potential
+# ----------------------------------------------------------------------------------------------
+
+def test_velocity_and_gravity_terms_follow_from_lagrange_equations():
+    """M q̈ = −h(q, q̇) − Kq + Q_g with h = Ṁq̇ − ½∂(q̇ᵀMq̇)/∂q and Q_g = −∂V/∂q,
+    all derivatives by central differences of mass_matrix and energy."""
+    case = _load("three_link")
+    case = dataclasses.replace(case, scenario=dataclasses.replace(
+        case.scenario, drives=tuple(Drive("torque", Constant(0.0)) for _ in range(3))))
+    k = 2
+    q, qd = _random_state(case, k, 3, scale=0.05)
+    n, eps = q.size, 1e-6
+    dM = np.array([(gn.mass_matrix(case, k, q + eps * u) - gn.mass_matrix(case, k, q - eps * u)) / (2 * eps)
+                   for u in np.eye(n)])
+    h = np.einsum("c,cij,j->i", qd, dM, qd) - 0.5 * np.einsum("icj,c,j->i", dM, qd, qd)
+    V = lambda x: gn.energy(case, k, x, np.zeros(n))["gravity"]
+    Qg = -np.array([(V(q + eps * u) - V(q - eps * u)) / (2 * eps) for u in np.eye(n)])
+    K = gn.stiffness_matrix(case, k)
+    expected = np.linalg.solve(gn.mass_matrix(case, k, q), Qg - h - K @ q)
+    got = gn.accelerations(case, k, q, qd)
+    assert np.allclose(got, expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
+
+
+# ----------------------------------------------------------------------------------------------
+# (2) rigid limit
+# ----------------------------------------------------------------------------------------------
+
+def test_rigid_limit_matches_closed_form_rotor():
+    """EI and EA × 1e6: the hub angle is the double integral of τ/J."""
+    case = _with_beams(_load("single_link"), EI=lambda x: x * 1e6, EA=lambda x: x * 1e6)
+    case = _shorten(case, case.scenario.duration, 1e-2)
+    link = case.model.links[0]
+    J = link.hub_inertia + link.beam.rhoA * link.beam.length**3 / 3
+    law = case.scenario.drives[0].law
+    t = case.scenario.output_times
+    knots = np.concatenate([[0.0], law.switch_times])
+    theta, rate, expected = 0.0, 0.0, np.zeros_like(t)
+    for i, (a, level) in enumerate(zip(knots, law.levels)):
+        b = knots[i + 1] if i + 1 < knots.size else np.inf
+        on = (t >= a) & (t <= b)
+        expected[on] = theta + rate * (t[on] - a) + 0.5 * level / J * (t[on] - a) ** 2
+        if np.isfinite(b):
+            theta, rate = theta + rate * (b - a) + 0.5 * level / J * (b - a) ** 2, rate + level / J * (b - a)
+    res = gn.simulate(case, elements_per_link=2, h=5e-3)
+    assert np.abs(res.joint_angle[:, 0] - expected).max() < 1e-6
+
+
+# ----------------------------------------------------------------------------------------------
+# (3) cantilever statics
+# ----------------------------------------------------------------------------------------------
+
+def _cantilever(damping=0.0, duration=0.1):
+    beam = Section(1.0, 1.0e3, 1.0, 1.0e7, damping)
+    return _single(beam, Drive("motion", Constant(0.0)), gravity=(0.0, -9.81), duration=duration,
+                   output_step=0.01)
+
+
+def test_cantilever_static_deflection_under_gravity():
+    case, k = _cantilever(), 8
+    b = case.model.links[0].beam
+    n = len(gn.coordinate_names(case, k))
+    q0 = np.zeros(n)
+    free = np.arange(1, n)
+    # at rest and undeformed M q̈ = Q_gravity on the free rows; the static state solves K q = Q
+    Q = gn.mass_matrix(case, k, q0)[np.ix_(free, free)] @ gn.accelerations(case, k, q0, q0)[free]
+    q = np.zeros(n)
+    q[free] = np.linalg.solve(gn.stiffness_matrix(case, k)[np.ix_(free, free)], Q)
+    tip = gn.kinematics(case, k, q)["tip"][0]
+    expected = b.rhoA * 9.81 * b.length**4 / (8 * b.EI)
+    assert -tip[1] == pytest.approx(expected, rel=1e-3)
+
+
+def test_damped_cantilever_settles_to_static_deflection_and_holding_torque():
+    # generalized-α: the trapezoidal rule (plain Newmark) does not damp the stiff overdamped
+    # Kelvin-Voigt roots, whose step-to-step alternation would linger in the joint torque
+    case = _cantilever(damping=0.02, duration=0.3)
+    b = case.model.links[0].beam
+    res = gn.simulate(case, elements_per_link=8, h=1e-3, integrator="generalized-alpha", rho_inf=0.5)
+    assert -res.tip_deflection[-1, 0] == pytest.approx(b.rhoA * 9.81 * b.length**4 / (8 * b.EI), rel=1e-3)
+    # the held joint carries the weight moment ρA g L²/2 (counter-clockwise)
+    assert res.joint_torque[-1, 0] == pytest.approx(b.rhoA * 9.81 * b.length**2 / 2, rel=1e-3)
+    assert np.all(res.joint_angle == 0.0)
+
+
+# ----------------------------------------------------------------------------------------------
+# (4) clamped natural frequencies
+# ----------------------------------------------------------------------------------------------
+
+def test_clamped_natural_frequencies():
+    beam = Section(1.2, 3.0, 0.6)
+    case, k = _single(beam, Drive("motion", Constant(0.0))), 8
+    n = len(gn.coordinate_names(case, k))
+    free = np.arange(1, n)
+    M = gn.mass_matrix(case, k, np.zeros(n))[np.ix_(free, free)]
+    K = gn.stiffness_matrix(case, k)[np.ix_(free, free)]
+    omega = np.sqrt(scipy.linalg.eigh(K, M, eigvals_only=True))
+    scale = math.sqrt(beam.EI / (beam.rhoA * beam.length**4))
+    expected = np.array([1.8751, 4.6941, 7.8548]) ** 2 * scale
+    assert np.allclose(omega[:3], expected, rtol=5e-3)
+
+
+# ----------------------------------------------------------------------------------------------
+# (5) energy balance
+# ----------------------------------------------------------------------------------------------
+
+def _free_three_link():
+    base = _with_beams(_load("three_link"), EA=None)
+    drives = tuple(Drive("torque", Constant(0.0), initial_rate=w) for w in (2.0, -3.0, 4.0))
+    return Case(Manipulator(base.model.links, (0.0, 0.0)), Scenario(0.2, 0.01, drives))
+
+
+def test_energy_drift_is_second_order_in_h():
+    case = _free_three_link()
+    hs = [2e-3, 1e-3, 5e-4]
+    drift = []
+    for h in hs:
+        res = gn.simulate(case, elements_per_link=2, h=h)
+        assert res.energy[0] > 0.1
+        drift.append(np.abs(res.energy - res.energy[0]).max())
+    assert drift[-1] < 1e-6 * res.energy[0]
+    assert 1.7 < _slope(hs, drift) < 2.3
+
+
+# ----------------------------------------------------------------------------------------------
+# (6) order of convergence against an adaptive 8th-order reference
+# ----------------------------------------------------------------------------------------------
+
+def _newmark_errors(case, k, hs, **options):
+    ref = gn.simulate(case, elements_per_link=k, h=hs[0], integrator="dop853", rtol=1e-9, atol=1e-11)
+    errs = []
+    for h in hs:
+        res = gn.simulate(case, elements_per_link=k, h=h, **options)
+        errs.append(max(np.abs(res.joint_angle - ref.joint_angle).max(),
+                        np.abs(res.tip_deflection - ref.tip_deflection).max()))
+    return np.array(errs)
+
+
+@pytest.mark.slow
+def test_newmark_second_order_single_link_through_torque_switch():
+    # inextensible: the axial modes would make the explicit reference stiff;
+    # 0.6 s spans the torque switch at 0.5 s (restart)
+    case = _shorten(_with_beams(_load("single_link"), EA=None), 0.6, 0.01)
+    hs = [2e-3, 1e-3, 5e-4]
+    errs = _newmark_errors(case, 2, hs)
+    assert errs[-1] < 1e-4
+    assert abs(_slope(hs, errs) - 2.0) < 0.3
+
+
+def test_newmark_second_order_three_link():
+    case = _shorten(_with_beams(_load("three_link"), EA=None), 0.03, 0.01)
+    hs = [2e-4, 1e-4, 5e-5]
+    errs = _newmark_errors(case, 2, hs)
+    assert abs(_slope(hs, errs) - 2.0) < 0.3
+
+
+@pytest.mark.slow
+def test_generalized_alpha_second_order_three_link():
+    case = _shorten(_with_beams(_load("three_link"), EA=None), 0.03, 0.01)
+    hs = [2e-4, 1e-4, 5e-5]
+    errs = _newmark_errors(case, 2, hs, integrator="generalized-alpha", rho_inf=0.8)
+    assert abs(_slope(hs, errs) - 2.0) < 0.3
+
+
+@pytest.mark.slow
+def test_radau_and_dop853_agree():
+    case = _shorten(_with_beams(_load("single_link"), EA=None), 0.6, 0.05)
+    a = gn.simulate(case, elements_per_link=1, h=0.01, integrator="radau", rtol=1e-9, atol=1e-11)
+    b = gn.simulate(case, elements_per_link=1, h=0.01, integrator="dop853")
+    assert np.abs(a.joint_angle - b.joint_angle).max() < 1e-7
+    assert np.abs(a.tip_deflection - b.tip_deflection).max() < 1e-7
+
+
+# ----------------------------------------------------------------------------------------------
+# stepping details: iteration counts, outputs between step ends, motion drives
+# ----------------------------------------------------------------------------------------------
+
+def test_fixed_iteration_count_and_tolerance_driven_iteration():
+    case = _shorten(_load("three_link"), 0.02, 0.01)
+    fixed = gn.simulate(case, elements_per_link=1, h=1e-3, iterations=2)
+    assert fixed.meta["iterations_mean"] == 3 and fixed.meta["iterations_max"] == 3
+    conv = gn.simulate(case, elements_per_link=1, h=1e-3)
+    assert conv.meta["unconverged_steps"] == 0
+    assert conv.meta["iterations_max"] <= 10
+    assert conv.meta["method"] == "global" and conv.meta["n_dof"] == 12 and conv.meta["success"]
+    # two corrections are close to the converged step
+    assert np.abs(fixed.joint_angle - conv.joint_angle).max() < 1e-6
+
+
+def test_sparse_linear_solver_gives_the_dense_solution():
+    case = _shorten(_load("three_link"), 0.01, 1e-3)
+    dense = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1)
+    sparse = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1, linear_solver="sparse")
+    assert np.allclose(sparse.link_tip, dense.link_tip, rtol=0, atol=1e-12)
+    assert sparse.meta["iterations_mean"] == 2
+
+
+def test_outputs_between_step_ends_are_cubic_hermite_of_the_step_states():
+    case = _shorten(_load("three_link"), 0.02, 2e-3)
+    steps = gn.simulate(case, elements_per_link=2, h=2e-3)                     # outputs = step ends
+    fine = gn.simulate(_shorten(case, 0.02, 5e-4), elements_per_link=2, h=2e-3)  # 3 of 4 between
+    assert np.array_equal(fine.joint_angle[::4], steps.joint_angle)
+    assert np.array_equal(fine.joint_rate[::4], steps.joint_rate)
+    H = 2e-3
+    for j, s in ((1, 0.25), (2, 0.5), (3, 0.75)):
+        y0, y1 = steps.joint_angle[:-1], steps.joint_angle[1:]
+        v0, v1 = steps.joint_rate[:-1], steps.joint_rate[1:]
+        y = ((2 * s**3 - 3 * s**2 + 1) * y0 + (s**3 - 2 * s**2 + s) * H * v0
+             + (-2 * s**3 + 3 * s**2) * y1 + (s**3 - s**2) * H * v1)
+        v = ((6 * s**2 - 6 * s) * y0 / H + (3 * s**2 - 4 * s + 1) * v0
+             + (-6 * s**2 + 6 * s) * y1 / H + (3 * s**2 - 2 * s) * v1)
+        assert np.allclose(fine.joint_angle[j::4], y, rtol=0, atol=1e-14)
+        assert np.allclose(fine.joint_rate[j::4], v, rtol=0, atol=1e-11)
+
+
+def test_motion_drive_follows_its_law_and_reports_torque():
+    case = _shorten(_load("spin_up"), 1.0, 0.1)
+    res = gn.simulate(case, elements_per_link=2, h=1e-2)
+    law = case.scenario.drives[0].law
+    expected = np.array([law.motion(t)[0] for t in res.t])
+    assert np.allclose(res.joint_angle[:, 0], expected, rtol=0, atol=1e-14)
+    # spinning up from rest needs a positive torque
+    assert np.all(res.joint_torque[1:, 0] > 0)
+
+
+def test_breakpoint_inside_a_step_is_hit_exactly():
+    case = _shorten(_load("single_link"), 0.6, 0.05)
+    res = gn.simulate(case, elements_per_link=1, h=0.03)  # 0.5 is not a multiple of 0.03
+    assert res.n_steps == 21
+    assert res.joint_torque[10, 0] == 1.0 and res.joint_torque[11, 0] == -1.0
+
+
+def test_non_finite_state_raises_with_partial_result():
+    class BrokenAfter(Constant):
+        def __call__(self, t, left=False):
+            return math.nan if t > 0.05 else self.value
+
+    beam = Section(1.0, 2.0, 0.3)
+    case = _single(beam, Drive("torque", BrokenAfter(1.0)), duration=0.1, output_step=0.01)
+    with pytest.raises(dttmm.SimulationError) as info:
+        gn.simulate(case, elements_per_link=1, h=0.01)
+    err = info.value
+    assert err.t == pytest.approx(0.06) and err.step == 5
+    assert err.partial is not None and err.partial.t[-1] == pytest.approx(0.05)
+    assert err.partial.meta["success"] is False
+
+
+# ----------------------------------------------------------------------------------------------
+# (7) bad input
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kwargs, field", [
+    ({"elements_per_link": 0}, "elements_per_link"),
+    ({"elements_per_link": 1.5}, "elements_per_link"),
+    ({"elements_per_link": True}, "elements_per_link"),
+    ({"h": 0.0}, "h"),
+    ({"h": -1e-3}, "h"),
+    ({"h": math.nan}, "h"),
+    ({"h": 5.0}, "h"),
+    ({"integrator": "euler"}, "integrator"),
+    ({"iterations": -1}, "iterations"),
+    ({"iterations": 1.5}, "iterations"),
+    ({"tol": 0.0}, "tol"),
+    ({"beta": -0.25}, "beta"),
+    ({"linear_solver": "magic"}, "linear_solver"),
+    ({"integrator": "generalized-alpha", "rho_inf": 1.5}, "rho_inf"),
+    ({"integrator": "dop853", "rtol": 0.0}, "rtol"),
+    ({"integrator": "dop853", "beta": 0.3}, "beta"),
+    ({"maxiter": 3}, "maxiter"),
+])
+def test_bad_settings_are_refused_naming_the_field(kwargs, field):
+    args = {"elements_per_link": 2, "h": 1e-3, **kwargs}
+    with pytest.raises(dttmm.InputError) as info:
+        gn.simulate(_load("single_link"), **args)
+    assert info.value.field == field
+    assert field in str(info.value)
+
+
+def test_bad_state_and_case_are_refused():
+    case = _load("single_link")
+    with pytest.raises(dttmm.InputError, match="q"):
+        gn.mass_matrix(case, 2, np.zeros(3))
+    with pytest.raises(dttmm.InputError, match="qd"):
+        gn.accelerations(case, 1, np.zeros(4), np.full(4, np.inf))
+    with pytest.raises(dttmm.InputError, match="case"):
+        gn.simulate("single_link.toml", elements_per_link=1, h=1e-3)
+
+
+def test_coordinate_names_order():
+    case = _load("three_link")
+    names = gn.coordinate_names(case, 2)
+    assert names[:7] == ["alpha_1", "u_1_1", "v_1_1", "phi_1_1", "u_1_2", "v_1_2", "phi_1_2"]
+    assert names[7] == "alpha_2" and len(names) == 21
+    inext = gn.coordinate_names(_with_beams(case, EA=None), 1)
+    assert inext == ["alpha_1", "v_1_1", "phi_1_1", "alpha_2", "v_2_1", "phi_2_1",
+                     "alpha_3", "v_3_1", "phi_3_1"]
