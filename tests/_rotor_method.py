@@ -5,6 +5,7 @@ its drive; the "tip deflection" is 1 mm·sin(2πt)·(1 + 1/k²) and the angles c
 h²·t, so errors fall as k⁻² and h² — enough to exercise the harness without the solver.
 Importable by separately started Dask workers (tests/ on their PYTHONPATH).
 """
+
 from __future__ import annotations
 
 import time
@@ -56,8 +57,15 @@ def simulate(case, *, elements_per_link, h, **options):
         tip[:, i, 1] = root[:, i, 1] + L * s + d[:, 0] * c
     if options.get("nan"):
         tip[-1] = np.nan
-    return make_result(t=t, joint_angle=q, joint_rate=np.gradient(q, t, axis=0), joint_torque=np.zeros_like(q),
-                       link_root=root, link_root_angle=phi, link_tip=tip, wall_time=time.perf_counter() - t0,
-                       n_steps=int(round(case.scenario.duration / h)),
-                       meta={"method": "rotor", "elements_per_link": elements_per_link, "h": h, "success": True,
-                             "n_dof": n})
+    return make_result(
+        t=t,
+        joint_angle=q,
+        joint_rate=np.gradient(q, t, axis=0),
+        joint_torque=np.zeros_like(q),
+        link_root=root,
+        link_root_angle=phi,
+        link_tip=tip,
+        wall_time=time.perf_counter() - t0,
+        n_steps=int(round(case.scenario.duration / h)),
+        meta={"method": "rotor", "elements_per_link": elements_per_link, "h": h, "success": True, "n_dof": n},
+    )

@@ -1,0 +1,78 @@
+"""Errors of a Result against a reference Result — the one place they are computed.
+
+Quantities: ``ee`` (end-effector position, norm of the difference, m), ``tip{i}`` (tip
+transverse deflection of link i, m) and ``angle{i}`` (joint angle i, rad). Kinds: ``l2`` (RMS
+over the output times), ``linf`` (max abs) and ``final`` (at the last output time). Column
+names are ``{quantity}_{kind}``, e.g. ``ee_l2``, ``tip3_linf``, ``angle1_final``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["KINDS", "quantities", "columns", "errors", "nan_errors", "difference_series"]
+
+KINDS = ("l2", "linf", "final")
+
+
+def quantities(n_joints: int) -> list[str]:
+    """Quantity names for an arm of ``n_joints`` joints."""
+    return (
+        ["ee"] + [f"tip{i}" for i in range(1, n_joints + 1)] + [f"angle{i}" for i in range(1, n_joints + 1)]
+    )
+
+
+def columns(n_joints: int) -> list[str]:
+    """Every error column for an arm of ``n_joints`` joints."""
+    return [f"{q}_{k}" for q in quantities(n_joints) for k in KINDS]
+
+
+def nan_errors(n_joints: int) -> dict[str, float]:
+    """The error row of a run that failed: NaN everywhere (the reason is kept beside it)."""
+    return dict.fromkeys(columns(n_joints), float("nan"))
+
+
+def _on_grid(ref_t: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Reference values (nt_ref, m) interpolated linearly to the times t (nt,)."""
+    if ref_t.shape == t.shape and np.allclose(ref_t, t, rtol=0, atol=1e-12):
+        return values
+    return np.column_stack([np.interp(t, ref_t, values[:, j]) for j in range(values.shape[1])])
+
+
+def difference_series(result, reference) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Pointwise differences of result minus reference on the result's times.
+
+    Only times inside the reference's time span are kept. Returns (t (nt,), {quantity: (nt,)});
+    ``ee`` is the norm of the end-effector difference (m), the others are signed.
+    """
+    t = np.asarray(result.t, float)
+    rt = np.asarray(reference.t, float)
+    keep = (t >= rt[0] - 1e-12) & (t <= rt[-1] + 1e-12)
+    t = t[keep]
+    if t.size == 0:
+        raise ValueError("result and reference share no output times")
+    n = result.n_joints
+    if reference.n_joints != n:
+        raise ValueError(f"result has {n} joints, reference {reference.n_joints}")
+    d = {"ee": np.linalg.norm(result.end_effector[keep] - _on_grid(rt, reference.end_effector, t), axis=1)}
+    tips = result.tip_deflection[keep] - _on_grid(rt, reference.tip_deflection, t)
+    angles = result.joint_angle[keep] - _on_grid(rt, reference.joint_angle, t)
+    for i in range(n):
+        d[f"tip{i + 1}"] = tips[:, i]
+        d[f"angle{i + 1}"] = angles[:, i]
+    return t, d
+
+
+def errors(result, reference) -> dict[str, float]:
+    """Error row of ``result`` against ``reference``: ``{quantity}_{kind}`` -> float.
+
+    Non-finite results give NaN (the caller records why).
+    """
+    _, diffs = difference_series(result, reference)
+    out = {}
+    for q, e in diffs.items():
+        a = np.abs(e)
+        out[f"{q}_l2"] = float(np.sqrt(np.mean(a**2)))
+        out[f"{q}_linf"] = float(np.max(a))
+        out[f"{q}_final"] = float(a[-1])
+    return {k: (v if np.isfinite(v) else float("nan")) for k, v in out.items()}

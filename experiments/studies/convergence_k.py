@@ -1,0 +1,36 @@
+"""Convergence in the number of elements per link k at a fixed step h."""
+
+from __future__ import annotations
+
+from ..runs import Task
+from ._common import MAIN_ERROR, fit_orders, with_task_columns
+
+NAME = "convergence_k"
+
+
+def tasks(ctx) -> list[Task]:
+    """One run per (case, method, k) at the plan's h."""
+    p = ctx.plan.studies[NAME]
+    return [
+        Task(c, m, k, p["h"], ctx.cases[c].scenario.duration)
+        for c in p["cases"]
+        for m in p["methods"]
+        for k in p["ks"]
+    ]
+
+
+def analyse(ctx, table):
+    """Tables: the runs, and the observed order in k of the end-effector error per method."""
+    table = with_task_columns(table)
+    orders = fit_orders(table, "k", MAIN_ERROR, ["case", "method"], refine_descending=False)
+    return {NAME: table, f"{NAME}_orders": orders}
+
+
+def main(argv=None) -> int:
+    from ..study import study_main
+
+    return study_main(NAME, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

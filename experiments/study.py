@@ -1,0 +1,83 @@
+"""Running studies: one sweep for all their runs, then each study's analysis; tables saved
+as parquet and CSV. ``study_main`` is the command line of each single study."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import pandas as pd
+
+from .context import prepare
+from .plan import PLANS
+from .sweep import run_sweep
+
+__all__ = ["run_studies", "save_tables", "load_tables", "study_main"]
+
+
+def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True) -> dict:
+    """Run the studies ``names`` (default: every study of the plan) and return their tables."""
+    from .studies import STUDIES
+
+    names = [n for n in (names or STUDIES) if n in ctx.plan.studies]
+    per_study = {n: STUDIES[n].tasks(ctx) for n in names}
+    every = [t for ts in per_study.values() for t in ts]
+    run_sweep(
+        every,
+        ctx.cases,
+        ctx.store,
+        references=ctx.references,
+        scheduler=scheduler,
+        workers=workers,
+        progress=progress,
+        desc=f"{ctx.plan.name} runs",
+    )
+    tables = {}
+    for n in names:
+        tables.update(STUDIES[n].analyse(ctx, ctx.store.table(per_study[n], ctx.references)))
+    return tables
+
+
+def _clean(df: pd.DataFrame) -> pd.DataFrame:
+    """Columns parquet can store (mixed object columns become text)."""
+    df = df.copy()
+    for c in df.columns:
+        if df[c].dtype == object:
+            kinds = {type(v) for v in df[c] if v is not None and v == v}
+            if len(kinds) > 1 or (kinds and not kinds <= {str}):
+                df[c] = df[c].map(lambda v: "" if v is None else str(v))
+    return df
+
+
+def save_tables(tables: dict, folder) -> Path:
+    """Write each table as ``<name>.parquet`` and ``<name>.csv`` in ``folder``."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, df in tables.items():
+        df = _clean(df)
+        df.to_parquet(folder / f"{name}.parquet", index=False)
+        df.to_csv(folder / f"{name}.csv", index=False)
+    return folder
+
+
+def load_tables(folder) -> dict:
+    """Every ``<name>.parquet`` table in ``folder``."""
+    return {p.stem: pd.read_parquet(p) for p in sorted(Path(folder).glob("*.parquet"))}
+
+
+def study_main(name: str, argv=None) -> int:
+    """``python -m experiments.studies.<name> [--quick|--full] [--out DIR] [--scheduler ADDR]``."""
+    ap = argparse.ArgumentParser(prog=f"python -m experiments.studies.{name}")
+    g = ap.add_mutually_exclusive_group()
+    g.add_argument("--quick", dest="size", action="store_const", const="quick")
+    g.add_argument("--full", dest="size", action="store_const", const="full")
+    ap.add_argument("--out", default=f"out/{name}", help="folder for the study's tables")
+    ap.add_argument("--data", default="data", help="folder of references and cached runs")
+    ap.add_argument("--scheduler", default=None, help="dask scheduler address, or 'serial'")
+    ap.add_argument("--workers", type=int, default=None)
+    a = ap.parse_args(argv)
+    ctx = prepare(PLANS[a.size or "quick"], a.data)
+    tables = run_studies(ctx, [name], scheduler=a.scheduler, workers=a.workers)
+    out = save_tables(tables, a.out)
+    print(f"{name}: tables in {out}")
+    return 0

@@ -1,0 +1,145 @@
+"""``dttmm report [--quick|--full] [--out DIR] [--scheduler ADDR] [--from-data]``.
+
+Runs every study (one resumable sweep on Dask), stores the tables under ``<out>/data/`` and
+writes ``<out>/index.html`` and ``<out>/REPORT.md``. ``--from-data`` only rebuilds the figures
+and pages from the stored tables.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main", "run_report"]
+
+
+def _methods_in(plan) -> list:
+    names = []
+    for p in plan.studies.values():
+        names += list(p.get("methods", [])) + list(p.get("hs_by_method", {})) + list(p.get("h_by_method", {}))
+        if p.get("rigid"):
+            names.append(p["rigid"]["method"])
+        if "variants" in p:
+            names.append(p.get("method", "dttmm"))
+    return list(dict.fromkeys(names))
+
+
+def run_report(
+    plan,
+    out,
+    *,
+    data="data",
+    scheduler=None,
+    workers=None,
+    progress=True,
+    command="",
+    bench_dir="data/bench",
+    log=print,
+):
+    """Run the plan's studies and write the report into ``out``; returns (html, md) paths."""
+    from experiments import methods
+    from experiments.context import prepare
+    from experiments.study import run_studies, save_tables
+
+    from . import provenance
+    from .build import build
+
+    t0 = time.perf_counter()
+    out = Path(out)
+    avail = methods.available(_methods_in(plan))
+    for m, why in avail.items():
+        if why:
+            log(f"unavailable: {m}: {why}")
+    ctx = prepare(plan, data, log=log)
+    tables = run_studies(ctx, scheduler=scheduler, workers=workers, progress=progress)
+    save_tables(tables, out / "data")
+    meta = {
+        **provenance.collect(command),
+        "plan": plan.name,
+        "note": plan.note,
+        "availability": avail,
+        "references": ctx.provenance,
+        "elapsed": time.perf_counter() - t0,
+        "studies": plan.studies,
+    }
+    (out / "data" / "report_meta.json").write_text(json.dumps(meta, indent=1, default=str))
+    paths = build(tables, meta, out, bench_dir=bench_dir)
+    log(f"report: {paths[0]} and {paths[1]} ({time.perf_counter() - t0:.0f} s)")
+    return paths
+
+
+def _from_data(out, command, bench_dir, log=print):
+    from experiments.study import load_tables
+
+    from . import provenance
+    from .build import build
+
+    out = Path(out)
+    mpath = out / "data" / "report_meta.json"
+    if not mpath.exists():
+        raise SystemExit(
+            f"dttmm report --from-data: no stored study data in {out / 'data'} "
+            "(run `dttmm report` without --from-data first)"
+        )
+    meta = json.loads(mpath.read_text())
+    tables = {k: v for k, v in load_tables(out / "data").items() if not k.startswith("bench")}
+    now = provenance.collect(command)
+    paths = build(
+        tables,
+        meta,
+        out,
+        bench_dir=bench_dir,
+        footer_extra={"figures rebuilt": f"{now['date']} from stored data by `{command}`"},
+    )
+    log(f"report rebuilt from stored data: {paths[0]} and {paths[1]}")
+    return paths
+
+
+def main(argv=None) -> int:
+    """Entry point of ``dttmm report``."""
+    from experiments.plan import PLANS
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    ap = argparse.ArgumentParser(prog="dttmm report", description=__doc__.splitlines()[0])
+    g = ap.add_mutually_exclusive_group()
+    g.add_argument(
+        "--quick", dest="size", action="store_const", const="quick", help="the < 10 min size (default)"
+    )
+    g.add_argument("--full", dest="size", action="store_const", const="full", help="the paper-size studies")
+    ap.add_argument("--out", default="out/report", help="report folder (default out/report)")
+    ap.add_argument("--data", default="data", help="folder of references and cached runs (default data)")
+    ap.add_argument(
+        "--scheduler",
+        default=None,
+        help="dask scheduler address (default: a LocalCluster on this machine; 'serial': no dask)",
+    )
+    ap.add_argument("--workers", type=int, default=None, help="LocalCluster workers (default: cores)")
+    ap.add_argument(
+        "--from-data", action="store_true", help="only rebuild figures and pages from stored tables"
+    )
+    ap.add_argument("--bench", default="data/bench", help="pytest-benchmark JSON folder")
+    ap.add_argument("--no-progress", action="store_true")
+    a = ap.parse_args(argv)
+    command = "dttmm report " + shlex.join(argv)
+    if a.from_data:
+        _from_data(a.out, command, a.bench)
+        return 0
+    run_report(
+        PLANS[a.size or "quick"],
+        a.out,
+        data=a.data,
+        scheduler=a.scheduler,
+        workers=a.workers,
+        progress=not a.no_progress,
+        command=command,
+        bench_dir=a.bench,
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

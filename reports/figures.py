@@ -1,0 +1,228 @@
+"""Pure plotting functions: study tables in, matplotlib Figures out (Agg canvas, no pyplot).
+
+Failed runs (NaN errors) are drawn as grey crosses on the bottom edge of the axes, so a
+missing point is visible rather than silently absent.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+__all__ = [
+    "convergence_k",
+    "convergence_h",
+    "work_precision",
+    "scheme",
+    "time_histories",
+    "cost",
+    "bench_scaling",
+    "save",
+]
+
+ERROR_LABEL = "end-effector position error, RMS (m)"
+_MARKERS = "osD^v<>ph*"
+# One colour and marker per method in every figure; DT-TMM and the global solver often agree to
+# round-off, so their markers differ in shape and size to keep both visible.
+_STYLE = {
+    "dttmm": ("C0", "o", 7),
+    "global": ("C3", "^", 4),
+    "exudyn-ancf": ("C1", "s", 5),
+    "exudyn-beam": ("C2", "D", 5),
+    "dttmm-rk4": ("C4", "v", 5),
+    "pinocchio-rigid": ("k", "*", 9),
+    "reference": ("0.3", "", 0),
+}
+
+
+def _figure(ncols=1, nrows=1, size=(6.0, 4.2)):
+    fig = Figure(figsize=(size[0] * ncols, size[1] * nrows), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, axes.ravel()
+
+
+def _label(method: str) -> str:
+    from experiments.methods import label
+
+    return label(method)
+
+
+def _integer_ticks(ax, values):
+    """Label a log axis of element counts with the counts themselves."""
+    v = sorted({int(x) for x in values if x > 0})
+    if v:
+        ax.set_xticks(v, [str(x) for x in v])
+        ax.minorticks_off()
+
+
+def _loglog_groups(ax, table, x, y, group, *, style="-", labels=None, lw=1.5):
+    """One log-log line per group; failed points as crosses at the bottom edge."""
+    fails = []
+    for i, (name, g) in enumerate(table.groupby(group, sort=False)):
+        g = g.sort_values(x)
+        ok = np.isfinite(g[y]) & (g[y] > 0)
+        lab = (labels or {}).get(name, _label(name) if group == "method" else str(name))
+        color, marker, ms = _STYLE.get(name, (f"C{i % 10}", _MARKERS[i % len(_MARKERS)], 5))
+        if ok.any():
+            ax.loglog(
+                g[x][ok],
+                g[y][ok],
+                style,
+                color=color,
+                marker=marker,
+                ms=ms,
+                lw=lw,
+                label=lab,
+                mfc="none" if ms >= 7 else color,
+            )
+        fails += list(g[x][~ok])
+    if fails:
+        ax.plot(
+            fails,
+            np.full(len(fails), 0.0),
+            "x",
+            color="0.5",
+            transform=ax.get_xaxis_transform(),
+            clip_on=False,
+            label="failed / no value (see omissions)",
+        )
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def convergence_k(table: pd.DataFrame, case: str, *, floor: float | None = None, y="ee_l2") -> Figure:
+    """Error against elements per link k at fixed h, one line per method (case ``case``)."""
+    fig, (ax,) = _figure()
+    g = table[(table.case == case) & (table.k > 0)]
+    _loglog_groups(ax, g, "k", y, "method")
+    if floor is not None and np.isfinite(floor) and floor > 0:
+        ax.axhline(floor, color="k", ls=":", lw=1, label="reference cross-check difference")
+    _integer_ticks(ax, g.k)
+    h = g.h.iloc[0] if len(g) else np.nan
+    ax.set(xlabel="elements per link k", ylabel=ERROR_LABEL, title=f"{case}: convergence in k (h = {h:g} s)")
+    ax.legend(fontsize=8)
+    return fig
+
+
+def convergence_h(table: pd.DataFrame, case: str) -> Figure:
+    """Error against step h at fixed k: against the reference (solid) and against the next
+    finer h of the same method (dashed, time error alone)."""
+    fig, (ax,) = _figure()
+    g = table[table.case == case]
+    _loglog_groups(ax, g, "h", "ee_l2", "method")
+    if "selfdiff_ee_l2" in g and np.isfinite(g["selfdiff_ee_l2"]).any():
+        sd = g[np.isfinite(g["selfdiff_ee_l2"])]
+        _loglog_groups(
+            ax,
+            sd,
+            "h",
+            "selfdiff_ee_l2",
+            "method",
+            style="--",
+            lw=1,
+            labels={m: f"{_label(m)}: h vs h/2" for m in sd.method.unique()},
+        )
+    k = g.k.iloc[0] if len(g) else np.nan
+    ax.set(xlabel="step h (s)", ylabel=ERROR_LABEL, title=f"{case}: convergence in h (k = {k})")
+    ax.legend(fontsize=7)
+    return fig
+
+
+def work_precision(table: pd.DataFrame, case: str) -> Figure:
+    """Error against wall time, one curve per flexible method, the rigid baseline as stars."""
+    fig, (ax,) = _figure()
+    g = table[table.case == case]
+    _loglog_groups(ax, g[g.k > 0], "wall_time", "ee_l2", "method")
+    rigid = g[(g.k == 0) & np.isfinite(g.ee_l2)]
+    for m, r in rigid.groupby("method"):
+        ax.loglog(r.wall_time, r.ee_l2, "*", ms=12, color="k", label=f"{_label(m)} (rigid-model floor)")
+    ax.set(
+        xlabel="wall time of the solve (s)",
+        ylabel=ERROR_LABEL,
+        title=f"{case}: work-precision (lower left is better)",
+    )
+    ax.legend(fontsize=8)
+    return fig
+
+
+def scheme(table: pd.DataFrame, case: str) -> Figure:
+    """DT-TMM variants (sweep form × corrections per step): error against k and against h."""
+    fig, axes = _figure(ncols=2)
+    g = table[table.case == case]
+    for ax, series, x, xl in ((axes[0], "k", "k", "elements per link k"), (axes[1], "h", "h", "step h (s)")):
+        s = g[g.series == series]
+        _loglog_groups(ax, s, x, "ee_l2", "variant")
+        if series == "k":
+            _integer_ticks(ax, s.k)
+        fixed = (
+            f"h = {s.h.iloc[0]:g} s" if series == "k" and len(s) else (f"k = {s.k.iloc[0]}" if len(s) else "")
+        )
+        ax.set(xlabel=xl, ylabel=ERROR_LABEL, title=f"{case}: DT-TMM variants ({fixed})")
+        ax.legend(fontsize=7)
+    return fig
+
+
+def time_histories(series: pd.DataFrame, case: str) -> Figure:
+    """Joint angles (top row) and tip deflections (bottom row) against time, every method."""
+    s = series[series.case == case]
+    n = sum(1 for c in s.columns if c.startswith("joint_angle_") and s[c].notna().any())
+    fig, axes = _figure(ncols=max(n, 1), nrows=2, size=(5.0, 3.2))
+    axes = axes.reshape(2, max(n, 1))
+    for m, g in s.groupby("method", sort=False):
+        ref = m == "reference"
+        kw = (
+            dict(color="k", lw=2.5, alpha=0.35, zorder=0)
+            if ref
+            else dict(lw=1, color=_STYLE.get(m, ("C9",))[0])
+        )
+        lab = "reference" if ref else _label(m)
+        for j in range(n):
+            axes[0, j].plot(g.t, g[f"joint_angle_{j + 1}"], label=lab, **kw)
+            axes[1, j].plot(g.t, g[f"tip_deflection_{j + 1}"] * 1e3, label=lab, **kw)
+    for j in range(n):
+        name = "hub angle" if n == 1 else f"joint {j + 1} angle"
+        axes[0, j].set(xlabel="t (s)", ylabel=f"{name} (rad)")
+        axes[1, j].set(xlabel="t (s)", ylabel=f"link {j + 1} tip deflection (mm)")
+        for ax in axes[:, j]:
+            ax.grid(True, alpha=0.3)
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"{case}: time histories")
+    return fig
+
+
+def cost(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
+    """Wall time against elements per link, one line per method, fitted exponent in the legend."""
+    fig, (ax,) = _figure()
+    ex = dict(zip(exponents.method, exponents.exponent)) if len(exponents) else {}
+    labels = {
+        m: f"{_label(m)} (∝ k^{ex[m]:.2f})" if np.isfinite(ex.get(m, np.nan)) else _label(m)
+        for m in table.method.unique()
+    }
+    _loglog_groups(ax, table, "k", "wall_time", "method", labels=labels)
+    _integer_ticks(ax, table.k)
+    case = table.case.iloc[0] if len(table) else ""
+    ax.set(
+        xlabel="elements per link k", ylabel="wall time of the solve (s)", title=f"{case}: CPU time against k"
+    )
+    ax.legend(fontsize=8)
+    return fig
+
+
+def bench_scaling(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
+    """Benchmark time per step against elements (pytest-benchmark data), one line per group."""
+    fig, (ax,) = _figure()
+    ex = dict(zip(exponents.group, exponents.exponent)) if len(exponents) else {}
+    labels = {
+        g: f"{g} (∝ n^{ex[g]:.2f})" if np.isfinite(ex.get(g, np.nan)) else g for g in table.group.unique()
+    }
+    _loglog_groups(ax, table, "elements", "time_per_step", "group", labels=labels)
+    ax.set(xlabel="elements per link", ylabel="time per step (s)", title="benchmarks: cost scaling")
+    ax.legend(fontsize=7)
+    return fig
+
+
+def save(fig: Figure, path) -> None:
+    """Write a figure as PNG."""
+    fig.savefig(path, dpi=110)

@@ -1,0 +1,164 @@
+"""Two or three sentences under each figure, computed from the tables (never typed in)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+__all__ = ["convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost", "bench"]
+
+
+def _l(m):
+    from experiments.methods import label
+
+    return label(m)
+
+
+def _e(x) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{x:.2g}"
+
+
+def _orders_text(orders: pd.DataFrame, quantity: str) -> str:
+    o = orders[(orders.quantity == quantity) & np.isfinite(orders.order)]
+    return ", ".join(f"{_l(r.method)} {r.order:.1f}" for r in o.itertuples()) or "none could be fitted"
+
+
+def convergence_k(table, orders, case, floor=None) -> list[str]:
+    g = table[(table.case == case) & (table.k > 0)]
+    out = [
+        f"Observed orders in k of the end-effector error (fitted before each curve's floor): "
+        f"{_orders_text(orders[orders.case == case], 'ee_l2')}."
+    ]
+    best = g[np.isfinite(g.ee_l2)].groupby("method").ee_l2.min()
+    if len(best):
+        lo, hi = best.idxmin(), best.idxmax()
+        out.append(
+            f"The smallest error reached is {_e(best[lo])} m ({_l(lo)}), the largest best error "
+            f"{_e(best[hi])} m ({_l(hi)}); curves level off where the time error at "
+            f"h = {g.h.iloc[0]:g} s or the reference's own accuracy takes over."
+        )
+    if floor is not None and np.isfinite(floor):
+        out.append(
+            f"The reference and its independent cross-check differ by {_e(floor)} m (dotted line): "
+            "errors below it are not resolved."
+        )
+    return out
+
+
+def convergence_h(table, orders, case) -> list[str]:
+    o = orders[orders.case == case]
+    out = [
+        f"Observed orders in h from the self-differences (h against h/2, time error alone): "
+        f"{_orders_text(o, 'selfdiff_ee_l2')}.",
+        f"Against the reference: {_orders_text(o, 'ee_l2')}; a low value there means the spatial error "
+        f"of k = {table[table.case == case].k.max()} dominates at small h.",
+    ]
+    fails = table[(table.case == case) & (table.status != "ok")]
+    if len(fails):
+        out.append(
+            f"{len(fails)} run(s) failed, e.g. {_l(fails.method.iloc[0])} at h = {fails.h.iloc[0]:g} s: "
+            f"{fails.reason.iloc[0]}."
+        )
+    return out
+
+
+def work_precision(summary, case) -> list[str]:
+    s = summary[summary.case == case]
+    if s.empty:
+        return ["No run of this case produced an error value."]
+    flex = s[s.method != "pinocchio-rigid"].dropna(subset=["wall_time_to_target"])
+    out = []
+    if len(flex):
+        target = flex.target_error.iloc[0]
+        fast = flex.sort_values("wall_time_to_target")
+        parts = ", ".join(f"{_l(r.method)} {r.wall_time_to_target:.3g} s" for r in fast.itertuples())
+        out.append(f"Wall time to reach the common error {_e(target)} m: {parts}.")
+        if len(fast) > 1:
+            a, b = fast.iloc[0], fast.iloc[-1]
+            out.append(
+                f"{_l(a.method)} is {b.wall_time_to_target / a.wall_time_to_target:.1f}x faster than "
+                f"{_l(b.method)} at that accuracy."
+            )
+    rigid = s[s.method == "pinocchio-rigid"]
+    if len(rigid) and np.isfinite(rigid.best_error.iloc[0]):
+        out.append(
+            f"The rigid baseline's error, {_e(rigid.best_error.iloc[0])} m, is what ignoring the links' "
+            "flexibility costs; no step size removes it."
+        )
+    return out
+
+
+def scheme(summary, case) -> list[str]:
+    s = summary[summary.case == case]
+    out = []
+    for r in s.itertuples():
+        if np.isfinite(r.breaks_at_k):
+            why = f" ({r.first_reason})" if r.first_reason else ""
+            out.append(
+                f"{r.variant}: breaks at k = {int(r.breaks_at_k)} (error > 10x the converged Riccati "
+                f"error, or failure; {r.failed} of {r.runs} runs failed{why})."
+            )
+    ok = [r.variant for r in s.itertuples() if not np.isfinite(r.breaks_at_k)]
+    if ok:
+        out.append(f"Within 10x of the converged Riccati sweep at every k: {', '.join(ok)}.")
+    return out or ["No variant ran for this case."]
+
+
+def paper(summary, case) -> list[str]:
+    s = summary[summary.case == case]
+    ref = s[s.method == "reference"]
+    others = s[(s.method != "reference") & np.isfinite(s.ee_l2)]
+    out = []
+    if len(ref):
+        out.append(
+            f"Peak tip deflection of the last link: {ref.peak_tip.iloc[0] * 1e3:.3g} mm in the reference."
+        )
+    if len(others):
+        flex = others[others.method != "pinocchio-rigid"]
+        if len(flex):
+            worst = flex.loc[flex.ee_l2.idxmax()]
+            best = flex.loc[flex.ee_l2.idxmin()]
+            out.append(
+                f"Flexible methods agree with it to an end-effector RMS of {_e(best.ee_l2)} m "
+                f"({_l(best.method)}) … {_e(worst.ee_l2)} m ({_l(worst.method)}) "
+                f"at k = {int(flex.k.iloc[0])}."
+            )
+        rigid = others[others.method == "pinocchio-rigid"]
+        if len(rigid):
+            out.append(
+                f"The rigid arm misses the deflection: end-effector RMS error {_e(rigid.ee_l2.iloc[0])} m."
+            )
+    missing = s[s.status.isin(["failed", "unavailable"])]
+    if len(missing):
+        out.append(
+            "Not shown: " + "; ".join(f"{_l(r.method)} ({r.reason})" for r in missing.itertuples()) + "."
+        )
+    return out
+
+
+def cost(table, exponents) -> list[str]:
+    ex = exponents[np.isfinite(exponents.exponent)]
+    out = [
+        "Fitted exponents of wall time ∝ k^p (k ≥ 2): "
+        + (", ".join(f"{_l(r.method)} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
+        + "."
+    ]
+    if len(ex) > 1:
+        kmax = int(ex.k_max.min())
+        at = table[(table.k == kmax) & (table.status == "ok")].set_index("method").wall_time
+        if "dttmm" in at and "global" in at:
+            out.append(
+                f"At k = {kmax}, DT-TMM takes {at['dttmm']:.3g} s and the global solver "
+                f"{at['global']:.3g} s (ratio {at['global'] / at['dttmm']:.2f})."
+            )
+    out.append("Timings come from one run per worker process on a shared machine; read them as ±20 %.")
+    return out
+
+
+def bench(exponents) -> list[str]:
+    ex = exponents[np.isfinite(exponents.exponent)]
+    return [
+        "Fitted exponents of time per step ∝ elements^p: "
+        + (", ".join(f"{r.group} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
+        + "."
+    ]
