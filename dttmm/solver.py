@@ -85,19 +85,57 @@ class _System:
         return q, qd
 
 
-def accelerations(case: Case, elements_per_link: int, q, qd, t: float = 0.0, *, sweep: str = "riccati"):
+ENGINES = ("numba", "numpy")
+
+
+def _engine(engine) -> str:
+    """Resolve ``engine``: None → "numba" when numba imports, else "numpy"."""
+    from . import _kernel
+
+    if engine is None:
+        return "numba" if _kernel.HAVE_NUMBA else "numpy"
+    if engine not in ENGINES:
+        raise InputError("engine", engine, f"unknown (one of: {', '.join(ENGINES)})")
+    if engine == "numba" and not _kernel.HAVE_NUMBA:
+        raise InputError("engine", engine,
+                         "numba is not installed (pip install 'dttmm[fast]'); use engine='numpy'")
+    return engine
+
+
+def accelerations(case: Case, elements_per_link: int, q, qd, t: float = 0.0, *, sweep: str = "riccati",
+                  engine: str | None = None):
     """Forward dynamics of the discretised arm: q̈ from (q, q̇) at time t.
 
     Coordinates as in :mod:`dttmm.structure` (``[α_1, e_11, …, α_2, …]``). Motion-driven joints
     take their angle, rate and acceleration from the law (the given values are overridden).
-    Returns q̈ (n_dof,).
+    ``engine``: "numba" (compiled, the default when numba is installed) or "numpy" (the
+    readable reference). Returns q̈ (n_dof,).
     """
+    if not isinstance(case, Case):
+        raise InputError("case", case, "must be a dttmm.Case")
+    engine = _engine(engine)
     sysm = _System(case, elements_per_link, sweep)
     q = np.asarray(q, float)
     qd = np.asarray(qd, float)
     if q.shape != (sysm.st.n_dof,) or qd.shape != (sysm.st.n_dof,):
         raise InputError("q/qd", (q.shape, qd.shape), f"must both have shape ({sysm.st.n_dof},)")
-    return sysm.accelerations(q, qd, t).qdd
+    if engine == "numpy":
+        return sysm.accelerations(q, qd, t).qdd
+    from . import _kernel as K
+
+    K.warmup()
+    pk = K.pack(sysm.st)
+    n = pk.n
+    qdd = np.empty(pk.n_dof)
+    ok, _ = K.accel(_SWEEP_CODE[sweep], pk.LC, pk.LI, pk.grav, n, pk.k, pk.im, np.ascontiguousarray(q),
+                    np.ascontiguousarray(qd), sysm.drv.torques(t), sysm.drv.motions(t), pk.WE, pk.WJ, qdd,
+                    np.empty(n), np.empty((pk.ncuts, 3)), pk.plain_ws(sweep == "plain"))
+    if not ok:
+        raise np.linalg.LinAlgError("singular matrix")
+    return qdd
+
+
+_SWEEP_CODE = {"riccati": 0, "plain": 1}
 
 
 class _Recorder:
@@ -192,10 +230,10 @@ def _progress(total, enabled):
 
 
 def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = "newmark",
-             sweep: str = "riccati", iterations: int | None = None, tol: float = 1e-10,
+             sweep: str = "riccati", iterations: int | str | None = None, tol: float = 1e-10,
              max_iterations: int = 50, beta: float | None = None, gamma: float | None = None,
              rho_inf: float | None = None, cut_loads: bool = True, energy: bool = True,
-             progress: bool | None = None):
+             progress: bool | None = None, engine: str | None = None, auto_fraction: float = 0.1):
     """Simulate ``case`` by DT-TMM with k = ``elements_per_link`` elements per link and step ``h``.
 
     Parameters
@@ -205,7 +243,13 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     sweep : "riccati" (stable, default) or "plain" (the paper's transfer form).
     iterations : None → iterate each step until max|Δq̈| ≤ tol·max(1, max|q̈|) (at most
         ``max_iterations`` sweeps); m ≥ 0 → exactly m + 1 sweeps per step (0 = the paper's
-        one-shot linearisation).
+        one-shot linearisation); "auto" → at least 2 sweeps, then stop as soon as the iteration
+        error predicted from the contraction ρ = |Δq̈_m|/|Δq̈_{m−1}|, |Δq̈_m|·ρ/(1 − ρ), is below
+        ``auto_fraction`` × the local truncation error estimate |β − 1/6|/β · max|q̈_{n+1} − q̈_n|
+        (both measured in q̈; multiplied by βh² they are displacement errors), or the
+        ``tol`` rule is met.
+    engine : "numba" (compiled kernel, default when numba is installed) or "numpy" (the
+        readable reference implementation; same results to round-off).
     cut_loads, energy : record the loads at every cut and the total energy on the output grid.
     progress : show a progress bar (default: on for runs of more than 20 000 element-steps × 1000).
 
@@ -221,18 +265,31 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
         raise InputError("case", case, "must be a dttmm.Case")
     if integrator not in INTEGRATORS:
         raise InputError("integrator", integrator, f"unknown (one of: {', '.join(INTEGRATORS)})")
-    if iterations is not None and (isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer))
-                                   or iterations < 0):
-        raise InputError("iterations", iterations, "must be None or an integer ≥ 0")
+    if iterations is not None and iterations != "auto" and (
+            isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0):
+        raise InputError("iterations", iterations, "must be None, \"auto\" or an integer ≥ 0")
     if not (isinstance(tol, (int, float)) and 0 < tol < 1):
         raise InputError("tol", tol, "must lie in (0, 1)")
+    if isinstance(auto_fraction, bool) or not isinstance(auto_fraction, (int, float)) \
+            or not auto_fraction > 0:
+        raise InputError("auto_fraction", auto_fraction, "must be positive")
+    if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) \
+            or max_iterations < 1:
+        raise InputError("max_iterations", max_iterations, "must be an integer ≥ 1")
+    engine = _engine(engine)
+    fam = None if integrator == "rk4" else newmark_family(integrator, beta=beta, gamma=gamma, rho_inf=rho_inf)
+    if engine == "numba":
+        return _simulate_numba(case, elements_per_link, h, integrator, sweep, iterations, tol, max_iterations,
+                               fam, cut_loads, energy, progress, auto_fraction)
     scen = case.scenario
     t_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     sysm = _System(case, elements_per_link, sweep)
     st = sysm.st
     meta = {"method": "dttmm", "sweep": sweep, "elements_per_link": st.k, "h": float(h),
             "integrator": integrator, "iterations": iterations, "tol": tol, "n_dof": st.n_dof,
-            "final_system_size": 3, "versions": versions(), "success": True}
+            "final_system_size": 3, "versions": versions(), "success": True, "engine": "numpy"}
+    if iterations == "auto":
+        meta["auto_fraction"] = auto_fraction
     rec = _Recorder(sysm, scen.output_times, cut_loads, energy)
     n_steps = t_end.size
     if progress is None:
@@ -254,8 +311,7 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     if integrator == "rk4":
         stepper = _rk4_stepper(sysm)
     else:
-        stepper = _newmark_stepper(sysm, newmark_family(integrator, beta=beta, gamma=gamma, rho_inf=rho_inf),
-                                   iterations, tol, max_iterations)
+        stepper = _newmark_stepper(sysm, fam, iterations, tol, max_iterations, auto_fraction)
     state = stepper.init(q, qd, qdd)
     t0 = 0.0
     for n in range(n_steps):
@@ -286,13 +342,22 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     return rec.result(wall, n_steps, meta)
 
 
+def _lte_factor(fam) -> float:
+    """|β − 1/6|/β: the Newmark local truncation error in q, (β − 1/6)h²(q̈_{n+1} − q̈_n),
+    expressed like an acceleration error (divided by the βh² that maps q̈ errors to q)."""
+    return abs(fam.beta - 1.0 / 6.0) / fam.beta
+
+
 class _newmark_stepper:
     """Newmark / generalised-α with the frozen-coefficient iteration of METHOD.md §4."""
 
-    def __init__(self, sysm, fam, iterations, tol, max_iterations):
+    def __init__(self, sysm, fam, iterations, tol, max_iterations, auto_fraction=0.1):
         self.s, self.fam = sysm, fam
-        self.fixed = iterations
+        self.auto = iterations == "auto"
+        self.fixed = None if self.auto else iterations
         self.tol, self.maxit = tol, max_iterations
+        self.auto_fraction = auto_fraction
+        self.lte = _lte_factor(fam)
         self.sweeps = 0
         self.max_sweeps = 0
         self.unconverged = 0
@@ -334,6 +399,11 @@ class _newmark_stepper:
                     break
                 if not np.isfinite(dx):
                     break
+                if self.auto and it >= 1 and dx < prev_dx:
+                    rr = dx / prev_dx  # contraction → remaining iteration error dx·ρ/(1 − ρ)
+                    if dx * rr / (1.0 - rr) <= self.auto_fraction * self.lte * np.max(np.abs(x - qdd)):
+                        converged = True
+                        break
                 prev_dx = dx
         n_used = it + 1
         self.sweeps += n_used
@@ -387,3 +457,157 @@ class _rk4_stepper:
 
     def stats(self, n_steps):
         return {"iterations_mean": 4.0, "iterations_max": 4, "unconverged_steps": 0}
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled engine (dttmm._kernel): the same time loop, run inside numba.
+
+def _drive_tables(sysm: _System, t_end, restart, rk4: bool):
+    """Drive values the kernel needs, per step: torques and motion (α, α̇, α̈) at the step end
+    (left limits), at restart steps also the right limits, and for RK4 at the mid-step."""
+    st = sysm.st
+    n, ns = st.n_links, t_end.size
+    t_start = np.concatenate(([0.0], t_end[:-1]))
+    t_mid = t_start + 0.5 * (t_end - t_start)
+    taul, motl = np.zeros((ns, n)), np.zeros((ns, n, 3))
+    taur, motr = np.zeros((ns, n)), np.zeros((ns, n, 3))
+    taum, motm = (np.zeros((ns, n)), np.zeros((ns, n, 3))) if rk4 else (np.zeros((1, n)), np.zeros((1, n, 3)))
+    rs = np.flatnonzero(restart)
+    for i, (d, m) in enumerate(zip(sysm.drv.drives, st.motion)):
+        if m:
+            motl[:, i] = [d.motion(t, True) for t in t_end]
+            if rs.size:
+                motr[rs, i] = [d.motion(t, False) for t in t_end[rs]]
+            if rk4:
+                motm[:, i] = [d.motion(t, False) for t in t_mid]
+        else:
+            taul[:, i] = [d.torque(t, True) for t in t_end]
+            if rs.size:
+                taur[rs, i] = [d.torque(t, False) for t in t_end[rs]]
+            if rk4:
+                taum[:, i] = [d.torque(t, False) for t in t_mid]
+    return taul, motl, taur, motr, taum, motm
+
+
+def _load_plan(rec: _Recorder, t_end, i0: int):
+    """Step ends whose cut loads the recorder needs (samples j ≡ 0 mod load_stride, and the
+    step end before a sample that is interpolated)."""
+    need = np.zeros(t_end.size, np.bool_)
+    if rec.loads is None:
+        return need
+    stride = rec.load_stride
+    j = np.arange(((i0 + stride - 1) // stride) * stride, rec.t.size, stride)
+    t_start = np.concatenate(([0.0], t_end[:-1]))
+    eps = 1e-9 * (t_end - t_start)
+    nj = np.searchsorted(t_end + eps, rec.t[j], side="left")
+    ok = nj < t_end.size
+    j, nj = j[ok], nj[ok]
+    need[nj] = True
+    inexact = np.abs(rec.t[j] - t_end[nj]) > eps[nj]
+    prev = nj[inexact] - 1
+    need[prev[prev >= 0]] = True
+    return need
+
+
+def _simulate_numba(case, k, h, integrator, sweep, iterations, tol, max_iterations, fam, cut_loads,
+                    want_energy, progress, auto_fraction):
+    from . import _kernel as K
+
+    compile_time = K.warmup() if not K.is_warm() else None
+    scen = case.scenario
+    t_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
+    sysm = _System(case, k, sweep)
+    st = sysm.st
+    pk = K.pack(st)
+    n, nd = pk.n, pk.n_dof
+    meta = {"method": "dttmm", "sweep": sweep, "elements_per_link": st.k, "h": float(h),
+            "integrator": integrator, "iterations": iterations, "tol": tol, "n_dof": st.n_dof,
+            "final_system_size": 3, "versions": versions(), "success": True, "engine": "numba"}
+    if iterations == "auto":
+        meta["auto_fraction"] = auto_fraction
+    if compile_time is not None:
+        meta["compile_time"] = compile_time
+    rec = _Recorder(sysm, scen.output_times, cut_loads, want_energy)
+    n_steps = t_end.size
+    if progress is None:
+        progress = n_steps * max(st.n_elements, 1) > 2e8
+    bar = _progress(n_steps, progress)
+    wall0 = time.perf_counter()
+    rk4 = integrator == "rk4"
+    drv = _drive_tables(sysm, t_end, restart, rk4)
+    sw = _SWEEP_CODE[sweep]
+    pws = pk.plain_ws(sweep == "plain")
+
+    # initial state and accelerations (as the numpy path)
+    q, qd = sysm.initial_state()
+    mot0 = sysm.drv.motions(0.0)
+    qdd, torque, loads = np.empty(nd), np.empty(n), np.empty((pk.ncuts, 3))
+    ok, cond0 = K.accel(sw, pk.LC, pk.LI, pk.grav, n, pk.k, pk.im, q, qd, sysm.drv.torques(0.0), mot0, pk.WE,
+                        pk.WJ, qdd, torque, loads, pws)
+    if not ok:
+        meta.update(success=False, failure="Singular matrix")
+        raise SimulationError("initial acceleration solve failed (Singular matrix)", t=0.0, step=0,
+                              component="step system", partial=rec.result(0.0, 0, meta, upto=0))
+    q[sysm.im], qd[sysm.im] = mot0[st.motion, 0], mot0[st.motion, 1]
+    s_prev = (q.copy(), qd.copy(), torque.copy(), loads.copy())
+    recarr = (rec.t, rec.angle, rec.rate, rec.torque, rec.root, rec.tip, rec.root_angle,
+              rec.energy if rec.energy is not None else np.zeros(0),
+              rec.loads if rec.loads is not None else np.zeros((0, pk.ncuts, 3)))
+    stride = rec.load_stride if rec.loads is not None else 0
+    ia = sysm.ia.astype(np.int64)
+    # the samples at t = 0 (compiled recorder, as rec.record(-1, s, 0, s))
+    rec.i = K._record(pk.LC, pk.LI, pk.grav, n, pk.k, ia, -1.0, 0.0, *s_prev, *s_prev, np.empty(nd),
+                      np.empty(nd), rec.i, recarr, stride, want_energy)
+
+    if rk4:
+        famv, itmode, nfix = np.zeros(5), K.IT_FIXED, 3
+    else:
+        famv = np.array([fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f, _lte_factor(fam)])
+        if iterations is None:
+            itmode, nfix = K.IT_TOL, 0
+        elif iterations == "auto":
+            itmode, nfix = K.IT_AUTO, 0
+        else:
+            itmode, nfix = K.IT_FIXED, int(iterations)
+    state = (q, qd, qdd, qdd.copy())
+    prev = s_prev
+    need = _load_plan(rec, t_end, rec.i)
+    stats = np.zeros(8)
+    stats[3] = 0.0 if math.isnan(cond0) else cond0
+    stats[7] = rec.i
+    chunk = n_steps if bar is None else max(1, n_steps // 200)
+    status = 0
+    for a in range(0, n_steps, chunk):
+        b = min(n_steps, a + chunk)
+        status = K.run(1 if rk4 else 0, sw, itmode, nfix, float(tol), int(max_iterations),
+                       float(auto_fraction), famv, pk.LC, pk.LI, pk.grav, n, pk.k, pk.im, ia, pk.lim, state,
+                       t_end, restart, a, b, drv, need, prev, recarr, stride, want_energy, pk.WE, pk.WJ, pws, stats)
+        if bar is not None:
+            bar.update(int(stats[4]) - a)
+        if status:
+            break
+    rec.i = int(stats[7])
+    wall = time.perf_counter() - wall0
+    if bar is not None:
+        bar.close()
+    done = int(stats[4])
+    if status:
+        step = done
+        if status == 3:
+            why = "linear solve failed (Singular matrix)"
+            meta.update(success=False, failure="Singular matrix")
+            raise SimulationError(why, t=float(t_end[step]), step=step, component="step system",
+                                  partial=rec.result(wall, step, meta))
+        why = "non-finite state" if status == K.ST_NONFINITE else "runaway elastic displacement"
+        meta = dict(meta, success=False, failure=why)
+        raise SimulationError(f"simulation diverged ({why})", t=float(t_end[step]), step=step,
+                              component=st.coordinate_names()[int(stats[6])],
+                              partial=rec.result(wall, step, meta))
+    meta.update({"iterations_mean": stats[0] / max(n_steps, 1), "iterations_max": int(stats[1]),
+                 "unconverged_steps": int(stats[2])})
+    if rk4:
+        meta.update({"iterations_mean": 4.0, "iterations_max": 4, "unconverged_steps": 0})
+    if sweep == "plain":
+        meta["final_system_cond"] = float(stats[3])
+    meta["time_per_step"] = wall / n_steps
+    return rec.result(wall, n_steps, meta)
