@@ -1121,6 +1121,8 @@ def run(integ, sweep, itmode, nfix, tol, maxit, auto_frac, fam, LC, LI, grav, n,
     qdi = np.empty(nd)
     torque = np.empty(n)
     loads = np.empty((ncuts, 3))
+    torque_r = np.empty(n)         # restart solve: its torques/loads are not recorded
+    loads_r = np.empty((ncuts, 3))
     k2v = np.empty(nd)
     k3v = np.empty(nd)
     ka = np.empty(nd)
@@ -1245,7 +1247,7 @@ def run(integ, sweep, itmode, nfix, tol, maxit, auto_frac, fam, LC, LI, grav, n,
                     ii += 1
                 else:
                     torque[i] = tau[i]
-            if need_loads[st] and not restart[st] and sweep == SW_RICCATI:
+            if need_loads[st] and sweep == SW_RICCATI:
                 _riccati_loads(n, k, WE, WJ, loads)
         else:
             # classical RK4 on (q, q̇) with the exact acceleration solver
@@ -1281,7 +1283,7 @@ def run(integ, sweep, itmode, nfix, tol, maxit, auto_frac, fam, LC, LI, grav, n,
                         qd[im[ii]] = mot[i, 1]
                         ii += 1
                 ok, cond = _accel(sweep, LC, LI, grav, n, k, im, q, qd, tau, mot, qs, qds, acc_s, WE, WJ, qdd,
-                                  torque, loads, pws, need_loads[st] and not restart[st])
+                                  torque, loads, pws, need_loads[st])
             if not ok:
                 status = 3
                 break
@@ -1294,9 +1296,10 @@ def run(integ, sweep, itmode, nfix, tol, maxit, auto_frac, fam, LC, LI, grav, n,
             stats[6] = bad
             status = ST_RUNAWAY if math.isfinite(q[bad] + qd[bad] + qdd[bad]) else ST_NONFINITE
             break
-        if restart[st]:  # a drive jumps at t1: restart with the right-hand limit
+        if restart[st]:  # a drive jumps at t1: restart with the right-hand limit; the
+            # recorded sample at t1 keeps the left limit (the step's own solve)
             ok, cond = _accel(sweep, LC, LI, grav, n, k, im, q, qd, TAUR[st], MOTR[st], qs, qds, acc_s,
-                              WE, WJ, qdd, torque, loads, pws, need_loads[st])
+                              WE, WJ, qdd, torque_r, loads_r, pws, False)
             if not ok:
                 status = 3
                 break

@@ -324,9 +324,9 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
                                   partial=rec.result(time.perf_counter() - wall0, n, meta)) from None
         q, qd, qdd = state[0], state[1], state[2]
         _check_state(sysm, q, qd, qdd, t1, n, rec, meta, wall0)
-        if restart[n]:  # a drive jumps at t1: restart with the right-hand limit
-            out = sysm.accelerations(q, qd, t1, left=False)
-            state = stepper.restart(state, out.qdd)
+        if restart[n]:  # a drive jumps at t1: restart with the right-hand limit; the sample
+            # recorded at t1 keeps the left limit (the torques and loads of the step's own solve)
+            state = stepper.restart(state, sysm.accelerations(q, qd, t1, left=False).qdd)
         s_cur = (q.copy(), qd.copy(), out.torque.copy(), out.loads.copy())
         rec.record(t0, s_prev, t1, s_cur)
         s_prev, t0 = s_cur, t1
