@@ -5,6 +5,15 @@ import argparse
 import sys
 
 
+def _iterations(text: str):
+    if text == "auto":
+        return "auto"
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--iterations = {text!r}: an integer ≥ 0 or 'auto'") from None
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] == "report":  # the report has its own parser (reports/cli.py)
@@ -23,7 +32,9 @@ def main(argv=None) -> int:
     s.add_argument("--h", type=float, required=True, help="time step (s)")
     s.add_argument("--integrator", default="newmark", help="newmark | generalized-alpha | rk4")
     s.add_argument("--sweep", default="riccati", help="riccati | plain")
-    s.add_argument("--iterations", type=int, default=None, help="fixed corrections per step (default: converge)")
+    s.add_argument("--iterations", type=_iterations, default=None,
+                   help="corrections per step: an integer m (m + 1 sweeps), 'auto', or omit to converge")
+    s.add_argument("--engine", default=None, choices=["numba", "numpy"], help="default: numba when installed")
     s.add_argument("--format", default="csv", choices=["csv", "parquet"])
     s.add_argument("--out", default="out/simulate", help="output folder")
     sub.add_parser("urdf", help="print the rigid arm of a case as URDF")

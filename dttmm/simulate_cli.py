@@ -38,7 +38,7 @@ def run_simulate(a) -> int:
     try:
         case = load_case(a.case)
         res = simulate(case, elements_per_link=a.elements, h=a.h, integrator=a.integrator, sweep=a.sweep,
-                       iterations=a.iterations, progress=True)
+                       iterations=a.iterations, engine=a.engine, progress=True)
     except InputError as exc:
         print(f"dttmm: bad input: {exc}", file=sys.stderr)
         return 2
