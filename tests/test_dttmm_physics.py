@@ -140,3 +140,21 @@ def test_divergence_is_reported_with_partial_result():
     assert e.partial is not None and e.partial.t.size >= 1
     assert e.t > 0 and e.step >= 1
     assert "link 1" in e.component or "joint" in e.component
+
+
+def test_cut_loads_of_a_cantilever_under_gravity():
+    """Loads at the cuts (M, Qx, Qy): at rest under gravity the section at x carries the weight
+    of the beam outboard of it, Qy = ρA g (L − x), M = ρA g (L − x)²/2; the free tip carries 0."""
+    L, rhoA, g = 1.0, 0.27, 9.81
+    sec = Section(L, 100.0, rhoA, 7e6, damping=0.02)
+    k = 8
+    # generalised-α damps the overdamped Kelvin-Voigt roots that the trapezoidal rule keeps ringing
+    res = dttmm.simulate(clamped(sec, (0.0, -g), duration=1.0), elements_per_link=k, h=1e-3,
+                         integrator="generalized-alpha", rho_inf=0.5)
+    loads = res.cut_loads[-1]                     # (k + 1, 3): element roots, then the tip
+    x = np.arange(k + 1) * L / k
+    np.testing.assert_allclose(loads[:, 2], rhoA * g * (L - x), atol=1e-4)
+    np.testing.assert_allclose(loads[:, 0], rhoA * g * (L - x) ** 2 / 2, atol=1e-4)
+    np.testing.assert_allclose(loads[:, 1], 0.0, atol=1e-4)
+    assert res.joint_torque[-1, 0] == pytest.approx(rhoA * g * L**2 / 2, rel=1e-4)
+    assert res.cut_load_t[-1] == res.t[-1]
