@@ -69,12 +69,12 @@ class Section:
 
 
 @dataclass(frozen=True)
-class Hub:
-    """Rigid body at a link root, on the outboard side of the joint (kg, kg·m² about the joint)."""
+class _Body:
+    """A rigid body on the beam axis: mass (kg) and inertia (kg·m²) about its attachment point."""
 
     mass: float = 0.0
     inertia: float = 0.0
-    _where: str = field(default="hub", repr=False, compare=False)
+    _where: str = field(default="body", repr=False, compare=False)
 
     def __post_init__(self):
         object.__setattr__(self, "mass", non_negative(f"{self._where}.mass", self.mass))
@@ -82,16 +82,17 @@ class Hub:
 
 
 @dataclass(frozen=True)
-class Payload:
+class Hub(_Body):
+    """Rigid body at a link root, on the outboard side of the joint (kg, kg·m² about the joint)."""
+
+    _where: str = field(default="hub", repr=False, compare=False)
+
+
+@dataclass(frozen=True)
+class Payload(_Body):
     """Rigid body at a link tip, fixed to the tip cross-section (kg, kg·m² about the tip)."""
 
-    mass: float = 0.0
-    inertia: float = 0.0
     _where: str = field(default="payload", repr=False, compare=False)
-
-    def __post_init__(self):
-        object.__setattr__(self, "mass", non_negative(f"{self._where}.mass", self.mass))
-        object.__setattr__(self, "inertia", non_negative(f"{self._where}.inertia", self.inertia))
 
 
 @dataclass(frozen=True)
