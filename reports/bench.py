@@ -5,9 +5,21 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-__all__ = ["latest", "load", "exponents"]
+__all__ = [
+    "latest",
+    "load",
+    "exponents",
+    "read",
+    "info_of",
+    "has_scans",
+    "scaling_exponents",
+    "element_step_table",
+    "ratios",
+    "absent",
+]
 
 _K_KEYS = ("elements_per_link", "k", "elements", "n_elements")
 _STEP_KEYS = ("n_steps", "steps")
@@ -72,3 +84,206 @@ def exponents(table: pd.DataFrame) -> pd.DataFrame:
         p, n = slope(d.elements, d.time_per_step)
         rows.append({"group": g, "exponent": p, "n_points": n})
     return pd.DataFrame(rows, columns=["group", "exponent", "n_points"])
+
+
+# --- The scaling suites (benchmarks/): groups "elements:<case>:<method>", "links:<method>",
+# "one-step:k=<k>". Times are the solve-only time per step from extra_info (model build and
+# the benchmark's own overhead excluded), not the pytest-benchmark mean.
+
+ELEMENT_METHODS = ("dttmm-converged", "dttmm-one-shot", "global", "exudyn-ancf", "exudyn-beam", "dttmm-rk4")
+LINK_METHODS = ("dttmm", "global", "exudyn-ancf")
+RATIO_METHODS = ("global", "exudyn-ancf", "exudyn-beam")  # each against DT-TMM
+K_MIN = 8  # exponents in k are fitted over k ≥ K_MIN: below it per-step overhead dominates
+N_MIN = 2  # exponents in the number of links: n ≥ N_MIN
+_RECORD_COLS = [
+    "group",
+    "name",
+    "kind",
+    "case",
+    "method",
+    "k",
+    "n_links",
+    "n_steps",
+    "n_dof",
+    "h",
+    "time_per_step",
+    "time_per_element_step",
+    "mean",
+    "tip_error_l2",
+]
+
+
+def _num(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return np.nan
+
+
+def info_of(data: dict, path) -> dict:
+    """Machine, commit and date of a pytest-benchmark run (from its JSON)."""
+    m, c = data.get("machine_info") or {}, data.get("commit_info") or {}
+    cpu = m.get("cpu") or {}
+    return {
+        "file": str(path),
+        "date": data.get("datetime", ""),
+        "machine": cpu.get("brand_raw", m.get("node", "")),
+        "cores": cpu.get("count"),
+        "node": m.get("node", ""),
+        "commit": c.get("id", "") or "",
+        "dirty": c.get("dirty"),
+        "python": m.get("python_version", ""),
+    }
+
+
+def _record(b: dict) -> dict:
+    group = str(b.get("group") or "")
+    parts = group.split(":")
+    kind = parts[0] if len(parts) > 1 else ""
+    params, e = b.get("params") or {}, b.get("extra_info") or {}
+    method, case = e.get("method"), e.get("case")
+    if kind == "elements" and len(parts) >= 3:
+        case, method = parts[1], ":".join(parts[2:])
+    elif kind == "links":
+        method = parts[1]
+    k = _num(_first(e, _K_KEYS) if _first(e, _K_KEYS) is not None else _first(params, _K_KEYS))
+    n_links = _num(e.get("n_links"))
+    steps = _num(_first(e, _STEP_KEYS) or _first(params, _STEP_KEYS))
+    mean = _num((b.get("stats") or {}).get("mean"))
+    tps = _num(e.get("time_per_step"))
+    if not np.isfinite(tps):  # older files: the solve time, else the whole benchmark mean
+        tps = _num(e.get("solve_time")) / steps if np.isfinite(_num(e.get("solve_time"))) else mean / steps
+    tpe = _num(e.get("time_per_element_step"))
+    if not np.isfinite(tpe) and k > 0 and n_links > 0:
+        tpe = tps / (k * n_links)
+    return {
+        "group": group,
+        "name": b.get("name", ""),
+        "kind": kind,
+        "case": case,
+        "method": method,
+        "k": k,
+        "n_links": n_links,
+        "n_steps": steps,
+        "n_dof": _num(e.get("n_dof")),
+        "h": _num(e.get("h")),
+        "time_per_step": tps,
+        "time_per_element_step": tpe,
+        "mean": mean,
+        "tip_error_l2": _num(e.get("tip_error_l2")),
+    }
+
+
+def read(path) -> tuple[pd.DataFrame, dict]:
+    """(records, info): one row per benchmark of the file, every group, with kind ("elements",
+    "links", "one-step", "kernel", … or "" for ungrouped), case, method, k (elements per link,
+    NaN where none), n_links, time per step (s, solve only) and per element-step (s)."""
+    data = json.loads(Path(path).read_text())
+    rows = [_record(b) for b in data.get("benchmarks", [])]
+    return pd.DataFrame(rows, columns=_RECORD_COLS), info_of(data, path)
+
+
+def has_scans(records: pd.DataFrame) -> bool:
+    """Whether the file holds the scaling suites' groups (else the report falls back to ``load``)."""
+    return bool(len(records)) and records.kind.isin(["elements", "links"]).any()
+
+
+def scaling_exponents(records: pd.DataFrame, k_min: int = K_MIN, n_min: int = N_MIN) -> pd.DataFrame:
+    """Exponent p of time per step ∝ x^p: x = elements per link per (case, method) of the
+    "elements" scans, fitted over k ≥ k_min; x = number of links per method of the "links" scan
+    (k = 8), over n ≥ n_min. One row per curve: scan, case, method, exponent, fit_from, fit_to,
+    n_points (NaN exponent with fewer than two points in range)."""
+    from experiments.fit import slope
+
+    rows = []
+    scans = (("elements", "k", k_min, ["case", "method"]), ("links", "n_links", n_min, ["method"]))
+    for kind, x, lo, by in scans:
+        d = records[(records.kind == kind) & (records[x] > 0)]
+        for key, g in d.groupby(by, sort=False):
+            key = key if isinstance(key, tuple) else (key,)
+            fit = g[g[x] >= lo]
+            p, n = slope(fit[x], fit.time_per_step)
+            rows.append(
+                {
+                    "scan": "elements per link" if kind == "elements" else "links (k = 8)",
+                    "case": key[0] if kind == "elements" else "chain",
+                    "method": key[-1],
+                    "exponent": p,
+                    "fit_from": fit[x].min() if len(fit) else np.nan,
+                    "fit_to": fit[x].max() if len(fit) else np.nan,
+                    "n_points": n,
+                }
+            )
+    return pd.DataFrame(
+        rows, columns=["scan", "case", "method", "exponent", "fit_from", "fit_to", "n_points"]
+    )
+
+
+def element_step_table(records: pd.DataFrame, case: str = "three_link") -> pd.DataFrame:
+    """Cost per element-step (µs, solve only) of the "elements" scan of ``case``: one row per k,
+    one column per method (NaN where a method did not run at that k)."""
+    d = records[(records.kind == "elements") & (records.case == case) & (records.k > 0)]
+    if d.empty:
+        return pd.DataFrame(columns=["k"])
+    w = d.pivot_table(index="k", columns="method", values="time_per_element_step", aggfunc="first") * 1e6
+    order = [m for m in ELEMENT_METHODS if m in w] + [m for m in w if m not in ELEMENT_METHODS]
+    w = w[order].reset_index()
+    w["k"] = w.k.astype(int)
+    w.columns.name = None
+    return w
+
+
+def _dttmm(methods) -> str | None:
+    return next((m for m in ("dttmm-converged", "dttmm") if m in set(methods)), None)
+
+
+def ratios(records: pd.DataFrame, work_precision=None, ks=(4, 16, 64)) -> pd.DataFrame:
+    """Speed ratios against DT-TMM (converged Newmark): ``<method>/dttmm`` = that method's time
+    over DT-TMM's, so DT-TMM : global : Exudyn = 1 : x : y. Rows: equal model size (time per step
+    at the same k) from the "elements" scans (k in ``ks``) and from the "one-step" groups; equal
+    accuracy (wall time to reach the common target error) from the work-precision summary table
+    when given. ``dttmm_s`` is DT-TMM's own time (s); NaN where a method is absent."""
+    rows = []
+
+    def add(basis, case, k, times, target=np.nan):
+        ref = _dttmm(times)
+        t0 = times.get(ref, np.nan) if ref else np.nan
+        row = {"basis": basis, "case": case, "k": k, "target_error_m": target, "dttmm_s": t0}
+        for m in RATIO_METHODS:
+            row[f"{m}/dttmm"] = times.get(m, np.nan) / t0 if np.isfinite(t0) and t0 > 0 else np.nan
+        rows.append(row)
+
+    el = records[records.kind == "elements"]
+    for case in dict.fromkeys(el.case):
+        for k in ks:
+            d = el[(el.case == case) & (el.k == k)]
+            if len(d):
+                add(
+                    "equal size: time per step (elements scan)", case, k, dict(zip(d.method, d.time_per_step))
+                )
+    one = records[records.kind == "one-step"]
+    for (case, k), d in one.groupby(["case", "k"], sort=True):
+        add("equal size: time per step (one-step)", case, int(k), dict(zip(d.method, d.time_per_step)))
+    if work_precision is not None and len(work_precision):
+        for case, d in work_precision.groupby("case", sort=False):
+            add(
+                "equal accuracy: wall time to target (work-precision)",
+                case,
+                np.nan,
+                dict(zip(d.method, d.wall_time_to_target.astype(float))),
+                float(d.target_error.iloc[0]),
+            )
+    cols = ["basis", "case", "k", "target_error_m", "dttmm_s"] + [f"{m}/dttmm" for m in RATIO_METHODS]
+    return pd.DataFrame(rows, columns=cols)
+
+
+def absent(records: pd.DataFrame) -> list[str]:
+    """The expected scaling curves this file lacks, as "<method> (<case>)" strings."""
+    el, ln = records[records.kind == "elements"], records[records.kind == "links"]
+    out = [
+        f"{m} ({c})"
+        for c in dict.fromkeys(list(el.case) or ["three_link", "single_link"])
+        for m in ELEMENT_METHODS
+        if el[(el.case == c) & (el.method == m)].empty
+    ]
+    return out + [f"{m} (links scan)" for m in LINK_METHODS if ln[ln.method == m].empty]

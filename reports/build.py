@@ -6,6 +6,8 @@ rebuilt from stored data without re-simulating.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 
@@ -165,50 +167,85 @@ def _sections(tables, meta, out, bench_dir):
             ["cost_exponents"],
             interpret.cost(t, e)[0],
         )
+    sec, head = _bench_section(tables, fig_dir, bench_dir)
+    secs.append(sec)
+    if head:
+        summary.append(head)
+    return secs, summary
+
+
+BENCH_TITLE = "Cost scaling (benchmarks)"
+BENCH_TABLES = ("bench", "bench_exponents", "bench_element_step_us", "bench_ratios")
+
+
+def _bench_provenance(info) -> str:
+    cores = info.get("cores")
+    dirty = " (uncommitted changes)" if info.get("dirty") else ""
+    date, name = str(info["date"])[:19].replace("T", " "), Path(info["file"]).name
+    return (
+        f"Benchmark run {date} ({name}) on {info['machine'] or info['node']}"
+        f"{f', {cores} cores' if cores else ''}, Python {info['python']}, "
+        f"commit {info['commit'][:10]}{dirty}. "
+        f"Timings are from one run on a shared {f'{cores}-core ' if cores else ''}machine, not repeated: "
+        "read differences under about 20 % as noise."
+    )
+
+
+def _bench_section(tables, fig_dir, bench_dir):
+    """The cost-scaling section from the newest pytest-benchmark JSON: (Section, summary line)."""
     latest = bench.latest(bench_dir)
     if latest is None:
-        secs.append(
-            Section(
-                "Cost scaling (benchmarks)",
-                [],
-                [f"Skipped: no pytest-benchmark JSON in {bench_dir}/ (run `make bench` to produce one)."],
-                [],
-                "bench",
-            )
-        )
-    else:
-        bt, info = bench.load(latest)
+        why = f"Skipped: no pytest-benchmark JSON in {bench_dir}/ (run `make bench` to produce one)."
+        return Section(BENCH_TITLE, [], [why], [], "bench"), None
+    try:
+        rec, info = bench.read(latest)
+    except (ValueError, TypeError, AttributeError, KeyError) as exc:  # not a pytest-benchmark JSON
+        return Section(BENCH_TITLE, [], [f"Skipped: cannot read {latest}: {exc}."], [], "bench"), None
+    if not bench.has_scans(rec):  # an older file: every group against its element count
+        bt, _ = bench.load(latest)
         if bt.empty:
-            secs.append(
-                Section(
-                    "Cost scaling (benchmarks)",
-                    [],
-                    [f"Skipped: {latest} has no benchmark with an element count."],
-                    [],
-                    "bench",
-                )
-            )
-        else:
-            be = bench.exponents(bt)
-            tables["bench"], tables["bench_exponents"] = bt, be
-            add(
-                "Cost scaling (benchmarks)",
-                "bench",
-                [
-                    (
-                        "bench_scaling.png",
-                        figures.bench_scaling(bt, be),
-                        f"time per step against elements ({latest.name})",
-                        interpret.bench(be)
-                        + [
-                            f"Benchmark run {info['date']} on {info['machine']}, "
-                            f"commit {info['commit'][:10]}."
-                        ],
-                    )
-                ],
-                ["bench_exponents"],
-            )
-    return secs, summary
+            return Section(
+                BENCH_TITLE, [], [f"Skipped: {latest} has no benchmark with an element count."], [], "bench"
+            ), None
+        be = bench.exponents(bt)
+        tables["bench"], tables["bench_exponents"] = bt, be
+        figures.save(figures.bench_scaling(bt, be), fig_dir / "bench_scaling.png")
+        text = interpret.bench(be) + [
+            (
+                f"No scaling-suite groups (elements:…, links:…) in {latest.name}: every group is shown "
+                "against its element count."
+            ),
+            f"Benchmark run {info['date']} on {info['machine']}, commit {info['commit'][:10]}.",
+        ]
+        figs = [("figures/bench_scaling.png", f"time per step against elements ({latest.name})")]
+        return Section(BENCH_TITLE, figs, text, [("bench_exponents", be)], "bench"), None
+    ex = bench.scaling_exponents(rec)
+    per_el = bench.element_step_table(rec, "three_link")
+    ratios = bench.ratios(rec, tables.get("work_precision_summary"))
+    tables.update(bench=rec, bench_exponents=ex, bench_element_step_us=per_el, bench_ratios=ratios)
+    figs = []
+    if (rec.kind == "elements").any():
+        figures.save(figures.bench_elements(rec, ex, bench.K_MIN), fig_dir / "bench_elements.png")
+        figs.append(("figures/bench_elements.png", "time per step (solve only) against elements per link"))
+    if (rec.kind == "links").any():
+        figures.save(figures.bench_links(rec, ex, bench.N_MIN), fig_dir / "bench_links.png")
+        figs.append(("figures/bench_links.png", "time per step (solve only) against the number of links"))
+    text = interpret.bench_costs(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
+    gone = bench.absent(rec)
+    if gone:
+        text.append("Absent from this benchmark file: " + ", ".join(gone) + ".")
+    text += [
+        (
+            "Tables: exponents with their fit ranges (bench_exponents), cost per element-step in µs "
+            "(bench_element_step_us, three_link), ratios of each method's time to DT-TMM's "
+            "(bench_ratios: >1 means DT-TMM is faster); the benchmarks' tip errors are against a DT-TMM "
+            "reference and are not used here for cross-method accuracy."
+        ),
+        _bench_provenance(info),
+    ]
+    tabs = [(n, tables[n]) for n in BENCH_TABLES[1:]]
+    head = next((s for s in text if s.startswith("At equal model size")), None)
+    return Section(BENCH_TITLE, figs, text, tabs, "bench"), head and f"Benchmarks: a{head[1:]}"
 
 
 def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra=None):
@@ -221,7 +258,7 @@ def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra
     om = omissions(tables)
     (out / "data").mkdir(parents=True, exist_ok=True)
     om.to_csv(out / "data" / "omissions.csv", index=False)
-    for name in ("bench", "bench_exponents"):
+    for name in BENCH_TABLES:
         if name in tables:
             tables[name].to_csv(out / "data" / f"{name}.csv", index=False)
     avail = meta.get("availability", {})

@@ -19,6 +19,8 @@ __all__ = [
     "time_histories",
     "cost",
     "bench_scaling",
+    "bench_elements",
+    "bench_links",
     "save",
 ]
 
@@ -226,3 +228,101 @@ def bench_scaling(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
 def save(fig: Figure, path) -> None:
     """Write a figure as PNG."""
     fig.savefig(path, dpi=110)
+
+
+# --- Benchmark scaling (pytest-benchmark groups "elements:<case>:<method>", "links:<method>") ---
+
+_BENCH_STYLE = {
+    "dttmm-converged": ("C0", "o", "DT-TMM (Newmark), converged"),
+    "dttmm-one-shot": ("C9", "v", "DT-TMM (Newmark), one sweep per step"),
+    "dttmm": ("C0", "o", "DT-TMM (Newmark)"),
+    "global": ("C3", "^", "global equations (Newmark)"),
+    "exudyn-ancf": ("C1", "s", "Exudyn ANCF"),
+    "exudyn-beam": ("C2", "D", "Exudyn GE beam"),
+    "dttmm-rk4": ("C4", "P", "DT-TMM (RK4, stable step)"),
+}
+
+
+def _bench_curves(ax, d, x, exps, fit_note):
+    """One log-log curve of time per step per method, the fitted exponent in its label."""
+    names = [m for m in _BENCH_STYLE if m in set(d.method)] + sorted(set(d.method) - set(_BENCH_STYLE))
+    for i, m in enumerate(names):
+        g = d[(d.method == m) & (d[x] > 0) & np.isfinite(d.time_per_step)].sort_values(x)
+        if g.empty:
+            continue
+        color, marker, lab = _BENCH_STYLE.get(m, (f"C{i % 10}", _MARKERS[i % len(_MARKERS)], m))
+        p = exps.get(m, np.nan)
+        lab += f", p = {p:.2f}" if np.isfinite(p) else ", p: too few points"
+        ax.loglog(g[x], g.time_per_step, "-", color=color, marker=marker, ms=5, lw=1.5, label=lab)
+    ax.plot([], [], " ", label=fit_note)
+
+
+def _guides(ax, xs, ys, x0):
+    """Dashed O(N) and O(N³) guides from x0, through the lowest and the highest curve there."""
+    xs, ys = np.asarray(xs, float), np.asarray(ys, float)
+    if xs.size == 0:
+        return
+    lo, hi = ys.min(), ys.max()
+    at = ys[xs == x0] if (xs == x0).any() else ys[xs == xs.min()]
+    x = np.geomspace(x0 if (xs == x0).any() else xs.min(), xs.max(), 50)
+    top = hi * 2
+    for p, y0, lab in ((1, at.min(), "O(N)"), (3, at.max(), "O(N³)")):
+        y = y0 * (x / x[0]) ** p
+        ax.loglog(x, y, "--", color="0.5", lw=1.2, label="guides O(N), O(N³)" if p == 1 else None)
+        end = np.flatnonzero(y <= top)[-1]  # label the guide where it leaves the plot
+        ax.annotate(
+            lab,
+            (x[end], y[end]),
+            xytext=(-3, -6),
+            textcoords="offset points",
+            color="0.3",
+            fontsize=9,
+            ha="right",
+            va="top",
+        )
+    ax.set_ylim(lo / 2, top)  # the O(N³) guide would otherwise set the scale
+
+
+def bench_elements(records: pd.DataFrame, exponents: pd.DataFrame, k_min: int = 8) -> Figure:
+    """Time per step (solve only) against elements per link, one panel per case, one curve per
+    method, fitted exponents (k ≥ ``k_min``) in the legend, O(N) and O(N³) guides dashed; the
+    rigid baseline (no elements) as a dotted horizontal line."""
+    el = records[records.kind == "elements"]
+    cases = [c for c in ("three_link", "single_link") if c in set(el.case)]
+    cases += [c for c in dict.fromkeys(el.case) if c not in cases]
+    fig, axes = _figure(ncols=max(len(cases), 1), size=(6.4, 5.6))
+    for ax, case in zip(axes, cases):
+        d = el[el.case == case]
+        ex = exponents[(exponents.scan == "elements per link") & (exponents.case == case)]
+        _bench_curves(ax, d, "k", dict(zip(ex.method, ex.exponent)), f"p: fitted over k ≥ {k_min}")
+        ok = d[(d.k > 0) & np.isfinite(d.time_per_step) & (d.time_per_step > 0)]
+        for m, r in d[~(d.k > 0) & np.isfinite(d.time_per_step)].groupby("method"):
+            ax.axhline(r.time_per_step.iloc[0], color="k", ls=":", lw=1, label=f"{_label(m)} (no elements)")
+        _guides(ax, ok.k, ok.time_per_step, k_min)
+        _integer_ticks(ax, ok.k)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set(xlabel="elements per link k", ylabel="time per step, solve only (s)", title=f"{case}")
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
+    fig.suptitle("benchmarks: cost per step against elements per link (N = elements)")
+    return fig
+
+
+def bench_links(records: pd.DataFrame, exponents: pd.DataFrame, n_min: int = 2) -> Figure:
+    """Time per step (solve only) against the number of links at k = 8 per link, one curve per
+    method, fitted exponents (n ≥ ``n_min``) in the legend, O(N) and O(N³) guides dashed."""
+    d = records[records.kind == "links"]
+    fig, (ax,) = _figure(size=(6.4, 5.4))
+    ex = exponents[exponents.scan.str.startswith("links")]
+    _bench_curves(ax, d, "n_links", dict(zip(ex.method, ex.exponent)), f"p: fitted over n ≥ {n_min}")
+    ok = d[(d.n_links > 0) & np.isfinite(d.time_per_step) & (d.time_per_step > 0)]
+    _guides(ax, ok.n_links, ok.time_per_step, n_min)
+    _integer_ticks(ax, ok.n_links)
+    k = d.k.dropna()
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set(
+        xlabel="number of links n",
+        ylabel="time per step, solve only (s)",
+        title=f"benchmarks: cost per step against links (k = {int(k.iloc[0]) if len(k) else '?'} per link)",
+    )
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
+    return fig

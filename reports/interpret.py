@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-__all__ = ["convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost", "bench"]
+__all__ = [
+    "convergence_k",
+    "convergence_h",
+    "work_precision",
+    "scheme",
+    "paper",
+    "cost",
+    "bench",
+    "bench_costs",
+]
 
 
 def _l(m):
@@ -162,3 +171,80 @@ def bench(exponents) -> list[str]:
         + (", ".join(f"{r.group} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
         + "."
     ]
+
+
+_BENCH_LABELS = {
+    "dttmm-converged": "DT-TMM converged",
+    "dttmm-one-shot": "DT-TMM one-sweep",
+    "dttmm": "DT-TMM",
+    "dttmm-rk4": "DT-TMM RK4",
+}
+
+
+def _bl(m) -> str:
+    return _BENCH_LABELS.get(m, _l(m))
+
+
+def _x(v) -> str:
+    return "n/a" if v is None or not np.isfinite(v) else (f"{v:.0f}" if v >= 100 else f"{v:.3g}")
+
+
+def bench_costs(exponents, per_element, ratios, *, k_min=8, n_min=2, case="three_link") -> list[str]:
+    """Sentences under the benchmark figures: fitted exponents, cost per element-step at the
+    largest k of each method, and speed ratios against DT-TMM at equal size and equal accuracy."""
+    out = []
+    el = exponents[(exponents.scan == "elements per link") & (exponents.case == case)]
+    el = el[np.isfinite(el.exponent)]
+    ln = exponents[exponents.scan.str.startswith("links") & np.isfinite(exponents.exponent)]
+    if len(el) or len(ln):
+        parts = []
+        if len(el):
+            parts.append(
+                f"over k ≥ {k_min} ({case}, the asymptotic regime: below it fixed per-step costs dominate) "
+                + ", ".join(f"{_bl(r.method)} {r.exponent:.2f}" for r in el.itertuples())
+            )
+        if len(ln):
+            parts.append(
+                f"over n ≥ {n_min} links at k = 8: "
+                + ", ".join(f"{_bl(r.method)} {r.exponent:.2f}" for r in ln.itertuples())
+            )
+        out.append("Fitted exponents p of time per step ∝ N^p: " + "; ".join(parts) + ".")
+    if len(per_element) and len(per_element.columns) > 1:
+        bits = []
+        for m in per_element.columns[1:]:
+            v = per_element[["k", m]].dropna()
+            if len(v):
+                bits.append(f"{_bl(m)} {v[m].iloc[-1]:.3g} µs (k = {v.k.iloc[-1]})")
+        out.append(
+            f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + "."
+        )
+    cols = [c for c in ratios.columns if c.endswith("/dttmm")]
+    names = " : ".join(["DT-TMM"] + [_l(c.split("/")[0]) for c in cols])
+    size = ratios[ratios.basis.str.startswith("equal size") & (ratios.case == case) & ratios.k.notna()]
+    if len(size):
+        kmax = size.k.max()
+        parts = [
+            f"{r.basis.split('(')[-1].rstrip(')')} 1 : " + " : ".join(_x(r[c]) for c in cols)
+            for _, r in size[size.k == kmax].iterrows()
+        ]
+        out.append(
+            f"At equal model size ({case}, k = {_x(kmax)}, time per step) {names} = " + "; ".join(parts) + "."
+        )
+    acc = ratios[ratios.basis.str.startswith("equal accuracy")]
+    if len(acc):
+        parts = [
+            f"{r.case} (error {_e(r.target_error_m)} m) 1 : " + " : ".join(_x(r[c]) for c in cols)
+            for _, r in acc.iterrows()
+        ]
+        out.append(
+            "At equal accuracy (this report's work-precision study, wall time to reach the common error) "
+            f"{names} = "
+            + "; ".join(parts)
+            + (" (n/a: did not reach it)." if acc[cols].isna().any().any() else ".")
+        )
+    else:
+        out.append(
+            "No equal-accuracy ratio: the work-precision summary (wall_time_to_target) is absent from "
+            "the report data."
+        )
+    return out

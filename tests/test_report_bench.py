@@ -1,0 +1,184 @@
+"""The report's cost-scaling section from pytest-benchmark JSON: fitted exponents, tables,
+ratios and figures from a synthetic file with known power laws, and the real file if present."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from reports import bench, build
+
+KS = [1, 2, 4, 8, 16, 32, 64]
+NS = [1, 2, 3, 5, 8]
+# time per step (s) = c · x^p, so the fitted exponents and the ratios are known exactly
+LAWS = {"dttmm-converged": (1e-6, 1), "global": (1e-6, 3), "exudyn-ancf": (2e-5, 1)}
+REAL = sorted(Path(__file__).resolve().parents[1].glob("data/bench/*.json"))
+
+
+def _bench(group, k, tps, n_links=3, method=None, case="three_link", n_steps=100):
+    extra = {
+        "method": method,
+        "case": case,
+        "elements_per_link": k,
+        "n_links": n_links,
+        "n_steps": n_steps,
+        "time_per_step": tps,
+        "time_per_element_step": tps / (k * n_links) if k else None,
+    }
+    return {
+        "name": f"t[{group}-{k}]",
+        "group": group,
+        "params": {},
+        "extra_info": extra,
+        "stats": {"mean": 10 * tps * n_steps},
+    }  # the mean includes set-up: it must not be used
+
+
+def _write(folder, benches, name="bench-1.json"):
+    folder.mkdir(parents=True, exist_ok=True)
+    doc = {
+        "benchmarks": benches,
+        "datetime": "2026-01-02T03:04:05+00:00",
+        "machine_info": {
+            "node": "box",
+            "python_version": "3.11.7",
+            "cpu": {"brand_raw": "Test CPU", "count": 2},
+        },
+        "commit_info": {"id": "0123456789abcdef", "dirty": False},
+    }
+    (folder / name).write_text(json.dumps(doc))
+    return folder
+
+
+def synthetic(folder):
+    b = []
+    for case in ("three_link", "single_link"):
+        for m, (c, p) in LAWS.items():
+            b += [
+                _bench(f"elements:{case}:{m}", k, c * k**p, 3 if case == "three_link" else 1, case=case)
+                for k in KS
+            ]
+    b.append(_bench("elements:three_link:pinocchio-rigid", None, 3e-5))
+    for m, p in (("dttmm", 1), ("global", 3)):
+        b += [_bench(f"links:{m}", 8, 1e-6 * n**p, n, method=m, case=f"chain{n}") for n in NS]
+    for k in (4, 16):
+        b += [
+            _bench(f"one-step:k={k}", k, c * k**p, method=m.split("-conv")[0], n_steps=10)
+            for m, (c, p) in LAWS.items()
+        ]
+    b.append({"name": "odd", "group": "kernel:exponent", "stats": {"mean": 1.0}})  # no k: ignored
+    return _write(folder, b)
+
+
+def _build(tmp_path, bench_dir, tables=None):
+    out = tmp_path / "out"
+    build.build(dict(tables or {}), {}, out, bench_dir=bench_dir)
+    return out
+
+
+def _is_png(path):
+    import matplotlib.image as mpimg
+
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    img = mpimg.imread(path)
+    assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 200
+
+
+def test_exponents_tables_and_figures_from_known_power_laws(tmp_path):
+    out = _build(tmp_path, synthetic(tmp_path / "bench"))
+    for f in ("bench_elements.png", "bench_links.png"):
+        _is_png(out / "figures" / f)
+    assert not (out / "figures" / "bench_scaling.png").exists()
+    ex = pd.read_csv(out / "data" / "bench_exponents.csv")
+    el = ex[ex.scan == "elements per link"].set_index(["case", "method"]).exponent
+    for case in ("three_link", "single_link"):
+        for m, (_, p) in LAWS.items():
+            assert el[(case, m)] == pytest.approx(p, abs=0.05)
+    assert (ex[ex.scan == "elements per link"].fit_from == bench.K_MIN).all()
+    ln = ex[ex.scan.str.startswith("links")].set_index("method").exponent
+    assert ln["dttmm"] == pytest.approx(1, abs=0.05) and ln["global"] == pytest.approx(3, abs=0.05)
+    per = pd.read_csv(out / "data" / "bench_element_step_us.csv")
+    assert list(per.k) == KS and list(per.columns) == ["k", *LAWS]
+    # µs per element-step of the k-linear law on three_link: 1e-6 k / (3 k) s
+    assert np.allclose(per["dttmm-converged"], 1e6 * 1e-6 / 3)
+
+
+def test_ratios_equal_the_known_values(tmp_path):
+    wp = pd.DataFrame(
+        {
+            "case": ["three_link"] * 3,
+            "method": ["dttmm", "global", "exudyn-beam"],
+            "target_error": [1e-4] * 3,
+            "wall_time_to_target": [0.5, 50.0, np.nan],
+        }
+    )
+    out = _build(tmp_path, synthetic(tmp_path / "bench"), {"work_precision_summary": wp})
+    r = pd.read_csv(out / "data" / "bench_ratios.csv")
+    size = r[r.basis.str.startswith("equal size") & (r.case == "three_link")]
+    assert sorted(size.k[size.basis.str.contains("elements")]) == [4, 16, 64]
+    for _, row in size.iterrows():
+        assert row["global/dttmm"] == pytest.approx(row.k**2)  # k³ / k
+        assert row["exudyn-ancf/dttmm"] == pytest.approx(20.0)
+        assert np.isnan(row["exudyn-beam/dttmm"])  # did not run
+    assert len(r[r.basis.str.contains("one-step")]) == 2
+    acc = r[r.basis.str.startswith("equal accuracy")].iloc[0]
+    assert acc["global/dttmm"] == pytest.approx(100.0) and np.isnan(acc["exudyn-beam/dttmm"])
+    assert acc.target_error_m == pytest.approx(1e-4)
+    md = (out / "REPORT.md").read_text()
+    sec = md[md.index("## Cost scaling (benchmarks)") : md.index("## Omissions")]
+    assert "1 : 4096 : 20 : n/a" in sec  # k = 64, elements scan
+    assert "At equal accuracy" in sec and "1 : 100 : n/a : n/a" in sec
+    assert "exudyn-beam (three_link)" in sec  # listed as absent
+    assert "2026-01-02 03:04:05" in sec and "Test CPU" in sec and "0123456789" in sec
+    assert "shared 2-core machine" in sec and "k ≥ 8" in sec
+    for t in ("bench_exponents", "bench_element_step_us", "bench_ratios"):
+        assert f"data/{t}.csv" in md
+
+
+def test_equal_accuracy_absent_without_work_precision(tmp_path):
+    out = _build(tmp_path, synthetic(tmp_path / "bench"))
+    assert "work-precision summary (wall_time_to_target) is absent" in (out / "REPORT.md").read_text()
+
+
+def test_partial_and_old_files_do_not_crash(tmp_path):
+    links_only = _write(tmp_path / "links", [_bench("links:dttmm", 8, 1e-6 * n, n, "dttmm") for n in NS])
+    out = _build(tmp_path / "a", links_only)
+    md = (out / "REPORT.md").read_text()
+    assert (out / "figures" / "bench_links.png").exists() and not (
+        out / "figures" / "bench_elements.png"
+    ).exists()
+    assert "global (links scan)" in md and "dttmm-converged (three_link)" in md
+    old = _write(
+        tmp_path / "old",
+        [
+            {
+                "name": f"s[{k}]",
+                "group": "dttmm three_link",
+                "params": {"k": k},
+                "stats": {"mean": 1e-4 * k},
+                "extra_info": {"n_steps": 10},
+            }
+            for k in (2, 4, 8)
+        ],
+    )
+    out = _build(tmp_path / "b", old)
+    _is_png(out / "figures" / "bench_scaling.png")
+    assert "No scaling-suite groups" in (out / "REPORT.md").read_text()
+    out = _build(tmp_path / "c", tmp_path / "none")
+    assert "Skipped: no pytest-benchmark JSON" in (out / "REPORT.md").read_text()
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "x.json").write_text("{not json")
+    assert "Skipped: cannot read" in (_build(tmp_path / "d", tmp_path / "bad") / "REPORT.md").read_text()
+
+
+@pytest.mark.skipif(not REAL, reason="no data/bench/*.json")
+def test_real_benchmark_file_gives_finite_dttmm_exponents():
+    rec, info = bench.read(max(REAL, key=lambda p: p.stat().st_mtime))
+    assert bench.has_scans(rec) and info["commit"]
+    ex = bench.scaling_exponents(rec)
+    d = ex[ex.method.str.startswith("dttmm") & (ex.method != "dttmm-rk4")]
+    assert len(d) and np.isfinite(d.exponent).all()
