@@ -66,10 +66,17 @@ class ElementType:
     iphi: int
     iv: int
     iu: int
+    EA: float = 0.0                 # axial stiffness (0: inextensible)
+    G: np.ndarray | None = None     # (2, 2) = ∫₀¹ N'ᵀN' dξ, N = (N3, N4), ' = d/dx
+    second_order: bool = False      # axial strain ε = u/l + ½ wᵀGw (see elastic_forces)
 
 
-def element_type(length: float, EI: float, rhoA: float, EA: float | None, damping: float) -> ElementType:
-    """Moments, stiffness and damping of a uniform element of the given length."""
+def element_type(length: float, EI: float, rhoA: float, EA: float | None, damping: float,
+                 strain: str = "linear") -> ElementType:
+    """Moments, stiffness and damping of a uniform element of the given length.
+
+    ``strain``: "linear" (axial strain u/l) or "second-order" (u/l + ½ wᵀGw, w = (v, φ): the
+    shortening of the chord by bending; only for extensible elements)."""
     l = float(length)
     ext = EA is not None
     xg, wg = np.polynomial.legendre.leggauss(4)
@@ -95,9 +102,47 @@ def element_type(length: float, EI: float, rhoA: float, EA: float | None, dampin
         K = kb
     sO0, SO = shape(np.array([1.0]), l, ext)
     ne = 3 if ext else 2
+    dN = np.stack([(6 * xi - 6 * xi**2) / l, 3 * xi**2 - 2 * xi], axis=-1)  # (N3', N4') at the points
+    G = np.einsum("m,mi,mj->ij", 0.5 * wg, dN, dN)
     return ElementType(l=l, ne=ne, m=rhoA * l, c_s0=c_s0, C_S=C_S, c_s0s0=c_s0s0, c_s0S=c_s0S, d1=d1,
                        D2=D2, C_SS=C_SS, C_SES=C_SES, K=K, D=damping * K, sO0=sO0[0], SO=SO[0],
-                       iphi=ne - 1, iv=ne - 2, iu=0 if ext else -1)
+                       iphi=ne - 1, iv=ne - 2, iu=0 if ext else -1, EA=float(EA or 0.0), G=G,
+                       second_order=ext and strain == "second-order")
+
+
+def elastic_forces(et: ElementType, e: np.ndarray):
+    """Elastic forces f(e) (k, ne) and their tangent K_T(e) (k, ne, ne) of a batch of elements.
+
+    Strain energy U = ½ EA l ε² + ½ wᵀ K_b w, w = (v, φ), K_b = EI/l³ [[12, −6l], [−6l, 4l²]],
+    with the axial strain ε = u/l (linear) or ε = u/l + ½ wᵀGw (second order: the element's
+    mean axial strain including the chord's shortening by bending, G = ∫₀¹ N'ᵀN' dξ). Then
+    f_u = EA ε, f_w = EA l ε G w + K_b w, and K_T = ∂f/∂e. The linear form is f = K e.
+    """
+    k = e.shape[0]
+    if not et.second_order:
+        return e @ et.K.T, np.broadcast_to(et.K, (k, et.ne, et.ne))
+    EA, l, G = et.EA, et.l, et.G
+    Kb = et.K[1:, 1:]
+    w = e[:, 1:]
+    Gw = w @ G.T
+    eps = e[:, 0] / l + 0.5 * np.einsum("ki,ki->k", w, Gw)
+    f = np.empty((k, 3))
+    f[:, 0] = EA * eps
+    f[:, 1:] = (EA * l * eps)[:, None] * Gw + w @ Kb.T
+    KT = np.empty((k, 3, 3))
+    KT[:, 0, 0] = EA / l
+    KT[:, 0, 1:] = KT[:, 1:, 0] = EA * Gw
+    KT[:, 1:, 1:] = EA * l * Gw[:, :, None] * Gw[:, None, :] + (EA * l * eps)[:, None, None] * G + Kb
+    return f, KT
+
+
+def strain_energy(et: ElementType, e: np.ndarray) -> float:
+    """Σ U over a batch of elements (J), consistent with :func:`elastic_forces`."""
+    if not et.second_order:
+        return 0.5 * float(np.einsum("ki,ij,kj->", e, et.K, e))
+    w = e[:, 1:]
+    eps = e[:, 0] / et.l + 0.5 * np.einsum("ki,ij,kj->k", w, et.G, w)
+    return float(0.5 * et.EA * et.l * np.sum(eps**2) + 0.5 * np.einsum("ki,ij,kj->", w, et.K[1:, 1:], w))
 
 
 def rot(theta: np.ndarray) -> np.ndarray:

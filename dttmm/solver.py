@@ -44,10 +44,10 @@ class _Drives:
 class _System:
     """One discretised case with its sweep; solves the step system at a given iterate."""
 
-    def __init__(self, case: Case, k, sweep: str):
+    def __init__(self, case: Case, k, sweep: str, strain: str = "linear"):
         if sweep not in SWEEPS:
             raise InputError("sweep", sweep, f"unknown (one of: {', '.join(SWEEPS)})")
-        self.st = build_structure(case, k)
+        self.st = build_structure(case, k, strain)
         self.sweep = SWEEPS[sweep]
         self.drv = _Drives(self.st)
         self.ia = self.st.alpha_index
@@ -103,7 +103,7 @@ def _engine(engine) -> str:
 
 
 def accelerations(case: Case, elements_per_link: int, q, qd, t: float = 0.0, *, sweep: str = "riccati",
-                  engine: str | None = None):
+                  engine: str | None = None, strain: str = "linear"):
     """Forward dynamics of the discretised arm: q̈ from (q, q̇) at time t.
 
     Coordinates as in :mod:`dttmm.structure` (``[α_1, e_11, …, α_2, …]``). Motion-driven joints
@@ -114,7 +114,7 @@ def accelerations(case: Case, elements_per_link: int, q, qd, t: float = 0.0, *, 
     if not isinstance(case, Case):
         raise InputError("case", case, "must be a dttmm.Case")
     engine = _engine(engine)
-    sysm = _System(case, elements_per_link, sweep)
+    sysm = _System(case, elements_per_link, sweep, strain)
     q = np.asarray(q, float)
     qd = np.asarray(qd, float)
     if q.shape != (sysm.st.n_dof,) or qd.shape != (sysm.st.n_dof,):
@@ -242,7 +242,8 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
              sweep: str = "riccati", iterations: int | str | None = None, tol: float = 1e-10,
              max_iterations: int = 50, beta: float | None = None, gamma: float | None = None,
              rho_inf: float | None = None, cut_loads: bool = True, energy: bool = True,
-             progress: bool | None = None, engine: str | None = None, auto_fraction: float = 0.1):
+             progress: bool | None = None, engine: str | None = None, auto_fraction: float = 0.1,
+             strain: str = "linear"):
     """Simulate ``case`` by DT-TMM with k = ``elements_per_link`` elements per link and step ``h``.
 
     Parameters
@@ -259,6 +260,9 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
         ``tol`` rule is met.
     engine : "numba" (compiled kernel, default when numba is installed) or "numpy" (the
         readable reference implementation; same results to round-off).
+    strain : the elements' axial strain, "linear" (u/l) or "second-order" (u/l + ½ wᵀGw: the
+        chord shortens as the element bends; converges much faster in k for extensible links,
+        see docs/method.md §2). Inextensible links are unaffected.
     cut_loads, energy : record the loads at every cut and the total energy on the output grid.
     progress : show a progress bar (default: on for runs of more than 20 000 element-steps × 1000).
 
@@ -292,9 +296,10 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
                                fam, cut_loads, energy, progress, auto_fraction)
     scen = case.scenario
     t_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
-    sysm = _System(case, elements_per_link, sweep)
+    sysm = _System(case, elements_per_link, sweep, strain)
     st = sysm.st
     meta = _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, "numpy")
+    meta["strain"] = strain
     rec = _Recorder(sysm, scen.output_times, cut_loads, energy)
     n_steps = t_end.size
     if progress is None:

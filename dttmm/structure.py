@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .case import Case
-from .element import ElementType, element_terms, element_type, outboard_maps, rot
+from .element import ElementType, element_terms, element_type, outboard_maps, rot, strain_energy
 from .errors import InputError
 
 __all__ = ["Structure", "build_structure", "Kinematics"]
@@ -63,8 +63,14 @@ class Structure:
         return names
 
 
-def build_structure(case: Case, elements_per_link) -> Structure:
-    """Discretise ``case`` with k elements per link (k ≥ 1, integer)."""
+STRAINS = ("linear", "second-order")
+
+
+def build_structure(case: Case, elements_per_link, strain: str = "linear") -> Structure:
+    """Discretise ``case`` with k elements per link (k ≥ 1, integer); ``strain`` is the
+    element's axial strain measure (see :func:`dttmm.element.elastic_forces`)."""
+    if strain not in STRAINS:
+        raise InputError("strain", strain, f"unknown (one of: {', '.join(STRAINS)})")
     if isinstance(elements_per_link, bool) or not isinstance(elements_per_link, (int, np.integer)):
         raise InputError("elements_per_link", elements_per_link, "must be an integer ≥ 1")
     k = int(elements_per_link)
@@ -73,7 +79,7 @@ def build_structure(case: Case, elements_per_link) -> Structure:
     links, off = [], 0
     for link in case.model.links:
         b = link.beam
-        et = element_type(b.length / k, b.EI, b.rhoA, b.EA, b.damping)
+        et = element_type(b.length / k, b.EI, b.rhoA, b.EA, b.damping, strain)
         links.append(LinkLayout(
             et=et, k=k, i_alpha=off, e_slice=slice(off + 1, off + 1 + k * et.ne),
             M_hub=np.diag([link.hub_mass, link.hub_mass, link.hub_inertia]),
@@ -163,7 +169,7 @@ def energy(st: Structure, kin: Kinematics) -> float:
         pd = np.concatenate([lkn.rd, lkn.thetad[:, None]], axis=1)
         T = 0.5 * (np.einsum("ki,kij,kj->", pd, lkn.M_aa, pd) + 2 * np.einsum("ki,kij,kj->", pd, lkn.M_ae, lkn.ed)
                    + np.einsum("ki,ij,kj->", lkn.ed, et.C_SS, lkn.ed))
-        V = 0.5 * np.einsum("ki,ij,kj->", lkn.e, et.K, lkn.e)
+        V = strain_energy(et, lkn.e)
         ms = et.c_s0 + lkn.e @ et.C_S.T
         com = et.m * lkn.r + np.einsum("kij,kj->ki", lkn.R, ms)  # ∫ r dm
         V -= float(np.sum(com @ g))

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .element import elastic_forces
 from .structure import Kinematics, Structure
 
 __all__ = ["SweepOut", "riccati", "plain", "SWEEPS"]
@@ -40,9 +41,13 @@ class SweepOut:
 
 
 def _elastic_rhs(lk, lkn, cq, cv, e_hat, ed_hat):
+    """Per element M̃_ee (k, ne, ne) and h̃_e (k, ne). The elastic forces are linearised at the
+    iterate e_i (Newton): f(e) ≈ f(e_i) + K_T(e_i)(ẽ + c_q ë − e_i); for the linear element
+    this is exactly K ẽ + c_q K ë."""
     et = lk.et
-    Mt = et.C_SS + cq * et.K + cv * et.D
-    ht = lkn.hbar_e + e_hat @ et.K.T + ed_hat @ et.D.T
+    f, KT = elastic_forces(et, lkn.e)
+    Mt = et.C_SS + cq * KT + cv * et.D
+    ht = lkn.hbar_e + f + np.einsum("kij,kj->ki", KT, e_hat - lkn.e) + ed_hat @ et.D.T
     return Mt, ht
 
 
@@ -70,7 +75,7 @@ def riccati(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat,
         for j in range(k - 1, -1, -1):
             Ba, Be = lkn.B_a[j], lkn.B_e[j]
             PBe = P @ Be
-            H = Mt + Be.T @ PBe
+            H = Mt[j] + Be.T @ PBe
             X = lkn.M_ae[j] + Ba.T @ PBe
             rho = P @ lkn.gbar[j] + c
             sol = np.linalg.solve(H, -np.column_stack([X.T, ht[j] + Be.T @ rho]))
@@ -181,7 +186,7 @@ def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, t
             Ba, Be, Maa, Mae = lkn.B_a[j], lkn.B_e[j], lkn.M_aa[j], lkn.M_ae[j]
             T = np.linalg.inv(Ba).T
             BeT = Be.T @ T
-            G = Mt - BeT @ Mae
+            G = Mt[j] - BeT @ Mae
             rhs = np.column_stack([-Mae.T + BeT @ Maa, -BeT, -ht[j] + BeT @ lkn.hbar_a[j]])
             sol = np.linalg.solve(G, rhs)
             Ea[j], Ef[j], E0[j] = sol[:, :3], sol[:, 3:6], sol[:, 6]
