@@ -8,7 +8,11 @@ the equations of motion are assembled into one dense system in the minimal coord
 with α_i the joint angles and e = (u, v, φ) (or (v, φ) for an inextensible link) the elastic
 coordinates of every element, and solved as
 
-    M(q) q̈ + h(q, q̇) + K q + D q̇ = Q(t, q).
+    M(q) q̈ + h(q, q̇) + f_int(q) + D q̇ = Q(t, q),
+
+f_int = K q for the linear element (``strain="linear"``, the default) or the gradient of the
+second-order strain energy (``strain="second-order"``, extensible links; see
+:func:`elastic_forces`); D = μK is always the linear Kelvin-Voigt damping.
 
 M and h come from the element kinematics through recursive Jacobians
 (M = Σ J_elᵀ M_el J_el); the cost per solve grows like N³ in the number N of coordinates.
@@ -36,10 +40,11 @@ from dttmm.model import Link, Manipulator, Section
 from dttmm.scenario import Scenario
 from dttmm.timegrid import step_schedule, versions
 
-__all__ = ["simulate", "accelerations", "mass_matrix", "stiffness_matrix", "energy",
-           "kinematics", "coordinate_names", "element_mass", "INTEGRATORS"]
+__all__ = ["simulate", "accelerations", "mass_matrix", "stiffness_matrix", "elastic_forces", "energy",
+           "kinematics", "coordinate_names", "element_mass", "INTEGRATORS", "STRAINS"]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "radau", "dop853")
+STRAINS = ("linear", "second-order")
 _STEPPED = ("newmark", "generalized-alpha")
 _MAX_SOLVES = 50
 _N_GAUSS = 4  # exact for the degree-6 polynomials of the mass matrix and velocity terms
@@ -89,6 +94,11 @@ class _Layout:
     motion: np.ndarray         # (n,) bool, motion-driven joints
     free: np.ndarray           # indices of free coordinates
     presc: np.ndarray          # indices of prescribed coordinates (α of motion joints)
+    strain: str = "linear"     # "linear" | "second-order"
+    nonlinear: bool = False    # some element has a second-order axial strain
+    EA: np.ndarray | None = None      # (Nel,) axial stiffness, 0 for an inextensible link
+    EI: np.ndarray | None = None      # (Nel,)
+    second: np.ndarray | None = None  # (Nel,) bool: element uses the second-order strain
 
 
 def _shape_matrices(length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -193,10 +203,17 @@ def _stiffness(links, k, e_idx, n_dof) -> tuple[np.ndarray, np.ndarray]:
     return K, D
 
 
-def _layout(case, k) -> _Layout:
+def _check_strain(strain) -> str:
+    if not isinstance(strain, str) or strain not in STRAINS:
+        raise InputError("strain", strain, f"unknown strain measure (one of: {', '.join(STRAINS)})")
+    return strain
+
+
+def _layout(case, k, strain="linear") -> _Layout:
     """Build the coordinate and element tables of ``case`` with k elements per link."""
     case = _check_case(case)
     k = _check_k(k)
+    strain = _check_strain(strain)
     links = case.model.links
     n = len(links)
     nel = n * k
@@ -212,12 +229,89 @@ def _layout(case, k) -> _Layout:
                 if lk.payload is not None]
     motion = np.array([d.kind == "motion" for d in case.scenario.drives], bool)
     presc = co["alpha_idx"][motion]
+    EA = np.repeat([0.0 if lk.beam.EA is None else float(lk.beam.EA) for lk in links], k)
+    EI = np.repeat([float(lk.beam.EI) for lk in links], k)
+    second = np.repeat([strain == "second-order" and lk.beam.EA is not None for lk in links], k)
     return _Layout(
         n_links=n, k=k, n_dof=N, **co, first_el=np.arange(n) * k, last_el=np.arange(n) * k + k - 1,
         link_of=np.repeat(np.arange(n), k), length=length, rhoA=rhoA, K=K, D=D,
         **_moments(length, rhoA), mass=rhoA * length, hub_m=hub_m, hub_J=hub_J, payloads=payloads,
         gravity=np.array(case.model.gravity, float), motion=motion,
-        free=np.setdiff1d(np.arange(N), presc), presc=presc)
+        free=np.setdiff1d(np.arange(N), presc), presc=presc, strain=strain,
+        nonlinear=bool(second.any()), EA=EA, EI=EI, second=second)
+
+
+# ----------------------------------------------------------------------------------------------
+# Elastic forces (linear or second-order axial strain)
+# ----------------------------------------------------------------------------------------------
+
+def _chord_matrix(length: np.ndarray) -> np.ndarray:
+    """G = ∫₀¹ N'ᵀN' dξ (Nel, 2, 2) on w = (v, φ), N' = (dN3/dx, dN4/dx), in closed form:
+    N3' = 6(ξ − ξ²)/l, N4' = 3ξ² − 2ξ give G = [[6/(5l²), −1/(10l)], [−1/(10l), 2/15]]
+    (l·G is the familiar geometric stiffness block of the Hermite beam per unit axial force)."""
+    l = np.asarray(length, float)
+    G = np.empty(l.shape + (2, 2))
+    G[..., 0, 0] = 6.0 / (5.0 * l * l)
+    G[..., 0, 1] = G[..., 1, 0] = -1.0 / (10.0 * l)
+    G[..., 1, 1] = 2.0 / 15.0
+    return G
+
+
+def _element_elastic(lay: _Layout, e: np.ndarray):
+    """Per-element strain energy U (Nel,), internal force f (Nel, 3) and tangent K_T (Nel, 3, 3)
+    on (u, v, φ) (rows/columns of absent coordinates are zero).
+
+    U = ½ EA l ε² + ½ wᵀK_b w with w = (v, φ), K_b = EI/l³ [[12, −6l], [−6l, 4l²]] and
+    ε = u/l (linear) or ε = u/l + ½ wᵀGw (second order, extensible links). Hence
+    f_u = EA ε, f_w = EA l ε Gw + K_b w and
+    K_T = [[EA/l, EA (Gw)ᵀ], [EA Gw, EA l (Gw)(Gw)ᵀ + EA l ε G + K_b]].
+    """
+    l, EA, EI = lay.length, lay.EA, lay.EI
+    nel = l.size
+    Kb = np.empty((nel, 2, 2))
+    c = EI / l**3
+    Kb[:, 0, 0] = 12.0 * c
+    Kb[:, 0, 1] = Kb[:, 1, 0] = -6.0 * c * l
+    Kb[:, 1, 1] = 4.0 * c * l * l
+    w = e[:, 1:]
+    G = _chord_matrix(l)
+    Gw = _matvec(G, w) * lay.second[:, None]          # zero for linear elements
+    eps = e[:, 0] / l + 0.5 * np.sum(w * Gw, axis=1)
+    Kbw = _matvec(Kb, w)
+    U = 0.5 * EA * l * eps**2 + 0.5 * np.sum(w * Kbw, axis=1)
+    f = np.empty((nel, 3))
+    f[:, 0] = EA * eps
+    f[:, 1:] = (EA * l * eps)[:, None] * Gw + Kbw
+    KT = np.empty((nel, 3, 3))
+    KT[:, 0, 0] = EA / l
+    KT[:, 0, 1:] = KT[:, 1:, 0] = EA[:, None] * Gw
+    epsG = (EA * l * eps * lay.second)[:, None, None] * G
+    KT[:, 1:, 1:] = (EA * l)[:, None, None] * (Gw[:, :, None] * Gw[:, None, :]) + epsG + Kb  # exactly symmetric
+    return U, f, KT
+
+
+def _internal(lay: _Layout, q: np.ndarray):
+    """Internal elastic force f_int(q) (N,) and its Jacobian K_T(q) (N, N).
+
+    For the linear element f_int = K q and K_T = K exactly (the constant matrix)."""
+    if not lay.nonlinear:
+        return lay.K @ q, lay.K
+    e = _elastic(lay, q)
+    _, f_el, KT_el = _element_elastic(lay, e)
+    have = lay.e_idx >= 0
+    f = np.zeros(lay.n_dof)
+    f[lay.e_idx[have]] = f_el[have]
+    el, a, b = np.nonzero(have[:, :, None] & have[:, None, :])
+    KT = np.zeros((lay.n_dof, lay.n_dof))
+    KT[lay.e_idx[el, a], lay.e_idx[el, b]] = KT_el[el, a, b]
+    return f, KT
+
+
+def _strain_energy(lay: _Layout, q: np.ndarray) -> float:
+    """Σ U over the elements; ½qᵀKq for the linear element."""
+    if not lay.nonlinear:
+        return 0.5 * q @ lay.K @ q
+    return float(np.sum(_element_elastic(lay, _elastic(lay, q))[0]))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -477,12 +571,16 @@ def _linear_solve(A: np.ndarray, b: np.ndarray, how: str) -> np.ndarray:
 
 
 def _forward(case, lay, q, qd, t, left, how="dense", sel=None):
-    """q̈ from M q̈ = Q − h − Kq − Dq̇ with motion joints prescribed; also the joint torques
-    of the motion-driven joints (n_motion,). ``q``, ``qd`` must hold the prescribed values."""
+    """q̈ from M q̈ = Q − h − f_int(q) − Dq̇ (f_int = Kq for the linear element) with motion
+    joints prescribed; also the joint torques of the motion-driven joints (n_motion,).
+    ``q``, ``qd`` must hold the prescribed values."""
     P, F = lay.presc, lay.free
     pres = _prescribed(case, lay, t, left)
     M, f = _assemble(lay, q, qd, sel)
-    rhs = f + _torques(case, lay, t, left) - lay.K @ q - lay.D @ qd
+    if lay.nonlinear:
+        rhs = f + _torques(case, lay, t, left) - _internal(lay, q)[0] - lay.D @ qd
+    else:
+        rhs = f + _torques(case, lay, t, left) - lay.K @ q - lay.D @ qd
     qdd = np.zeros(lay.n_dof)
     qdd[P] = pres[:, 2]
     qdd[F] = _linear_solve(M[np.ix_(F, F)], rhs[F] - M[np.ix_(F, P)] @ qdd[P], how)
@@ -557,8 +655,36 @@ def stiffness_matrix(case, elements_per_link) -> np.ndarray:
     return _layout(case, elements_per_link).K.copy()
 
 
-def accelerations(case, elements_per_link, q, qd, t=0.0) -> np.ndarray:
-    """Forward dynamics q̈ = M⁻¹(Q − h − Kq − Dq̇).
+def elastic_forces(case, elements_per_link, q, strain="linear"):
+    """Internal elastic force and its tangent at a configuration.
+
+    Per element, with w = (v, φ) and K_b = EI/l³ [[12, −6l], [−6l, 4l²]], the strain energy is
+    U = ½ EA l ε² + ½ wᵀK_b w with the axial strain ε = u/l (``"linear"``) or
+    ε = u/l + ½ wᵀGw (``"second-order"``, extensible links only: the chord shortens as the
+    element bends), G = ∫₀¹ N'ᵀN' dξ, N' = (dN3/dx, dN4/dx). Inextensible links keep
+    U = ½ wᵀK_b w either way.
+
+    Parameters
+    ----------
+    case : dttmm.Case
+    elements_per_link : int
+    q : (N,) array_like
+    strain : {"linear", "second-order"}
+
+    Returns
+    -------
+    f_int : (N,) ndarray
+        ∂U/∂q (K q for the linear element).
+    K_T : (N, N) ndarray
+        ∂f_int/∂q (the constant K for the linear element), symmetric, block diagonal per element.
+    """
+    lay = _layout(case, elements_per_link, strain)
+    f, KT = _internal(lay, _as_state(lay, q, "q"))
+    return f.copy(), KT.copy()
+
+
+def accelerations(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndarray:
+    """Forward dynamics q̈ = M⁻¹(Q − h − f_int(q) − Dq̇) (f_int = Kq for the linear element).
 
     Parameters
     ----------
@@ -569,13 +695,15 @@ def accelerations(case, elements_per_link, q, qd, t=0.0) -> np.ndarray:
         motion-driven joints are used as given.
     t : float
         Time for the drive values (right limits at a breakpoint).
+    strain : {"linear", "second-order"}
+        Element strain measure (see :func:`elastic_forces`).
 
     Returns
     -------
     (N,) ndarray
         q̈; motion-driven joints take α̈ from their law.
     """
-    lay = _layout(case, elements_per_link)
+    lay = _layout(case, elements_per_link, strain)
     q = _as_state(lay, q, "q")
     qd = _as_state(lay, qd, "qd")
     return _forward(case, lay, q, qd, float(t), False)[0]
@@ -607,7 +735,7 @@ def _link_frames(lay: _Layout, q: np.ndarray) -> dict:
             "tip": fr.rO[last], "tip_angle": fr.theta[last] + fr.e[last, 2]}
 
 
-def energy(case, elements_per_link, q, qd) -> dict:
+def energy(case, elements_per_link, q, qd, strain="linear") -> dict:
     """Mechanical energy at a state.
 
     Parameters
@@ -615,13 +743,16 @@ def energy(case, elements_per_link, q, qd) -> dict:
     case : dttmm.Case
     elements_per_link : int
     q, qd : (N,) array_like
+    strain : {"linear", "second-order"}
+        Element strain measure (see :func:`elastic_forces`).
 
     Returns
     -------
     dict
-        ``kinetic`` ½q̇ᵀM(q)q̇, ``elastic`` ½qᵀKq and ``gravity`` −Σ m g·r (J).
+        ``kinetic`` ½q̇ᵀM(q)q̇, ``elastic`` the strain energy Σ U (½qᵀKq for the linear
+        element) and ``gravity`` −Σ m g·r (J).
     """
-    lay = _layout(case, elements_per_link)
+    lay = _layout(case, elements_per_link, strain)
     q = _as_state(lay, q, "q")
     qd = _as_state(lay, qd, "qd")
     return _energy(lay, q, qd)
@@ -634,7 +765,7 @@ def _energy(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> dict:
     moment = first.sum(axis=0)
     for i, mp, _ in lay.payloads:
         moment = moment + mp * fr.rO[lay.last_el[i]]
-    return {"kinetic": _kinetic(lay, q, qd), "elastic": 0.5 * q @ lay.K @ q,
+    return {"kinetic": _kinetic(lay, q, qd), "elastic": _strain_energy(lay, q),
             "gravity": -float(lay.gravity @ moment)}
 
 
@@ -803,7 +934,7 @@ def _hermite(t, t0, t1, y0, v0, y1, v1):
 
 def _base_meta(lay, k, h, integrator, opt) -> dict:
     meta = {"method": "global", "elements_per_link": k, "h": h, "integrator": integrator,
-            "n_dof": lay.n_dof, "success": True, "versions": versions()}
+            "n_dof": lay.n_dof, "strain": lay.strain, "success": True, "versions": versions()}
     meta.update({key: val for key, val in opt.items()})
     return meta
 
@@ -822,13 +953,22 @@ def _fail(rec, lay, wall, n_steps, meta, q, t, step, names):
 def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
     """Frozen-coefficient iteration of one step ending at t1 (left-limit drive values).
 
+    Iterate i solves [M(q_i) + c_v D + c_q K_T(q_i)] q̈^(i+1) = Q − h(q_i, q̇_i) − f_int(q_i)
+    − K_T(q_i)(q̃ − q_i) − D q̃' with q_i = q̃ + c_q q̈^(i): the elastic forces are linearised
+    at the iterate (Newton). For the linear element (f_int = Kq, K_T = K) this is
+    [M + c_v D + c_q K] q̈ = Q − h − K q̃ − D q̃'.
+
     Returns (q̈, τ of motion joints, number of solves, converged flag).
     """
     P, F = lay.presc, lay.free
     pres = _prescribed(case, lay, t1, True)
     Qt = _torques(case, lay, t1, True)
-    Aeff_const = cv * lay.D + cq * lay.K
-    rhs_const = Qt - lay.K @ qt - lay.D @ qtd
+    if lay.nonlinear:
+        Aeff_const = cv * lay.D
+        rhs_const = Qt - lay.D @ qtd
+    else:
+        Aeff_const = cv * lay.D + cq * lay.K
+        rhs_const = Qt - lay.K @ qt - lay.D @ qtd
     qdd = qdd0.copy()
     qdd[P] = pres[:, 2]
     m = ctx["iterations"]
@@ -840,8 +980,13 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
         qd = qtd + cv * qdd
         q[P], qd[P] = pres[:, 0], pres[:, 1]
         M, f = _assemble(lay, q, qd, ctx["sel"])
-        A = M + Aeff_const
-        rhs = f + rhs_const
+        if lay.nonlinear:
+            fi, KT = _internal(lay, q)
+            A = M + Aeff_const + cq * KT
+            rhs = f + rhs_const - fi - KT @ (qt - q)
+        else:
+            A = M + Aeff_const
+            rhs = f + rhs_const
         new = qdd.copy()
         new[F] = _linear_solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P], ctx["linear_solver"])
         delta = np.max(np.abs(new[F] - qdd[F])) if F.size else 0.0
@@ -1046,7 +1191,7 @@ def _record_samples(case, lay, rec, samples, sel):
 # Entry point
 # ----------------------------------------------------------------------------------------------
 
-def simulate(case, *, elements_per_link, h, integrator="newmark", **options):
+def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear", **options):
     """Simulate ``case`` with the global equations of the DT-TMM discretisation.
 
     Parameters
@@ -1066,6 +1211,10 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", **options):
         ``linear_solver`` = "dense" | "sparse"). ``"radau"`` and ``"dop853"`` integrate the
         first-order form with scipy's ``solve_ivp`` (options ``rtol`` = 1e-10,
         ``atol`` = 1e-12), restarted at every drive breakpoint.
+    strain : {"linear", "second-order"}
+        Element strain measure (see :func:`elastic_forces`). With ``"second-order"`` the
+        stepped integrators linearise the elastic forces at every iterate (Newton), exactly
+        as :func:`dttmm.simulate` does.
 
     Returns
     -------
@@ -1083,7 +1232,7 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", **options):
     k = _check_k(elements_per_link)
     h = _check_h(case, h)
     opt = _check_options(integrator, options)
-    lay = _layout(case, k)
+    lay = _layout(case, k, strain)
     if integrator in _STEPPED:
         return _newmark_run(case, lay, k, h, integrator, opt)
     return _ivp_run(case, lay, k, h, integrator, opt)

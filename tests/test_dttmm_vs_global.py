@@ -124,3 +124,62 @@ def test_converges_to_solve_ivp_reference_at_second_order():
     for errs in (errs_d, errs_g):
         slope = np.polyfit(np.log([2e-4, 1e-4, 5e-5]), np.log(errs), 1)[0]
         assert abs(slope - 2) <= 0.3, (errs, slope)
+
+
+# ----------------------------------------------------------------------------------------------
+# Second-order axial strain (strain="second-order"): DT-TMM numpy engine vs the global solver
+# ----------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["single_link", "three_link", "spin_up"])
+@pytest.mark.parametrize("k", [1, 4, 16])
+def test_second_order_acceleration_solver_equals_global(name, k):
+    """Same q̈ from (q, q̇) with the second-order elastic forces, to 1e-9 relative or
+    20·cond(M)·ε; the second-order terms change q̈ substantially at these states."""
+    c = case(name)
+    st = build_structure(c, k, "second-order")
+    lay = gm._layout(c, k, "second-order")
+    rng = np.random.default_rng(100 + k)
+    free = lay.free
+    for _ in range(3):
+        q, qd = physical_state(st, rng)
+        a = dttmm.accelerations(c, k, q, qd, 0.3, strain="second-order", engine="numpy")
+        b = gm.accelerations(c, k, q, qd, 0.3, strain="second-order")
+        M, _ = gm._assemble(lay, q, qd)
+        bound = max(1e-9, 20 * np.linalg.cond(M[np.ix_(free, free)]) * np.finfo(float).eps)
+        assert np.linalg.norm(a - b) <= bound * np.linalg.norm(b)
+        lin = gm.accelerations(c, k, q, qd, 0.3)
+        assert np.linalg.norm(lin - b) > 1e-3 * np.linalg.norm(b)
+
+
+@pytest.mark.parametrize("name, k", [
+    ("single_link", 1), ("single_link", 4), ("single_link", 8), ("three_link", 1), ("three_link", 4),
+    pytest.param("three_link", 8, marks=pytest.mark.slow),
+])
+@pytest.mark.parametrize("iterations", [None, 1])
+def test_second_order_newmark_trajectories_equal_global(name, k, iterations):
+    """Newton-linearised elastic forces in the frozen-coefficient iteration: identical
+    iterates in both solvers, trajectories equal to round-off (≤ 1e-9 m, 1e-9 rad)."""
+    c = shortened(case(name), 0.3)
+    kw = dict(elements_per_link=k, h=1e-3, iterations=iterations, strain="second-order")
+    a = dttmm.simulate(c, cut_loads=False, energy=False, engine="numpy", **kw)
+    b = gm.simulate(c, **kw)
+    d_ee, d_ang = _compare(a, b)
+    assert d_ee <= 1e-9 and d_ang <= 1e-9, (d_ee, d_ang)
+    np.testing.assert_allclose(a.joint_torque, b.joint_torque, atol=1e-8)
+    lin = gm.simulate(c, elements_per_link=k, h=1e-3, iterations=iterations)
+    assert np.max(np.abs(lin.end_effector - b.end_effector)) > 1e-6
+
+
+def test_second_order_motion_joint_torque_and_generalized_alpha_equal_global():
+    c = shortened(case("spin_up"), 1.0)
+    kw = dict(elements_per_link=4, h=1e-2, iterations=2, strain="second-order")
+    a = dttmm.simulate(c, cut_loads=False, energy=False, engine="numpy", **kw)
+    b = gm.simulate(c, **kw)
+    np.testing.assert_allclose(a.joint_torque, b.joint_torque, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(a.tip_deflection, b.tip_deflection, atol=1e-10)
+    c = shortened(case("three_link"), 0.1)
+    kw = dict(elements_per_link=4, h=1e-3, integrator="generalized-alpha", rho_inf=0.7, iterations=2,
+              strain="second-order")
+    a = dttmm.simulate(c, cut_loads=False, energy=False, engine="numpy", **kw)
+    b = gm.simulate(c, **kw)
+    assert max(_compare(a, b)) <= 1e-9
