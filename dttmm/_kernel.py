@@ -52,7 +52,10 @@ __all__ = ["HAVE_NUMBA", "Packed", "pack", "warmup", "is_warm", "run", "accel", 
 L_M, L_CS0, L_CS, L_CS0S0, L_CS0S, L_D1 = 0, 1, 3, 9, 10, 13
 L_D2, L_CSS, L_CSES, L_K, L_D = 16, 25, 34, 43, 52
 L_SO0, L_SU, L_MH, L_JH, L_MP, L_JP, L_LEN, L_DUMMY = 61, 63, 64, 65, 66, 67, 68, 69
-NLC = 70
+# second-order strain (strain="second-order", extensible links only): flag, EA, element length
+# l, 1/l, EA·l, G = ∫₀¹ N'ᵀN' dξ (2×2, row-major)
+L_SOF, L_EA, L_EL, L_IEL, L_EAL, L_G = 70, 71, 72, 73, 74, 75
+NLC = 79
 # entries of LC that the Riccati sweep assumes zero (u couples to (v, φ) only through D2, C_SES)
 _ZERO = np.array([L_CS0 + 1, L_CS + 1, L_CS + 2, L_CS + 3, L_CS0S + 1, L_CS0S + 2, L_D1]
                  + [L_D2 + r for r in (0, 4, 5, 7, 8)] + [L_CSS + r for r in (1, 2, 3, 6)]
@@ -64,10 +67,11 @@ NLI = 5
 # WE: per-element workspace
 W_C, W_S, W_TD, W_E, W_ED, W_KE, W_KA = 0, 1, 2, 3, 6, 9, 12
 W_K0, W_P, W_CC, W_RS, W_GB, W_A = 21, 24, 30, 33, 35, 37
-NWE = 40
+W_EH = 40  # ê (the predictor's elastic coordinates; second-order links only)
+NWE = 43
 # WJ: per-joint workspace (P packed symmetric: 00, 01, 02, 11, 12, 22)
-J_PT, J_CT, J_PP, J_CP, J_GA, J_G0, J_AT, J_MT = 0, 6, 9, 15, 18, 21, 22, 25
-NWJ = 34
+J_PT, J_CT, J_PP, J_CP, J_GA, J_G0, J_AT, J_MT, J_CQ = 0, 6, 9, 15, 18, 21, 22, 25, 34
+NWJ = 35
 
 # floating-point contraction (a·b + c → FMA) only: no reassociation, no finite-math assumptions
 _FM = {"contract"}
@@ -132,6 +136,13 @@ class Packed:
             LC[i, L_JP] = lk.M_pay[2, 2]
             LC[i, L_LEN] = lk.length
             LC[i, L_DUMMY] = 1.0 if off else 0.0
+            if et.second_order:
+                LC[i, L_SOF] = 1.0
+                LC[i, L_EA] = et.EA
+                LC[i, L_EL] = et.l
+                LC[i, L_IEL] = 1.0 / et.l
+                LC[i, L_EAL] = et.EA * et.l
+                LC[i, L_G:L_G + 4] = et.G.ravel()
             if np.any(LC[i, _ZERO] != 0.0):  # pragma: no cover - guards the hard-coded sparsity
                 raise AssertionError("unexpected element moment pattern")
             LI[i] = (ne, lk.i_alpha, lk.e_slice.start, int(st.motion[i]), off)
@@ -223,11 +234,14 @@ def _angles(LC, LI, n, k, q, qd, WE):
 
 @njit(cache=True, boundscheck=False)
 def _elastic_known(LC, LI, n, k, qt, qdt, WE):
-    """K ê + D ê' of every element (constant during the frozen-coefficient iteration)."""
+    """K ê + D ê' of every element (constant during the frozen-coefficient iteration); for a
+    link with second-order strain D ê' only, and ê itself in WE[:, W_EH] (its elastic forces
+    are linearised at each iterate inside the sweep, see :func:`_so_terms`)."""
     for i in range(n):
         ne = LI[i, I_NE]
         es = LI[i, I_ES]
         off = LI[i, I_OFF]
+        so = LC[i, L_SOF] != 0.0
         for j in range(k):
             g = i * k + j
             b = es + j * ne - off
@@ -235,20 +249,48 @@ def _elastic_known(LC, LI, n, k, qt, qdt, WE):
             d0 = 0.0 if off else qdt[b]
             e1, e2 = qt[b + 1], qt[b + 2]
             d1, d2 = qdt[b + 1], qdt[b + 2]
-            for r in range(3):
-                WE[g, W_KE + r] = (LC[i, L_K + 3 * r] * e0 + LC[i, L_K + 3 * r + 1] * e1
-                                   + LC[i, L_K + 3 * r + 2] * e2
-                                   + LC[i, L_D + 3 * r] * d0 + LC[i, L_D + 3 * r + 1] * d1
-                                   + LC[i, L_D + 3 * r + 2] * d2)
+            if so:
+                WE[g, W_EH] = e0
+                WE[g, W_EH + 1] = e1
+                WE[g, W_EH + 2] = e2
+                for r in range(3):
+                    WE[g, W_KE + r] = (LC[i, L_D + 3 * r] * d0 + LC[i, L_D + 3 * r + 1] * d1
+                                       + LC[i, L_D + 3 * r + 2] * d2)
+            else:
+                for r in range(3):
+                    WE[g, W_KE + r] = (LC[i, L_K + 3 * r] * e0 + LC[i, L_K + 3 * r + 1] * e1
+                                       + LC[i, L_K + 3 * r + 2] * e2
+                                       + LC[i, L_D + 3 * r] * d0 + LC[i, L_D + 3 * r + 1] * d1
+                                       + LC[i, L_D + 3 * r + 2] * d2)
 
 
 @njit(cache=True, boundscheck=False)
 def _eff_mass(LC, n, cq, cv, WJ):
-    """M̃_ee = C_SS + c_q K + c_v D per link (+ the unit dummy mass of an inextensible link)."""
+    """M̃_ee = C_SS + c_q K + c_v D per link (+ the unit dummy mass of an inextensible link);
+    c_q is kept in WJ[:, J_CQ] for the per-element tangent of second-order links."""
     for i in range(n):
         for r in range(9):
             WJ[i, J_MT + r] = LC[i, L_CSS + r] + cq * LC[i, L_K + r] + cv * LC[i, L_D + r]
         WJ[i, J_MT] += LC[i, L_DUMMY]
+        WJ[i, J_CQ] = cq
+
+
+@njit(cache=True, boundscheck=False, fastmath=_FM, inline="always")
+def _so_terms(EA, EAl, il, G00, G01, G10, G11, Kb00, Kb01, Kb10, Kb11, e0, e1, e2):
+    """Second-order strain of one element (element.elastic_forces): ε = u/l + ½ wᵀGw,
+    w = (v, φ); f_u = EA ε, f_w = EA l ε G w + K_b w. Returns f (3) and the tangent K_T = ∂f/∂e
+    as its u–w row (T01, T02) and ΔT = K_T,ww − K_b (2×2, row-major); K_T,uu = EA/l = K_uu."""
+    Gw1 = G00 * e1 + G01 * e2
+    Gw2 = G10 * e1 + G11 * e2
+    eps = e0 * il + 0.5 * (e1 * Gw1 + e2 * Gw2)
+    Nl = EAl * eps
+    a1 = EAl * Gw1
+    a2 = EAl * Gw2
+    f0 = EA * eps
+    f1 = Nl * Gw1 + (Kb00 * e1 + Kb01 * e2)
+    f2 = Nl * Gw2 + (Kb10 * e1 + Kb11 * e2)
+    return (f0, f1, f2, EA * Gw1, EA * Gw2, a1 * Gw1 + Nl * G00, a1 * Gw2 + Nl * G01, a2 * Gw1 + Nl * G10,
+            a2 * Gw2 + Nl * G11)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -298,6 +340,7 @@ def _riccati(LC, LI, grav, n, k, WE, WJ, tau, acc, xout, torque):
         su = LC[i, L_SU]
         M00 = WJ[i, J_MT]
         M11, M12, M22 = WJ[i, J_MT + 4], WJ[i, J_MT + 5], WJ[i, J_MT + 8]
+        so = LC[i, L_SOF] != 0.0  # second-order strain (its constants are read in the branch)
         mg0 = m * g0
         mg1 = m * g1
         for j in range(k - 1, -1, -1):
@@ -375,6 +418,26 @@ def _riccati(LC, LI, grav, n, k, WE, WJ, tau, acc, xout, torque):
             r0 = -(he0 + su * (c * rho0 + s * rho1))
             r1 = -(he1 + (-s * rho0 + c * rho1))
             r2 = -(he2 + rho2)
+            if so:
+                # second-order strain at the iterate e (sweeps._elastic_rhs):
+                # h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K). The link constants are
+                # loaded here, not hoisted: keeps the linear path's register pressure unchanged
+                Kb00, Kb01, Kb10, Kb11 = LC[i, L_K + 4], LC[i, L_K + 5], LC[i, L_K + 7], LC[i, L_K + 8]
+                fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = _so_terms(
+                    LC[i, L_EA], LC[i, L_EAL], LC[i, L_IEL], LC[i, L_G], LC[i, L_G + 1], LC[i, L_G + 2],
+                    LC[i, L_G + 3], Kb00, Kb01, Kb10, Kb11, e0, e1, e2)
+                de0 = WE[g, W_EH] - e0
+                de1 = WE[g, W_EH + 1] - e1
+                de2 = WE[g, W_EH + 2] - e2
+                r0 -= fu0 + (LC[i, L_K] * de0 + T01 * de1 + T02 * de2)
+                r1 -= fu1 + (T01 * de0 + (dT11 + Kb00) * de1 + (dT12 + Kb01) * de2)
+                r2 -= fu2 + (T02 * de0 + (dT21 + Kb10) * de1 + (dT22 + Kb11) * de2)
+                cq = WJ[i, J_CQ]
+                H01 += cq * T01
+                H02 += cq * T02
+                H11 += cq * dT11
+                H12 += cq * dT12
+                H22 += cq * dT22
             # LDLᵀ of H
             i0 = 1.0 / H00
             l10 = H01 * i0
@@ -626,6 +689,31 @@ def _full_terms(LC, i, w, grav, Maa, Mae, ha, he, Ba, Be, gb):
 
 
 @njit(cache=True, boundscheck=False)
+def _so_dense(LC, cq, i, w, Mt, he):
+    """Second-order strain of one element for the plain sweep: h̃_e += f(e) + K_T(e)(ê − e),
+    M̃_ee (row-major 3×3) += c_q (K_T(e) − K)."""
+    e0, e1, e2 = w[W_E], w[W_E + 1], w[W_E + 2]
+    Kb00, Kb01, Kb10, Kb11 = LC[i, L_K + 4], LC[i, L_K + 5], LC[i, L_K + 7], LC[i, L_K + 8]
+    fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = _so_terms(
+        LC[i, L_EA], LC[i, L_EAL], LC[i, L_IEL], LC[i, L_G], LC[i, L_G + 1], LC[i, L_G + 2], LC[i, L_G + 3],
+        Kb00, Kb01, Kb10, Kb11, e0, e1, e2)
+    de0 = w[W_EH] - e0
+    de1 = w[W_EH + 1] - e1
+    de2 = w[W_EH + 2] - e2
+    he[0] += fu0 + (LC[i, L_K] * de0 + T01 * de1 + T02 * de2)
+    he[1] += fu1 + (T01 * de0 + (dT11 + Kb00) * de1 + (dT12 + Kb01) * de2)
+    he[2] += fu2 + (T02 * de0 + (dT21 + Kb10) * de1 + (dT22 + Kb11) * de2)
+    Mt[1] += cq * T01
+    Mt[2] += cq * T02
+    Mt[3] += cq * T01
+    Mt[6] += cq * T02
+    Mt[4] += cq * dT11
+    Mt[5] += cq * dT12
+    Mt[7] += cq * dT21
+    Mt[8] += cq * dT22
+
+
+@njit(cache=True, boundscheck=False)
 def _solve_small(A, B, X):
     """X = A⁻¹ B for a small dense A (Gaussian elimination with partial pivoting). A, B are
     overwritten. Returns False if A is singular or not finite."""
@@ -702,6 +790,7 @@ def _plain(LC, LI, grav, n, k, WE, WJ, tau, acc, xout, torque, loads, cuts, Eall
     rhs = np.zeros((3, 7))
     sol = np.zeros((3, 7))
     U = np.zeros((6, 7))
+    Mt = np.zeros(9)
     ic = 0
     for i in range(n):
         mot = LI[i, I_MOT]
@@ -763,7 +852,10 @@ def _plain(LC, LI, grav, n, k, WE, WJ, tau, acc, xout, torque, loads, cuts, Eall
             cuts[ic, :, :] = B
             ic += 1
             _full_terms(LC, i, w, grav, Maa, Mae, ha, he, Ba, Be, gb)
-            Mt = WJ[i, J_MT:J_MT + 9]
+            for r in range(9):
+                Mt[r] = WJ[i, J_MT + r]
+            if LC[i, L_SOF] != 0.0:
+                _so_dense(LC, WJ[i, J_CQ], i, w, Mt, he)
             T[:, :] = 0.0
             T[0, 0] = T[1, 1] = T[2, 2] = 1.0
             T[2, 0] = -Ba[0, 2]
@@ -1017,7 +1109,13 @@ def _sample(LC, LI, grav, n, k, q, qd, j, root, tip, root_angle, energy, want_en
                     a0r = c * LC[i, L_CS + r] - s * LC[i, L_CS + 3 + r]
                     a1r = s * LC[i, L_CS + r] + c * LC[i, L_CS + 3 + r]
                     Tae += (vx * a0r + vy * a1r + thd * a2r) * f[r]
-                # p' = (ṙ_I, θ̇): ½ p'ᵀ M_aa p' + p'ᵀ M_ae ė + ½ ėᵀ C_SS ė + ½ eᵀ K e − g·∫r dm
+                if LC[i, L_SOF] != 0.0:  # U = ½ EA l ε² + ½ wᵀK_b w (element.strain_energy)
+                    Gw1 = LC[i, L_G] * e1 + LC[i, L_G + 1] * e2
+                    Gw2 = LC[i, L_G + 2] * e1 + LC[i, L_G + 3] * e2
+                    eps = e0 * LC[i, L_IEL] + 0.5 * (e1 * Gw1 + e2 * Gw2)
+                    Vee = LC[i, L_EAL] * eps * eps + (e1 * (LC[i, L_K + 4] * e1 + LC[i, L_K + 5] * e2)
+                                                      + e2 * (LC[i, L_K + 7] * e1 + LC[i, L_K + 8] * e2))
+                # p' = (ṙ_I, θ̇): ½ p'ᵀ M_aa p' + p'ᵀ M_ae ė + ½ ėᵀ C_SS ė + U(e) − g·∫r dm
                 Taa = m * (vx * vx + vy * vy) + 2.0 * thd * (rem0 * vx + rem1 * vy) + Jt * thd * thd
                 etot += 0.5 * (Taa + 2.0 * Tae + Tee) + 0.5 * Vee
                 comx = m * px + (c * ms0 - s * ms1)

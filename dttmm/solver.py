@@ -293,7 +293,7 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     fam = None if integrator == "rk4" else newmark_family(integrator, beta=beta, gamma=gamma, rho_inf=rho_inf)
     if engine == "numba":
         return _simulate_numba(case, elements_per_link, h, integrator, sweep, iterations, tol, max_iterations,
-                               fam, cut_loads, energy, progress, auto_fraction)
+                               fam, cut_loads, energy, progress, auto_fraction, strain)
     scen = case.scenario
     t_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     sysm = _System(case, elements_per_link, sweep, strain)
@@ -520,17 +520,18 @@ def _load_plan(rec: _Recorder, t_end, i0: int):
 
 
 def _simulate_numba(case, k, h, integrator, sweep, iterations, tol, max_iterations, fam, cut_loads,
-                    want_energy, progress, auto_fraction):
+                    want_energy, progress, auto_fraction, strain="linear"):
     from . import _kernel as K
 
+    sysm = _System(case, k, sweep, strain)  # validates strain before any compile
     compile_time = K.warmup() if not K.is_warm() else None
     scen = case.scenario
     t_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
-    sysm = _System(case, k, sweep)
     st = sysm.st
     pk = K.pack(st)
     n, nd = pk.n, pk.n_dof
     meta = _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, "numba")
+    meta["strain"] = strain
     if compile_time is not None:
         meta["compile_time"] = compile_time
     rec = _Recorder(sysm, scen.output_times, cut_loads, want_energy)

@@ -269,3 +269,137 @@ def test_thinned_cut_loads_match_numpy(monkeypatch):
     monkeypatch.setattr(solver, "_Recorder", Thinned)
     r1, r0 = _compare(mixed_case(0.03, 0.0013), elements_per_link=2, h=1e-3)
     assert r1.cut_loads.shape[0] == (r1.t.size - 1) // 3 + 1
+
+
+# ---------------------------------------------------------------------------------------------
+# strain="second-order": the elastic forces f(e) and their tangent K_T(e) at each iterate
+SO = "second-order"
+# The axial cut loads carry f_u = EA ε, ε = u/l + ½ wᵀGw: a small difference of nearly
+# cancelling terms (the chord's shortening by bending against u/l). Their round-off floor is set
+# by the problem, not by the engine: changing EA by one ulp moves the numpy path's own axial cut
+# load on single_link (k = 1) by 4e-11 relative; numba vs numpy differ by 3e-11 there. Joint
+# angles, tips, torques and energy stay at 1e-12 (1e-10 energy).
+SO_LOAD_RTOL = 1e-9
+
+
+@pytest.mark.parametrize("name", sorted(CASE_SETUPS))
+@pytest.mark.parametrize("k", [1, 3])
+def test_second_order_riccati_newmark_matches_numpy(name, k):
+    dur, h, out = CASE_SETUPS[name]
+    r1, r0 = _compare(_case(name, dur, out), elements_per_link=k, h=h, strain=SO, load_rtol=SO_LOAD_RTOL)
+    assert r1.meta["strain"] == r0.meta["strain"] == SO
+    lin = dttmm.simulate(_case(name, dur, out), elements_per_link=k, h=h, engine="numba")
+    assert lin.meta["strain"] == "linear"
+    if name != "spin_up":  # the term acts (spin_up barely bends: ~1e-12 there)
+        assert _rel(r1.tip_deflection, lin.tip_deflection) > 1e-6
+
+
+@pytest.mark.parametrize("name", sorted(CASE_SETUPS))
+@pytest.mark.parametrize("iterations", [None, 0, 1])
+def test_second_order_iterations_match_numpy(name, iterations):
+    dur, h, out = CASE_SETUPS[name]
+    _compare(_case(name, dur / 2, out), elements_per_link=2, h=h, iterations=iterations, strain=SO,
+             load_rtol=SO_LOAD_RTOL)
+
+
+@pytest.mark.parametrize("name", sorted(CASE_SETUPS))
+def test_second_order_generalized_alpha_matches_numpy(name):
+    dur, h, out = CASE_SETUPS[name]
+    _compare(_case(name, dur / 2, out), elements_per_link=2, h=h, integrator="generalized-alpha", rho_inf=0.8,
+             strain=SO, load_rtol=SO_LOAD_RTOL)
+
+
+@pytest.mark.parametrize("name", sorted(CASE_SETUPS))
+def test_second_order_rk4_matches_numpy(name):
+    dur, h, _ = CASE_SETUPS[name]
+    hh = 2.5e-4 if name == "spin_up" else 2.5e-5
+    _compare(_case(name, min(dur, 40 * hh), hh * 4), elements_per_link=2, h=hh, integrator="rk4", strain=SO,
+             load_rtol=SO_LOAD_RTOL)
+
+
+@pytest.mark.parametrize("name,k", [("single_link", 1), ("single_link", 2), ("spin_up", 2),
+                                    ("three_link", 1)])
+@pytest.mark.parametrize("iterations", [None, 1])
+def test_second_order_plain_matches_numpy(name, k, iterations):
+    dur, h, out = CASE_SETUPS[name]
+    case = _case(name, dur / 2, out)
+    ref = dttmm.simulate(case, elements_per_link=k, h=h, sweep="plain", iterations=iterations, engine="numpy",
+                         strain=SO)
+    amp = max(1.0, ref.meta["final_system_cond"])
+    _compare(case, rtol=RTOL * amp, load_rtol=max(10 * RTOL * amp, SO_LOAD_RTOL), elements_per_link=k, h=h,
+             sweep="plain", iterations=iterations, strain=SO)
+
+
+@pytest.mark.parametrize("integrator", ["newmark", "generalized-alpha"])
+def test_second_order_mixed_arm_matches_numpy(integrator):
+    """Extensible links with the second-order strain next to an inextensible one (unchanged),
+    a motion joint, hubs, payloads, a restart at a torque jump and Hermite outputs."""
+    kw = dict(integrator=integrator, strain=SO, load_rtol=SO_LOAD_RTOL)
+    _compare(mixed_case(), elements_per_link=3, h=1e-3, **kw)
+    _compare(mixed_case(0.03), elements_per_link=2, h=1e-3, iterations=1, **kw)
+
+
+def test_second_order_mixed_arm_rk4_and_plain():
+    _compare(mixed_case(0.002, 1e-4), elements_per_link=2, h=1e-5, integrator="rk4", strain=SO,
+             load_rtol=SO_LOAD_RTOL)
+    c = mixed_case(0.05)
+    ref = dttmm.simulate(c, elements_per_link=1, h=1e-3, sweep="plain", engine="numpy", strain=SO)
+    amp = max(1.0, ref.meta["final_system_cond"])
+    _compare(c, rtol=RTOL * amp, load_rtol=max(10 * RTOL * amp, SO_LOAD_RTOL), elements_per_link=1, h=1e-3,
+             sweep="plain", strain=SO)
+
+
+@pytest.mark.parametrize("sweep", ["riccati", "plain"])
+def test_second_order_accelerations_match_numpy_at_random_states(sweep):
+    rng = np.random.default_rng(11)
+    for case in (mixed_case(), _case("three_link", 0.1), _case("spin_up", 0.1)):
+        for k in (1, 2) if sweep == "plain" else (1, 3, 8):
+            nd = build_structure(case, k, SO).n_dof
+            for _ in range(3):
+                q = rng.normal(scale=0.02, size=nd)
+                qd = rng.normal(scale=0.5, size=nd)
+                t = float(rng.uniform(0, 0.05))
+                kw = dict(sweep=sweep, strain=SO)
+                a1 = dttmm.accelerations(case, k, q, qd, t, engine="numba", **kw)
+                a0 = dttmm.accelerations(case, k, q, qd, t, engine="numpy", **kw)
+                bound = RTOL
+                if sweep == "plain":
+                    bound += 10 * _rel(a0, dttmm.accelerations(case, k, q, qd, t, engine="numpy", strain=SO))
+                assert _rel(a1, a0) <= bound
+                lin = dttmm.accelerations(case, k, q, qd, t, engine="numba", sweep=sweep)
+                assert _rel(lin, a0) > 1e-6  # the second-order forces act at these states
+
+
+def test_second_order_compiled_energy_matches_structure():
+    from dttmm.element import strain_energy
+    from dttmm.structure import energy, kinematics
+
+    rng = np.random.default_rng(5)
+    case = mixed_case()
+    for k in (1, 4):
+        st = build_structure(case, k, SO)
+        lin = build_structure(case, k)
+        pk = _kernel.pack(st)
+        Q = rng.normal(scale=0.05, size=(4, st.n_dof))
+        QD = rng.normal(scale=0.5, size=(4, st.n_dof))
+        root, tip = np.empty((4, pk.n, 2)), np.empty((4, pk.n, 2))
+        ang, en = np.empty((4, pk.n)), np.empty(4)
+        _kernel.sample_outputs(pk.LC, pk.LI, pk.grav, pk.n, pk.k, Q, QD, root, tip, ang, en, True)
+        for j in range(4):
+            kin = kinematics(st, Q[j], QD[j])
+            e_so, e_lin = energy(st, kin), energy(lin, kinematics(lin, Q[j], QD[j]))
+            assert en[j] == pytest.approx(e_so, rel=1e-12)
+            assert abs(e_so - e_lin) > 1e-6 * abs(e_lin)
+            # the strain energy alone, element by element
+            for lk, lkn in zip(st.links, kin.links):
+                assert lk.et.second_order == (lk.et.ne == 3)
+                assert strain_energy(lk.et, lkn.e) >= 0.0
+
+
+def test_second_order_strain_validated_on_both_engines():
+    c = _case("single_link", 0.003)
+    for engine in ("numba", "numpy"):
+        with pytest.raises(dttmm.InputError):
+            dttmm.simulate(c, elements_per_link=1, h=1e-3, engine=engine, strain="cubic")
+        with pytest.raises(dttmm.InputError):
+            dttmm.accelerations(c, 1, np.zeros(4), np.zeros(4), engine=engine, strain="cubic")
