@@ -260,9 +260,12 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
         ``tol`` rule is met.
     engine : "numba" (compiled kernel, default when numba is installed) or "numpy" (the
         readable reference implementation; same results to round-off).
-    strain : the elements' axial strain, "linear" (u/l) or "second-order" (u/l + ½ wᵀGw: the
-        chord shortens as the element bends; converges much faster in k for extensible links,
-        see docs/method.md §2). Inextensible links are unaffected.
+    strain : the elements' axial strain, "linear" (default: u/l, unconditionally stable with
+        the trapezoidal rule) or "second-order" (u/l + ½ wᵀGw: the chord shortens as the element
+        bends; converges much faster in k for extensible links, but with the trapezoidal rule
+        it needs h small enough to resolve the axial-bending coupling — measured on single_link:
+        h = 4e-3 diverged at k = 2 and 8, h ≤ 2e-3 ran; use generalised-α for large steps).
+        See docs/method.md §2. Inextensible links are unaffected.
     cut_loads, energy : record the loads at every cut and the total energy on the output grid.
     progress : show a progress bar (default: on for runs of more than 20 000 element-steps × 1000).
 
