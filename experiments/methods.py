@@ -37,6 +37,8 @@ METHODS: dict[str, Method] = {
     for m in (
         Method("dttmm", "dttmm", (("integrator", "newmark"),), label="DT-TMM (Newmark)"),
         Method("dttmm-rk4", "dttmm", (("integrator", "rk4"),), label="DT-TMM (RK4)"),
+    Method("dttmm-2nd", "dttmm", (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
+           label="DT-TMM (2nd-order strain, gen-α 0.8)"),
         Method(
             "global",
             "reference_models.global_newmark",

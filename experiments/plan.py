@@ -58,8 +58,8 @@ def load_cases(plan: Plan, case_dir=CASE_DIR) -> dict:
     return out
 
 
-_FLEX = ["dttmm", "global", "exudyn-ancf", "exudyn-beam"]
-_ALL = ["dttmm", "dttmm-rk4", "global", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"]
+_FLEX = ["dttmm", "dttmm-2nd", "global", "exudyn-ancf", "exudyn-beam"]
+_ALL = ["dttmm", "dttmm-2nd", "dttmm-rk4", "global", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"]
 # The plain sweep with iterations=None spends up to max_iterations sweeps per step once it has
 # lost its digits, so the quick size runs it with 0 and 1 corrections only.
 _VARIANTS_QUICK = [

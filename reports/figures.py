@@ -34,6 +34,7 @@ _STYLE = {
     "exudyn-ancf": ("C1", "s", 5),
     "exudyn-beam": ("C2", "D", 5),
     "dttmm-rk4": ("C4", "v", 5),
+    "dttmm-2nd": ("C9", "P", 6),
     "pinocchio-rigid": ("k", "*", 9),
     "reference": ("0.3", "", 0),
 }
