@@ -219,10 +219,11 @@ def _check_state(sysm, q, qd, qdd, t, step, rec, meta, wall0):
                               component=st.coordinate_names()[idx], partial=partial)
 
 
-def _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, engine) -> dict:
+def _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, engine, strain) -> dict:
     meta = {"method": "dttmm", "sweep": sweep, "elements_per_link": st.k, "h": float(h),
             "integrator": integrator, "iterations": iterations, "tol": tol, "n_dof": st.n_dof,
-            "final_system_size": 3, "versions": versions(), "success": True, "engine": engine}
+            "final_system_size": 3, "versions": versions(), "success": True, "engine": engine,
+            "strain": strain}
     if iterations == "auto":
         meta["auto_fraction"] = auto_fraction
     return meta
@@ -301,8 +302,7 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     t_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     sysm = _System(case, elements_per_link, sweep, strain)
     st = sysm.st
-    meta = _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, "numpy")
-    meta["strain"] = strain
+    meta = _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, "numpy", strain)
     rec = _Recorder(sysm, scen.output_times, cut_loads, energy)
     n_steps = t_end.size
     if progress is None:
@@ -533,8 +533,7 @@ def _simulate_numba(case, k, h, integrator, sweep, iterations, tol, max_iteratio
     st = sysm.st
     pk = K.pack(st)
     n, nd = pk.n, pk.n_dof
-    meta = _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, "numba")
-    meta["strain"] = strain
+    meta = _base_meta(st, h, integrator, sweep, iterations, tol, auto_fraction, "numba", strain)
     if compile_time is not None:
         meta["compile_time"] = compile_time
     rec = _Recorder(sysm, scen.output_times, cut_loads, want_energy)
