@@ -68,94 +68,44 @@ def _sections(tables, meta, out, bench_dir):
         if head:
             summary.append(head)
 
+    def per_case(t, stem, plot, caption, interp):
+        """One figure and its sentences per case of table t."""
+        return [(f"{stem}_{c}.png", plot(c), f"{c}: {caption}", interp(c)) for c in _cases(t)]
+
     t = tables.get("convergence_k")
     if t is not None and len(t):
         o = tables["convergence_k_orders"]
-        items = [
-            (
-                f"convergence_k_{c}.png",
-                figures.convergence_k(t, c, floor=_floor(meta, c)),
-                f"{c}: end-effector error against elements per link",
-                interpret.convergence_k(t, o, c, _floor(meta, c)),
-            )
-            for c in _cases(t)
-        ]
-        add(
-            "Convergence in elements per link",
-            "convergence-k",
-            items,
-            ["convergence_k_orders"],
-            f"Convergence in k ({_cases(t)[0]}): " + interpret.convergence_k(t, o, _cases(t)[0])[0],
-        )
+        items = per_case(t, "convergence_k", lambda c: figures.convergence_k(t, c, floor=_floor(meta, c)),
+                         "end-effector error against elements per link",
+                         lambda c: interpret.convergence_k(t, o, c, _floor(meta, c)))
+        add("Convergence in elements per link", "convergence-k", items, ["convergence_k_orders"],
+            f"Convergence in k ({_cases(t)[0]}): " + interpret.convergence_k(t, o, _cases(t)[0])[0])
     t = tables.get("convergence_h")
     if t is not None and len(t):
         o = tables["convergence_h_orders"]
-        items = [
-            (
-                f"convergence_h_{c}.png",
-                figures.convergence_h(t, c),
-                f"{c}: end-effector error against step",
-                interpret.convergence_h(t, o, c),
-            )
-            for c in _cases(t)
-        ]
-        add(
-            "Convergence in the time step",
-            "convergence-h",
-            items,
-            ["convergence_h_orders"],
-            f"Convergence in h ({_cases(t)[0]}): " + interpret.convergence_h(t, o, _cases(t)[0])[0],
-        )
+        items = per_case(t, "convergence_h", lambda c: figures.convergence_h(t, c),
+                         "end-effector error against step", lambda c: interpret.convergence_h(t, o, c))
+        add("Convergence in the time step", "convergence-h", items, ["convergence_h_orders"],
+            f"Convergence in h ({_cases(t)[0]}): " + interpret.convergence_h(t, o, _cases(t)[0])[0])
     t = tables.get("work_precision")
     if t is not None and len(t):
         s = tables["work_precision_summary"]
-        items = [
-            (
-                f"work_precision_{c}.png",
-                figures.work_precision(t, c),
-                f"{c}: error against wall time",
-                interpret.work_precision(s, c),
-            )
-            for c in _cases(t)
-        ]
-        add(
-            "Work-precision",
-            "work-precision",
-            items,
-            ["work_precision_summary"],
-            f"Work-precision ({_cases(t)[-1]}): " + " ".join(interpret.work_precision(s, _cases(t)[-1])[:2]),
-        )
+        items = per_case(t, "work_precision", lambda c: figures.work_precision(t, c),
+                         "error against wall time", lambda c: interpret.work_precision(s, c))
+        add("Work-precision", "work-precision", items, ["work_precision_summary"],
+            f"Work-precision ({_cases(t)[-1]}): " + " ".join(interpret.work_precision(s, _cases(t)[-1])[:2]))
     t = tables.get("scheme")
     if t is not None and len(t):
         s = tables["scheme_summary"]
-        items = [
-            (
-                f"scheme_{c}.png",
-                figures.scheme(t, c),
-                f"{c}: DT-TMM plain vs Riccati sweep, corrections per step",
-                interpret.scheme(s, c),
-            )
-            for c in _cases(t)
-        ]
-        add(
-            "The paper's scheme under test",
-            "scheme",
-            items,
-            ["scheme_summary"],
-            f"Paper's scheme ({_cases(t)[-1]}): " + interpret.scheme(s, _cases(t)[-1])[0],
-        )
+        items = per_case(t, "scheme", lambda c: figures.scheme(t, c),
+                         "DT-TMM plain vs Riccati sweep, corrections per step", lambda c: interpret.scheme(s, c))
+        add("The paper's scheme under test", "scheme", items, ["scheme_summary"],
+            f"Paper's scheme ({_cases(t)[-1]}): " + interpret.scheme(s, _cases(t)[-1])[0])
     t = tables.get("paper_series")
     if t is not None and len(t):
         s = tables["paper_summary"]
-        items = [
-            (
-                f"paper_{c}.png",
-                figures.time_histories(t, c),
-                f"{c}: joint angles and tip deflections",
-                interpret.paper(s, c),
-            )
-            for c in _cases(t)
-        ]
+        items = per_case(t, "paper", lambda c: figures.time_histories(t, c),
+                         "joint angles and tip deflections", lambda c: interpret.paper(s, c))
         add("Paper figures: time histories", "paper", items, ["paper_summary"])
     t = tables.get("cost")
     if t is not None and len(t):
