@@ -5,7 +5,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Result", "tip_deflection", "make_result"]
+__all__ = ["Result", "STATUSES", "tip_deflection", "make_result"]
+
+#: Verdicts a run can carry. Only "ok" means the numbers can be trusted as computed:
+#: "unconverged" — the step equations were not solved to tolerance (a fixed sweep count or an
+#: exhausted iteration limit); "ill-conditioned" — the final system lost too many digits;
+#: "failed" — the run stopped early (the result is the partial record up to the failure).
+STATUSES = ("ok", "unconverged", "ill-conditioned", "failed")
 
 
 def tip_deflection(link_root: np.ndarray, root_angle: np.ndarray, link_tip: np.ndarray) -> np.ndarray:
@@ -42,7 +48,10 @@ class Result:
         Kinetic + elastic + gravitational potential energy.
     wall_time : s, the solve only (no model build)
     n_steps : number of integration steps taken
-    meta : dict with at least method, elements_per_link, h, integrator, success, versions
+    meta : dict with at least method, elements_per_link, h, integrator, success, status, versions
+    status : one of :data:`STATUSES`; ``success`` is True only for "ok"
+    warnings : tuple of str, human-readable reasons for a status other than "ok" (and other
+        caveats worth reading)
     """
 
     t: np.ndarray
@@ -59,6 +68,22 @@ class Result:
     cut_loads: np.ndarray | None = None
     cut_load_t: np.ndarray | None = None
     energy: np.ndarray | None = None
+    status: str = "ok"
+    warnings: tuple = ()
+
+    def __post_init__(self):
+        if self.status not in STATUSES:
+            raise ValueError(f"Result.status: {self.status!r} is not one of {STATUSES}")
+        object.__setattr__(self, "warnings", tuple(str(w) for w in self.warnings))
+        self.meta["status"] = self.status
+        self.meta["success"] = self.status == "ok"
+        if self.warnings:
+            self.meta["warnings"] = list(self.warnings)
+
+    @property
+    def success(self) -> bool:
+        """True only when ``status == "ok"``."""
+        return self.status == "ok"
 
     @property
     def n_joints(self) -> int:
@@ -91,6 +116,8 @@ class Result:
         df.attrs.update({k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))})
         df.attrs["wall_time"] = self.wall_time
         df.attrs["n_steps"] = self.n_steps
+        df.attrs["status"] = self.status
+        df.attrs["warnings"] = "\n".join(self.warnings)
         return df
 
     @classmethod
@@ -101,19 +128,27 @@ class Result:
         xy = lambda p: np.stack([get(f"{p}_x"), get(f"{p}_y")], axis=-1)
         m = dict(df.attrs)
         m.update(meta or {})
+        status = m.pop("status", "ok" if m.get("success", True) else "failed")
+        warns = m.pop("warnings", ())
+        warns = tuple(w for w in warns.split("\n") if w) if isinstance(warns, str) else tuple(warns)
         return cls(t=df["t"].to_numpy(), joint_angle=get("joint_angle"), joint_rate=get("joint_rate"),
                    joint_torque=get("joint_torque"), link_root=xy("link_root"), link_tip=xy("link_tip"),
                    tip_deflection=get("tip_deflection"),
                    end_effector=df[["end_effector_x", "end_effector_y"]].to_numpy(),
                    wall_time=float(m.pop("wall_time", np.nan)), n_steps=int(m.pop("n_steps", 0)), meta=m,
-                   energy=df["energy"].to_numpy() if "energy" in df else None)
+                   energy=df["energy"].to_numpy() if "energy" in df else None,
+                   status=status, warnings=warns)
 
 
 def make_result(*, t, joint_angle, joint_rate, joint_torque, link_root, link_root_angle, link_tip,
-                wall_time, n_steps, meta, cut_loads=None, cut_load_t=None, energy=None) -> Result:
+                wall_time, n_steps, meta, cut_loads=None, cut_load_t=None, energy=None,
+                status=None, warnings=()) -> Result:
     """Assemble a Result, deriving tip deflections and the end-effector from the link frames
     so every method uses the same definitions. ``link_root_angle`` (nt, n): absolute angle
-    of each link's root cross-section (rad)."""
+    of each link's root cross-section (rad). ``status`` defaults to "ok", or "failed" when
+    ``meta["success"]`` is False."""
+    if status is None:
+        status = meta.get("status") or ("ok" if meta.get("success", True) is not False else "failed")
     link_root = np.asarray(link_root, float)
     link_tip = np.asarray(link_tip, float)
     return Result(t=np.asarray(t, float), joint_angle=np.asarray(joint_angle, float),
@@ -121,4 +156,5 @@ def make_result(*, t, joint_angle, joint_rate, joint_torque, link_root, link_roo
                   link_root=link_root, link_tip=link_tip,
                   tip_deflection=tip_deflection(link_root, link_root_angle, link_tip),
                   end_effector=link_tip[:, -1, :].copy(), wall_time=float(wall_time), n_steps=int(n_steps),
-                  meta=dict(meta), cut_loads=cut_loads, cut_load_t=cut_load_t, energy=energy)
+                  meta=dict(meta), cut_loads=cut_loads, cut_load_t=cut_load_t, energy=energy,
+                  status=status, warnings=tuple(warnings))
