@@ -244,8 +244,8 @@ def _reason(err: dict, keys) -> str:
     if t == "extra_forbidden":
         allowed = sorted(keys) if keys else []
         near = difflib.get_close_matches(str(err["loc"][-1]), allowed, n=1, cutoff=0.6)
-        hint = f"did you mean {near[0]!r}? " if near else ""
-        return f"unknown key; {hint}(allowed: {', '.join(allowed)})"
+        hint = f"; did you mean {near[0]!r}?" if near else ""
+        return f"unknown key{hint} (allowed: {', '.join(allowed)})"
     if t == "greater_than":
         return "must be positive" if ctx.get("gt") == 0 else f"must be > {ctx.get('gt')}"
     if t == "greater_than_equal":
@@ -253,15 +253,15 @@ def _reason(err: dict, keys) -> str:
     if t == "finite_number":
         return "must be finite"
     if t in ("float_type", "int_type", "float_parsing"):
-        return f"must be a number, not a {kind}"
+        return f"must be a number, got {kind}"
     if t == "bool_type":
-        return f"must be true or false, not a {kind}"
+        return f"must be true or false, got {kind}"
     if t == "string_type":
-        return f"must be a string, not a {kind}"
+        return f"must be a string, got {kind}"
     if t in ("list_type", "tuple_type"):
-        return f"must be a list, not a {kind}"
+        return f"must be a list, got {kind}"
     if t in ("model_type", "dict_type", "model_attributes_type"):
-        return f"must be a table, not a {kind}"
+        return f"must be a table, got {kind}"
     if t == "literal_error":
         return f"must be one of {ctx.get('expected')}"
     if t in ("too_short", "too_long"):
@@ -270,7 +270,9 @@ def _reason(err: dict, keys) -> str:
         if t == "too_short" and lo is not None:
             return f"needs at least {lo} entries"
         return f"needs at most {hi} entries"
-    if t in ("union_tag_invalid", "union_tag_not_found"):
+    if t == "union_tag_not_found":
+        return f"is required (one of: {', '.join(LAW_FIELDS)})"
+    if t == "union_tag_invalid":
         return f"unknown drive law (one of: {', '.join(LAW_FIELDS)})"
     return err.get("msg", t)
 
@@ -281,7 +283,8 @@ def input_error(exc: ValidationError, root, prefix: str = "") -> InputError:
     ``root`` is the model validated; ``prefix`` the path of that model in the case ("" for a
     whole file, e.g. "model.links[0]" for a Section).
     """
-    errs = exc.errors()
+    # a misspelt key also shows as a missing one: report the unknown key, it names both
+    errs = sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden")
     err = errs[0]
     loc = tuple(err["loc"])
     if err["type"] in ("union_tag_invalid", "union_tag_not_found"):
