@@ -64,7 +64,13 @@ def _close_progress_bars():
         return
     for bar in list(getattr(tqdm, "_instances", ())):
         bar.close()
-    sys.stderr.flush()
+
+
+def _own_line(message: str) -> None:
+    """Print a message on stderr on a line of its own, even after a cleared progress bar
+    (which leaves the cursor after a carriage return, not a newline)."""
+    _close_progress_bars()
+    print("\n" + message, file=sys.stderr)
 
 
 def _write(res, case, a, out: Path) -> None:
@@ -100,8 +106,7 @@ def run_simulate(a) -> int:
         print(f"dttmm: bad input: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except SimulationError as exc:
-        _close_progress_bars()
-        print(f"dttmm: simulation failed: {' '.join(str(exc).split())}", file=sys.stderr)
+        _own_line(f"dttmm: simulation failed: {' '.join(str(exc).split())}")
         res = exc.partial
         if res is None:
             return EXIT_FAILED
