@@ -12,7 +12,7 @@ from pydantic import TypeAdapter, ValidationError
 from .errors import InputError
 from .schema import Finite, NonNegative, Positive, _plain, input_error
 
-__all__ = ["finite", "positive", "non_negative", "step_size", "elements_per_link"]
+__all__ = ["elements_per_link", "finite", "non_negative", "positive", "step_size"]
 
 _ADAPTERS = {name: TypeAdapter(tp) for name, tp in
              (("finite", Finite), ("positive", Positive), ("non_negative", NonNegative))}

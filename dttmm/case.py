@@ -13,7 +13,7 @@ from .model import Hub, Link, Manipulator, Payload, Section
 from .scenario import Scenario
 from .schema import CaseFile, LinkFile, validate_case_file
 
-__all__ = ["Case", "load_case", "save_case", "case_from_dict", "case_to_dict", "read_case_text"]
+__all__ = ["Case", "case_from_dict", "case_to_dict", "load_case", "read_case_text", "save_case"]
 
 #: a case file larger than this is refused before parsing (bytes)
 MAX_FILE_BYTES = 16 * 2**20

@@ -11,16 +11,16 @@ and the step that starts there the right limit.
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
 from pydantic import ValidationError
 
 from .errors import InputError
 from .schema import LAW_FIELDS, DriveFields, check_fields
 
-__all__ = ["Constant", "BangBang", "Sine", "SpinUp", "Table", "Drive", "LAWS", "law_from_dict"]
+__all__ = ["LAWS", "BangBang", "Constant", "Drive", "Sine", "SpinUp", "Table", "law_from_dict"]
 
 
 def _set(obj, values: dict):
@@ -74,7 +74,7 @@ class BangBang:
         if len(lv) != len(st) + 1:
             raise InputError("law.levels", list(lv),
                              f"needs len(switch_times) + 1 = {len(st) + 1} entries")
-        if any(b <= a for a, b in zip(st, st[1:])):
+        if any(b <= a for a, b in itertools.pairwise(st)):
             raise InputError("law.switch_times", list(st), "must be strictly increasing")
         object.__setattr__(self, "levels", lv)
         object.__setattr__(self, "switch_times", st)
@@ -197,7 +197,7 @@ class Table:
         ts, vs = ok["times"], ok["values"]
         if len(vs) != len(ts):
             raise InputError("law.values", list(vs), f"needs one value per time ({len(ts)} entries)")
-        if any(b <= a for a, b in zip(ts, ts[1:])):
+        if any(b <= a for a, b in itertools.pairwise(ts)):
             raise InputError("law.times", list(ts), "must be strictly increasing")
         object.__setattr__(self, "times", ts)
         object.__setattr__(self, "values", vs)

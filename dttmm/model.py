@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from .errors import InputError
 from .schema import BodyFields, MaterialFields, ModelFields, SectionFields, check_fields
 
-__all__ = ["Section", "Hub", "Payload", "Link", "Manipulator"]
+__all__ = ["Hub", "Link", "Manipulator", "Payload", "Section"]
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class Section:
 
     @classmethod
     def from_material(cls, length, E, rho, width, thickness, *, EA=True, damping=0.0,
-                      where="section") -> "Section":
+                      where="section") -> Section:
         """Rectangular section from Young's modulus E (Pa), density ρ (kg/m³), width and
         thickness (m). ``EA=True`` derives E·A; ``EA=None`` makes the link inextensible."""
         m = check_fields(MaterialFields, where, E=E, rho=rho, width=width, thickness=thickness)

@@ -16,7 +16,7 @@ from ._validate import elements_per_link as _check_k
 from ._validate import step_size
 from .errors import InputError
 
-__all__ = ["available_memory", "estimate_run_bytes", "check_run_size"]
+__all__ = ["available_memory", "check_run_size", "estimate_run_bytes"]
 
 _STEP_BYTES, _STEP_BYTES_PER_JOINT = 40, 256
 _LOADS_CAP_BYTES = 2.0e6 * 3 * 8

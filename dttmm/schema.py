@@ -17,6 +17,7 @@ from __future__ import annotations
 import difflib
 import math
 import numbers
+import types
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 import numpy as np
@@ -24,14 +25,31 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, mode
 
 from .errors import InputError
 
-__all__ = ["Finite", "Positive", "NonNegative", "Until", "CaseFile", "LinkFile", "BodyFields",
-           "SectionFields", "MaterialFields", "ScenarioFields", "DriveFields", "LAW_FIELDS",
-           "check_fields", "validate_case_file", "input_error"]
+__all__ = [
+    "LAW_FIELDS",
+    "BodyFields",
+    "CaseFile",
+    "DriveFields",
+    "Finite",
+    "LinkFile",
+    "MaterialFields",
+    "NonNegative",
+    "Positive",
+    "ScenarioFields",
+    "SectionFields",
+    "Until",
+    "check_fields",
+    "input_error",
+    "validate_case_file",
+]
 
 # --- value types (units are those of the field that uses them) -----------------------------
-Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
-Positive = Annotated[float, Strict(), Field(gt=0.0, allow_inf_nan=False)]
-NonNegative = Annotated[float, Strict(), Field(ge=0.0, allow_inf_nan=False)]
+#: Magnitude window of every number (SI units): wide enough for any arm, narrow enough that the
+#: products the solvers form (EI/l³, ρA·l⁴, …) stay finite and nonzero in double precision.
+BIG, SMALL = 1e30, 1e-30
+Finite = Annotated[float, Strict(), Field(ge=-BIG, le=BIG, allow_inf_nan=False)]
+Positive = Annotated[float, Strict(), Field(ge=SMALL, le=BIG, allow_inf_nan=False)]
+NonNegative = Annotated[float, Strict(), Field(ge=0.0, le=BIG, allow_inf_nan=False)]
 Until = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf allowed (nan fails gt)
 FiniteList = Annotated[list[Finite], Strict()]
 
@@ -195,7 +213,7 @@ def _unwrap(tp):
             if any(getattr(m, "discriminator", None) for m in args[1:]):
                 return ("union", get_args(args[0]))
             tp = args[0]
-        elif origin in (Union, getattr(__import__("types"), "UnionType")):
+        elif origin in (Union, types.UnionType):
             args = [a for a in get_args(tp) if a is not type(None)]
             if len(args) != 1:
                 return ("union", tuple(args))
@@ -249,7 +267,14 @@ def _reason(err: dict, keys) -> str:
     if t == "greater_than":
         return "must be positive" if ctx.get("gt") == 0 else f"must be > {ctx.get('gt')}"
     if t == "greater_than_equal":
-        return "must be non-negative" if ctx.get("ge") == 0 else f"must be >= {ctx.get('ge')}"
+        if ctx.get("ge") == 0:
+            return "must be non-negative"
+        if ctx.get("ge") == SMALL:
+            return f"must be positive (and >= {SMALL:g})" if isinstance(inp, (int, float)) and inp > 0 \
+                else "must be positive"
+        return f"must be >= {ctx.get('ge'):g}"
+    if t == "less_than_equal":
+        return f"must be <= {ctx.get('le'):g} (numbers lie within ±{BIG:g} in SI units)"
     if t == "finite_number":
         return "must be finite"
     if t in ("float_type", "int_type", "float_parsing"):
@@ -299,7 +324,7 @@ def input_error(exc: ValidationError, root, prefix: str = "") -> InputError:
         out = InputError(field, inner.value, inner.reason)
     else:
         if err["type"] == "extra_forbidden":
-            path_parent, keys = _walk(root, loc[:-1])
+            _, keys = _walk(root, loc[:-1])
             path, _ = _walk(root, loc)
             keys = list(keys.model_fields) if isinstance(keys, type) and issubclass(keys, BaseModel) else None
             if keys is not None and "law" in keys:

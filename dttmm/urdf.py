@@ -18,7 +18,6 @@ has no URDF form and is dropped.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path

@@ -9,12 +9,11 @@ import math
 
 import numpy as np
 import pytest
+from conftest import CASES
 
 import dttmm
 from dttmm import Case, Drive, Hub, InputError, Link, Manipulator, Scenario, Section, Sine, Table
 from dttmm.resources import check_run_size, estimate_run_bytes
-
-from conftest import CASES
 
 THREE = (CASES / "three_link.toml").read_text()
 SINGLE = (CASES / "single_link.toml").read_text()
@@ -166,7 +165,7 @@ def test_private_spline_is_not_a_constructor_argument():
 
 # --- resource guard -----------------------------------------------------------------------------------
 @pytest.mark.parametrize("h, output_step, field", [(1e-12, 1e-3, "h"), (1e-3, 1e-12, "scenario.output_step"),
-                                                    (1e-300, 1e-3, "h")])
+                                                    (1e-25, 1e-3, "h")])
 def test_run_size_guard_names_the_knob(three_link, h, output_step, field):
     c = dc.replace(three_link, scenario=dc.replace(three_link.scenario, output_step=output_step))
     with pytest.raises(InputError) as exc:
@@ -183,7 +182,7 @@ def test_run_size_estimate_counts_steps_and_samples(three_link):
         check_run_size(three_link, 4, 1e-3, limit_bytes=total / 2)
 
 
-@pytest.mark.parametrize("h", ["1e-3", True, float("nan"), -1.0])
+@pytest.mark.parametrize("h", ["1e-3", True, float("nan"), -1.0, 1e-300])
 def test_step_size_validator(h):
     with pytest.raises(InputError) as exc:
         dttmm._validate.step_size(h)
@@ -247,3 +246,14 @@ def test_nan_in_python_api_reported_as_nan():
     with pytest.raises(InputError) as exc:
         Section(1.0, 1.0, math.nan)
     assert math.isnan(exc.value.value)
+
+
+@pytest.mark.parametrize("old, new, field", [
+    ("length = 0.5", "length = 1e300", "model.links[0].length"),
+    ("EI = 2.3333333333333335", "EI = 1e-300", "model.links[0].EI"),
+    ("amplitude = 1.0", "amplitude = -1e31", "scenario.drives[0].amplitude"),
+])
+def test_magnitudes_outside_the_window_are_refused(tmp_path, old, new, field):
+    # 1e300 m once overflowed inside the element matrices (OverflowError, found by the fuzz test)
+    err = _refused(tmp_path, THREE.replace(old, new, 1))
+    assert err.field == field

@@ -6,11 +6,10 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import CASES, case, shortened
 
 import dttmm
 from dttmm.cli import main
-
-from conftest import CASES, shortened, case
 
 
 @pytest.fixture
@@ -46,7 +45,7 @@ def test_bad_input_exit_code_and_message(short_case, tmp_path, capsys):
 def test_console_script_runs(short_case, tmp_path):
     exe = Path(sys.executable).with_name("dttmm")
     r = subprocess.run([str(exe), "simulate", str(short_case), "-k", "1", "--h", "1e-3", "--out", str(tmp_path)],
-                       capture_output=True, text=True, timeout=300)
+                       capture_output=True, text=True, timeout=300, check=False)
     assert r.returncode == 0, r.stderr
     assert "wrote" in r.stdout
 
@@ -153,6 +152,6 @@ def test_report_bad_scheduler_one_line_exit_2(capsys, value, fragment):
 
 def test_core_cli_does_not_import_the_report_harness():
     code = "import sys, dttmm.cli; print(any(m == 'reports' or m.startswith('reports.') for m in sys.modules))"
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False,
                        cwd=Path(__file__).resolve().parents[1])
     assert r.stdout.strip() == "False", r.stderr

@@ -62,7 +62,7 @@ def test_table_defaults_are_the_schema_defaults(name):
 
 
 def _examples() -> list[str]:
-    return re.findall(r"```toml\n(.*?)```", DOC, flags=re.S)
+    return re.findall(r"```toml\n(.*?)```", DOC, flags=re.DOTALL)
 
 
 def test_there_is_one_example_per_drive_law():
