@@ -106,12 +106,13 @@ def run_simulate(a) -> int:
         print(f"dttmm: bad input: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except SimulationError as exc:
-        _own_line(f"dttmm: simulation failed: {' '.join(str(exc).split())}")
         res = exc.partial
+        msg = f"dttmm: simulation failed: {' '.join(str(exc).split())}"
         if res is None:
+            _own_line(msg)
             return EXIT_FAILED
         t_last = res.t[-1] if res.t.size else 0.0
-        print(f"dttmm: writing the partial result up to t = {t_last:.6g} s", file=sys.stderr)
+        _own_line(f"{msg}; writing the partial result up to t = {t_last:.6g} s")
         _write(res, case, a, out)
         return EXIT_FAILED
     _write(res, case, a, out)
