@@ -44,10 +44,13 @@ __all__ = [
 ]
 
 # --- value types (units are those of the field that uses them) -----------------------------
-#: Magnitude window of every number (SI units): wide enough for any arm, narrow enough that the
-#: products the solvers form (EI/l³, ρA·l⁴, …) stay finite and nonzero in double precision.
+#: Magnitude window of the model's numbers and of every positive quantity (SI units): wide
+#: enough for any arm, narrow enough that the products the solvers form (EI/l³, ρA·l⁴, …) stay
+#: finite and nonzero in double precision. Drive values (torques, angles) need only be finite:
+#: an absurd torque makes a run diverge, which the solvers report as a SimulationError.
 BIG, SMALL = 1e30, 1e-30
-Finite = Annotated[float, Strict(), Field(ge=-BIG, le=BIG, allow_inf_nan=False)]
+Finite = Annotated[float, Strict(), Field(allow_inf_nan=False)]
+Bounded = Annotated[float, Strict(), Field(ge=-BIG, le=BIG, allow_inf_nan=False)]
 Positive = Annotated[float, Strict(), Field(ge=SMALL, le=BIG, allow_inf_nan=False)]
 NonNegative = Annotated[float, Strict(), Field(ge=0.0, le=BIG, allow_inf_nan=False)]
 Until = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf allowed (nan fails gt)
@@ -89,7 +92,7 @@ class MaterialFields(_Strict):
 class ModelFields(_Strict):
     """gravity (m/s²) in the plane of motion."""
 
-    gravity: Annotated[FiniteList, Field(min_length=2, max_length=2)] = [0.0, 0.0]
+    gravity: Annotated[list[Bounded], Strict(), Field(min_length=2, max_length=2)] = [0.0, 0.0]
 
 
 class ScenarioFields(_Strict):

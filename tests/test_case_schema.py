@@ -251,7 +251,8 @@ def test_nan_in_python_api_reported_as_nan():
 @pytest.mark.parametrize("old, new, field", [
     ("length = 0.5", "length = 1e300", "model.links[0].length"),
     ("EI = 2.3333333333333335", "EI = 1e-300", "model.links[0].EI"),
-    ("amplitude = 1.0", "amplitude = -1e31", "scenario.drives[0].amplitude"),
+    ("gravity = [0.0, -9.81]", "gravity = [0.0, -1e31]", "model.gravity[1]"),
+    ("frequency = 1.0", "frequency = 1e31", "scenario.drives[0].frequency"),
 ])
 def test_magnitudes_outside_the_window_are_refused(tmp_path, old, new, field):
     # 1e300 m once overflowed inside the element matrices (OverflowError, found by the fuzz test)
