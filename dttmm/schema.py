@@ -252,9 +252,17 @@ def _walk(root, loc) -> tuple[str, object]:
     return path, u
 
 
-def _short(v, n: int = 60) -> str:
+class Elided(str):
+    """Stands for a value too long to print in a one-line message; its repr is the cut text."""
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
+def _short(v, n: int = 80):
+    """``v`` itself, or an :class:`Elided` of its repr when that is longer than ``n``."""
     s = repr(v)
-    return s if len(s) <= n else s[: n - 3] + "..."
+    return v if len(s) <= n else Elided(s[: n - 4] + " ...")
 
 
 def _reason(err: dict, keys) -> str:
@@ -336,6 +344,7 @@ def input_error(exc: ValidationError, root, prefix: str = "") -> InputError:
             path, keys = _walk(root, loc)
         value = None if err["type"] == "missing" else err.get("input")
         out = InputError(path, value, _reason(err, keys))
+    out = InputError(out.field, _short(out.value), out.reason)
     if prefix:
         out = InputError(f"{prefix}.{out.field}" if out.field else prefix, out.value, out.reason)
     if len(errs) > 1:

@@ -258,3 +258,9 @@ def test_magnitudes_outside_the_window_are_refused(tmp_path, old, new, field):
     # 1e300 m once overflowed inside the element matrices (OverflowError, found by the fuzz test)
     err = _refused(tmp_path, THREE.replace(old, new, 1))
     assert err.field == field
+
+
+def test_long_values_are_cut_in_messages(tmp_path):
+    big = "[" + ", ".join(["1.0"] * 500) + "]"
+    err = _refused(tmp_path, THREE + f"\n[solver]\nsteps = {big}\n")
+    assert err.field == "solver" and len(str(err)) < 250 and str(err).count("...") == 1
