@@ -23,7 +23,7 @@ import math
 import sys
 from pathlib import Path
 
-__all__ = ["canonical_json", "digest", "case_digest", "code_version", "tree_hash", "file_sha256"]
+__all__ = ["canonical_json", "case_digest", "code_version", "digest", "file_sha256", "tree_hash"]
 
 # Libraries whose version changes numbers (engines are listed even when absent: None).
 _LIBRARIES = ("numpy", "scipy", "numba", "exudyn", "pin")
@@ -100,7 +100,7 @@ def _source_root(module_name: str) -> Path | None:
     return Path(spec.origin) if spec.origin and spec.origin.endswith(".py") else None
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _library_versions() -> dict:
     out = {}
     for name in _LIBRARIES:
@@ -111,7 +111,7 @@ def _library_versions() -> dict:
     return out
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _roots_hash(module_names: tuple) -> dict:
     roots = {"dttmm": _source_root("dttmm")}
     for m in module_names:
@@ -136,7 +136,7 @@ def code_version(method: str) -> dict:
         "method": method,
         "method_options": [list(x) for x in fixed],
         "dttmm": dttmm.__version__,
-        "python": "%d.%d" % sys.version_info[:2],
+        "python": f"{sys.version_info[0]}.{sys.version_info[1]}",
         "libraries": dict(_library_versions()),
         "sources": _roots_hash(tuple(modules)),
     }

@@ -8,7 +8,6 @@ when both are on disk), keyed by the case's content and the method's code, verif
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import re
@@ -20,7 +19,16 @@ import numpy as np
 
 from . import cachefiles, fingerprint, methods, metrics
 
-__all__ = ["Task", "Outcome", "execute", "RunStore", "options_text", "task_from_row", "row_status", "WITH_HISTORY"]
+__all__ = [
+    "WITH_HISTORY",
+    "Outcome",
+    "RunStore",
+    "Task",
+    "execute",
+    "options_text",
+    "row_status",
+    "task_from_row",
+]
 
 
 def options_text(options) -> str:
