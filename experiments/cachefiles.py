@@ -26,7 +26,15 @@ try:  # POSIX; elsewhere entries are still verified, only concurrent writers are
 except ImportError:  # pragma: no cover
     fcntl = None
 
-__all__ = ["BadEntry", "CacheWarning", "read_entry", "result_bytes", "result_from_bytes", "warn", "write_entry"]
+__all__ = [
+    "BadEntry",
+    "CacheWarning",
+    "read_entry",
+    "result_bytes",
+    "result_from_bytes",
+    "warn",
+    "write_entry",
+]
 
 SEAL = "record_sha256"
 

@@ -74,7 +74,9 @@ def tree_hash(root) -> str:
     """sha256 over every ``.py`` file under ``root`` (a folder, or one file): relative path and
     bytes, in sorted order. Caches (``__pycache__``) are left out."""
     root = Path(root)
-    files = [root] if root.is_file() else sorted(p for p in root.rglob("*.py") if "__pycache__" not in p.parts)
+    files = (
+        [root] if root.is_file() else sorted(p for p in root.rglob("*.py") if "__pycache__" not in p.parts)
+    )
     h = hashlib.sha256()
     for p in files:
         h.update(str(p.relative_to(root.parent)).encode() + b"\0")

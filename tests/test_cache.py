@@ -12,12 +12,12 @@ import sys
 import warnings
 from pathlib import Path
 
+import _rotor_method as rotor
 import numpy as np
 import pandas as pd
 import pytest
-
-import _rotor_method as rotor
 from conftest import case, shortened
+
 from experiments import fingerprint, methods
 from experiments.cachefiles import CacheWarning
 from experiments.references import RefSpec, reference
@@ -76,7 +76,10 @@ def _edit_error(jpath, ppath):
 DAMAGE = {
     "truncated history": lambda j, p, other: _truncate(p),
     "truncated row": lambda j, p, other: _truncate(j),
-    "swapped entry": lambda j, p, other: (j.write_bytes(other[0].read_bytes()), p.write_bytes(other[1].read_bytes())),
+    "swapped entry": lambda j, p, other: (
+        j.write_bytes(other[0].read_bytes()),
+        p.write_bytes(other[1].read_bytes()),
+    ),
     "swapped history": lambda j, p, other: p.write_bytes(other[1].read_bytes()),
     "edited row": lambda j, p, other: _edit_error(j, p),
     "deleted history": lambda j, p, other: p.unlink(),
@@ -144,7 +147,7 @@ def test_case_edit_changes_the_key_and_the_results(tmp_path):
     light = _sweep(tasks, cases, RunStore(tmp_path))
     heavy_cases = {"three_link": _heavier_payload(cases["three_link"], 1.0)}
     rotor.CALLS["n"] = 0
-    heavy = _sweep(tasks, heavy_cases, RunStore(tmp_path))
+    _sweep(tasks, heavy_cases, RunStore(tmp_path))
     assert rotor.CALLS["n"] == len(tasks)  # nothing reused from the 0.1 kg case
     # the rotor's last joint turns slower under the heavier payload
     for t in tasks:
@@ -185,9 +188,10 @@ def test_code_version_follows_every_source_file_of_the_tree(tmp_path):
     assert v["sources"]["dttmm"] and v["sources"]["reference_models"]
     assert fingerprint.code_version("dttmm")["sources"].keys() == {"dttmm"}
     assert fingerprint.code_version("rotor")["sources"].keys() == {"dttmm", "_rotor_method"}
-    assert fingerprint.code_version("dttmm-2nd")["method_options"] != fingerprint.code_version("dttmm")[
-        "method_options"
-    ]
+    assert (
+        fingerprint.code_version("dttmm-2nd")["method_options"]
+        != fingerprint.code_version("dttmm")["method_options"]
+    )
 
 
 def test_recompute_ignores_and_rewrites_every_entry(tmp_path):
@@ -239,7 +243,10 @@ def test_two_concurrent_sweeps_on_one_store_leave_it_complete_and_readable(tmp_p
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     procs = [
         subprocess.Popen(
-            [sys.executable, str(script), me, str(tmp_path)], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+            [sys.executable, str(script), me, str(tmp_path)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
         )
         for me in "ab"
     ]
@@ -313,7 +320,9 @@ def _flaky(case, *, elements_per_link, h, **options):
     if elements_per_link >= 8:
         return dc.replace(res, status="failed", warnings=("singular matrix at t = 0.1 s",))
     if elements_per_link >= 4:
-        return dc.replace(res, status="unconverged", warnings=("no convergence after 10 iterations at t = 0.05 s",))
+        return dc.replace(
+            res, status="unconverged", warnings=("no convergence after 10 iterations at t = 0.05 s",)
+        )
     return res
 
 
