@@ -138,7 +138,7 @@ def read_entry(jpath: Path, ppath: Path, key: str) -> tuple[dict, bytes | None] 
             raise BadEntry(f"unreadable record: {type(exc).__name__}") from None
         if not isinstance(record, dict) or record.get("key") != key:
             got = record.get("key") if isinstance(record, dict) else None
-            raise BadEntry(f"record of another entry (key {got!r}, wanted {key!r})")
+            raise BadEntry(f"made for another case content, code or run (key {got!r}, wanted {key!r})")
         if record.get(SEAL) != _sealed(record):
             raise BadEntry("record edited after it was written (seal does not match)")
         want = record.get("history_sha256")

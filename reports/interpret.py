@@ -37,7 +37,7 @@ FLAGGED = ("unconverged", "ill-conditioned")  # ran to the end, but the method d
 
 def not_ok(rows: pd.DataFrame) -> list[str]:
     """Sentences on the runs of ``rows`` that are not "ok": failed ones, and flagged ones
-    (unconverged, ill-conditioned) whose errors are drawn hollow and left out of every fit."""
+    (unconverged, ill-conditioned), whose errors are measured but left out of every fit."""
     out = []
     failed = rows[~rows.status.isin(("ok", *FLAGGED))]
     if len(failed):

@@ -295,7 +295,7 @@ def test_reference_cache_is_keyed_by_content_and_verified(tmp_path):
     heavy, hprov = reference(_heavier_payload(c, 1.0), spec, tmp_path)
     assert rotor.CALLS["n"] == 4 and hprov["key"] != prov["key"]
     assert not np.array_equal(heavy.joint_angle, res.joint_angle)
-    with pytest.warns(CacheWarning, match="another entry"):  # the file now holds the 1 kg case
+    with pytest.warns(CacheWarning, match="another case content"):  # the file now holds the 1 kg case
         reference(c, spec, tmp_path)
     assert rotor.CALLS["n"] == 5
     reference(c, spec, tmp_path, recompute=True)
@@ -353,3 +353,44 @@ def test_scheme_counts_flagged_runs_as_broken(tmp_path):
     summary = scheme.analyse(SimpleNamespace(plan=plan), table)["scheme_summary"].iloc[0]
     assert summary.breaks_at_k == 4 and summary.failed == 1 and summary.flagged == 1
     assert summary.first_reason.startswith("unconverged: no convergence")
+
+
+def test_payload_edit_in_the_case_file_changes_the_study_tables(tmp_path):
+    """End to end with the real solver: the study of a case file whose payload goes from
+    0.1 to 1.0 kg is computed again (reference and runs) and its numbers change."""
+    from experiments.context import prepare
+    from experiments.plan import Plan
+    from experiments.study import run_studies
+
+    case_dir = tmp_path / "cases"
+    case_dir.mkdir()
+    text = (ROOT / "experiments/cases/three_link.toml").read_text()
+    assert "payload = { mass = 0.1," in text
+    (case_dir / "three_link.toml").write_text(text)
+    plan = Plan(
+        "tiny",
+        {"three_link": 0.04},
+        {"three_link": [RefSpec("dttmm", 4, 5e-4)]},
+        {"three_link": []},
+        {"convergence_k": {"cases": ["three_link"], "methods": ["dttmm"], "ks": [1, 2], "h": 2e-3}},
+        output_step=4e-3,
+    )
+
+    def study():
+        ctx = prepare(plan, tmp_path / "data", case_dir=case_dir, log=None)
+        return ctx, run_studies(ctx, scheduler="serial", progress=False)["convergence_k"]
+
+    ctx1, light = study()
+    _, again = study()
+    pd.testing.assert_frame_equal(again.drop(columns=TIMING), light.drop(columns=TIMING))
+    (case_dir / "three_link.toml").write_text(
+        text.replace("payload = { mass = 0.1,", "payload = { mass = 1.0,")
+    )
+    ctx2, heavy = study()
+    assert ctx2.provenance["three_link"]["key"] != ctx1.provenance["three_link"]["key"]
+    assert not np.array_equal(
+        ctx2.references["three_link"][0].joint_angle, ctx1.references["three_link"][0].joint_angle
+    )
+    assert (heavy.key.to_numpy() != light.key.to_numpy()).all()  # new entries, none reused
+    assert not np.allclose(heavy.ee_l2, light.ee_l2, rtol=1e-6, atol=0)
+    assert len(list((tmp_path / "data/cache/runs").rglob("*.json"))) == 4
