@@ -8,6 +8,7 @@ when both are on disk), keyed by the case's content and the method's code, verif
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -198,6 +199,7 @@ class RunStore:
         has_history = row["status"] in WITH_HISTORY and outcome.result is not None
         row.update(score(outcome.result if has_history else None, reference, n_joints, row))
         row["reference_id"] = reference_id
+        row["scored_with"] = _metrics_version()
         row["key"] = key
         history = cachefiles.result_bytes(outcome.result) if outcome.result is not None else None
         row = cachefiles.write_entry(jpath, ppath, row, history)
@@ -257,14 +259,23 @@ class RunStore:
                 continue
             row, data = got
             ref, ref_id = (references or {}).get(task.case, (None, ""))
-            if references is not None and row.get("reference_id") != ref_id:
+            stale = row.get("reference_id") != ref_id or row.get("scored_with") != _metrics_version()
+            if references is not None and stale:
                 usable = row["status"] in WITH_HISTORY and data is not None
                 res = cachefiles.result_from_bytes(data) if usable else None
                 row.update(score(res, ref, row["n_joints"], row))
                 row["reference_id"] = ref_id
-            drop = ("meta", "versions", "history_sha256", cachefiles.SEAL)
+                row["scored_with"] = _metrics_version()
+            drop = ("meta", "versions", "history_sha256", cachefiles.SEAL, "scored_with")
             rows.append({k: v for k, v in row.items() if k not in drop})
         return pd.DataFrame(rows)
+
+
+@functools.cache
+def _metrics_version() -> str:
+    """Hash of the code that computes the error columns: a stored row scored by other code is
+    scored again when it is read."""
+    return fingerprint.tree_hash(Path(metrics.__file__))[:16]
 
 
 def row_status(outcome: Outcome) -> tuple[str, str]:

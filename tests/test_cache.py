@@ -394,3 +394,22 @@ def test_payload_edit_in_the_case_file_changes_the_study_tables(tmp_path):
     assert (heavy.key.to_numpy() != light.key.to_numpy()).all()  # new entries, none reused
     assert not np.allclose(heavy.ee_l2, light.ee_l2, rtol=1e-6, atol=0)
     assert len(list((tmp_path / "data/cache/runs").rglob("*.json"))) == 4
+
+
+def test_rows_scored_by_other_metrics_code_are_scored_again(tmp_path, monkeypatch):
+    from experiments import runs
+
+    cases = _cases()
+    tasks = _tasks(cases)
+    refs = _refs(cases)
+    store = RunStore(tmp_path)
+    first = run_sweep(tasks, cases, store, references=refs, scheduler="serial", progress=False)
+    calls = []
+    real = runs.score
+    monkeypatch.setattr(runs, "score", lambda *a: calls.append(1) or real(*a))
+    store.table(tasks, refs)
+    assert calls == []  # same reference, same metrics code: stored errors used
+    monkeypatch.setattr(runs, "_metrics_version", lambda: "other metrics code")
+    again = store.table(tasks, refs)
+    assert len(calls) == len(tasks)
+    pd.testing.assert_frame_equal(again, first)
