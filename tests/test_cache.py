@@ -413,3 +413,18 @@ def test_rows_scored_by_other_metrics_code_are_scored_again(tmp_path, monkeypatc
     again = store.table(tasks, refs)
     assert len(calls) == len(tasks)
     pd.testing.assert_frame_equal(again, first)
+
+
+def test_flagged_runs_are_ringed_in_the_figures_and_named_in_the_text(tmp_path):
+    from reports import figures, interpret
+
+    methods.register("flaky", _flaky)
+    cases = _cases()
+    tasks = [Task("three_link", "flaky", k, 1e-2, 0.2) for k in (1, 2, 4, 8)]
+    table = _sweep(tasks, cases, RunStore(tmp_path))
+    fig = figures.convergence_k(table, "three_link")
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert any("flagged" in x for x in labels) and any("failed" in x for x in labels)
+    text = " ".join(interpret.not_ok(table))
+    assert "1 run(s) failed" in text and "1 run(s) finished but were flagged" in text
+    assert "unconverged" in text
