@@ -24,6 +24,10 @@ from .runs import _check
 __all__ = ["RefSpec", "load_reference", "reference", "reference_key"]
 
 
+# Layout of the stored provenance; part of the key, so raise it when its fields change.
+PROVENANCE_FORMAT = 1
+
+
 @dataclass(frozen=True)
 class RefSpec:
     """How to compute a reference: a method at k elements per link and step h (s)."""
@@ -52,6 +56,7 @@ def reference_key(case, candidates, check=()) -> str:
             "candidates": [asdict(c) for c in candidates],
             "check": [asdict(c) for c in check],
             "code": {m: fingerprint.code_version(m) for m in dict.fromkeys(s.method for s in specs)},
+            "format": PROVENANCE_FORMAT,
         }
     )
 

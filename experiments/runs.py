@@ -121,6 +121,9 @@ def _plain(v):
     return str(v)
 
 
+# Layout of a stored row; part of every entry key, so raise it when the row's columns change.
+STORE_FORMAT = 2
+
 # Row statuses whose run left a time history (errors are computed; only "ok" counts as ok).
 WITH_HISTORY = ("ok", "unconverged", "ill-conditioned")
 
@@ -166,6 +169,7 @@ class RunStore:
                 "task": [task.case, task.method, task.k, task.h, task.duration, options_text(task.options)],
                 "case": self._case_digest[task.case],
                 "code": self._code[task.method],
+                "format": STORE_FORMAT,
             }
         )
 
