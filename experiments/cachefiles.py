@@ -54,16 +54,25 @@ def warn(path, why: str) -> None:
 
 @contextlib.contextmanager
 def _locked(folder: Path, exclusive: bool):
-    if fcntl is None:
-        yield
-        return
-    folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / ".lock", "a+") as f:
-        fcntl.flock(f, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+    """Hold the folder's lock (exclusive for writers, shared for readers). A folder that
+    cannot hold a lock file (read-only) is read without one: its entries are still verified."""
+    f = None
+    if fcntl is not None:
         try:
-            yield
-        finally:
+            if exclusive:
+                folder.mkdir(parents=True, exist_ok=True)
+            f = open(folder / ".lock", "a+")  # noqa: SIM115 -- closed below, after unlocking
+        except OSError:
+            if exclusive:
+                raise
+    try:
+        if f is not None:
+            fcntl.flock(f, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        yield
+    finally:
+        if f is not None:
             fcntl.flock(f, fcntl.LOCK_UN)
+            f.close()
 
 
 def _atomic_write(path: Path, data: bytes) -> None:
