@@ -42,7 +42,9 @@ def not_ok(rows: pd.DataFrame) -> list[str]:
     failed = rows[~rows.status.isin(("ok", *FLAGGED))]
     if len(failed):
         r = failed.iloc[0]
-        out.append(f"{len(failed)} run(s) failed, e.g. {_l(r.method)} at k = {r.k}, h = {r.h:g} s: {r.reason}.")
+        out.append(
+            f"{len(failed)} run(s) failed, e.g. {_l(r.method)} at k = {r.k}, h = {r.h:g} s: {r.reason}."
+        )
     flagged = rows[rows.status.isin(FLAGGED)]
     if len(flagged):
         r = flagged.iloc[0]
