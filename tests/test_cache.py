@@ -292,7 +292,8 @@ def test_reference_cache_is_keyed_by_content_and_verified(tmp_path):
     with pytest.warns(CacheWarning, match="sha256"):
         reference(c, spec, tmp_path)
     assert rotor.CALLS["n"] == 3
-    heavy, hprov = reference(_heavier_payload(c, 1.0), spec, tmp_path)
+    with pytest.warns(CacheWarning, match="another case content"):  # same file name, other content
+        heavy, hprov = reference(_heavier_payload(c, 1.0), spec, tmp_path)
     assert rotor.CALLS["n"] == 4 and hprov["key"] != prov["key"]
     assert not np.array_equal(heavy.joint_angle, res.joint_angle)
     with pytest.warns(CacheWarning, match="another case content"):  # the file now holds the 1 kg case
@@ -386,7 +387,8 @@ def test_payload_edit_in_the_case_file_changes_the_study_tables(tmp_path):
     (case_dir / "three_link.toml").write_text(
         text.replace("payload = { mass = 0.1,", "payload = { mass = 1.0,")
     )
-    ctx2, heavy = study()
+    with pytest.warns(CacheWarning, match="another case content"):  # the reference file is stale
+        ctx2, heavy = study()
     assert ctx2.provenance["three_link"]["key"] != ctx1.provenance["three_link"]["key"]
     assert not np.array_equal(
         ctx2.references["three_link"][0].joint_angle, ctx1.references["three_link"][0].joint_angle
