@@ -430,3 +430,11 @@ def test_flagged_runs_are_ringed_in_the_figures_and_named_in_the_text(tmp_path):
     text = " ".join(interpret.not_ok(table))
     assert "1 run(s) failed" in text and "1 run(s) finished but were flagged" in text
     assert "unconverged" in text
+
+
+def test_a_flagged_reference_candidate_is_skipped_like_a_failed_one(tmp_path):
+    methods.register("flaky", _flaky)
+    c = _cases()["three_link"]
+    res, prov = reference(c, [RefSpec("flaky", 4, 1e-4), RefSpec("rotor", 64, 1e-4)], tmp_path)
+    assert prov["method"] == "rotor" and res.status == "ok"
+    assert len(prov["failures"]) == 1 and "status unconverged: no convergence" in prov["failures"][0]
