@@ -84,6 +84,16 @@ def label(name: str) -> str:
     return m.label if m and m.label else name
 
 
+def source_of(name: str) -> tuple[tuple[str, ...], tuple]:
+    """(modules whose code makes the method's runs, options it always gets), for cache keys;
+    ((), ()) for an unknown name."""
+    if name in _EXTRA:
+        return (_EXTRA[name][0].__module__,), ()
+    if name in METHODS:
+        return (METHODS[name].module,), METHODS[name].options
+    return (), ()
+
+
 def resolve(name: str) -> Callable:
     """The method as ``f(case, k, h, **options) -> Result``; raises MethodUnavailable."""
     if name in _EXTRA:

@@ -27,7 +27,8 @@ def _cases(df) -> list:
 
 
 def omissions(tables: dict) -> pd.DataFrame:
-    """Every planned run without an error value: study, case, method, k, h, options, status, why."""
+    """Every planned run that is not ok or has no error value: study, case, method, k, h,
+    options, status (failed, unavailable, or flagged unconverged / ill-conditioned), why."""
     rows = []
     for name in ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost"):
         df = tables.get(name)

@@ -1,4 +1,4 @@
-"""``dttmm report [--quick|--full] [--out DIR] [--scheduler ADDR] [--from-data]``.
+"""``dttmm report [--quick|--full] [--out DIR] [--scheduler ADDR] [--from-data] [--recompute]``.
 
 Runs every study (one resumable sweep on Dask), stores the tables under ``<out>/data/`` and
 writes ``<out>/index.html`` and ``<out>/REPORT.md``. ``--from-data`` only rebuilds the figures
@@ -39,8 +39,10 @@ def run_report(
     command="",
     bench_dir="data/bench",
     log=print,
+    recompute=False,
 ):
-    """Run the plan's studies and write the report into ``out``; returns (html, md) paths."""
+    """Run the plan's studies and write the report into ``out``; returns (html, md) paths.
+    ``recompute``: ignore every cached run and reference and write them again."""
     from experiments import methods
     from experiments.context import prepare
     from experiments.study import run_studies, save_tables
@@ -54,7 +56,7 @@ def run_report(
     for m, why in avail.items():
         if why:
             log(f"unavailable: {m}: {why}")
-    ctx = prepare(plan, data, log=log)
+    ctx = prepare(plan, data, log=log, recompute=recompute)
     tables = run_studies(ctx, scheduler=scheduler, workers=workers, progress=progress)
     save_tables(tables, out / "data")
     meta = {
@@ -123,8 +125,15 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--bench", default="data/bench", help="pytest-benchmark JSON folder")
     ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument(
+        "--recompute",
+        action="store_true",
+        help="ignore every cached run and reference solution and compute (and store) them again",
+    )
     a = ap.parse_args(argv)
     command = "dttmm report " + shlex.join(argv)
+    if a.from_data and a.recompute:
+        ap.error("--recompute computes the runs again; --from-data only redraws stored tables")
     if a.from_data:
         _from_data(a.out, command, a.bench)
         return 0
@@ -137,6 +146,7 @@ def main(argv=None) -> int:
         progress=not a.no_progress,
         command=command,
         bench_dir=a.bench,
+        recompute=a.recompute,
     )
     return 0
 

@@ -62,7 +62,8 @@ def _integer_ticks(ax, values):
 
 
 def _loglog_groups(ax, table, x, y, group, *, style="-", labels=None, lw=1.5):
-    """One log-log line per group; failed points as crosses at the bottom edge."""
+    """One log-log line per group; failed points as crosses at the bottom edge, flagged ones
+    (unconverged, ill-conditioned) ringed."""
     fails = []
     for i, (name, g) in enumerate(table.groupby(group, sort=False)):
         g = g.sort_values(x)
@@ -82,6 +83,21 @@ def _loglog_groups(ax, table, x, y, group, *, style="-", labels=None, lw=1.5):
                 mfc="none" if ms >= 7 else color,
             )
         fails += list(g[x][~ok])
+    # runs the method flagged (unconverged, ill-conditioned): their value, ringed
+    flagged = table[table.status.isin(("unconverged", "ill-conditioned"))] if "status" in table else table[:0]
+    flagged = flagged[np.isfinite(flagged[y]) & (flagged[y] > 0)]
+    if len(flagged):
+        ax.loglog(
+            flagged[x],
+            flagged[y],
+            "o",
+            ms=11,
+            mfc="none",
+            mec="red",
+            mew=1.2,
+            ls="none",
+            label="flagged by the method (unconverged / ill-conditioned)",
+        )
     if fails:
         ax.plot(
             fails,

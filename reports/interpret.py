@@ -32,8 +32,32 @@ def _orders_text(orders: pd.DataFrame, quantity: str) -> str:
     return ", ".join(f"{_l(r.method)} {r.order:.1f}" for r in o.itertuples()) or "none could be fitted"
 
 
+FLAGGED = ("unconverged", "ill-conditioned")  # ran to the end, but the method does not vouch for it
+
+
+def not_ok(rows: pd.DataFrame) -> list[str]:
+    """Sentences on the runs of ``rows`` that are not "ok": failed ones, and flagged ones
+    (unconverged, ill-conditioned), whose errors are measured but left out of every fit."""
+    out = []
+    failed = rows[~rows.status.isin(("ok", *FLAGGED))]
+    if len(failed):
+        r = failed.iloc[0]
+        out.append(
+            f"{len(failed)} run(s) failed, e.g. {_l(r.method)} at k = {r.k}, h = {r.h:g} s: {r.reason}."
+        )
+    flagged = rows[rows.status.isin(FLAGGED)]
+    if len(flagged):
+        r = flagged.iloc[0]
+        out.append(
+            f"{len(flagged)} run(s) finished but were flagged by the method ({', '.join(sorted(set(flagged.status)))}), "
+            f"e.g. {_l(r.method)} at k = {r.k}, h = {r.h:g} s: {r.reason}; "
+            "their errors are not counted as converged results."
+        )
+    return out
+
+
 def convergence_k(table, orders, case, floor=None) -> list[str]:
-    g = table[(table.case == case) & (table.k > 0)]
+    g = table[(table.case == case) & (table.k > 0) & (table.status == "ok")]
     out = [
         f"Observed orders in k of the end-effector error (fitted before each curve's floor): "
         f"{_orders_text(orders[orders.case == case], 'ee_l2')}."
@@ -51,7 +75,7 @@ def convergence_k(table, orders, case, floor=None) -> list[str]:
             f"The reference and its independent cross-check differ by {_e(floor)} m (dotted line): "
             "errors below it are not resolved."
         )
-    return out
+    return out + not_ok(table[table.case == case])
 
 
 def convergence_h(table, orders, case) -> list[str]:
@@ -62,13 +86,7 @@ def convergence_h(table, orders, case) -> list[str]:
         f"Against the reference: {_orders_text(o, 'ee_l2')}; a low value there means the spatial error "
         f"of k = {table[table.case == case].k.max()} dominates at small h.",
     ]
-    fails = table[(table.case == case) & (table.status != "ok")]
-    if len(fails):
-        out.append(
-            f"{len(fails)} run(s) failed, e.g. {_l(fails.method.iloc[0])} at h = {fails.h.iloc[0]:g} s: "
-            f"{fails.reason.iloc[0]}."
-        )
-    return out
+    return out + not_ok(table[table.case == case])
 
 
 def work_precision(summary, case) -> list[str]:
@@ -105,7 +123,9 @@ def scheme(summary, case) -> list[str]:
             why = f" ({r.first_reason})" if r.first_reason else ""
             out.append(
                 f"{r.variant}: breaks at k = {int(r.breaks_at_k)} (error > 10x the converged Riccati "
-                f"error, or failure; {r.failed} of {r.runs} runs failed{why})."
+                f"error, or a run not ok; {r.failed} of {r.runs} runs not ok"
+                f"{f', {r.flagged} of them flagged unconverged or ill-conditioned' if getattr(r, 'flagged', 0) else ''}"
+                f"{why})."
             )
     ok = [r.variant for r in s.itertuples() if not np.isfinite(r.breaks_at_k)]
     if ok:
@@ -116,7 +136,7 @@ def scheme(summary, case) -> list[str]:
 def paper(summary, case) -> list[str]:
     s = summary[summary.case == case]
     ref = s[s.method == "reference"]
-    others = s[(s.method != "reference") & np.isfinite(s.ee_l2)]
+    others = s[(s.method != "reference") & np.isfinite(s.ee_l2) & (s.status == "ok")]
     out = []
     if len(ref):
         out.append(
@@ -137,10 +157,12 @@ def paper(summary, case) -> list[str]:
             out.append(
                 f"The rigid arm misses the deflection: end-effector RMS error {_e(rigid.ee_l2.iloc[0])} m."
             )
-    missing = s[s.status.isin(["failed", "unavailable"])]
+    missing = s[~s.status.isin(["ok"])]
     if len(missing):
         out.append(
-            "Not shown: " + "; ".join(f"{_l(r.method)} ({r.reason})" for r in missing.itertuples()) + "."
+            "Not shown: "
+            + "; ".join(f"{_l(r.method)} ({r.status}: {r.reason})" for r in missing.itertuples())
+            + "."
         )
     return out
 
