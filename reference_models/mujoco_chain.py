@@ -23,12 +23,17 @@ Drives, on the shared step schedule (a step ends exactly at every drive breakpoi
 Outputs follow the suite's definitions: joint angle i = root piece angle of link i minus tip
 piece angle of link i − 1 (the arm joint's coordinate); tip deflection in the clamped-root frame;
 energy = kinetic + gravitational + spring energy (MuJoCo's, zero at y = 0).
+
+MuJoCo (``pip install 'dttmm[mujoco]'``) is imported here only; without it this module does
+not import and the method is reported unavailable.
 """
 from __future__ import annotations
 
 import math
 import time
 
+import mujoco
+import mujoco.rollout
 import numpy as np
 
 from dttmm.case import Case
@@ -45,11 +50,6 @@ _BLOCK_BYTES = 8 << 20  # state rows returned per rollout call, at most this man
 
 
 def _mujoco():
-    try:
-        import mujoco
-        import mujoco.rollout
-    except ImportError as exc:
-        raise ImportError(f"mujoco-chain needs the mujoco package (pip install 'dttmm[mujoco]'): {exc}") from exc
     return mujoco
 
 
