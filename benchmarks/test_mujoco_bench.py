@@ -4,11 +4,11 @@ The chain integrates its joint springs explicitly, so the step is set by stabili
 largest H/2^m below 0.8·h_stable (h_stable = 2/ω_max of the chain, ∝ 1/k²). DT-TMM runs the
 same step count at the same h, so ``time_per_element_step`` of both compares like for like.
 """
+
 import math
 
 import pytest
-
-from conftest import H, QUICK, case, run_benchmark
+from conftest import QUICK, H, case, run_benchmark
 
 KS = [4] if QUICK else [4, 16, 64]
 N_STEPS = 10 if QUICK else 5000

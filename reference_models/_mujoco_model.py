@@ -17,13 +17,14 @@ The arm joint i is a hinge at the root of link i whose body (the hub body) is th
 piece plus the hub; its parent is the tip piece of link i − 1 (the world for i = 1). Motors with
 gear 1 on every arm joint apply the drive torques.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["INTEGRATORS", "ChainLayout", "link_pieces", "chain_xml", "layout"]
+__all__ = ["INTEGRATORS", "ChainLayout", "chain_xml", "layout", "link_pieces"]
 
 #: integrators offered (MuJoCo's names) and their explicit stability factor c in h < c/ω_max
 INTEGRATORS = {"implicitfast": 2.0, "euler": 2.0, "implicit": 2.0, "rk4": 2.0 * np.sqrt(2.0)}
@@ -88,9 +89,14 @@ def chain_xml(manipulator, k: int, h: float, integrator: str, *, clamp_first: bo
     the natural frequencies.
     """
     gx, gy = manipulator.gravity
-    lines = ['<mujoco model="dttmm-chain">', '  <compiler angle="radian" autolimits="true"/>',
-             f'  <option timestep="{_f(h)}" integrator="{integrator}" gravity="{_f(gx)} {_f(gy)} 0">',
-             '    <flag contact="disable" energy="enable"/>', "  </option>", "  <worldbody>"]
+    lines = [
+        '<mujoco model="dttmm-chain">',
+        '  <compiler angle="radian" autolimits="true"/>',
+        f'  <option timestep="{_f(h)}" integrator="{integrator}" gravity="{_f(gx)} {_f(gy)} 0">',
+        '    <flag contact="disable" energy="enable"/>',
+        "  </option>",
+        "  <worldbody>",
+    ]
     closers = []
     depth = 2
     for i, link in enumerate(manipulator.links):
@@ -108,11 +114,15 @@ def chain_xml(manipulator, k: int, h: float, integrator: str, *, clamp_first: bo
                 if not (clamp_first and i == 0):
                     lines.append(f'{pad}  <joint name="arm{i}" type="hinge" axis="0 0 1"/>')
             else:
-                lines.append(f'{pad}  <joint name="flex{i}_{j}" type="hinge" axis="0 0 1" '
-                             f'stiffness="{_f(stiff)}" damping="{_f(damp)}" springref="0"/>')
+                lines.append(
+                    f'{pad}  <joint name="flex{i}_{j}" type="hinge" axis="0 0 1" '
+                    f'stiffness="{_f(stiff)}" damping="{_f(damp)}" springref="0"/>'
+                )
             # planar motion: only Izz enters; Ixx = Iyy = Izz keeps the triangle inequality
-            lines.append(f'{pad}  <inertial pos="{_f(c)} 0 0" mass="{_f(m)}" '
-                         f'diaginertia="{_f(izz)} {_f(izz)} {_f(izz)}"/>')
+            lines.append(
+                f'{pad}  <inertial pos="{_f(c)} 0 0" mass="{_f(m)}" '
+                f'diaginertia="{_f(izz)} {_f(izz)} {_f(izz)}"/>'
+            )
             if j == k:
                 lines.append(f'{pad}  <site name="tip{i}" pos="{_f(l / 2)} 0 0"/>')
             closers.append(f"{pad}</body>")
@@ -140,8 +150,11 @@ def layout(model, n_links: int, k: int, *, clamp_first: bool = False) -> ChainLa
     arm = [(-1 if clamp_first and i == 0 else jq(f"arm{i}")) for i in range(n_links)]
     flex = [[jq(f"flex{i}_{j}") for j in range(1, k + 1)] for i in range(n_links)]
     return ChainLayout(
-        arm_qpos=np.array(arm, int), flex_qpos=np.array(flex, int).reshape(n_links, k),
+        arm_qpos=np.array(arm, int),
+        flex_qpos=np.array(flex, int).reshape(n_links, k),
         hub_body=np.array([bid(f"link{i}_0") for i in range(n_links)], int),
         tip_body=np.array([bid(f"link{i}_{k}") for i in range(n_links)], int),
-        tip_site=np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"tip{i}")
-                           for i in range(n_links)], int))
+        tip_site=np.array(
+            [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"tip{i}") for i in range(n_links)], int
+        ),
+    )

@@ -27,6 +27,7 @@ energy = kinetic + gravitational + spring energy (MuJoCo's, zero at y = 0).
 MuJoCo (``pip install 'dttmm[mujoco]'``) is imported here only; without it this module does
 not import and the method is reported unavailable.
 """
+
 from __future__ import annotations
 
 import math
@@ -43,7 +44,7 @@ from dttmm.timegrid import step_schedule, versions
 
 from ._mujoco_model import INTEGRATORS, chain_xml, layout
 
-__all__ = ["INTEGRATORS", "simulate", "build", "natural_frequencies", "stability_limit"]
+__all__ = ["INTEGRATORS", "build", "natural_frequencies", "simulate", "stability_limit"]
 
 _OPTIONS = {"motion_tol": 1e-12, "motion_max_iter": 10}
 _BLOCK_BYTES = 8 << 20  # state rows returned per rollout call, at most this many bytes
@@ -69,7 +70,9 @@ def _check(case, k, h, integrator, options):
         raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
     for key in options:
         if key not in _OPTIONS:
-            raise InputError(key, options[key], f"is not an option of mujoco-chain (options: {', '.join(_OPTIONS)})")
+            raise InputError(
+                key, options[key], f"is not an option of mujoco-chain (options: {', '.join(_OPTIONS)})"
+            )
     opts = {**_OPTIONS, **options}
     if not (isinstance(opts["motion_tol"], (int, float)) and opts["motion_tol"] > 0):
         raise InputError("motion_tol", opts["motion_tol"], "must be a positive number")
@@ -192,13 +195,13 @@ def _run_torque(st, x0, T, keep, ctrl, stats):
         else:
             r = j + 1
             X = st.step(x, dt[j], ctrl[j])[None]
-        bad = _bad_rows(X, T[j + 1:r + 1])
+        bad = _bad_rows(X, T[j + 1 : r + 1])
         if bad.size:
             b = int(bad[0])
-            saved.append(X[:b][keep[j + 1:j + 1 + b]])
+            saved.append(X[:b][keep[j + 1 : j + 1 + b]])
             stats["fail"] = (j + b, T[j + 1 + b])
             return np.concatenate(saved), j + b
-        saved.append(X[keep[j + 1:r + 1]])
+        saved.append(X[keep[j + 1 : r + 1]])
         x, j = X[-1], r
     return np.concatenate(saved), N
 
@@ -231,8 +234,11 @@ def _run_motion(st, x0, T, keep, ctrl, opts, stats):
             if np.all(np.abs(r) <= tol * (1.0 + np.abs(target))):
                 break
             if it > max_iter:
-                stats["fail"] = (j, T[j + 1], f"motion drive not imposed in {max_iter} iterations "
-                                                f"(angle residual {np.abs(r).max():.3g} rad)")
+                why = (
+                    f"motion drive not imposed in {max_iter} iterations "
+                    f"(angle residual {np.abs(r).max():.3g} rad)"
+                )
+                stats["fail"] = (j, T[j + 1], why)
                 break
             if J is None:  # the step map is linear in the torque for the Euler-type integrators
                 J = np.empty((p.size, p.size))
@@ -258,8 +264,12 @@ def _outputs(st, X, t, ctrl, T):
     """Result fields at the output times t from the kept states X (rows)."""
     mj, m, d, lay = st.mj, st.m, st.d, st.lay
     nt, n = t.size, st.n
-    q = np.empty((nt, n)); v = np.empty((nt, n)); tau = np.empty((nt, n))
-    root = np.empty((nt, n, 2)); tip = np.empty((nt, n, 2)); th = np.empty((nt, n))
+    q = np.empty((nt, n))
+    v = np.empty((nt, n))
+    tau = np.empty((nt, n))
+    root = np.empty((nt, n, 2))
+    tip = np.empty((nt, n, 2))
+    th = np.empty((nt, n))
     energy = np.empty(nt)
     node = np.clip(np.searchsorted(T, t - 1e-9 * st.h), 0, T.size - 1)
     for s in range(nt):
@@ -278,10 +288,17 @@ def _outputs(st, X, t, ctrl, T):
             a, ad, _ = st.drives[i].motion(float(t[s]))
             q[s, i], v[s, i] = a, ad
             k = node[s]
-            around = ctrl[max(k - 1, 0):min(k + 1, ctrl.shape[0]), i]
+            around = ctrl[max(k - 1, 0) : min(k + 1, ctrl.shape[0]), i]
             tau[s, i] = around.mean() if around.size else 0.0
-    return dict(joint_angle=q, joint_rate=v, joint_torque=tau, link_root=root,
-                link_root_angle=th, link_tip=tip), energy
+    fields = {
+        "joint_angle": q,
+        "joint_rate": v,
+        "joint_torque": tau,
+        "link_root": root,
+        "link_root_angle": th,
+        "link_tip": tip,
+    }
+    return fields, energy
 
 
 def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options):
@@ -302,8 +319,9 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     Returns
     -------
     dttmm.Result on ``case.scenario.output_times``; ``wall_time`` covers the time stepping only
-    (not the model compilation). ``meta`` carries ``omega_max`` and ``h_stable`` (rad/s, s);
-    a step above ``h_stable`` adds a warning.
+    (not the model compilation), ``meta["cpu_time_solve"]`` the CPU time of the same span.
+    ``meta`` carries ``omega_max`` and ``h_stable`` (rad/s, s); a step above ``h_stable`` adds
+    a warning.
 
     Raises
     ------
@@ -331,34 +349,54 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     wmax, h_stable = stability_limit(st.m, st.d, integrator)
     warnings = []
     if h > h_stable:
-        warnings.append(f"h = {h:g} s exceeds the explicit stability limit {h_stable:.3g} s of the "
-                        f"joint springs (ω_max = {wmax:.4g} rad/s)")
+        warnings.append(
+            f"h = {h:g} s exceeds the explicit stability limit {h_stable:.3g} s of the "
+            f"joint springs (ω_max = {wmax:.4g} rad/s)"
+        )
     ctrl = _free_controls(st, T)
     stats = {}
     old = mj.get_mju_user_warning()
     mj.set_mju_user_warning(st.messages.append)  # MuJoCo would write a log file otherwise
     try:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         if st.pres.size:
             X, n_steps, ctrl = _run_motion(st, x0, T, keep, ctrl, opts, stats)
         else:
             X, n_steps = _run_torque(st, x0, T, keep, ctrl, stats)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
         mj.set_mju_user_warning(old)
-    meta = {"method": "mujoco-chain", "h": h, "integrator": integrator, "elements_per_link": k,
-            "versions": {**versions(), "mujoco": mj.__version__}, "n_dof": int(st.m.nv),
-            "omega_max": wmax, "h_stable": h_stable, "n_steps": int(n_steps),
-            "success": "fail" not in stats, **opts}
+    meta = {
+        "method": "mujoco-chain",
+        "h": h,
+        "integrator": integrator,
+        "elements_per_link": k,
+        "versions": {**versions(), "mujoco": mj.__version__},
+        "n_dof": int(st.m.nv),
+        "omega_max": wmax,
+        "h_stable": h_stable,
+        "n_steps": int(n_steps),
+        "cpu_time_solve": cpu,
+        "success": "fail" not in stats,
+        **opts,
+    }
     if "motion_iterations_mean" in stats:
         meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
     tg = t_out[: X.shape[0]]
     fields, energy = _outputs(st, X, tg, ctrl, T)
-    res = make_result(t=tg, **fields, wall_time=wall, n_steps=n_steps, meta=meta, energy=energy,
-                      warnings=warnings + [f"MuJoCo: {w}" for w in st.messages])
+    res = make_result(
+        t=tg,
+        **fields,
+        wall_time=wall,
+        n_steps=n_steps,
+        meta=meta,
+        energy=energy,
+        warnings=warnings + [f"MuJoCo: {w}" for w in st.messages],
+    )
     if "fail" in stats:
         j, tf, *why = stats["fail"]
         msg = why[0] if why else ("; ".join(st.messages) or "non-finite state")
-        raise SimulationError(f"mujoco-chain: {msg}", t=float(tf), step=int(j), component="state",
-                              partial=res)
+        raise SimulationError(
+            f"mujoco-chain: {msg}", t=float(tf), step=int(j), component="state", partial=res
+        )
     return res

@@ -1,14 +1,14 @@
 """MuJoCo hinge-chain peer: input checks, rigid limit, motion drives, natural frequencies,
 convergence to the Exudyn ANCF reference, failures."""
+
 import dataclasses as dc
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import case, shortened, with_links
 
 import dttmm
-
-from conftest import case, shortened, with_links
 
 mc = pytest.importorskip("reference_models.mujoco_chain")
 
@@ -20,15 +20,18 @@ def rigid(c, factor):
 
 
 # ------------------------------------------------------------------------------ input checks
-@pytest.mark.parametrize("kw, field", [
-    ({"elements_per_link": 0}, "elements_per_link"),
-    ({"elements_per_link": 2.5}, "elements_per_link"),
-    ({"h": -1e-3}, "h"),
-    ({"h": 3e-4}, "h"),  # does not divide the output step 1e-3
-    ({"integrator": "verlet"}, "integrator"),
-    ({"tolerance": 1.0}, "tolerance"),
-    ({"motion_max_iter": 0}, "motion_max_iter"),
-])
+@pytest.mark.parametrize(
+    "kw, field",
+    [
+        ({"elements_per_link": 0}, "elements_per_link"),
+        ({"elements_per_link": 2.5}, "elements_per_link"),
+        ({"h": -1e-3}, "h"),
+        ({"h": 3e-4}, "h"),  # does not divide the output step 1e-3
+        ({"integrator": "verlet"}, "integrator"),
+        ({"tolerance": 1.0}, "tolerance"),
+        ({"motion_max_iter": 0}, "motion_max_iter"),
+    ],
+)
 def test_bad_input_names_the_field(kw, field):
     c = shortened(case("single_link"), 0.01)
     args = {"elements_per_link": 2, "h": 1e-3, **kw}
@@ -53,11 +56,10 @@ def test_rigid_rotor_closed_form_first_order():
     1 % plus 1e-6 rad for the stiff residual flexibility (deflections ∝ 1/EI)."""
     c = rigid(shortened(case("single_link"), 1.2, 1e-2), 1e6)
     J = 0.01 + 0.27 * 1.0**3 / 3
-    t1 = np.minimum  # noqa: E731  (readability of the closed form below)
 
     def closed(t):
         a = 1.0 / J
-        s1, s2, s3 = t1(t, 0.5), np.clip(t - 0.5, 0, 0.5), np.clip(t - 1.0, 0, None)
+        s1, s2, s3 = np.minimum(t, 0.5), np.clip(t - 0.5, 0, 0.5), np.clip(t - 1.0, 0, None)
         w = a * 0.5
         return a * s1**2 / 2 + w * s2 - a * s2**2 / 2 + (w - a * 0.5) * s3, a * s1 - a * s2
 
@@ -81,7 +83,9 @@ def test_rigid_limit_three_link_matches_pinocchio():
     errs = []
     for h in (5e-6, 2.5e-6):
         r = mc.simulate(c, elements_per_link=2, h=h)
-        errs.append(max(np.abs(r.joint_angle - b.joint_angle).max(), np.abs(r.end_effector - b.end_effector).max()))
+        errs.append(
+            max(np.abs(r.joint_angle - b.joint_angle).max(), np.abs(r.end_effector - b.end_effector).max())
+        )
     assert errs[0] < 2e-5
     assert 1.8 < errs[0] / errs[1] < 2.2
 
@@ -167,10 +171,13 @@ def _reference(name):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, h, ks, min_order", [
-    ("single_link", 2.5e-5, (4, 8, 16, 32), 1.6),
-    ("three_link", 1.25e-5, (2, 4, 8, 16), 1.6),
-])
+@pytest.mark.parametrize(
+    "name, h, ks, min_order",
+    [
+        ("single_link", 2.5e-5, (4, 8, 16, 32), 1.6),
+        ("three_link", 1.25e-5, (2, 4, 8, 16), 1.6),
+    ],
+)
 def test_converges_to_ancf_reference(name, h, ks, min_order):
     """Tip deflection of the first link against the stored Exudyn ANCF reference (k = 32,
     h = 2.5e-4; it agrees with DT-TMM at k = 32 to 1.9e-4 m / 5e-5 m RMS): the relative RMS
