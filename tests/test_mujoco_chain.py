@@ -143,6 +143,26 @@ def test_first_natural_frequency_converges_to_closed_form():
     assert err[-1] < 3e-4
 
 
+@pytest.mark.parametrize("k", [1, 4, 16])
+def test_static_tip_compliance_is_the_midpoint_rule(k):
+    """Clamped link, tip force F: the hinge springs EI·k/L at x_j = (j − ½)L/k give the midpoint
+    rule of ∫ F (L − x)²/EI dx, i.e. exactly F L³/(3EI)·(1 − 1/(4k²)). Checked on the compiled
+    model: tip Jacobian J (rows of d tip/d q) and joint stiffnesses K, compliance J K⁻¹ Jᵀ."""
+    import mujoco
+
+    from dttmm.model import Manipulator
+
+    link = case("single_link").model.links[0]
+    b = link.beam
+    m, d, lay = mc.build(Manipulator((link,)), k, 1e-3, clamp_first=True)
+    mujoco.mj_forward(m, d)
+    jacp = np.zeros((3, m.nv))
+    mujoco.mj_jacSite(m, d, jacp, None, int(lay.tip_site[0]))
+    compliance = jacp[1] @ (jacp[1] / m.jnt_stiffness[m.dof_jntid])
+    exact = b.length**3 / (3 * b.EI) * (1 - 1 / (4 * k * k))
+    assert compliance == pytest.approx(exact, rel=1e-12)
+
+
 # ------------------------------------------------------------------------------ failures
 def test_unstable_step_fails_with_partial_result():
     """h far above the explicit stability limit: a SimulationError with the time, a partial
