@@ -28,6 +28,7 @@ __all__ = ["INTEGRATORS", "ChainLayout", "chain_xml", "layout", "link_pieces"]
 
 #: integrators offered (MuJoCo's names) and their explicit stability factor c in h < c/ω_max
 INTEGRATORS = {"implicitfast": 2.0, "euler": 2.0, "implicit": 2.0, "rk4": 2.0 * np.sqrt(2.0)}
+_MJCF_NAME = {"implicitfast": "implicitfast", "euler": "Euler", "implicit": "implicit", "rk4": "RK4"}
 
 
 @dataclass(frozen=True)
@@ -92,7 +93,7 @@ def chain_xml(manipulator, k: int, h: float, integrator: str, *, clamp_first: bo
     lines = [
         '<mujoco model="dttmm-chain">',
         '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{_f(h)}" integrator="{integrator}" gravity="{_f(gx)} {_f(gy)} 0">',
+        f'  <option timestep="{_f(h)}" integrator="{_MJCF_NAME[integrator]}" gravity="{_f(gx)} {_f(gy)} 0">',
         '    <flag contact="disable" energy="enable"/>',
         "  </option>",
         "  <worldbody>",

@@ -96,7 +96,10 @@ def _eig_mk(m, d):
     mj = _mujoco()
     mj.mj_forward(m, d)
     M = np.zeros((m.nv, m.nv))
-    mj.mj_fullM(m, d, M)
+    try:
+        mj.mj_fullM(m, d, M)  # MuJoCo 4
+    except TypeError:
+        mj.mj_fullM(m, M, d.qM)  # MuJoCo 3
     K = np.diag(m.jnt_stiffness[m.dof_jntid])
     return scipy.linalg.eigh(K, M, eigvals_only=True)
 
@@ -170,9 +173,10 @@ def _free_controls(st, T):
     return u
 
 
-def _bad_rows(X, T):
-    """Indices of state rows that are non-finite or whose time is off (MuJoCo reset the data)."""
-    off = np.abs(X[:, 0] - T) > 1e-6 * max(float(np.max(np.diff(T))) if T.size > 1 else 1.0, 1e-300)
+def _bad_rows(X, T, h):
+    """Indices of state rows (time first) that are non-finite or whose time is not the node's
+    (MuJoCo resets the data, time included, when it finds the state unstable)."""
+    off = np.abs(X[:, 0] - T) > 1e-6 * h
     return np.flatnonzero(off | ~np.isfinite(X).all(axis=1))
 
 
@@ -195,7 +199,7 @@ def _run_torque(st, x0, T, keep, ctrl, stats):
         else:
             r = j + 1
             X = st.step(x, dt[j], ctrl[j])[None]
-        bad = _bad_rows(X, T[j + 1 : r + 1])
+        bad = _bad_rows(X, T[j + 1 : r + 1], h)
         if bad.size:
             b = int(bad[0])
             saved.append(X[:b][keep[j + 1 : j + 1 + b]])
