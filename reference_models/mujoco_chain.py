@@ -387,7 +387,7 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     if "motion_iterations_mean" in stats:
         meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
     tg = t_out[: X.shape[0]]
-    fields, energy = _outputs(st, X, tg, ctrl, T)
+    fields, energy = _outputs(st, X, tg, ctrl[:n_steps], T)  # the steps taken
     res = make_result(
         t=tg,
         **fields,
