@@ -259,3 +259,24 @@ def test_converges_to_ancf_reference(name, h, ks, min_order):
     assert np.all(np.diff(err) < 0)
     assert order > min_order, (err, order)
     assert err[-1] < 1.5e-2
+
+
+def test_work_precision_study_runs_the_mujoco_path():
+    """The work-precision study adds the plan's ``mujoco_path`` for mujoco-chain; a task of it
+    runs through the sweep's executor to an 'ok' outcome."""
+    from types import SimpleNamespace
+
+    from experiments import methods
+    from experiments.plan import PLANS
+    from experiments.runs import execute
+    from experiments.studies import work_precision
+
+    p = PLANS["quick"].studies["work_precision"]
+    c = shortened(case("three_link"), 0.02, 4e-3)
+    plan = SimpleNamespace(studies={"work_precision": {**p, "cases": ["three_link"]}})
+    tasks = work_precision.tasks(SimpleNamespace(plan=plan, cases={"three_link": c}))
+    mine = [t for t in tasks if t.method == "mujoco-chain"]
+    assert [(t.k, t.h) for t in mine] == [tuple(x) for x in p["mujoco_path"]]
+    out = execute(methods.resolve("mujoco-chain"), c, mine[2])
+    assert out.status == "ok", out.reason
+    assert out.result.meta["h"] <= out.result.meta["h_stable"]
