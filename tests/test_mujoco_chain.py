@@ -239,15 +239,17 @@ def _reference(name):
 @pytest.mark.parametrize(
     "name, h, ks, min_order",
     [
-        ("single_link", 2.5e-5, (4, 8, 16, 32), 1.6),
-        ("three_link", 1.25e-5, (2, 4, 8, 16), 1.6),
+        ("single_link", 2.5e-5, (2, 4, 8, 16, 32), 1.8),
+        ("three_link", 1.25e-5, (2, 4, 8, 16, 32), 1.7),
     ],
 )
 def test_converges_to_ancf_reference(name, h, ks, min_order):
     """Tip deflection of the first link against the stored Exudyn ANCF reference (k = 32,
     h = 2.5e-4; it agrees with DT-TMM at k = 32 to 1.9e-4 m / 5e-5 m RMS): the relative RMS
-    error falls with k at an observed order ≥ min_order (second-order rule; bang-bang torques of
-    single_link make the decay irregular) with h small enough for the time error not to count."""
+    error falls with k = 2 … 32 at an observed order ≥ min_order (measured 1.96 on single_link,
+    1.83 on three_link; the rule is second order, the bang-bang torques of single_link make the
+    decay irregular), h small enough for the time error not to count; at k = 32 below 5e-3
+    (measured 1.2e-3 and 2.6e-3)."""
     c, ref, prov = _reference(name)
     assert prov["method"] == "exudyn-ancf"
     scale = np.sqrt(np.mean(ref.tip_deflection[:, 0] ** 2))
@@ -258,7 +260,7 @@ def test_converges_to_ancf_reference(name, h, ks, min_order):
     order = -np.polyfit(np.log(ks), np.log(err), 1)[0]
     assert np.all(np.diff(err) < 0)
     assert order > min_order, (err, order)
-    assert err[-1] < 1.5e-2
+    assert err[-1] < 5e-3
 
 
 def test_work_precision_study_runs_the_mujoco_path():
