@@ -50,10 +50,6 @@ _OPTIONS = {"motion_tol": 1e-12, "motion_max_iter": 10}
 _BLOCK_BYTES = 8 << 20  # state rows returned per rollout call, at most this many bytes
 
 
-def _mujoco():
-    return mujoco
-
-
 def _check(case, k, h, integrator, options):
     """Validated (k, h, opts); raises InputError naming the field."""
     if not isinstance(case, Case):
@@ -84,7 +80,7 @@ def _check(case, k, h, integrator, options):
 
 def build(manipulator, k: int, h: float, integrator: str = "implicitfast", *, clamp_first=False):
     """Compile the chain: returns (MjModel, MjData, ChainLayout)."""
-    mj = _mujoco()
+    mj = mujoco
     m = mj.MjModel.from_xml_string(chain_xml(manipulator, k, h, integrator, clamp_first=clamp_first))
     return m, mj.MjData(m), layout(m, manipulator.n_links, k, clamp_first=clamp_first)
 
@@ -93,13 +89,10 @@ def _eig_mk(m, d):
     """Generalised eigenvalues ω² of (K, M) at the state in d (ascending; zeros for free joints)."""
     import scipy.linalg
 
-    mj = _mujoco()
+    mj = mujoco
     mj.mj_forward(m, d)
     M = np.zeros((m.nv, m.nv))
-    try:
-        mj.mj_fullM(m, d, M)  # MuJoCo 4
-    except TypeError:
-        mj.mj_fullM(m, M, d.qM)  # MuJoCo 3
+    mj.mj_fullM(m, d, M)
     K = np.diag(m.jnt_stiffness[m.dof_jntid])
     return scipy.linalg.eigh(K, M, eigvals_only=True)
 
@@ -125,7 +118,7 @@ class _Stepper:
     """Model, data, drives and the state vector handling of one run."""
 
     def __init__(self, case, k, h, integrator):
-        mj = self.mj = _mujoco()
+        mj = self.mj = mujoco
         self.m, self.d, self.lay = build(case.model, k, h, integrator)
         self.h = h
         self.drives = case.scenario.drives
@@ -134,7 +127,6 @@ class _Stepper:
         self.pres = np.array([i for i, dr in enumerate(self.drives) if dr.kind == "motion"], int)
         self.spec = mj.mjtState.mjSTATE_FULLPHYSICS
         self.nstate = mj.mj_stateSize(self.m, self.spec)
-        self.x = np.empty(self.nstate)
         self.messages = []
 
     def initial_state(self):
@@ -265,7 +257,7 @@ def _run_motion(st, x0, T, keep, ctrl, opts, stats):
 
 
 def _kinematics_and_energy(mj, m, d):
-    """Positions and energies only (no dynamics): a quarter of mj_forward's cost at large k."""
+    """Positions and energies only (no dynamics): about half of mj_forward's cost at large k."""
     mj.mj_kinematics(m, d)
     mj.mj_comPos(m, d)
     mj.mj_makeM(m, d)  # the mass matrix for the kinetic energy
