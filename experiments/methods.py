@@ -47,6 +47,8 @@ METHODS: dict[str, Method] = {
         ),
         Method("exudyn-ancf", "reference_models.exudyn_ancf", label="Exudyn ANCF"),
         Method("exudyn-beam", "reference_models.exudyn_beam", label="Exudyn GE beam"),
+        Method("mujoco-chain", "reference_models.mujoco_chain", (("integrator", "implicitfast"),),
+               label="MuJoCo hinge chain"),
         Method(
             "pinocchio-rigid",
             "reference_models.pinocchio_rigid",

@@ -114,6 +114,8 @@ def _plan(
                 "methods": _FLEX,
                 "path": path,
                 "rigid": {"method": "pinocchio-rigid", "h": [1e-3]},
+                # MuJoCo chain: explicit joint springs, stable step ∝ 1/k² (h_stable ≈ 0.02/k² s here)
+                "mujoco_path": [(2, 2e-3), (4, 1e-3), (8, 2.5e-4), (16, 6.25e-5), (32, 1.5625e-5)],
             },
             "scheme": {"cases": cases, "variants": variants, "ks": scheme_ks, "h": 1e-3, "hs": hs, "k": k_h},
             "paper": {

@@ -35,6 +35,7 @@ _STYLE = {
     "exudyn-beam": ("C2", "D", 5),
     "dttmm-rk4": ("C4", "v", 5),
     "dttmm-2nd": ("C9", "P", 6),
+    "mujoco-chain": ("C5", "X", 6),
     "pinocchio-rigid": ("k", "*", 9),
     "reference": ("0.3", "", 0),
 }
