@@ -12,8 +12,8 @@ __all__ = [
     "scheme",
     "paper",
     "cost",
-    "bench",
     "bench_costs",
+    "loads",
 ]
 
 
@@ -145,6 +145,37 @@ def paper(summary, case) -> list[str]:
     return out
 
 
+def loads(table, case) -> list[str]:
+    """Sentences under the loads figure: RMS errors of root moment, motion-driven joint
+    torques and energy, relative to the largest reference value."""
+    from .figures import load_label
+
+    g = table[table.case == case] if len(table) else table
+    if g.empty:
+        return ["No run of this case has load histories to compare."]
+    out = []
+    qs = [c[:-3] for c in g.columns if c.endswith("_l2")]
+    for q in qs:
+        ok = g[np.isfinite(g[f"{q}_l2"])]
+        if ok.empty:
+            continue
+        parts = ", ".join(
+            f"{_l(r.method)} {_e(getattr(r, f'{q}_l2'))} ({_pct(getattr(r, f'{q}_rel'))})" for r in ok.itertuples()
+        )
+        out.append(f"{load_label(q).split(' (')[0]}, RMS of method − reference (relative to the peak): {parts}.")
+    missing = g[~np.isfinite(g["energy_l2"])].method.tolist() if "energy_l2" in g else g.method.tolist()
+    eref = g.energy_reference.iloc[0] if "energy_reference" in g else "none"
+    out.append(
+        f"Energies are compared against {eref}"
+        + (f"; not recorded by {', '.join(_l(m) for m in missing)}." if missing else ".")
+    )
+    return out
+
+
+def _pct(x) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.2g} %"
+
+
 def cost(table, exponents) -> list[str]:
     ex = exponents[np.isfinite(exponents.exponent)]
     out = [
@@ -164,27 +195,6 @@ def cost(table, exponents) -> list[str]:
     return out
 
 
-def bench(exponents) -> list[str]:
-    ex = exponents[np.isfinite(exponents.exponent)]
-    return [
-        "Fitted exponents of time per step ∝ elements^p: "
-        + (", ".join(f"{r.group} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
-        + "."
-    ]
-
-
-_BENCH_LABELS = {
-    "dttmm-converged": "DT-TMM converged",
-    "dttmm-one-shot": "DT-TMM one-sweep",
-    "dttmm": "DT-TMM",
-    "dttmm-rk4": "DT-TMM RK4",
-}
-
-
-def _bl(m) -> str:
-    return _BENCH_LABELS.get(m, _l(m))
-
-
 def _x(v) -> str:
     return "n/a" if v is None or not np.isfinite(v) else (f"{v:.0f}" if v >= 100 else f"{v:.3g}")
 
@@ -201,12 +211,12 @@ def bench_costs(exponents, per_element, ratios, *, k_min=8, n_min=2, case="three
         if len(el):
             parts.append(
                 f"over k ≥ {k_min} ({case}, the asymptotic regime: below it fixed per-step costs dominate) "
-                + ", ".join(f"{_bl(r.method)} {r.exponent:.2f}" for r in el.itertuples())
+                + ", ".join(f"{_l(r.method)} {r.exponent:.2f}" for r in el.itertuples())
             )
         if len(ln):
             parts.append(
                 f"over n ≥ {n_min} links at k = 8: "
-                + ", ".join(f"{_bl(r.method)} {r.exponent:.2f}" for r in ln.itertuples())
+                + ", ".join(f"{_l(r.method)} {r.exponent:.2f}" for r in ln.itertuples())
             )
         out.append("Fitted exponents p of time per step ∝ N^p: " + "; ".join(parts) + ".")
     if len(per_element) and len(per_element.columns) > 1:
@@ -214,7 +224,7 @@ def bench_costs(exponents, per_element, ratios, *, k_min=8, n_min=2, case="three
         for m in per_element.columns[1:]:
             v = per_element[["k", m]].dropna()
             if len(v):
-                bits.append(f"{_bl(m)} {v[m].iloc[-1]:.3g} µs (k = {v.k.iloc[-1]})")
+                bits.append(f"{_l(m)} {v[m].iloc[-1]:.3g} µs (k = {v.k.iloc[-1]})")
         out.append(
             f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + "."
         )
