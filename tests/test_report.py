@@ -13,6 +13,8 @@ from experiments.plan import Plan
 from experiments.references import RefSpec
 from reports import cli
 
+import _report_browser as report_browser
+
 CASES = ["spinner", "three_link"]
 FLEX = ["dttmm", "exudyn-ancf"]
 # A case that is not in the repository: the single-link strip, motion-driven (spin-up law), so
@@ -280,3 +282,15 @@ def test_error_histories_and_loads(report):
     assert np.isnan(loads.loc[("three_link", "exudyn-ancf"), "energy_l2"])
     assert np.isfinite(loads.loc[("three_link", "dttmm"), "energy_l2"])
     assert loads.loc[("three_link", "dttmm"), "energy_reference"] == "dttmm k=4 h=0.001"
+
+
+@pytest.mark.skipif(not report_browser.available(), reason="chromium is not installed")
+def test_page_in_a_real_browser_every_image_loads_no_section_empty(report):
+    seen = report_browser.probe(report / "out" / "index.html")
+    assert len(seen["imgs"]) == len(FIGURES)
+    bad = [i["src"] for i in seen["imgs"] if not (i["complete"] and i["w"] > 100)]
+    assert not bad, f"images that did not load: {bad}"
+    titles = [s["title"] for s in seen["secs"]]
+    assert titles[:3] == ["Scoreboard", "Summary", "Cases"] and titles[-2:] == ["Omissions", "Provenance"]
+    empty = [s["title"] for s in seen["secs"] if s["text"] < 40 and not s["imgs"] and not s["tables"]]
+    assert not empty, f"empty sections: {empty}"
