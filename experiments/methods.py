@@ -14,20 +14,20 @@ Names that are shown but not run (the reference curve, benchmark variants) live 
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 __all__ = [
-    "Method",
-    "Style",
-    "MethodUnavailable",
     "METHODS",
+    "Method",
+    "MethodUnavailable",
+    "Style",
+    "available",
+    "label",
+    "names",
     "register",
     "resolve",
     "run",
-    "available",
-    "names",
-    "label",
     "style",
     "uses_k",
 ]
@@ -144,7 +144,7 @@ def resolve(name: str) -> Callable:
     m = METHODS[name]
     try:
         module = importlib.import_module(m.module)
-    except Exception as exc:  # any import failure makes the method unavailable, with the reason
+    except Exception as exc:  # noqa: BLE001 - any import failure makes the method unavailable, with the reason
         raise MethodUnavailable(f"cannot import {m.module}: {type(exc).__name__}: {exc}") from None
     sim = getattr(module, "simulate", None)
     if sim is None:
@@ -200,6 +200,6 @@ def available(methods=None, *, probe: bool = True) -> dict[str, str | None]:
             out[name] = None
         except MethodUnavailable as exc:
             out[name] = str(exc)
-        except Exception as exc:  # a crash on the probe is a reason too
+        except Exception as exc:  # noqa: BLE001 - a crash on the probe is a reason too
             out[name] = f"probe run failed: {type(exc).__name__}: {exc}"
     return out

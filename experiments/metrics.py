@@ -12,14 +12,14 @@ import numpy as np
 
 __all__ = [
     "KINDS",
-    "quantities",
     "columns",
-    "errors",
-    "nan_errors",
     "difference_series",
-    "load_series",
+    "errors",
     "load_differences",
     "load_errors",
+    "load_series",
+    "nan_errors",
+    "quantities",
     "without_cut_loads",
 ]
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from .references import RefSpec
 
-__all__ = ["Plan", "PLANS", "CASE_DIR", "SHIPPED", "load_cases", "plan_for", "case_fingerprint"]
+__all__ = ["CASE_DIR", "PLANS", "SHIPPED", "Plan", "case_fingerprint", "load_cases", "plan_for"]
 
 CASE_DIR = Path(__file__).resolve().parent / "cases"
 SHIPPED = ("single_link", "three_link", "spin_up")  # the cases of the default report, in order

@@ -29,14 +29,18 @@ CITATION = (
     "method\", Robotics and Computer-Integrated Manufacturing 49 (2018) 181–193"
 )
 LEAD = [
-    "DT-TMM (the acceleration-based discrete time transfer matrix method) against a global-equation solver "
-    "of the same discretisation, Exudyn ANCF and geometrically exact beams, and a rigid Pinocchio model, on "
-    "the same cases: accuracy against converged references and cost.",
-    f"Seed paper: {CITATION}. Reproduced, with the models and scenarios as defined in this project (the "
+    (
+        "DT-TMM (the acceleration-based discrete time transfer matrix method) against a global-equation "
+        "solver of the same discretisation, Exudyn ANCF and geometrically exact beams, and a rigid Pinocchio "
+        "model, on the same cases: accuracy against converged references and cost."
+    ),
+    (
+        f"Seed paper: {CITATION}. Reproduced, with the models and scenarios as defined in this project (the "
     "case tables below): its simulations of a 1-DOF arm with one flexible link, of a 3-DOF arm with three "
     "flexible links, and its comparison of CPU time against the number of elements per link. The paper's "
     "experimental data are not available, so no figure is compared with measurements; its numbers are "
-    "not reused either: every curve here is computed by the methods above.",
+        "not reused either: every curve here is computed by the methods above."
+    ),
 ]
 RUN_TABLES = ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost")
 

@@ -12,17 +12,17 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 __all__ = [
-    "convergence_k",
-    "convergence_h",
-    "work_precision",
-    "scheme",
-    "time_histories",
-    "cost",
-    "loads",
-    "load_label",
     "bench_elements",
     "bench_links",
+    "convergence_h",
+    "convergence_k",
+    "cost",
+    "load_label",
+    "loads",
     "save",
+    "scheme",
+    "time_histories",
+    "work_precision",
 ]
 
 ERROR_LABEL = "end-effector position error, RMS (m)"
@@ -180,9 +180,9 @@ def scheme(table: pd.DataFrame, case: str) -> Figure:
 def _line_kw(method: str) -> dict:
     """Line style of a time history: the reference wide and pale underneath, methods thin."""
     if method == "reference":
-        return dict(color="k", lw=2.5, alpha=0.35, zorder=0)
+        return {"color": "k", "lw": 2.5, "alpha": 0.35, "zorder": 0}
     st = _style(method)
-    return dict(lw=1, color=st.color, ls=st.linestyle)
+    return {"lw": 1, "color": st.color, "ls": st.linestyle}
 
 
 def _history_grid(s, rows, case, title):

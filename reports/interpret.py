@@ -6,14 +6,14 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
-    "convergence_k",
-    "convergence_h",
-    "work_precision",
-    "scheme",
-    "paper",
-    "cost",
     "bench_costs",
+    "convergence_h",
+    "convergence_k",
+    "cost",
     "loads",
+    "paper",
+    "scheme",
+    "work_precision",
 ]
 
 
@@ -35,8 +35,10 @@ def _orders_text(orders: pd.DataFrame, quantity: str) -> str:
 def convergence_k(table, orders, case, floor=None) -> list[str]:
     g = table[(table.case == case) & (table.k > 0)]
     out = [
-        f"Observed orders in k of the end-effector error (fitted before each curve's floor): "
-        f"{_orders_text(orders[orders.case == case], 'ee_l2')}."
+        (
+            "Observed orders in k of the end-effector error (fitted before each curve's floor): "
+            f"{_orders_text(orders[orders.case == case], 'ee_l2')}."
+        )
     ]
     best = g[np.isfinite(g.ee_l2)].groupby("method").ee_l2.min()
     if len(best):
@@ -57,10 +59,14 @@ def convergence_k(table, orders, case, floor=None) -> list[str]:
 def convergence_h(table, orders, case) -> list[str]:
     o = orders[orders.case == case]
     out = [
-        f"Observed orders in h from the self-differences (h against h/2, time error alone): "
-        f"{_orders_text(o, 'selfdiff_ee_l2')}.",
-        f"Against the reference: {_orders_text(o, 'ee_l2')}; a low value there means the spatial error "
-        f"of k = {table[table.case == case].k.max()} dominates at small h.",
+        (
+            "Observed orders in h from the self-differences (h against h/2, time error alone): "
+            f"{_orders_text(o, 'selfdiff_ee_l2')}."
+        ),
+        (
+            f"Against the reference: {_orders_text(o, 'ee_l2')}; a low value there means the spatial error "
+            f"of k = {table[table.case == case].k.max()} dominates at small h."
+        ),
     ]
     fails = table[(table.case == case) & (table.status != "ok")]
     if len(fails):

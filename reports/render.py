@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["Section", "write", "fmt"]
+__all__ = ["Section", "fmt", "write"]
 
 MAX_ROWS = 30  # rows shown inline; the CSV beside the report has them all
 CSS = Path(__file__).with_name("report.css")
@@ -110,10 +110,14 @@ class _Page:
 
 def _omissions(omissions: pd.DataFrame) -> Section:
     if omissions.empty:
-        return Section("Omissions", text=["None: every planned run produced an error value."], anchor="omissions")
+        return Section(
+            "Omissions", text=["None: every planned run produced an error value."], anchor="omissions"
+        )
     text = [
-        f"{len(omissions)} planned run(s) have no error value; each is kept in the tables as NaN with its "
-        "reason (data/omissions.csv)."
+        (
+            f"{len(omissions)} planned run(s) have no error value; each is kept in the tables as NaN with "
+            "its reason (data/omissions.csv)."
+        )
     ]
     return Section("Omissions", text=text, tables=[("omissions", omissions)], anchor="omissions")
 
@@ -173,7 +177,9 @@ def write(
     doc = (
         f"<!doctype html><html lang='en'><head><meta charset='utf-8'>"
         f"<meta name='viewport' content='width=device-width, initial-scale=1'><title>{html.escape(title)}</title>"
-        "<link rel='stylesheet' href='report.css'></head><body><main>" + "\n".join(page.h) + "</main></body></html>"
+        "<link rel='stylesheet' href='report.css'></head><body><main>"
+        + "\n".join(page.h)
+        + "</main></body></html>"
     )
     (out / "index.html").write_text(doc)
     (out / "REPORT.md").write_text("\n".join(page.md) + "\n")

@@ -8,7 +8,7 @@ import pandas as pd
 
 from .render import Section
 
-__all__ = ["scoreboard", "case_board"]
+__all__ = ["case_board", "scoreboard"]
 
 RUN_TABLES = ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost")
 
@@ -24,8 +24,11 @@ def _by_method(df, case, col, **where) -> dict:
 
 def _not_ok(tables, case) -> dict:
     """method -> (runs not ok, runs) over every study of the case, each run counted once."""
-    frames = [t[["case", "method", "key", "status"]] for n in RUN_TABLES if (t := tables.get(n)) is not None
-              and len(t) and "key" in t]
+    frames = [
+        t[["case", "method", "key", "status"]]
+        for n in RUN_TABLES
+        if (t := tables.get(n)) is not None and len(t) and "key" in t
+    ]
     if not frames:
         return {}
     runs = pd.concat(frames).drop_duplicates("key")
@@ -51,11 +54,12 @@ def case_board(tables: dict, case: str) -> pd.DataFrame:
     for m in methods:
         n_bad, n = bad.get(m, (0, 0))
         kk, hh = k.get(m, np.nan), h.get(m, np.nan)
+        at = "–" if pd.isna(hh) else f"{int(kk) if pd.notna(kk) and kk else '–'}, {hh:g}"
         rows.append(
             {
                 "method": label(m),
                 "end-effector RMS error (m)": err.get(m, np.nan),
-                "at k, h (s)": f"{int(kk) if kk == kk and kk else '–'}, {hh:g}" if hh == hh else "–",
+                "at k, h (s)": at,
                 "time to common error (s)": wp.get(m, np.nan),
                 "order in k": ok_.get(m, np.nan),
                 "order in h": oh.get(m, np.nan),
@@ -77,12 +81,14 @@ def scoreboard(tables: dict, meta: dict) -> Section:
         else "n/a"
     )
     text = [
-        "Per case, one row per method: the end-effector position error (RMS over time, against the case's "
-        "reference) at the common comparison point of the paper figures; the wall time each method needs "
-        f"to reach the common error of the work-precision study ({targets}; NaN: not reached); the observed "
-        "orders of convergence in k (against the reference) and in h (against h/2); the status of the run "
-        "at the comparison point and how many of the method's runs over all studies did not finish 'ok' "
-        "(they are listed under Omissions)."
+        (
+            "Per case, one row per method: the end-effector position error (RMS over time, against the case's "
+            "reference) at the common comparison point of the paper figures; the wall time each method needs "
+            f"to reach the common error of the work-precision study ({targets}; NaN: not reached); the observed "
+            "orders of convergence in k (against the reference) and in h (against h/2); the status of the run "
+            "at the comparison point and how many of the method's runs over all studies did not finish 'ok' "
+            "(they are listed under Omissions)."
+        )
     ]
     if not tabs:
         text = ["No paper-figure study in this report: nothing to score."]

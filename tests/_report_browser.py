@@ -62,12 +62,13 @@ def probe(page: Path, timeout: float = 120) -> dict:
             out = subprocess.run(
                 [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--dump-dom", copy.resolve().as_uri()],
                 capture_output=True,
+                check=False,
                 text=True,
                 timeout=timeout,
             )
     finally:
         copy.unlink()
-    m = re.search(r'<pre id="probe-result">(.*?)</pre>', out.stdout, re.S)
+    m = re.search(r'<pre id="probe-result">(.*?)</pre>', out.stdout, re.DOTALL)
     if m is None:
         raise RuntimeError(f"no probe result from chromium (rc {out.returncode}): {out.stderr[-2000:]}")
     return json.loads(m.group(1).replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&"))
@@ -77,8 +78,14 @@ def screenshot(page: Path, png: Path, width: int = 1280, height: int = 1800, tim
     """Save a PNG of the top of ``page`` as Chromium renders it."""
     with tempfile.TemporaryDirectory() as profile:
         subprocess.run(
-            [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", f"--screenshot={Path(png).resolve()}",
-             f"--window-size={width},{height}", Path(page).resolve().as_uri()],
+            [
+                CHROMIUM,
+                *FLAGS,
+                f"--user-data-dir={profile}",
+                f"--screenshot={Path(png).resolve()}",
+                f"--window-size={width},{height}",
+                Path(page).resolve().as_uri(),
+            ],
             capture_output=True,
             timeout=timeout,
             check=True,

@@ -6,14 +6,13 @@ from __future__ import annotations
 import json
 import re
 
+import _report_browser as report_browser
 import matplotlib.image as mpimg
 import pytest
 
 from experiments.plan import Plan
 from experiments.references import RefSpec
 from reports import cli
-
-import _report_browser as report_browser
 
 CASES = ["spinner", "three_link"]
 FLEX = ["dttmm", "exudyn-ancf"]
@@ -134,19 +133,6 @@ def _bench_json(folder):
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
-    import dttmm
-
-    try:
-        dttmm.simulate(
-            dttmm.load_case(cli.__file__.rsplit("/", 2)[0] + "/experiments/cases/single_link.toml"),
-            elements_per_link=1,
-            h=1e-3,
-            integrator="newmark",
-        )
-    except NotImplementedError:
-        pytest.skip("dttmm.simulate not implemented yet")
-    except Exception:
-        pass
     root = tmp_path_factory.mktemp("report")
     _bench_json(root / "bench")
     cli.run_report(
