@@ -110,7 +110,7 @@ def load_series(result, case) -> dict[str, np.ndarray]:
         out["moment1"] = np.interp(t, result.cut_load_t, result.cut_loads[:, 0, 0])
     elif t.size >= 3:
         J = case.model.links[0].hub_inertia
-        out["moment1"] = result.joint_torque[:, 0] - J * np.gradient(result.joint_rate[:, 0], t)
+        out["moment1"] = result.joint_torque[:, 0] - J * np.gradient(result.joint_rate[:, 0], t, edge_order=2)
     for i, d in enumerate(case.scenario.drives):
         if d.kind == "motion":
             out[f"torque{i + 1}"] = np.asarray(result.joint_torque[:, i], float)
