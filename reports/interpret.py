@@ -23,6 +23,11 @@ def _l(m):
     return label(m)
 
 
+def _sig(x, n: int = 3) -> str:
+    """``x`` rounded to ``n`` significant digits, without exponent notation for ordinary sizes."""
+    return "n/a" if x is None or not np.isfinite(x) else f"{float(f'{x:.{n}g}'):g}"
+
+
 def _e(x) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{x:.2g}"
 
@@ -91,7 +96,7 @@ def work_precision(summary, case) -> list[str]:
         if len(fast) > 1:
             a, b = fast.iloc[0], fast.iloc[-1]
             out.append(
-                f"{_l(a.method)} is {b.wall_time_to_target / a.wall_time_to_target:.1f}x faster than "
+                f"{_l(a.method)} is {_sig(b.wall_time_to_target / a.wall_time_to_target)}x faster than "
                 f"{_l(b.method)} at that accuracy."
             )
     rigid = s[s.method == "pinocchio-rigid"]
@@ -186,7 +191,7 @@ def cost(table, exponents) -> list[str]:
     ex = exponents[np.isfinite(exponents.exponent)]
     out = [
         "Fitted exponents of wall time ∝ k^p (k ≥ 2): "
-        + (", ".join(f"{_l(r.method)} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
+        + (", ".join(f"{_l(r.method)} p = {r.exponent:.2g}" for r in ex.itertuples()) or "none")
         + "."
     ]
     if len(ex) > 1:
@@ -217,12 +222,12 @@ def bench_costs(exponents, per_element, ratios, *, k_min=8, n_min=2, case="three
         if len(el):
             parts.append(
                 f"over k ≥ {k_min} ({case}, the asymptotic regime: below it fixed per-step costs dominate) "
-                + ", ".join(f"{_l(r.method)} {r.exponent:.2f}" for r in el.itertuples())
+                + ", ".join(f"{_l(r.method)} {r.exponent:.2g}" for r in el.itertuples())
             )
         if len(ln):
             parts.append(
                 f"over n ≥ {n_min} links at k = 8: "
-                + ", ".join(f"{_l(r.method)} {r.exponent:.2f}" for r in ln.itertuples())
+                + ", ".join(f"{_l(r.method)} {r.exponent:.2g}" for r in ln.itertuples())
             )
         out.append("Fitted exponents p of time per step ∝ N^p: " + "; ".join(parts) + ".")
     if len(per_element) and len(per_element.columns) > 1:
