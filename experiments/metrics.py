@@ -93,7 +93,8 @@ def errors(result, reference) -> dict[str, float]:
 #
 # ``moment1``: bending moment at the root of link 1 (N·m). The hub of link 1 turns about the
 # fixed base joint, so its moment balance gives M = τ₁ − J₁ θ̈₁ for every method, from the stored
-# joint torque and rate (θ̈₁ by central differences on the output grid). The cut loads a DT-TMM
+# joint torque and rate (θ̈₁ by central differences on the output grid); without a hub (J₁ = 0) it
+# is joint 1's torque and is left out. The cut loads a DT-TMM
 # Result carries give the same value (checked in tests/test_report_loads.py); they are used when
 # both results have them. ``torque{i}``: torque of joint i where the joint is motion-driven (there
 # it is an output; a torque-driven joint's torque is the input law). ``energy``: total energy (J)
@@ -108,7 +109,7 @@ def load_series(result, case) -> dict[str, np.ndarray]:
     out = {}
     if result.cut_loads is not None and result.cut_load_t is not None:
         out["moment1"] = np.interp(t, result.cut_load_t, result.cut_loads[:, 0, 0])
-    elif t.size >= 3:
+    elif t.size >= 3 and case.model.links[0].hub_inertia > 0:  # without a hub it is joint 1's torque
         J = case.model.links[0].hub_inertia
         out["moment1"] = result.joint_torque[:, 0] - J * np.gradient(result.joint_rate[:, 0], t, edge_order=2)
     for i, d in enumerate(case.scenario.drives):
@@ -145,8 +146,9 @@ def without_cut_loads(result):
 def load_errors(result, reference, case) -> dict[str, float]:
     """``{quantity}_l2`` (RMS) and ``{quantity}_linf`` (max abs) of the load differences, plus
     ``{quantity}_scale``: the largest absolute value of the reference (for relative errors)."""
-    _, diffs = load_differences(result, reference, case)
-    ref = load_series(without_cut_loads(reference), case)
+    both = result.cut_loads is not None and reference.cut_loads is not None
+    _, diffs = load_differences(result, reference, case, both_cut_loads=both)
+    ref = load_series(reference if both else without_cut_loads(reference), case)
     out = {}
     for q, e in diffs.items():
         a = np.abs(e)

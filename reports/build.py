@@ -101,7 +101,8 @@ def _per_case(inp, table, stem, title, anchor, plot, caption, interp, tabs=(), s
     if table is None or not len(table):
         return None
     figs, text = [], []
-    cases = _cases(table)
+    order = list(inp.meta.get("cases") or {})
+    cases = sorted(_cases(table), key=lambda c: order.index(c) if c in order else len(order))
     for c in cases:
         figs.append((inp.figure(f"{stem}_{c}.png", plot(c)), f"{c}: {caption(c)}"))
         sentences = interp(c)
@@ -173,7 +174,8 @@ def _paper(inp):
         inp, t, "paper", "Paper figures: time histories", "paper",
         lambda c: figures.time_histories(t, c),
         lambda c: "joint angles and tip deflections of every method with the reference (wide grey), and "
-        "below them each method minus the reference.",
+        "below them Δ = method minus reference; the rigid model's Δ, far larger, is left out of the lower "
+        "panels (its RMS is in the table).",
         lambda c: interpret.paper(s, c),
         ["paper_summary"],
     )
@@ -186,8 +188,10 @@ def _loads(inp):
     return _per_case(
         inp, t, "loads", "Loads and energy", "loads",
         lambda c: figures.loads(t, c),
-        lambda c: "bending moment at the root of link 1, torques of motion-driven joints and total energy of "
-        "every method with its reference, and below them each method minus the reference.",
+        lambda c: "bending moment at the root of link 1 (from the hub balance M = τ₁ − J₁θ̈₁), torques of "
+        "motion-driven joints and total energy of every method with its reference (wide grey; for the "
+        "energy, the energy reference named below), and below them Δ = method minus reference (rigid "
+        "model left out of the lower panels).",
         lambda c: interpret.loads(s, c),
         ["paper_loads"],
     )

@@ -41,6 +41,12 @@ def _label(method: str) -> str:
     return label(method)
 
 
+def _uses_k(method: str) -> bool:
+    from experiments.methods import uses_k
+
+    return uses_k(method)
+
+
 def _style(name: str, index: int = 0):
     from experiments.methods import style
 
@@ -193,8 +199,8 @@ def _history_grid(s, rows, case, title):
     axes = axes.reshape(len(rows), ncols)
     for m, g in s.groupby("method", sort=False):
         for i, (cols, _, scale, diff) in enumerate(rows):
-            if diff and m == "reference":
-                continue
+            if diff and (m == "reference" or not _uses_k(m)):
+                continue  # the rigid model's differences would set the scale: they are in the tables
             for j, c in enumerate(cols):
                 if c in g and g[c].notna().any():
                     axes[i, j].plot(g.t, g[c] * scale, label=_label(m), **_line_kw(m))
@@ -225,13 +231,13 @@ def time_histories(series: pd.DataFrame, case: str) -> Figure:
     rows = [
         (ang, [f"{a} (rad)" for a in joint], 1.0, False),
         (tip, [f"{a} (mm)" for a in tipl], 1e3, False),
-        ([f"d_{c}" for c in ang], [f"{a}: method − ref. (rad)" for a in joint], 1.0, True),
-        ([f"d_{c}" for c in tip], [f"{a}: method − ref. (mm)" for a in tipl], 1e3, True),
+        ([f"d_{c}" for c in ang], [f"Δ {a} (rad)" for a in joint], 1.0, True),
+        ([f"d_{c}" for c in tip], [f"Δ link {j} tip (mm)" for j in range(1, n + 1)], 1e3, True),
     ]
-    return _history_grid(s, rows, case, "time histories (top) and differences to the reference (bottom)")
+    return _history_grid(s, rows, case, "time histories (top) and Δ = method − reference (bottom)")
 
 
-LOAD_LABELS = {"moment1": "root bending moment, link 1 (N·m)", "energy": "total energy (J)"}
+LOAD_LABELS = {"moment1": "root moment, link 1 (N·m)", "energy": "total energy (J)"}
 
 
 def load_label(q: str) -> str:
@@ -246,9 +252,9 @@ def loads(series: pd.DataFrame, case: str) -> Figure:
     qs = [q for q in s.columns if (q in LOAD_LABELS or q.startswith("torque")) and s[q].notna().any()]
     rows = [
         (qs, [load_label(q) for q in qs], 1.0, False),
-        ([f"d_{q}" for q in qs], [f"{load_label(q).split(' (')[0]}: method − ref." for q in qs], 1.0, True),
+        ([f"d_{q}" for q in qs], [f"Δ {load_label(q)}" for q in qs], 1.0, True),
     ]
-    return _history_grid(s, rows, case, "loads and energy (top) and differences to the reference (bottom)")
+    return _history_grid(s, rows, case, "loads and energy (top) and Δ = method − reference (bottom)")
 
 
 def cost(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:

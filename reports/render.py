@@ -32,6 +32,7 @@ class Section:
     tables: list = field(default_factory=list)
     anchor: str = ""
     summary: str = ""
+    bullets: bool = False  # the sentences as a list instead of a paragraph
 
 
 def fmt(v) -> str:
@@ -74,6 +75,10 @@ class _Page:
     def end(self):
         self.h.append("</section>")
 
+    def bullets(self, sentences):
+        self.md += [f"- {x}" for x in sentences] + [""]
+        self.h.append("<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in sentences) + "</ul>")
+
     def para(self, sentences):
         if sentences:
             self.md += [" ".join(sentences), ""]
@@ -100,7 +105,7 @@ class _Page:
         self.heading(sec.title, sec.anchor, numbered)
         for png, caption in sec.figures:
             self.figure(png, caption)
-        self.para(sec.text)
+        (self.bullets if sec.bullets else self.para)(sec.text)
         for name, df in sec.tables:
             self.table(name, df)
         if not (sec.figures or sec.text or sec.tables):
@@ -161,7 +166,7 @@ def write(
         page.h.append(f"<p class='note'>{html.escape(n)}</p>")
     if front is not None:
         page.section(front, numbered=False)
-    body = [Section("Summary", text=list(summary), anchor="summary"), *sections, _omissions(omissions)]
+    body = [Section("Summary", text=list(summary), anchor="summary", bullets=True), *sections, _omissions(omissions)]
     toc = [(s.title, s.anchor or f"s{i}") for i, s in enumerate(body)] + [("Provenance", "provenance")]
     page.md += ["## Contents", ""] + [f"{i}. [{t}](#{a})" for i, (t, a) in enumerate(toc, 1)] + [""]
     page.h.append(

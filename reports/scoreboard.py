@@ -31,7 +31,7 @@ def _not_ok(tables, case) -> dict:
     ]
     if not frames:
         return {}
-    runs = pd.concat(frames).drop_duplicates("key")
+    runs = pd.concat(frames).drop_duplicates(["case", "key"])  # a key names a run within its case
     runs = runs[runs.case == case]
     return {m: (int((g.status != "ok").sum()), len(g)) for m, g in runs.groupby("method")}
 

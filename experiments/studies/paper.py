@@ -69,6 +69,8 @@ def _series(res, ref, case, label) -> pd.DataFrame:
 def _load_series(res, ref, eref, case_obj, case, label) -> tuple[pd.DataFrame, dict]:
     """(sampled load histories with ``d_…`` columns, load error row) of one run."""
     s = metrics.load_series(metrics.without_cut_loads(res), case_obj)
+    if ref is None and "energy" not in s and eref is not None and eref.energy is not None:
+        s["energy"] = np.interp(res.t, eref.t, eref.energy)  # the reference row shows the energy reference
     df = pd.DataFrame({"t": res.t, **s})
     row = {}
     for other, only in ((ref, lambda q: q != "energy"), (eref, lambda q: q == "energy")):
@@ -133,7 +135,7 @@ def analyse(ctx, table):
         eref, eref_name = _energy_reference(ctx, p, case, ref)
         if ref is not None:
             series.append(_series(ref, None, case, "reference"))
-            ls, _ = _load_series(ref, None, None, case_obj, case, "reference")
+            ls, _ = _load_series(ref, None, eref, case_obj, case, "reference")
             loads.append(ls)
             rows.append({"case": case, "method": "reference", "status": "ok", "reason": "",
                          "peak_tip": float(np.max(np.abs(ref.tip_deflection[:, -1]))), MAIN_ERROR: 0.0})
