@@ -328,7 +328,7 @@ def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra
     board = scoreboard(tables, meta)
     (out / "data").mkdir(parents=True, exist_ok=True)
     om.to_csv(out / "data" / "omissions.csv", index=False)
-    for name, df in [t for s in [*secs, board] for t in s.tables]:
+    for name, df, *_ in [t for s in [*secs, board] for t in s.tables]:
         df.to_csv(out / "data" / f"{name}.csv", index=False)
     head = _head(meta, om) + [s.summary for s in secs if s.summary]
     head.append(f"{len(om)} planned run(s) without an error value (see Omissions).")

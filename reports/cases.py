@@ -69,7 +69,7 @@ def case_section(meta: dict) -> Section | None:
             f"{name}{src}: {len(c['model']['links'])} link(s), gravity {grav}, simulated for "
             f"{_value(float(s['duration']))} s with output every {_value(float(s['output_step']) * 1e3)} ms."
         )
-        tables.append((f"case_{name}", link_table(c)))
+        tables.append((f"case_{name}", link_table(c), f"Parameters of {name} (SI units), one row per link"))
     text.append(
         "Torque-driven joints follow the torque law given; motion-driven joints follow the angle law and "
         "their torque is an output. Every method solves the same case: the same links, drives and output "

@@ -23,7 +23,7 @@ CSS = Path(__file__).with_name("report.css")
 @dataclass
 class Section:
     """One report section: figures (PNG path relative to the report, caption), sentences under
-    them, tables (name, DataFrame) shown inline and linked as CSV (``data/<name>.csv``), the
+    them, tables (name, DataFrame[, title]) shown inline and linked as CSV (``data/<name>.csv``), the
     HTML anchor, and an optional sentence for the report's summary."""
 
     title: str
@@ -93,9 +93,9 @@ class _Page:
             f"<figcaption>{html.escape(cap)}</figcaption></figure>"
         )
 
-    def table(self, name, df):
+    def table(self, name, df, title=""):
         self.n_tab += 1
-        cap = f"Table {self.n_tab}. {name}{_more(df)}"
+        cap = f"Table {self.n_tab}. {title or name}{_more(df)}"
         self.md += [f"{cap} — [CSV](data/{name}.csv)", "", _md_table(df), ""]
         self.h.append(
             f"<p class='tcap'>{html.escape(cap)} — <a href='data/{name}.csv'>CSV</a></p>" + _html_table(df)
@@ -106,8 +106,8 @@ class _Page:
         for png, caption in sec.figures:
             self.figure(png, caption)
         (self.bullets if sec.bullets else self.para)(sec.text)
-        for name, df in sec.tables:
-            self.table(name, df)
+        for name, df, *title in sec.tables:
+            self.table(name, df, *title)
         if not (sec.figures or sec.text or sec.tables):
             self.para(["Nothing to show."])
         self.end()
@@ -166,7 +166,11 @@ def write(
         page.h.append(f"<p class='note'>{html.escape(n)}</p>")
     if front is not None:
         page.section(front, numbered=False)
-    body = [Section("Summary", text=list(summary), anchor="summary", bullets=True), *sections, _omissions(omissions)]
+    body = [
+        Section("Summary", text=list(summary), anchor="summary", bullets=True),
+        *sections,
+        _omissions(omissions),
+    ]
     toc = [(s.title, s.anchor or f"s{i}") for i, s in enumerate(body)] + [("Provenance", "provenance")]
     page.md += ["## Contents", ""] + [f"{i}. [{t}](#{a})" for i, (t, a) in enumerate(toc, 1)] + [""]
     page.h.append(

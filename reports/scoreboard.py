@@ -58,9 +58,9 @@ def case_board(tables: dict, case: str) -> pd.DataFrame:
         rows.append(
             {
                 "method": label(m),
-                "end-effector RMS error (m)": err.get(m, np.nan),
+                "end-effector error (m)": err.get(m, np.nan),
                 "at k, h (s)": at,
-                "time to common error (s)": wp.get(m, np.nan),
+                "time to target (s)": wp.get(m, np.nan),
                 "order in k": ok_.get(m, np.nan),
                 "order in h": oh.get(m, np.nan),
                 "status": status.get(m, "not run"),
@@ -73,7 +73,7 @@ def case_board(tables: dict, case: str) -> pd.DataFrame:
 def scoreboard(tables: dict, meta: dict) -> Section:
     """The scoreboard section: one table per case and a sentence on how to read it."""
     cases = [c for c in dict.fromkeys(tables["paper_summary"].case)] if "paper_summary" in tables else []
-    tabs = [(f"scoreboard_{c}", case_board(tables, c)) for c in cases]
+    tabs = [(f"scoreboard_{c}", case_board(tables, c), f"Scoreboard of {c}") for c in cases]
     wp = tables.get("work_precision_summary")
     targets = (
         "; ".join(f"{c} {t:.2g} m" for c, t in dict(zip(wp.case, wp.target_error)).items() if np.isfinite(t))
@@ -82,12 +82,12 @@ def scoreboard(tables: dict, meta: dict) -> Section:
     )
     text = [
         (
-            "Per case, one row per method: the end-effector position error (RMS over time, against the case's "
-            "reference) at the common comparison point of the paper figures; the wall time each method needs "
-            f"to reach the common error of the work-precision study ({targets}; NaN: not reached); the observed "
-            "orders of convergence in k (against the reference) and in h (against h/2); the status of the run "
-            "at the comparison point and how many of the method's runs over all studies did not finish 'ok' "
-            "(they are listed under Omissions)."
+            "Per case, one row per method: the end-effector position error (RMS over time, against the "
+            "case's reference) at the comparison point of the paper figures (at k, h); the wall time the "
+            "method needs to reach the target error, the common error of the work-precision study "
+            f"({targets}; NaN: not reached); the observed orders of convergence in k (against the reference) "
+            "and in h (against h/2); the status of the run at the comparison point, and how many of the "
+            "method's runs over all studies did not finish 'ok' (listed under Omissions)."
         )
     ]
     if not tabs:

@@ -220,7 +220,7 @@ def test_front_page_scoreboard_and_contents(report):
     row = board.set_index("method").loc["DT-TMM (Newmark)"]
     paper = pd.read_csv(report / "out" / "data" / "paper_summary.csv")
     ee = paper[(paper.case == "three_link") & (paper.method == "dttmm")].ee_l2.iloc[0]
-    assert row["end-effector RMS error (m)"] == pytest.approx(ee, rel=1e-6)
+    assert row["end-effector error (m)"] == pytest.approx(ee, rel=1e-6)
     assert row["status"] == "ok"
     html = (report / "out" / "index.html").read_text()
     assert "<nav id='contents'>" in html and "href='report.css'" in html
