@@ -109,6 +109,12 @@ def plan_for(size: str, case_files=()) -> Plan:
     return _retarget(base, files, durations)
 
 
+def _durations_text(durations: dict) -> str:
+    return ", ".join(
+        f"{n}: {'as written' if T is None else f'its first {T:g} s'}" for n, T in durations.items()
+    )
+
+
 def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
     """``base`` with every study and reference moved onto the cases ``files``."""
     names = list(files)
@@ -128,7 +134,8 @@ def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
         check=dict.fromkeys(names, chk),
         studies=studies,
         case_files=files,
-        note=base.note + f" Cases given on the command line: {', '.join(names)}.",
+        note=f"{base.name} size on the cases given on the command line ({_durations_text(durations)}); "
+        + _GRID_NOTE.get(base.name, ""),
     )
 
 
@@ -208,6 +215,12 @@ def _plan(
     )
 
 
+_GRID_NOTE = {
+    "quick": "references at h = 2.5e-4 instead of 1e-4; h down to 5e-4 and k up to 16 (32 for cost); errors "
+    "on a 4 ms output grid (a multiple of every step studied); the global solver's cost curve stops at k = 16.",
+    "full": "errors on a 4 ms output grid.",
+}
+
 PLANS = {
     "quick": _plan(
         "quick",
@@ -221,9 +234,7 @@ PLANS = {
         rk4_h=[1e-4, 2e-5, 1e-5, 5e-6],
         cost_ks=[1, 2, 4, 8, 16, 32],
         scheme_ks=[1, 2, 4, 8, 16],
-        note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; references at h = 2.5e-4 instead of 1e-4; "
-        "h down to 5e-4 and k up to 16 (32 for cost); errors on a 4 ms output grid "
-        "(a multiple of every step studied); the global solver's cost curve stops at k = 16.",
+        note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; " + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
         cost_cap={"global": 16},
     ),
@@ -239,7 +250,7 @@ PLANS = {
         rk4_h=[1e-4, 2e-5, 1e-5, 5e-6, 2.5e-6],
         cost_ks=[1, 2, 4, 8, 16, 32, 64],
         scheme_ks=[1, 2, 4, 8, 16, 32],
-        note="full size: the cases as written, errors on a 4 ms output grid.",
+        note="full size: the cases as written; " + _GRID_NOTE["full"],
         variants=_VARIANTS_FULL,
     ),
 }
