@@ -311,9 +311,12 @@ SECTION_BUILDERS = [
 def _head(meta, om) -> list[str]:
     avail = meta.get("availability", {})
     missing = {m: r for m, r in avail.items() if r}
+    from experiments.methods import label
+
+    note = meta.get("note", "")
     head = [
-        f"Size: {meta.get('plan', '?')}. {meta.get('note', '')}",
-        "Methods run: " + (", ".join(m for m, r in avail.items() if not r) or "none") + ".",
+        note[:1].upper() + note[1:] if note else f"Size: {meta.get('plan', '?')}.",
+        "Methods run: " + (", ".join(label(m) for m, r in avail.items() if not r) or "none") + ".",
     ]
     if missing:
         head.append("Unavailable: " + "; ".join(f"{m} ({r})" for m, r in missing.items()) + ".")
