@@ -213,10 +213,18 @@ def _history_grid(s, rows, case, title):
             ax.set(xlabel="t (s)", ylabel=ylabels[j])
             ax.grid(True, alpha=0.3)
             if diff:
+                _mark_round_off(ax)
                 ax.axhline(0, color="k", lw=0.6)
     _fig_legend(fig, axes.ravel())
     fig.suptitle(f"{case}: {title}")
     return fig
+
+
+def _mark_round_off(ax, tiny: float = 1e-12) -> None:
+    """Say so on a difference panel whose every curve is at round-off (a prescribed motion)."""
+    ys = [np.nanmax(np.abs(ln.get_ydata())) for ln in ax.get_lines() if len(ln.get_ydata())]
+    if ys and max(ys) < tiny:
+        ax.text(0.5, 0.85, "Δ at round-off (prescribed motion)", transform=ax.transAxes, ha="center", fontsize=8)
 
 
 def time_histories(series: pd.DataFrame, case: str) -> Figure:
