@@ -98,7 +98,10 @@ def plan_for(size: str, case_files=()) -> Plan:
     for p in map(Path, case_files):
         if not p.is_file():
             raise InputError("--case", str(p), "is not a file")
-        case = dttmm.load_case(p)
+        try:
+            case = dttmm.load_case(p)
+        except InputError as exc:  # name the file as well as the field
+            raise InputError(f"{p}: {exc.field}", exc.value, exc.reason) from None
         shipped = p.resolve().parent == CASE_DIR
         name = case.name if shipped else f"{case.name}-{case_fingerprint(case)}"
         if name in files:

@@ -65,6 +65,9 @@ def test_quick_size_shortens_long_cases_only(tmp_path):
 def test_bad_case_arguments_are_refused_with_the_path(tmp_path):
     with pytest.raises(InputError, match="nope.toml"):
         plan_for("quick", [tmp_path / "nope.toml"])
+    (tmp_path / "bad.toml").write_text("[model]\n")
+    with pytest.raises(InputError, match=r"bad.toml: scenario"):
+        plan_for("quick", [tmp_path / "bad.toml"])
     a, b = _write(tmp_path / "a.toml"), _write(tmp_path / "b.toml")
     with pytest.raises(InputError, match="names the same case"):
         plan_for("quick", [a, b])
