@@ -9,16 +9,16 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
-    "absent",
-    "element_step_table",
-    "exponents",
-    "has_scans",
-    "info_of",
     "latest",
     "load",
-    "ratios",
+    "exponents",
     "read",
+    "info_of",
+    "has_scans",
     "scaling_exponents",
+    "element_step_table",
+    "ratios",
+    "absent",
 ]
 
 _K_KEYS = ("elements_per_link", "k", "elements", "n_elements")
