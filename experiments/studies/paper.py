@@ -76,17 +76,15 @@ def _load_series(res, ref, eref, case_obj, case, label) -> tuple[pd.DataFrame, d
     for other, only in ((ref, lambda q: q != "energy"), (eref, lambda q: q == "energy")):
         if other is None or other is res:
             continue
-        t, d = metrics.load_differences(res, other, case_obj, both_cut_loads=False)
+        a, b = metrics.without_cut_loads(res), metrics.without_cut_loads(other)
+        t, d = metrics.load_differences(a, b, case_obj)
         on = np.isin(df.t.to_numpy(), t)
-        scale = metrics.load_series(metrics.without_cut_loads(other), case_obj)
-        for q, e in d.items():
-            if not only(q):
-                continue
-            df.loc[on, f"d_{q}"] = e
-            rms = float(np.sqrt(np.mean(e**2))) if e.size else np.nan
-            big = float(np.max(np.abs(scale[q]))) if q in scale else np.nan
-            row.update({f"{q}_l2": rms, f"{q}_linf": float(np.max(np.abs(e))) if e.size else np.nan,
-                        f"{q}_rel": rms / big if big > 0 else np.nan})
+        err = metrics.load_errors(a, b, case_obj)
+        for q in filter(only, d):
+            df.loc[on, f"d_{q}"] = d[q]
+            scale = err[f"{q}_scale"]
+            row.update({f"{q}_l2": err[f"{q}_l2"], f"{q}_linf": err[f"{q}_linf"],
+                        f"{q}_rel": err[f"{q}_l2"] / scale if scale > 0 else np.nan})
     return _thin(df).assign(case=case, method=label), row
 
 
