@@ -6,14 +6,14 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
-    "convergence_k",
-    "convergence_h",
-    "work_precision",
-    "scheme",
-    "paper",
-    "cost",
-    "bench",
     "bench_costs",
+    "convergence_h",
+    "convergence_k",
+    "cost",
+    "loads",
+    "paper",
+    "scheme",
+    "work_precision",
 ]
 
 
@@ -21,6 +21,11 @@ def _l(m):
     from experiments.methods import label
 
     return label(m)
+
+
+def _sig(x, n: int = 3) -> str:
+    """``x`` rounded to ``n`` significant digits, without exponent notation for ordinary sizes."""
+    return "n/a" if x is None or not np.isfinite(x) else f"{float(f'{x:.{n}g}'):g}"
 
 
 def _e(x) -> str:
@@ -59,8 +64,10 @@ def not_ok(rows: pd.DataFrame) -> list[str]:
 def convergence_k(table, orders, case, floor=None) -> list[str]:
     g = table[(table.case == case) & (table.k > 0) & (table.status == "ok")]
     out = [
-        f"Observed orders in k of the end-effector error (fitted before each curve's floor): "
-        f"{_orders_text(orders[orders.case == case], 'ee_l2')}."
+        (
+            "Observed orders in k of the end-effector error (fitted before each curve's floor): "
+            f"{_orders_text(orders[orders.case == case], 'ee_l2')}."
+        )
     ]
     best = g[np.isfinite(g.ee_l2)].groupby("method").ee_l2.min()
     if len(best):
@@ -81,10 +88,14 @@ def convergence_k(table, orders, case, floor=None) -> list[str]:
 def convergence_h(table, orders, case) -> list[str]:
     o = orders[orders.case == case]
     out = [
-        f"Observed orders in h from the self-differences (h against h/2, time error alone): "
-        f"{_orders_text(o, 'selfdiff_ee_l2')}.",
-        f"Against the reference: {_orders_text(o, 'ee_l2')}; a low value there means the spatial error "
-        f"of k = {table[table.case == case].k.max()} dominates at small h.",
+        (
+            "Observed orders in h from the self-differences (h against h/2, time error alone): "
+            f"{_orders_text(o, 'selfdiff_ee_l2')}."
+        ),
+        (
+            f"Against the reference: {_orders_text(o, 'ee_l2')}; a low value there means the spatial error "
+            f"of k = {table[table.case == case].k.max()} dominates at small h."
+        ),
     ]
     return out + not_ok(table[table.case == case])
 
@@ -103,7 +114,7 @@ def work_precision(summary, case) -> list[str]:
         if len(fast) > 1:
             a, b = fast.iloc[0], fast.iloc[-1]
             out.append(
-                f"{_l(a.method)} is {b.wall_time_to_target / a.wall_time_to_target:.1f}x faster than "
+                f"{_l(a.method)} is {_sig(b.wall_time_to_target / a.wall_time_to_target)}x faster than "
                 f"{_l(b.method)} at that accuracy."
             )
     rigid = s[s.method == "pinocchio-rigid"]
@@ -167,11 +178,42 @@ def paper(summary, case) -> list[str]:
     return out
 
 
+def loads(table, case) -> list[str]:
+    """Sentences under the loads figure: RMS errors of root moment, motion-driven joint
+    torques and energy, relative to the largest reference value."""
+    from .figures import load_label
+
+    g = table[table.case == case] if len(table) else table
+    if g.empty:
+        return ["No run of this case has load histories to compare."]
+    out = []
+    qs = [c[:-3] for c in g.columns if c.endswith("_l2")]
+    for q in qs:
+        ok = g[np.isfinite(g[f"{q}_l2"])]
+        if ok.empty:
+            continue
+        parts = ", ".join(
+            f"{_l(r.method)} {_e(getattr(r, f'{q}_l2'))} ({_pct(getattr(r, f'{q}_rel'))})" for r in ok.itertuples()
+        )
+        out.append(f"{load_label(q).split(' (')[0]}, RMS of method − reference (relative to the peak): {parts}.")
+    missing = g[~np.isfinite(g["energy_l2"])].method.tolist() if "energy_l2" in g else g.method.tolist()
+    eref = g.energy_reference.iloc[0] if "energy_reference" in g else "none"
+    out.append(
+        f"Energies are compared against {eref}"
+        + (f"; not recorded by {', '.join(_l(m) for m in missing)}." if missing else ".")
+    )
+    return out
+
+
+def _pct(x) -> str:
+    return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.2g} %"
+
+
 def cost(table, exponents) -> list[str]:
     ex = exponents[np.isfinite(exponents.exponent)]
     out = [
         "Fitted exponents of wall time ∝ k^p (k ≥ 2): "
-        + (", ".join(f"{_l(r.method)} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
+        + (", ".join(f"{_l(r.method)} p = {r.exponent:.2g}" for r in ex.itertuples()) or "none")
         + "."
     ]
     if len(ex) > 1:
@@ -184,27 +226,6 @@ def cost(table, exponents) -> list[str]:
             )
     out.append("Timings come from one run per worker process on a shared machine; read them as ±20 %.")
     return out
-
-
-def bench(exponents) -> list[str]:
-    ex = exponents[np.isfinite(exponents.exponent)]
-    return [
-        "Fitted exponents of time per step ∝ elements^p: "
-        + (", ".join(f"{r.group} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
-        + "."
-    ]
-
-
-_BENCH_LABELS = {
-    "dttmm-converged": "DT-TMM converged",
-    "dttmm-one-shot": "DT-TMM one-sweep",
-    "dttmm": "DT-TMM",
-    "dttmm-rk4": "DT-TMM RK4",
-}
-
-
-def _bl(m) -> str:
-    return _BENCH_LABELS.get(m, _l(m))
 
 
 def _x(v) -> str:
@@ -223,12 +244,12 @@ def bench_costs(exponents, per_element, ratios, *, k_min=8, n_min=2, case="three
         if len(el):
             parts.append(
                 f"over k ≥ {k_min} ({case}, the asymptotic regime: below it fixed per-step costs dominate) "
-                + ", ".join(f"{_bl(r.method)} {r.exponent:.2f}" for r in el.itertuples())
+                + ", ".join(f"{_l(r.method)} {r.exponent:.2g}" for r in el.itertuples())
             )
         if len(ln):
             parts.append(
                 f"over n ≥ {n_min} links at k = 8: "
-                + ", ".join(f"{_bl(r.method)} {r.exponent:.2f}" for r in ln.itertuples())
+                + ", ".join(f"{_l(r.method)} {r.exponent:.2g}" for r in ln.itertuples())
             )
         out.append("Fitted exponents p of time per step ∝ N^p: " + "; ".join(parts) + ".")
     if len(per_element) and len(per_element.columns) > 1:
@@ -236,7 +257,7 @@ def bench_costs(exponents, per_element, ratios, *, k_min=8, n_min=2, case="three
         for m in per_element.columns[1:]:
             v = per_element[["k", m]].dropna()
             if len(v):
-                bits.append(f"{_bl(m)} {v[m].iloc[-1]:.3g} µs (k = {v.k.iloc[-1]})")
+                bits.append(f"{_l(m)} {v[m].iloc[-1]:.3g} µs (k = {v.k.iloc[-1]})")
         out.append(
             f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + "."
         )
