@@ -333,7 +333,7 @@ def test_fixed_iteration_count_and_tolerance_driven_iteration():
 def test_sparse_linear_solver_gives_the_dense_solution():
     case = _shorten(_load("three_link"), 0.01, 1e-3)
     dense = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1)
-    sparse = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1, linear_solver="sparse")
+    sparse = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1, linear_solver="sparse", engine="numpy")
     assert np.allclose(sparse.link_tip, dense.link_tip, rtol=0, atol=1e-12)
     assert sparse.meta["iterations_mean"] == 2
 
@@ -410,6 +410,9 @@ def test_non_finite_state_raises_with_partial_result():
     ({"integrator": "dop853", "rtol": 0.0}, "rtol"),
     ({"integrator": "dop853", "beta": 0.3}, "beta"),
     ({"maxiter": 3}, "maxiter"),
+    ({"max_iterations": 0}, "max_iterations"),
+    ({"engine": "fortran"}, "engine"),
+    ({"linear_solver": "sparse", "engine": "numba"}, "linear_solver"),
 ])
 def test_bad_settings_are_refused_naming_the_field(kwargs, field):
     args = {"elements_per_link": 2, "h": 1e-3, **kwargs}
@@ -564,3 +567,92 @@ def test_strain_option_is_validated_and_linear_is_the_default():
     c = gn.simulate(inext, elements_per_link=2, h=1e-3)
     d = gn.simulate(inext, elements_per_link=2, h=1e-3, strain="second-order")
     assert np.array_equal(c.link_tip, d.link_tip)
+
+
+# ----------------------------------------------------------------------------------------------
+# (9) compiled engine against the numpy engine; stopping rule and status
+# ----------------------------------------------------------------------------------------------
+
+def _engines_case(name, damping=0.0):
+    case = {"single_link": lambda: _shorten(_load("single_link"), 0.6, 0.02),
+            "three_link": lambda: _shorten(_load("three_link"), 0.3, 0.01),
+            "spin_up": lambda: _shorten(_load("spin_up"), 2.0, 0.1)}[name]()
+    return _with_beams(case, damping=damping) if damping else case
+
+
+_ENGINE_RUNS = [  # (case, damping μ, k, h)
+    ("single_link", 0.0, 4, 2e-3),
+    ("three_link", 0.0, 3, 1e-3),
+    ("three_link", 2e-3, 2, 1e-3),
+    ("spin_up", 0.0, 4, 1e-2),
+]
+
+
+@pytest.mark.parametrize("strain", ["linear", "second-order"])
+@pytest.mark.parametrize("integrator", ["newmark", "generalized-alpha"])
+@pytest.mark.parametrize("name, mu, k, h", _ENGINE_RUNS)
+def test_compiled_engine_agrees_with_numpy_engine(name, mu, k, h, integrator, strain):
+    """The two engines assemble the same equations by different sums (composite-inertia
+    recursion and Cholesky vs dense JᵀMJ and LU): end effector and tip deflections agree to
+    1e-9 m, step by step with the same iteration counts."""
+    case = _engines_case(name, mu)
+    kw = dict(elements_per_link=k, h=h, integrator=integrator, strain=strain)
+    a = gn.simulate(case, engine="numpy", **kw)
+    b = gn.simulate(case, engine="numba", **kw)
+    assert b.meta["engine"] == "numba" and a.status == b.status == "ok"
+    assert np.abs(a.end_effector - b.end_effector).max() <= 1e-9
+    assert np.abs(a.tip_deflection - b.tip_deflection).max() <= 1e-9
+    assert np.abs(a.joint_torque - b.joint_torque).max() <= 1e-7 * max(1.0, np.abs(a.joint_torque).max())
+    assert np.allclose(a.energy, b.energy, rtol=1e-9, atol=1e-9)
+    assert abs(a.meta["iterations_mean"] - b.meta["iterations_mean"]) <= 0.05 * a.meta["iterations_mean"]
+
+
+def test_compiled_assembly_equals_dense_jacobian_products():
+    """M(q) and the velocity/gravity forces of the recursion equal Σ JᵀM_el J at random states
+    (extensible and inextensible links, hubs and a payload)."""
+    from reference_models import _global_numba as G
+
+    for case in (_load("three_link"), _with_beams(_load("three_link"), EA=None)):
+        for k, seed in ((1, 0), (3, 1)):
+            lay = gn._layout(case, k)
+            q, qd = _random_state(case, k, seed)
+            M0, f0 = gn._assemble(lay, q, qd)
+            M, f = np.empty_like(M0), np.empty_like(f0)
+            G.assemble(G.pack(lay, case), q, qd, M, f)
+            assert np.abs(M - M0).max() <= 1e-13 * np.abs(M0).max()
+            assert np.abs(f - f0).max() <= 1e-13 * np.abs(f0).max()
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_exhausted_iterations_give_status_unconverged_with_the_time(engine):
+    case = _shorten(_load("three_link"), 0.01, 0.005)
+    res = gn.simulate(case, elements_per_link=2, h=1e-3, max_iterations=1, engine=engine)
+    assert res.status == "unconverged" and not res.success
+    assert res.meta["unconverged_steps"] == 10 and res.meta["iterations_max"] == 1
+    assert len(res.warnings) == 1 and "t = 0.001 s" in res.warnings[0]
+    ok = gn.simulate(case, elements_per_link=2, h=1e-3, engine=engine)
+    assert ok.status == "ok" and ok.success and ok.warnings == ()
+
+
+@pytest.mark.parametrize("engine", ["numpy", "numba"])
+def test_stagnation_at_the_round_off_floor_counts_as_converged(engine):
+    """A tolerance at round-off (1e-16) is met by chance only; the iteration stops on stagnation
+    (as dttmm.simulate does) instead of running to max_iterations."""
+    case = _shorten(_load("three_link"), 0.01, 0.005)
+    res = gn.simulate(case, elements_per_link=2, h=1e-3, tol=1e-16, engine=engine)
+    assert res.status == "ok" and res.meta["unconverged_steps"] == 0
+    assert res.meta["iterations_max"] < 50
+
+
+def test_non_finite_state_raises_with_partial_result_compiled_engine():
+    class BrokenAfter(Constant):
+        def __call__(self, t, left=False):
+            return math.nan if t > 0.05 else self.value
+
+    case = _single(Section(1.0, 2.0, 0.3), Drive("torque", BrokenAfter(1.0)), duration=0.1, output_step=0.01)
+    with pytest.raises(dttmm.SimulationError) as info:
+        gn.simulate(case, elements_per_link=1, h=0.01, engine="numba")
+    err = info.value
+    assert err.t == pytest.approx(0.06) and err.step == 5 and err.component.startswith("alpha_1")
+    assert err.partial is not None and err.partial.t[-1] == pytest.approx(0.05)
+    assert err.partial.status == "failed"
