@@ -226,7 +226,7 @@ def _to_twist(r, M3, f3):
 def assemble(P, q, qd, M, f):
     """Fill M(q) (N, N) and f = Q_gravity − h(q, q̇) (N,) (no joint torques, no elastic or
     damping forces) by the composite-inertia recursion of the module docstring."""
-    e, th, c, s, rI, rO = frames(P, q)
+    e, _, c, s, rI, rO = frames(P, q)
     S = _twists(P, rI, rO, c, s)
     bI, bO, thd, ed = _bias(P, e, c, s, qd)
     nel = e.shape[0]
@@ -374,7 +374,7 @@ def _chol_solve(A, b):
     n = b.size
     try:
         L = np.linalg.cholesky(A)
-    except Exception:
+    except Exception:  # noqa: BLE001 -- numba catches only Exception; potrf reports non-SPD
         return np.linalg.solve(A, b)
     y = np.empty(n)
     for i in range(n):

@@ -945,7 +945,7 @@ class _Recorder:
     def next_time(self) -> float:
         return self.t[self.count] if self.count < self.t.size else math.inf
 
-    def result(self, lay, wall, n_steps, meta, status=None, warnings=(), kinetic=None) -> "object":
+    def result(self, lay, wall, n_steps, meta, status=None, warnings=(), kinetic=None) -> object:
         n = self.count
         nl = lay.n_links
         root = np.zeros((n, nl, 2))

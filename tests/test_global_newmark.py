@@ -596,7 +596,7 @@ def test_compiled_engine_agrees_with_numpy_engine(name, mu, k, h, integrator, st
     recursion and Cholesky vs dense JᵀMJ and LU): end effector and tip deflections agree to
     1e-9 m, step by step with the same iteration counts."""
     case = _engines_case(name, mu)
-    kw = dict(elements_per_link=k, h=h, integrator=integrator, strain=strain)
+    kw = {"elements_per_link": k, "h": h, "integrator": integrator, "strain": strain}
     a = gn.simulate(case, engine="numpy", **kw)
     b = gn.simulate(case, engine="numba", **kw)
     assert b.meta["engine"] == "numba" and a.status == b.status == "ok"
