@@ -177,49 +177,76 @@ def _bias(P, e, c, s, qd):
 @njit(cache=True)
 def _element(P, el, e, c, s, thd, ed, bI, Mel, fel):
     """Mass matrix Mel (6, 6) and force fel (6,) = gravity − velocity terms − Mel·(bias of p)
-    of element el on p = (r_I, θ, u, v, φ), hub included (same formulas as the numpy engine)."""
-    A = np.array([[c[el], -s[el]], [s[el], c[el]]])
-    Sb = P.Sbar[el]
-    SS = P.SS[el]
-    H = P.H[el]
-    ee = e[el]
-    ee_d = ed[el]
-    sig = P.sigma0[el] + Sb @ ee
-    Asig = A @ sig
-    ap = np.array([-Asig[1], Asig[0]])
-    be = P.b0[el] + SS @ ee
+    of element el on p = (r_I, θ, u, v, φ), hub included (same formulas as the numpy engine,
+    written out in scalars: these run once per element and iteration)."""
+    ca, sa = c[el], s[el]
+    Sb, SS, H, b0, c1 = P.Sbar[el], P.SS[el], P.H[el], P.b0[el], P.c1[el]
+    ee, eed = e[el], ed[el]
+    sig0 = P.sigma0[el, 0] + Sb[0, 0] * ee[0] + Sb[0, 1] * ee[1] + Sb[0, 2] * ee[2]
+    sig1 = P.sigma0[el, 1] + Sb[1, 0] * ee[0] + Sb[1, 1] * ee[1] + Sb[1, 2] * ee[2]
+    ap0 = -(sa * sig0 + ca * sig1)          # E A σ
+    ap1 = ca * sig0 - sa * sig1
     m = P.mass[el] + P.hub_m[el]
-    Mel[:, :] = 0.0
     Mel[0, 0] = m
     Mel[1, 1] = m
-    Mel[0, 2], Mel[1, 2] = ap[0], ap[1]
-    ASb = A @ Sb
-    Mel[0:2, 3:6] = ASb
-    Mel[2, 2] = P.c0[el] + np.sum((P.b0[el] + be) * ee) + P.hub_J[el]
-    Mel[2, 3:6] = -(P.c1[el] + H.T @ ee)
-    Mel[3:6, 3:6] = SS
+    Mel[0, 1] = 0.0
+    Mel[0, 2], Mel[1, 2] = ap0, ap1
+    w = thd[el]
+    g0, g1 = P.gravity[0], P.gravity[1]
+    atg0, atg1 = ca * g0 + sa * g1, -sa * g0 + ca * g1    # Aᵀ g
+    J = P.c0[el] + P.hub_J[el]
+    hb = 0.0
+    for a in range(3):
+        be = b0[a] + SS[a, 0] * ee[0] + SS[a, 1] * ee[1] + SS[a, 2] * ee[2]
+        J += (b0[a] + be) * ee[a]
+        hb += be * eed[a]
+        Mel[0, 3 + a] = ca * Sb[0, a] - sa * Sb[1, a]
+        Mel[1, 3 + a] = sa * Sb[0, a] + ca * Sb[1, a]
+        Mel[2, 3 + a] = -(c1[a] + H[0, a] * ee[0] + H[1, a] * ee[1] + H[2, a] * ee[2])
+        Hed = H[a, 0] * eed[0] + H[a, 1] * eed[1] + H[a, 2] * eed[2]
+        fel[3 + a] = Sb[0, a] * atg0 + Sb[1, a] * atg1 + w * w * be - 2 * w * Hed
+        for b in range(3):
+            Mel[3 + a, 3 + b] = SS[a, b]
+    Mel[2, 2] = J
     for i in range(6):
         for j in range(i):
             Mel[i, j] = Mel[j, i]
-    w = thd[el]
-    Sed = Sb @ ee_d
-    loc = -w * w * sig + 2 * w * np.array([-Sed[1], Sed[0]])
-    g = P.gravity
-    hr = A @ loc
-    Atg = A.T @ g
-    fel[0] = m * g[0] - hr[0]
-    fel[1] = m * g[1] - hr[1]
-    fel[2] = ap[0] * g[0] + ap[1] * g[1] - 2 * w * np.sum(be * ee_d)
-    fel[3:6] = Sb.T @ Atg + w * w * be - 2 * w * (H @ ee_d)
+    sed0 = Sb[0, 0] * eed[0] + Sb[0, 1] * eed[1] + Sb[0, 2] * eed[2]
+    sed1 = Sb[1, 0] * eed[0] + Sb[1, 1] * eed[1] + Sb[1, 2] * eed[2]
+    l0 = -w * w * sig0 - 2 * w * sed1
+    l1 = -w * w * sig1 + 2 * w * sed0
+    fel[0] = m * g0 - (ca * l0 - sa * l1)
+    fel[1] = m * g1 - (sa * l0 + ca * l1)
+    fel[2] = ap0 * g0 + ap1 * g1 - 2 * w * hb
     for i in range(6):
         fel[i] -= Mel[i, 0] * bI[el, 0] + Mel[i, 1] * bI[el, 1]
 
 
 @njit(cache=True)
-def _to_twist(r, M3, f3):
-    """Xᵀ M3 X and Xᵀ f3 for a frame at r (M3 on (r_x, r_y, θ))."""
-    X = np.array([[-r[1], 1.0, 0.0], [r[0], 0.0, 1.0], [1.0, 0.0, 0.0]])
-    return X.T @ M3 @ X, X.T @ f3, X
+def _to_twist(r, M6, f6, Iout, wout, Cout):
+    """For a frame at r: Iout = Xᵀ M_rr X (3, 3), wout = Xᵀ f_r (3,) and, when Cout has
+    rows, Cout = Xᵀ M_re (3, 3); M6 and f6 are on (r_x, r_y, θ, [u, v, φ]). The columns of
+    X are x_ω = (−r_y, r_x, 1), x_vx = (1, 0, 0), x_vy = (0, 1, 0)."""
+    rx, ry = r[0], r[1]
+    for col in range(3):   # Xᵀ (M x_ω), Xᵀ (M x_vx), Xᵀ (M x_vy) as columns of Iout
+        if col == 0:
+            u0 = -ry * M6[0, 0] + rx * M6[0, 1] + M6[0, 2]
+            u1 = -ry * M6[1, 0] + rx * M6[1, 1] + M6[1, 2]
+            u2 = -ry * M6[2, 0] + rx * M6[2, 1] + M6[2, 2]
+        else:
+            u0, u1, u2 = M6[0, col - 1], M6[1, col - 1], M6[2, col - 1]
+        Iout[0, col] = -ry * u0 + rx * u1 + u2
+        Iout[1, col] = u0
+        Iout[2, col] = u1
+    if Cout.shape[0] == 3:
+        for a in range(3):
+            col = 3 + a
+            Cout[0, a] = -ry * M6[0, col] + rx * M6[1, col] + M6[2, col]
+            Cout[1, a] = M6[0, col]
+            Cout[2, a] = M6[1, col]
+    wout[0] = -ry * f6[0] + rx * f6[1] + f6[2]
+    wout[1] = f6[0]
+    wout[2] = f6[1]
 
 
 @njit(cache=True)
@@ -238,23 +265,21 @@ def assemble(P, q, qd, M, f):
     SSel = P.SS
     Mel = np.zeros((6, 6))
     fel = np.zeros(6)
+    M3 = np.zeros((3, 3))
+    f3 = np.zeros(3)
     for b in range(nb):
         el = P.body_el[b]
         p = P.body_pay[b]
         if p < 0:
             _element(P, el, e, c, s, thd, ed, bI, Mel, fel)
-            I3, w3, X = _to_twist(rI[el], Mel[0:3, 0:3].copy(), fel[0:3].copy())
-            Ib[b] = I3
-            wb[b] = w3
-            Cel[el] = X.T @ Mel[0:3, 3:6].copy()
+            _to_twist(rI[el], Mel, fel, Ib[b], wb[b], Cel[el])
             Fel[el] = fel
         else:
-            mp, Jp = P.pay_m[p], P.pay_J[p]
-            M3 = np.diag(np.array([mp, mp, Jp]))
-            f3 = np.array([mp * (P.gravity[0] - bO[el, 0]), mp * (P.gravity[1] - bO[el, 1]), 0.0])
-            I3, w3, X = _to_twist(rO[el], M3, f3)
-            Ib[b] = I3
-            wb[b] = w3
+            mp = P.pay_m[p]
+            M3[0, 0], M3[1, 1], M3[2, 2] = mp, mp, P.pay_J[p]
+            f3[0] = mp * (P.gravity[0] - bO[el, 0])
+            f3[1] = mp * (P.gravity[1] - bO[el, 1])
+            _to_twist(rO[el], M3, f3, Ib[b], wb[b], Cel[el, 0:0])
     N = P.kind.size
     G = np.zeros((N, 3))
     F = np.zeros((N, 3))
@@ -302,35 +327,36 @@ def element_forces(P, el, e3, ed3, fi, KT, fd, Dt):
     """
     l, EA, mu = P.length[el], P.EA[el], P.mu[el]
     cb = P.EI[el] / l**3
-    Kb = np.array([[12.0 * cb, -6.0 * cb * l], [-6.0 * cb * l, 4.0 * cb * l * l]])
-    G = np.array([[6.0 / (5.0 * l * l), -1.0 / (10.0 * l)], [-1.0 / (10.0 * l), 2.0 / 15.0]])
-    w = e3[1:3].copy()
-    wd = ed3[1:3].copy()
+    k00, k01, k11 = 12.0 * cb, -6.0 * cb * l, 4.0 * cb * l * l          # K_b
+    g00, g01, g11 = 6.0 / (5.0 * l * l), -1.0 / (10.0 * l), 2.0 / 15.0  # G
+    v, ph, vd, phd = e3[1], e3[2], ed3[1], ed3[2]
     sec = P.second[el] == 1
-    Gw = G @ w if sec else np.zeros(2)
-    eps = e3[0] / l + 0.5 * (w @ Gw)
-    epsd = ed3[0] / l + wd @ Gw
-    Kbw = Kb @ w
-    Kbwd = Kb @ wd
+    if sec:
+        gw0, gw1 = g00 * v + g01 * ph, g01 * v + g11 * ph
+    else:
+        gw0, gw1 = 0.0, 0.0
+    eps = e3[0] / l + 0.5 * (v * gw0 + ph * gw1)
+    epsd = ed3[0] / l + vd * gw0 + phd * gw1
     fi[0] = EA * eps
-    fi[1:3] = EA * l * eps * Gw + Kbw
+    fi[1] = EA * l * eps * gw0 + k00 * v + k01 * ph
+    fi[2] = EA * l * eps * gw1 + k01 * v + k11 * ph
     fd[0] = mu * EA * epsd
-    fd[1:3] = mu * (EA * l * epsd * Gw + Kbwd)
+    fd[1] = mu * (EA * l * epsd * gw0 + k00 * vd + k01 * phd)
+    fd[2] = mu * (EA * l * epsd * gw1 + k01 * vd + k11 * phd)
+    KT[0, 0] = EA / l
+    KT[0, 1] = KT[1, 0] = EA * gw0
+    KT[0, 2] = KT[2, 0] = EA * gw1
+    b00 = EA * l * gw0 * gw0 + k00
+    b01 = EA * l * gw0 * gw1 + k01
+    b11 = EA * l * gw1 * gw1 + k11
     for a in range(3):
         for b in range(3):
-            KT[a, b] = 0.0
-            Dt[a, b] = 0.0
-    KT[0, 0] = EA / l
-    KT[0, 1:3] = EA * Gw
-    KT[1:3, 0] = EA * Gw
-    for a in range(2):
-        for b in range(2):
-            base = EA * l * Gw[a] * Gw[b] + Kb[a, b]
-            Dt[1 + a, 1 + b] = mu * base
-            KT[1 + a, 1 + b] = base + (EA * l * eps * G[a, b] if sec else 0.0)
-    Dt[0, 0] = mu * EA / l
-    Dt[0, 1:3] = mu * EA * Gw
-    Dt[1:3, 0] = mu * EA * Gw
+            Dt[a, b] = mu * KT[a, b] if (a == 0 or b == 0) else 0.0
+    Dt[1, 1], Dt[1, 2], Dt[2, 1], Dt[2, 2] = mu * b00, mu * b01, mu * b01, mu * b11
+    ge = EA * l * eps if sec else 0.0
+    KT[1, 1] = b00 + ge * g00
+    KT[1, 2] = KT[2, 1] = b01 + ge * g01
+    KT[2, 2] = b11 + ge * g11
 
 
 @njit(cache=True)
