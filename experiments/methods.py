@@ -42,8 +42,8 @@ METHODS: dict[str, Method] = {
         Method(
             "global",
             "reference_models.global_newmark",
-            (("integrator", "newmark"),),
-            label="global equations (Newmark)",
+            (("integrator", "newmark"), ("engine", "numba")),
+            label="global equations (Newmark, compiled)",
         ),
         Method("exudyn-ancf", "reference_models.exudyn_ancf", label="Exudyn ANCF"),
         Method("exudyn-beam", "reference_models.exudyn_beam", label="Exudyn GE beam"),

@@ -273,7 +273,8 @@ def assemble(P, q, qd, M, f):
         if p < 0:
             _element(P, el, e, c, s, thd, ed, bI, Mel, fel)
             _to_twist(rI[el], Mel, fel, Ib[b], wb[b], Cel[el])
-            Fel[el] = fel
+            for r in range(6):
+                Fel[el, r] = fel[r]
         else:
             mp = P.pay_m[p]
             M3[0, 0], M3[1, 1], M3[2, 2] = mp, mp, P.pay_J[p]
@@ -288,16 +289,20 @@ def assemble(P, q, qd, M, f):
     b = nb - 1
     for j in range(N - 1, -1, -1):
         while b >= 0 and P.body_pos[b] >= P.fpos[j]:
-            Ic += Ib[b]
-            W += wb[b]
+            for r in range(3):
+                W[r] += wb[b, r]
+                for t in range(3):
+                    Ic[r, t] += Ib[b, r, t]
             b -= 1
-        sj = S[j]
-        F[j] = Ic @ sj
-        f[j] = sj @ W
-        G[j] = F[j]
+        s0, s1, s2 = S[j, 0], S[j, 1], S[j, 2]   # explicit 3-vectors: BLAS calls cost more here
+        f[j] = s0 * W[0] + s1 * W[1] + s2 * W[2]
+        for r in range(3):
+            F[j, r] = Ic[r, 0] * s0 + Ic[r, 1] * s1 + Ic[r, 2] * s2
+            G[j, r] = F[j, r]
         if P.kind[j] > 0:
             el, a = P.owner[j], P.kind[j] - 1
-            G[j] += Cel[el][:, a]
+            for r in range(3):
+                G[j, r] += Cel[el, r, a]
             f[j] += Fel[el, 3 + a]
     for j in range(N):
         own_j = P.owner[j]

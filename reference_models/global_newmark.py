@@ -1274,6 +1274,11 @@ def _check_engine(engine, integrator, opt) -> str:
         engine = "numba"
     if engine not in ENGINES:
         raise InputError("engine", engine, f"unknown engine (one of: {', '.join(ENGINES)})")
+    if engine == "numba":
+        try:
+            import numba  # noqa: F401
+        except ImportError:
+            raise InputError("engine", engine, "needs numba, which is not installed (extra 'fast')") from None
     if engine == "numba" and opt.get("linear_solver", "dense") == "sparse":
         raise InputError("linear_solver", "sparse", "is an option of engine='numpy' only")
     return engine
