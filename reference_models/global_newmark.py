@@ -12,10 +12,22 @@ coordinates of every element, and solved as
 
 f_int = K q for the linear element (``strain="linear"``, the default) or the gradient of the
 second-order strain energy (``strain="second-order"``, extensible links; see
-:func:`elastic_forces`); D = μK is always the linear Kelvin-Voigt damping.
+:func:`elastic_forces`). The Kelvin-Voigt damping acts on the rate of the same strain
+measure (:func:`damping_forces`): D q̇ with D = μK for the linear element.
 
-M and h come from the element kinematics through recursive Jacobians
-(M = Σ J_elᵀ M_el J_el); the cost per solve grows like N³ in the number N of coordinates.
+Two engines assemble and solve these equations. ``engine="numpy"`` forms M = Σ J_elᵀ M_el J_el
+from dense recursive Jacobians and solves by LU: the readable reference. ``engine="numba"``
+(the default when numba is installed; :mod:`reference_models._global_numba`) accumulates M
+column by column from composite body inertias (O(N²), no Jacobian products), solves by
+Cholesky, and runs the whole time loop compiled. Both agree to round-off. Either way the
+cost per solve grows like N³ in the number N of coordinates.
+
+Each step of Newmark / generalized-α iterates the accelerations with the elastic and
+damping forces linearised at the iterate, and stops by the same rule as
+:func:`dttmm.simulate`: max|Δq̈| ≤ tol·max(1, max|q̈|), or, from the 4th solve on, a change
+that stagnates at the round-off floor (Δ ≥ 0.9·Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)).
+A step that exhausts ``max_iterations`` makes the Result's status "unconverged".
+
 This module is an independent implementation: it shares with :mod:`dttmm` only the model,
 scenario and result classes, the step schedule and the errors.
 
@@ -41,7 +53,7 @@ from dttmm.scenario import Scenario
 from dttmm.timegrid import step_schedule, versions
 
 __all__ = ["simulate", "accelerations", "mass_matrix", "stiffness_matrix", "elastic_forces", "energy",
-           "kinematics", "coordinate_names", "element_mass", "INTEGRATORS", "STRAINS"]
+           "kinematics", "coordinate_names", "element_mass", "damping_forces", "INTEGRATORS", "STRAINS", "ENGINES"]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "radau", "dop853")
 STRAINS = ("linear", "second-order")
@@ -727,6 +739,33 @@ def elastic_forces(case, elements_per_link, q, strain="linear"):
     lay = _layout(case, elements_per_link, strain)
     f, KT = _internal(lay, _as_state(lay, q, "q"))
     return f.copy(), KT.copy()
+
+
+def damping_forces(case, elements_per_link, q, qd, strain="linear"):
+    """Kelvin-Voigt damping force and its rate tangent at a state.
+
+    Per element the dissipation function is R = ½ μ [EA l ε̇² + ẇᵀK_b ẇ], with w = (v, φ),
+    K_b as in :func:`elastic_forces` and ε̇ the rate of the element's strain measure:
+    ε̇ = u̇/l (``"linear"``) or ε̇ = u̇/l + wᵀGẇ (``"second-order"``, extensible links). So
+    f_d,u = μ EA ε̇ and f_d,w = μ (EA l ε̇ Gw + K_b ẇ); for the linear element f_d = μK q̇.
+
+    Parameters
+    ----------
+    case : dttmm.Case
+    elements_per_link : int
+    q, qd : (N,) array_like
+    strain : {"linear", "second-order"}
+
+    Returns
+    -------
+    f_d : (N,) ndarray
+        ∂R/∂q̇ (N or N·m per coordinate).
+    D_t : (N, N) ndarray
+        ∂f_d/∂q̇, symmetric, block diagonal per element.
+    """
+    lay = _layout(case, elements_per_link, strain)
+    fd, Dt = _damping(lay, _as_state(lay, q, "q"), _as_state(lay, qd, "qd"))
+    return fd.copy(), Dt.copy()
 
 
 def accelerations(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndarray:
