@@ -77,9 +77,10 @@ def pack(lay, case) -> Pack:
 # ----------------------------------------------------------------------------------------------
 
 @njit(cache=True)
-def _elastic(P, q):
+def _elastic(P, q, e):
+    """Elastic coordinates (or rates) per element into e (Nel, 3); zero where absent."""
     nel = P.e_idx.shape[0]
-    e = np.zeros((nel, 3))
+    e[:, :] = 0.0
     for el in range(nel):
         for a in range(3):
             j = P.e_idx[el, a]
@@ -89,10 +90,9 @@ def _elastic(P, q):
 
 
 @njit(cache=True)
-def _angles(P, q, e):
-    """Cross-section angle (or its rate) at every element's inboard node."""
+def _angles(P, q, e, th):
+    """Cross-section angle (or its rate) at every element's inboard node, into th (Nel,)."""
     nel = e.shape[0]
-    th = np.zeros(nel)
     acc = 0.0
     link = 0
     for el in range(nel):
@@ -102,18 +102,17 @@ def _angles(P, q, e):
             acc += q[P.alpha_idx[link]]
             link += 1
         th[el] = acc
-    return th
 
 
 @njit(cache=True)
-def frames(P, q):
-    """e (Nel, 3), θ (Nel,), cos θ, sin θ, r_I (Nel, 2), r_O (Nel, 2)."""
-    e = _elastic(P, q)
-    th = _angles(P, q, e)
+def frames(P, Wk, q):
+    """Into the workspace: e (Nel, 3), θ (Nel,), cos θ, sin θ, r_I (Nel, 2), r_O (Nel, 2)."""
+    e, th, c, s, rI, rO = Wk.e, Wk.th, Wk.c, Wk.s, Wk.rI, Wk.rO
+    _elastic(P, q, e)
+    _angles(P, q, e, th)
     nel = e.shape[0]
-    c, s = np.cos(th), np.sin(th)
-    rI = np.zeros((nel, 2))
-    rO = np.zeros((nel, 2))
+    for el in range(nel):
+        c[el], s[el] = np.cos(th[el]), np.sin(th[el])
     x = 0.0
     y = 0.0
     for el in range(nel):
@@ -122,14 +121,13 @@ def frames(P, q):
         x += c[el] * dx - s[el] * dy
         y += s[el] * dx + c[el] * dy
         rO[el, 0], rO[el, 1] = x, y
-    return e, th, c, s, rI, rO
 
 
 @njit(cache=True)
-def _twists(P, rI, rO, c, s):
-    """Twist s_j (N, 3) of every coordinate at the world origin."""
+def _twists(P, rI, rO, c, s, S):
+    """Twist s_j (N, 3) of every coordinate at the world origin, into S."""
     N = P.kind.size
-    S = np.zeros((N, 3))
+    S[:, :] = 0.0
     link = 0
     for j in range(N):
         kd = P.kind[j]
@@ -145,18 +143,16 @@ def _twists(P, rI, rO, c, s):
                 S[j, 1], S[j, 2] = -s[el], c[el]
             else:
                 S[j, 0], S[j, 1], S[j, 2] = 1.0, rO[el, 1], -rO[el, 0]
-    return S
 
 
 @njit(cache=True)
-def _bias(P, e, c, s, qd):
-    """Velocity-only accelerations of the inboard frames b_I and outboard nodes b_O (Nel, 2),
-    angular rates θ̇ (Nel,) and elastic rates ė (Nel, 3)."""
-    ed = _elastic(P, qd)
-    thd = _angles(P, qd, ed)
+def _bias(P, Wk, qd):
+    """Into the workspace: velocity-only accelerations of the inboard frames b_I and outboard
+    nodes b_O (Nel, 2), angular rates θ̇ (Nel,) and elastic rates ė (Nel, 3)."""
+    e, c, s, ed, thd, bI, bO = Wk.e, Wk.c, Wk.s, Wk.ed, Wk.thd, Wk.bI, Wk.bO
+    _elastic(P, qd, ed)
+    _angles(P, qd, ed, thd)
     nel = e.shape[0]
-    bI = np.zeros((nel, 2))
-    bO = np.zeros((nel, 2))
     x = 0.0
     y = 0.0
     for el in range(nel):
@@ -167,7 +163,6 @@ def _bias(P, e, c, s, qd):
         x += c[el] * lx - s[el] * ly
         y += s[el] * lx + c[el] * ly
         bO[el, 0], bO[el, 1] = x, y
-    return bI, bO, thd, ed
 
 
 # ----------------------------------------------------------------------------------------------
@@ -249,24 +244,41 @@ def _to_twist(r, M6, f6, Iout, wout, Cout):
     wout[2] = f6[1]
 
 
+Work = namedtuple("Work", ["e", "th", "c", "s", "rI", "rO", "S", "ed", "thd", "bI", "bO", "Ib", "wb",
+                           "Cel", "Fel", "Mel", "fel", "M3", "f3", "G", "F", "Ic", "W"])
+
+
+@njit(cache=True)
+def workspace(P):
+    """Work arrays of :func:`assemble_ws`, allocated once per run (at small N the
+    allocations would cost more than the arithmetic)."""
+    nel, N, nb = P.e_idx.shape[0], P.kind.size, P.body_pos.size
+    return Work(np.zeros((nel, 3)), np.zeros(nel), np.zeros(nel), np.zeros(nel), np.zeros((nel, 2)),
+                np.zeros((nel, 2)), np.zeros((N, 3)), np.zeros((nel, 3)), np.zeros(nel), np.zeros((nel, 2)),
+                np.zeros((nel, 2)), np.zeros((nb, 3, 3)), np.zeros((nb, 3)), np.zeros((nel, 3, 3)),
+                np.zeros((nel, 6)), np.zeros((6, 6)), np.zeros(6), np.zeros((3, 3)), np.zeros(3),
+                np.zeros((N, 3)), np.zeros((N, 3)), np.zeros((3, 3)), np.zeros(3))
+
+
 @njit(cache=True)
 def assemble(P, q, qd, M, f):
     """Fill M(q) (N, N) and f = Q_gravity − h(q, q̇) (N,) (no joint torques, no elastic or
     damping forces) by the composite-inertia recursion of the module docstring."""
-    e, _, c, s, rI, rO = frames(P, q)
-    S = _twists(P, rI, rO, c, s)
-    bI, bO, thd, ed = _bias(P, e, c, s, qd)
-    nel = e.shape[0]
+    assemble_ws(P, workspace(P), q, qd, M, f)
+
+
+@njit(cache=True)
+def assemble_ws(P, Wk, q, qd, M, f):
+    """:func:`assemble` with the work arrays given."""
+    frames(P, Wk, q)
+    e, c, s, rI, rO, S = Wk.e, Wk.c, Wk.s, Wk.rI, Wk.rO, Wk.S
+    _twists(P, rI, rO, c, s, S)
+    _bias(P, Wk, qd)
+    bI, bO, thd, ed = Wk.bI, Wk.bO, Wk.thd, Wk.ed
     nb = P.body_pos.size
-    Ib = np.zeros((nb, 3, 3))
-    wb = np.zeros((nb, 3))
-    Cel = np.zeros((nel, 3, 3))
-    Fel = np.zeros((nel, 6))
+    Ib, wb, Cel, Fel = Wk.Ib, Wk.wb, Wk.Cel, Wk.Fel
     SSel = P.SS
-    Mel = np.zeros((6, 6))
-    fel = np.zeros(6)
-    M3 = np.zeros((3, 3))
-    f3 = np.zeros(3)
+    Mel, fel, M3, f3 = Wk.Mel, Wk.fel, Wk.M3, Wk.f3
     for b in range(nb):
         el = P.body_el[b]
         p = P.body_pay[b]
@@ -282,10 +294,9 @@ def assemble(P, q, qd, M, f):
             f3[1] = mp * (P.gravity[1] - bO[el, 1])
             _to_twist(rO[el], M3, f3, Ib[b], wb[b], Cel[el, 0:0])
     N = P.kind.size
-    G = np.zeros((N, 3))
-    F = np.zeros((N, 3))
-    Ic = np.zeros((3, 3))
-    W = np.zeros(3)
+    G, F, Ic, W = Wk.G, Wk.F, Wk.Ic, Wk.W
+    Ic[:, :] = 0.0
+    W[:] = 0.0
     b = nb - 1
     for j in range(N - 1, -1, -1):
         while b >= 0 and P.body_pos[b] >= P.fpos[j]:
@@ -492,7 +503,7 @@ def _load_drives(P, tq, mo, Q, tau_link):
 
 
 @njit(cache=True)
-def _iterate(P, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, stats):
+def _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f):
     """Iterate one step's q̈ (in place in x); returns (τ of the prescribed joints, solves,
     converged). Stopping rule as DT-TMM: max|Δq̈| ≤ tol·max(1, max|q̈|), or stagnation at the
     round-off floor (from the 4th solve on, Δ ≥ 0.9 Δ_prev and Δ ≤ 1e3·tol·scale)."""
@@ -511,7 +522,7 @@ def _iterate(P, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, stats
             qdi[i] = qtd[i] + cv * x[i]
         for r in range(Pp.size):
             qi[Pp[r]], qdi[Pp[r]] = mo[r, 0], mo[r, 1]
-        assemble(P, qi, qdi, M, f)
+        assemble_ws(P, Wk, qi, qdi, M, f)
         rhs = f + Q
         add_elastic(P, qi, qdi, cq, cv, M, rhs, x)
         new = x.copy()
@@ -598,6 +609,7 @@ def run(P, coef, itmode, nfix, tol, maxit, t_end, restart, tq_l, mo_l, tq_r, mo_
     M = np.empty((N, N))
     f = np.empty(N)
     Q = np.zeros(N)
+    Wk = workspace(P)
     Pp = P.presc
     c = int(stats[4])
     t0 = 0.0
@@ -617,8 +629,7 @@ def run(P, coef, itmode, nfix, tol, maxit, t_end, restart, tq_l, mo_l, tq_r, mo_
         x = qdd.copy()
         for r in range(Pp.size):
             x[Pp[r]] = mo_l[n, r, 2]
-        tau_p, ns, ok = _iterate(P, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo_l[n], M, f,
-                                 stats)
+        tau_p, ns, ok = _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo_l[n], M, f)
         stats[0] += ns
         stats[1] = max(stats[1], ns)
         if not ok:
