@@ -161,7 +161,7 @@ def _write(path: Path, rows: list[dict]):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small sizes, 1 repeat (a smoke run)")
-    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--out", type=Path, default=Path("data/bench"))
     ap.add_argument("--skip-engines", action="store_true")
     args = ap.parse_args(argv)

@@ -613,8 +613,7 @@ def run(P, coef, itmode, nfix, tol, maxit, t_end, restart, tq_l, mo_l, tq_r, mo_
     Pp = P.presc
     c = int(stats[4])
     t0 = 0.0
-    h_nom = t_end[0]
-    tol_t = 1e-9 * h_nom
+    tol_t = 1e-9 * t_end[0] if t_end.size else 0.0
     for n in range(t_end.size):
         stats[3] = n
         t1 = t_end[n]
