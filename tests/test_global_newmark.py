@@ -17,6 +17,13 @@ from reference_models import global_newmark as gn
 
 CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
 
+try:
+    import numba  # noqa: F401
+    _ENGINES = ["numpy", "numba"]
+except ImportError:  # the compiled engine is optional (extra "fast")
+    _ENGINES = ["numpy"]
+needs_numba = pytest.mark.skipif("numba" not in _ENGINES, reason="numba not installed")
+
 
 # ----------------------------------------------------------------------------------------------
 # helpers
@@ -412,7 +419,7 @@ def test_non_finite_state_raises_with_partial_result():
     ({"maxiter": 3}, "maxiter"),
     ({"max_iterations": 0}, "max_iterations"),
     ({"engine": "fortran"}, "engine"),
-    ({"linear_solver": "sparse", "engine": "numba"}, "linear_solver"),
+    pytest.param({"linear_solver": "sparse", "engine": "numba"}, "linear_solver", marks=needs_numba),
 ])
 def test_bad_settings_are_refused_naming_the_field(kwargs, field):
     args = {"elements_per_link": 2, "h": 1e-3, **kwargs}
@@ -588,6 +595,7 @@ _ENGINE_RUNS = [  # (case, damping μ, k, h)
 ]
 
 
+@needs_numba
 @pytest.mark.parametrize("strain", ["linear", "second-order"])
 @pytest.mark.parametrize("integrator", ["newmark", "generalized-alpha"])
 @pytest.mark.parametrize("name, mu, k, h", _ENGINE_RUNS)
@@ -607,6 +615,7 @@ def test_compiled_engine_agrees_with_numpy_engine(name, mu, k, h, integrator, st
     assert abs(a.meta["iterations_mean"] - b.meta["iterations_mean"]) <= 0.05 * a.meta["iterations_mean"]
 
 
+@needs_numba
 def test_compiled_assembly_equals_dense_jacobian_products():
     """M(q) and the velocity/gravity forces of the recursion equal Σ JᵀM_el J at random states
     (extensible and inextensible links, hubs and a payload)."""
@@ -623,7 +632,7 @@ def test_compiled_assembly_equals_dense_jacobian_products():
             assert np.abs(f - f0).max() <= 1e-13 * np.abs(f0).max()
 
 
-@pytest.mark.parametrize("engine", ["numpy", "numba"])
+@pytest.mark.parametrize("engine", _ENGINES)
 def test_exhausted_iterations_give_status_unconverged_with_the_time(engine):
     case = _shorten(_load("three_link"), 0.01, 0.005)
     res = gn.simulate(case, elements_per_link=2, h=1e-3, max_iterations=1, engine=engine)
@@ -634,7 +643,7 @@ def test_exhausted_iterations_give_status_unconverged_with_the_time(engine):
     assert ok.status == "ok" and ok.success and ok.warnings == ()
 
 
-@pytest.mark.parametrize("engine", ["numpy", "numba"])
+@pytest.mark.parametrize("engine", _ENGINES)
 def test_stagnation_at_the_round_off_floor_counts_as_converged(engine):
     """A tolerance near round-off (1e-15) is met by chance only; the iteration stops on stagnation
     (as dttmm.simulate does) instead of running to max_iterations."""
@@ -644,6 +653,7 @@ def test_stagnation_at_the_round_off_floor_counts_as_converged(engine):
     assert res.meta["iterations_max"] < 50
 
 
+@needs_numba
 def test_non_finite_state_raises_with_partial_result_compiled_engine():
     class BrokenAfter(Constant):
         def __call__(self, t, left=False):
@@ -717,7 +727,8 @@ def _elastica_tip(L, EI, w):
     return np.array([sol.y[2, -1], sol.y[3, -1]])
 
 
-@pytest.mark.parametrize("k, engine, tol", [(8, "numba", 3e-3), (16, "numba", 4e-4), (8, "numpy", 3e-3)])
+@pytest.mark.parametrize("k, engine, tol", [pytest.param(8, "numba", 3e-3, marks=needs_numba),
+                                             pytest.param(16, "numba", 4e-4, marks=needs_numba), (8, "numpy", 3e-3)])
 def test_damped_second_order_cantilever_settles_to_the_elastica(k, engine, tol):
     """Heavy cantilever (Exudyn's self-weight test: L = 2 m, ρA = 78 kg/m, EI = 833.3 N·m²)
     made nearly inextensible (EA = 1e9 N), μ = 0.35 s, dropped from straight: with the damping
