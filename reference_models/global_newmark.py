@@ -12,10 +12,22 @@ coordinates of every element, and solved as
 
 f_int = K q for the linear element (``strain="linear"``, the default) or the gradient of the
 second-order strain energy (``strain="second-order"``, extensible links; see
-:func:`elastic_forces`); D = μK is always the linear Kelvin-Voigt damping.
+:func:`elastic_forces`). The Kelvin-Voigt damping acts on the rate of the same strain
+measure (:func:`damping_forces`): D q̇ with D = μK for the linear element.
 
-M and h come from the element kinematics through recursive Jacobians
-(M = Σ J_elᵀ M_el J_el); the cost per solve grows like N³ in the number N of coordinates.
+Two engines assemble and solve these equations. ``engine="numpy"`` forms M = Σ J_elᵀ M_el J_el
+from dense recursive Jacobians and solves by LU: the readable reference. ``engine="numba"``
+(the default when numba is installed; :mod:`reference_models._global_numba`) accumulates M
+column by column from composite body inertias (O(N²), no Jacobian products), solves by
+Cholesky, and runs the whole time loop compiled. Both agree to round-off. Either way the
+cost per solve grows like N³ in the number N of coordinates.
+
+Each step of Newmark / generalized-α iterates the accelerations with the elastic and
+damping forces linearised at the iterate, and stops by the same rule as
+:func:`dttmm.simulate`: max|Δq̈| ≤ tol·max(1, max|q̈|), or, from the 4th solve on, a change
+that stagnates at the round-off floor (Δ ≥ 0.9·Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)).
+A step that exhausts ``max_iterations`` makes the Result's status "unconverged".
+
 This module is an independent implementation: it shares with :mod:`dttmm` only the model,
 scenario and result classes, the step schedule and the errors.
 
@@ -41,10 +53,11 @@ from dttmm.scenario import Scenario
 from dttmm.timegrid import step_schedule, versions
 
 __all__ = ["simulate", "accelerations", "mass_matrix", "stiffness_matrix", "elastic_forces", "energy",
-           "kinematics", "coordinate_names", "element_mass", "INTEGRATORS", "STRAINS"]
+           "kinematics", "coordinate_names", "element_mass", "damping_forces", "INTEGRATORS", "STRAINS", "ENGINES"]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "radau", "dop853")
 STRAINS = ("linear", "second-order")
+ENGINES = ("numba", "numpy")
 _STEPPED = ("newmark", "generalized-alpha")
 _MAX_SOLVES = 50
 _N_GAUSS = 4  # exact for the degree-6 polynomials of the mass matrix and velocity terms
@@ -99,6 +112,7 @@ class _Layout:
     EA: np.ndarray | None = None      # (Nel,) axial stiffness, 0 for an inextensible link
     EI: np.ndarray | None = None      # (Nel,)
     second: np.ndarray | None = None  # (Nel,) bool: element uses the second-order strain
+    mu: np.ndarray | None = None      # (Nel,) Kelvin-Voigt damping coefficient μ (s)
 
 
 def _shape_matrices(length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -238,7 +252,8 @@ def _layout(case, k, strain="linear") -> _Layout:
         **_moments(length, rhoA), mass=rhoA * length, hub_m=hub_m, hub_J=hub_J, payloads=payloads,
         gravity=np.array(case.model.gravity, float), motion=motion,
         free=np.setdiff1d(np.arange(N), presc), presc=presc, strain=strain,
-        nonlinear=bool(second.any()), EA=EA, EI=EI, second=second)
+        nonlinear=bool(second.any()), EA=EA, EI=EI, second=second,
+        mu=np.repeat([float(lk.beam.damping) for lk in links], k))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -290,21 +305,64 @@ def _element_elastic(lay: _Layout, e: np.ndarray):
     return U, f, KT
 
 
+def _element_damping(lay: _Layout, e: np.ndarray, ed: np.ndarray):
+    """Per-element Kelvin-Voigt damping force f_d (Nel, 3) and its rate tangent D_t (Nel, 3, 3)
+    on (u, v, φ), acting on the rate of the element's own strain measure.
+
+    Dissipation R = ½ μ [EA l ε̇² + ẇᵀK_b ẇ] with ε̇ = u̇/l (+ wᵀGẇ, second order), so
+    f_d,u = μ EA ε̇, f_d,w = μ (EA l ε̇ Gw + K_b ẇ) and D_t = ∂f_d/∂ė = μ (K_T without its
+    ε G term). For the linear element f_d = μK ė and D_t = μK. The dependence of f_d on e
+    (through Gw) stays out of D_t: it keeps the iteration matrix symmetric, and the residual
+    is exact, so the converged step does not depend on it.
+    """
+    l, EA, EI, mu = lay.length, lay.EA, lay.EI, lay.mu
+    nel = l.size
+    c = EI / l**3
+    Kb = np.empty((nel, 2, 2))
+    Kb[:, 0, 0] = 12.0 * c
+    Kb[:, 0, 1] = Kb[:, 1, 0] = -6.0 * c * l
+    Kb[:, 1, 1] = 4.0 * c * l * l
+    w, wd = e[:, 1:], ed[:, 1:]
+    Gw = _matvec(_chord_matrix(l), w) * lay.second[:, None]
+    epsd = ed[:, 0] / l + np.sum(wd * Gw, axis=1)
+    fd = np.empty((nel, 3))
+    fd[:, 0] = mu * EA * epsd
+    fd[:, 1:] = mu[:, None] * ((EA * l * epsd)[:, None] * Gw + _matvec(Kb, wd))
+    Dt = np.empty((nel, 3, 3))
+    Dt[:, 0, 0] = mu * EA / l
+    Dt[:, 0, 1:] = Dt[:, 1:, 0] = (mu * EA)[:, None] * Gw
+    Dt[:, 1:, 1:] = mu[:, None, None] * ((EA * l)[:, None, None] * (Gw[:, :, None] * Gw[:, None, :]) + Kb)
+    return fd, Dt
+
+
+def _scatter(lay: _Layout, f_el: np.ndarray, K_el: np.ndarray):
+    """Element vectors (Nel, 3) and blocks (Nel, 3, 3) into (N,) and (N, N)."""
+    have = lay.e_idx >= 0
+    f = np.zeros(lay.n_dof)
+    f[lay.e_idx[have]] = f_el[have]
+    el, a, b = np.nonzero(have[:, :, None] & have[:, None, :])
+    K = np.zeros((lay.n_dof, lay.n_dof))
+    K[lay.e_idx[el, a], lay.e_idx[el, b]] = K_el[el, a, b]
+    return f, K
+
+
+def _damping(lay: _Layout, q: np.ndarray, qd: np.ndarray):
+    """Damping force f_d(q, q̇) (N,) and its rate tangent D_t (N, N); D q̇ and D (= μK) for
+    the linear element."""
+    if not lay.nonlinear:
+        return lay.D @ qd, lay.D
+    fd, Dt = _element_damping(lay, _elastic(lay, q), _elastic(lay, qd))
+    return _scatter(lay, fd, Dt)
+
+
 def _internal(lay: _Layout, q: np.ndarray):
     """Internal elastic force f_int(q) (N,) and its Jacobian K_T(q) (N, N).
 
     For the linear element f_int = K q and K_T = K exactly (the constant matrix)."""
     if not lay.nonlinear:
         return lay.K @ q, lay.K
-    e = _elastic(lay, q)
-    _, f_el, KT_el = _element_elastic(lay, e)
-    have = lay.e_idx >= 0
-    f = np.zeros(lay.n_dof)
-    f[lay.e_idx[have]] = f_el[have]
-    el, a, b = np.nonzero(have[:, :, None] & have[:, None, :])
-    KT = np.zeros((lay.n_dof, lay.n_dof))
-    KT[lay.e_idx[el, a], lay.e_idx[el, b]] = KT_el[el, a, b]
-    return f, KT
+    _, f_el, KT_el = _element_elastic(lay, _elastic(lay, q))
+    return _scatter(lay, f_el, KT_el)
 
 
 def _strain_energy(lay: _Layout, q: np.ndarray) -> float:
@@ -578,7 +636,7 @@ def _forward(case, lay, q, qd, t, left, how="dense", sel=None):
     pres = _prescribed(case, lay, t, left)
     M, f = _assemble(lay, q, qd, sel)
     if lay.nonlinear:
-        rhs = f + _torques(case, lay, t, left) - _internal(lay, q)[0] - lay.D @ qd
+        rhs = f + _torques(case, lay, t, left) - _internal(lay, q)[0] - _damping(lay, q, qd)[0]
     else:
         rhs = f + _torques(case, lay, t, left) - lay.K @ q - lay.D @ qd
     qdd = np.zeros(lay.n_dof)
@@ -683,6 +741,33 @@ def elastic_forces(case, elements_per_link, q, strain="linear"):
     return f.copy(), KT.copy()
 
 
+def damping_forces(case, elements_per_link, q, qd, strain="linear"):
+    """Kelvin-Voigt damping force and its rate tangent at a state.
+
+    Per element the dissipation function is R = ½ μ [EA l ε̇² + ẇᵀK_b ẇ], with w = (v, φ),
+    K_b as in :func:`elastic_forces` and ε̇ the rate of the element's strain measure:
+    ε̇ = u̇/l (``"linear"``) or ε̇ = u̇/l + wᵀGẇ (``"second-order"``, extensible links). So
+    f_d,u = μ EA ε̇ and f_d,w = μ (EA l ε̇ Gw + K_b ẇ); for the linear element f_d = μK q̇.
+
+    Parameters
+    ----------
+    case : dttmm.Case
+    elements_per_link : int
+    q, qd : (N,) array_like
+    strain : {"linear", "second-order"}
+
+    Returns
+    -------
+    f_d : (N,) ndarray
+        ∂R/∂q̇ (N or N·m per coordinate).
+    D_t : (N, N) ndarray
+        ∂f_d/∂q̇, symmetric, block diagonal per element.
+    """
+    lay = _layout(case, elements_per_link, strain)
+    fd, Dt = _damping(lay, _as_state(lay, q, "q"), _as_state(lay, qd, "qd"))
+    return fd.copy(), Dt.copy()
+
+
 def accelerations(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndarray:
     """Forward dynamics q̈ = M⁻¹(Q − h − f_int(q) − Dq̇) (f_int = Kq for the linear element).
 
@@ -758,14 +843,15 @@ def energy(case, elements_per_link, q, qd, strain="linear") -> dict:
     return _energy(lay, q, qd)
 
 
-def _energy(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> dict:
+def _energy(lay: _Layout, q: np.ndarray, qd: np.ndarray, kinetic=None) -> dict:
     fr = _frames(lay, q)
     sigma = lay.sigma0 + _matvec(lay.Sbar, fr.e)
     first = (lay.mass + lay.hub_m)[:, None] * fr.rI + _matvec(fr.A, sigma)
     moment = first.sum(axis=0)
     for i, mp, _ in lay.payloads:
         moment = moment + mp * fr.rO[lay.last_el[i]]
-    return {"kinetic": _kinetic(lay, q, qd), "elastic": _strain_energy(lay, q),
+    T = _kinetic(lay, q, qd) if kinetic is None else kinetic(q, qd)
+    return {"kinetic": T, "elastic": _strain_energy(lay, q),
             "gravity": -float(lay.gravity @ moment)}
 
 
@@ -802,8 +888,10 @@ def element_mass(rhoA, length, theta=0.0, e=(0.0, 0.0, 0.0)) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 
 _OPTIONS = {
-    "newmark": {"beta": 0.25, "gamma": 0.5, "iterations": None, "tol": 1e-10, "linear_solver": "dense"},
-    "generalized-alpha": {"rho_inf": 0.9, "iterations": None, "tol": 1e-10, "linear_solver": "dense"},
+    "newmark": {"beta": 0.25, "gamma": 0.5, "iterations": None, "tol": 1e-10, "max_iterations": _MAX_SOLVES,
+                "linear_solver": "dense"},
+    "generalized-alpha": {"rho_inf": 0.9, "iterations": None, "tol": 1e-10, "max_iterations": _MAX_SOLVES,
+                          "linear_solver": "dense"},
     "radau": {"rtol": 1e-10, "atol": 1e-12},
     "dop853": {"rtol": 1e-10, "atol": 1e-12},
 }
@@ -840,6 +928,10 @@ def _check_options(integrator, options: dict) -> dict:
         m = opt["iterations"]
         if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 0:
             raise InputError("iterations", m, "must be None or an integer >= 0")
+    if "max_iterations" in opt:
+        m = opt["max_iterations"]
+        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+            raise InputError("max_iterations", m, "must be an integer >= 1")
     if "linear_solver" in opt and opt["linear_solver"] not in ("dense", "sparse"):
         raise InputError("linear_solver", opt["linear_solver"], "must be 'dense' or 'sparse'")
     return opt
@@ -892,7 +984,7 @@ class _Recorder:
     def next_time(self) -> float:
         return self.t[self.count] if self.count < self.t.size else math.inf
 
-    def result(self, lay, wall, n_steps, meta) -> "object":
+    def result(self, lay, wall, n_steps, meta, status=None, warnings=(), kinetic=None) -> object:
         n = self.count
         nl = lay.n_links
         root = np.zeros((n, nl, 2))
@@ -902,12 +994,13 @@ class _Recorder:
         for i in range(n):
             fr = _link_frames(lay, self.q[i])
             root[i], tip[i], root_ang[i] = fr["root"], fr["tip"], fr["root_angle"]
-            e = _energy(lay, self.q[i], self.qd[i])
+            e = _energy(lay, self.q[i], self.qd[i], kinetic)
             en[i] = e["kinetic"] + e["elastic"] + e["gravity"]
         a = lay.alpha_idx
         return make_result(t=self.t[:n], joint_angle=self.q[:n, a], joint_rate=self.qd[:n, a],
                            joint_torque=self.tau[:n], link_root=root, link_root_angle=root_ang,
-                           link_tip=tip, wall_time=wall, n_steps=n_steps, meta=meta, energy=en)
+                           link_tip=tip, wall_time=wall, n_steps=n_steps, meta=meta, energy=en,
+                           status=status, warnings=warnings)
 
 
 def _joint_torques(case, lay, t, left, tau_p) -> np.ndarray:
@@ -953,10 +1046,15 @@ def _fail(rec, lay, wall, n_steps, meta, q, t, step, names):
 def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
     """Frozen-coefficient iteration of one step ending at t1 (left-limit drive values).
 
-    Iterate i solves [M(q_i) + c_v D + c_q K_T(q_i)] q̈^(i+1) = Q − h(q_i, q̇_i) − f_int(q_i)
-    − K_T(q_i)(q̃ − q_i) − D q̃' with q_i = q̃ + c_q q̈^(i): the elastic forces are linearised
-    at the iterate (Newton). For the linear element (f_int = Kq, K_T = K) this is
-    [M + c_v D + c_q K] q̈ = Q − h − K q̃ − D q̃'.
+    Iterate i solves [M(q_i) + c_v D_t + c_q K_T] q̈^(i+1) = Q − h(q_i, q̇_i) − f_int(q_i)
+    − f_d(q_i, q̇_i) + (c_q K_T + c_v D_t) q̈^(i) with q_i = q̃ + c_q q̈^(i), q̇_i = q̃' + c_v q̈^(i):
+    the elastic and damping forces are linearised at the iterate (K_T, D_t at q_i). For the
+    linear element (f_int = Kq, f_d = Dq̇) this is [M + c_v D + c_q K] q̈ = Q − h − K q̃ − D q̃'.
+
+    Stopping rule (the one of :func:`dttmm.simulate`): converged when
+    max|Δq̈| ≤ tol·max(1, max|q̈|), or when from the 4th solve on the change stagnates at the
+    round-off floor (Δ ≥ 0.9 Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)); at most
+    ``max_iterations`` solves. ``iterations = m`` makes exactly m + 1 solves.
 
     Returns (q̈, τ of motion joints, number of solves, converged flag).
     """
@@ -964,17 +1062,16 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
     pres = _prescribed(case, lay, t1, True)
     Qt = _torques(case, lay, t1, True)
     if lay.nonlinear:
-        Aeff_const = cv * lay.D
-        rhs_const = Qt - lay.D @ qtd
+        rhs_const = Qt
     else:
         Aeff_const = cv * lay.D + cq * lay.K
         rhs_const = Qt - lay.K @ qt - lay.D @ qtd
     qdd = qdd0.copy()
     qdd[P] = pres[:, 2]
     m = ctx["iterations"]
-    n_solves = _MAX_SOLVES if m is None else m + 1
+    n_solves = ctx["max_iterations"] if m is None else m + 1
     prev = math.inf
-    converged = True
+    converged = m is not None
     for i in range(n_solves):
         q = qt + cq * qdd
         qd = qtd + cv * qdd
@@ -982,8 +1079,10 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
         M, f = _assemble(lay, q, qd, ctx["sel"])
         if lay.nonlinear:
             fi, KT = _internal(lay, q)
-            A = M + Aeff_const + cq * KT
-            rhs = f + rhs_const - fi - KT @ (qt - q)
+            fd, Dt = _damping(lay, q, qd)
+            B = cq * KT + cv * Dt
+            A = M + B
+            rhs = f + rhs_const - fi - fd + B @ qdd
         else:
             A = M + Aeff_const
             rhs = f + rhs_const
@@ -996,10 +1095,12 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
             break
         if m is not None:
             continue
-        if delta <= ctx["tol"] * max(1.0, np.max(np.abs(new))):
+        scale = max(1.0, np.max(np.abs(new)))
+        if delta <= ctx["tol"] * scale:
+            converged = True
             break
-        if delta >= prev or i == n_solves - 1:
-            converged = False
+        if i >= 3 and delta >= 0.9 * prev and delta <= 1e3 * ctx["tol"] * scale:
+            converged = True  # stagnation at the round-off floor
             break
         prev = delta
     tau_p = A[P] @ qdd - rhs[P]
@@ -1074,7 +1175,7 @@ def _newmark_run(case, lay, k, h, integrator, opt):
     t_end, restart = step_schedule(case.scenario.duration, h, case.scenario.breakpoints)
     rec = _Recorder(lay, case.scenario.output_times)
     ctx = {"iterations": opt["iterations"], "tol": opt["tol"], "linear_solver": opt["linear_solver"],
-           "sel": _element_selector(lay)}
+           "max_iterations": opt["max_iterations"], "sel": _element_selector(lay)}
     meta = _base_meta(lay, k, h, integrator, opt)
     meta.update(dict(zip(("beta", "gamma", "alpha_m", "alpha_f"), coef)))
     tol_t = 1e-9 * h
@@ -1093,9 +1194,20 @@ def _newmark_run(case, lay, k, h, integrator, opt):
         st = _restart(case, lay, ctx, new) if restart[n] else new
     wall = time.perf_counter() - wall0
     meta.update({"iterations_mean": float(np.mean(solves)), "iterations_max": int(np.max(solves)),
-                 "time_per_step": wall / len(t_end), "unconverged_steps": len(unconverged),
-                 "unconverged_step_indices": unconverged[:20]})
-    return rec.result(lay, wall, len(t_end), meta)
+                 "time_per_step": wall / len(t_end)})
+    status, warn = _convergence(meta, unconverged, t_end, opt)
+    return rec.result(lay, wall, len(t_end), meta, status=status, warnings=warn)
+
+
+def _convergence(meta: dict, unconverged, t_end, opt):
+    """Record the unconverged steps in ``meta``; status and warning for the Result."""
+    meta.update({"unconverged_steps": len(unconverged), "unconverged_step_indices": list(unconverged[:20])})
+    if not unconverged:
+        return "ok", ()
+    first = float(t_end[unconverged[0]])
+    msg = (f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
+           f"{len(unconverged)} step(s), first at t = {first:.6g} s")
+    return "unconverged", (msg,)
 
 
 def _emit_outputs(case, lay, rec, start: _State, end: _State, tol_t):
@@ -1191,7 +1303,27 @@ def _record_samples(case, lay, rec, samples, sel):
 # Entry point
 # ----------------------------------------------------------------------------------------------
 
-def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear", **options):
+def _check_engine(engine, integrator, opt) -> str:
+    """"numba" or "numpy"; None → "numba" when numba imports."""
+    if engine is None:
+        try:
+            import numba  # noqa: F401
+        except ImportError:
+            return "numpy"
+        engine = "numba"
+    if engine not in ENGINES:
+        raise InputError("engine", engine, f"unknown engine (one of: {', '.join(ENGINES)})")
+    if engine == "numba":
+        try:
+            import numba  # noqa: F401
+        except ImportError:
+            raise InputError("engine", engine, "needs numba, which is not installed (extra 'fast')") from None
+    if engine == "numba" and opt.get("linear_solver", "dense") == "sparse":
+        raise InputError("linear_solver", "sparse", "is an option of engine='numpy' only")
+    return engine
+
+
+def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear", engine=None, **options):
     """Simulate ``case`` with the global equations of the DT-TMM discretisation.
 
     Parameters
@@ -1207,19 +1339,28 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
         ``"newmark"`` (options ``beta`` = 0.25, ``gamma`` = 0.5) and ``"generalized-alpha"``
         (option ``rho_inf`` = 0.9) step the schedule of :func:`dttmm.timegrid.step_schedule`
         with the frozen-coefficient iteration (options ``iterations`` = None for
-        tolerance-driven with ``tol`` = 1e-10, or m for exactly m + 1 solves per step;
-        ``linear_solver`` = "dense" | "sparse"). ``"radau"`` and ``"dop853"`` integrate the
+        tolerance-driven with ``tol`` = 1e-10 and at most ``max_iterations`` = 50 solves, or
+        m for exactly m + 1 solves per step; ``linear_solver`` = "dense" | "sparse", the
+        latter with ``engine="numpy"`` only). ``"radau"`` and ``"dop853"`` integrate the
         first-order form with scipy's ``solve_ivp`` (options ``rtol`` = 1e-10,
         ``atol`` = 1e-12), restarted at every drive breakpoint.
     strain : {"linear", "second-order"}
         Element strain measure (see :func:`elastic_forces`). With ``"second-order"`` the
         stepped integrators linearise the elastic forces at every iterate (Newton), exactly
-        as :func:`dttmm.simulate` does.
+        as :func:`dttmm.simulate` does, and the Kelvin-Voigt damping acts on the rate of the
+        same strain (see :func:`damping_forces`).
+    engine : {"numba", "numpy", None}
+        For ``"newmark"``/``"generalized-alpha"``: ``"numba"`` (compiled recursive assembly,
+        Cholesky solve and time loop; the default when numba is installed) or ``"numpy"``
+        (dense Jacobian products and LU; the readable reference, same results to round-off).
+        The adaptive integrators always use the numpy engine.
 
     Returns
     -------
     dttmm.Result
         Sampled on ``case.scenario.output_times``; ``wall_time`` covers the stepping only.
+        ``status`` is "unconverged" (with a warning naming the first such time) when some
+        step exhausted ``max_iterations``.
 
     Raises
     ------
@@ -1232,7 +1373,12 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     k = _check_k(elements_per_link)
     h = _check_h(case, h)
     opt = _check_options(integrator, options)
+    engine = _check_engine(engine, integrator, opt)
     lay = _layout(case, k, strain)
     if integrator in _STEPPED:
+        if engine == "numba":
+            from . import _global_compiled
+
+            return _global_compiled.run(case, lay, k, h, integrator, opt)
         return _newmark_run(case, lay, k, h, integrator, opt)
     return _ivp_run(case, lay, k, h, integrator, opt)
