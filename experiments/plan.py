@@ -165,3 +165,8 @@ PLANS = {
         variants=_VARIANTS_FULL,
     ),
 }
+
+# Benchmark problems (experiments/studies/benchmarks.py); quick: spin-up runs end after the peak.
+_BENCH = {"quick": {"ks": [2, 4, 8, 16], "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0)},
+          "full": {"ks": [2, 4, 8, 16, 32]}}
+PLANS = {n: p.with_studies(benchmarks=_BENCH[n]) for n, p in PLANS.items()}

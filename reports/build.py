@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import bench, figures, interpret
+from . import bench, benchmarks, figures, interpret
 from .render import Section, write
 
 __all__ = ["build", "omissions"]
@@ -117,6 +117,7 @@ def _sections(tables, meta, out, bench_dir):
             ["cost_exponents"],
             interpret.cost(t, e)[0],
         )
+    secs += benchmarks.sections(tables, fig_dir)
     sec, head = _bench_section(tables, fig_dir, bench_dir)
     secs.append(sec)
     if head:
