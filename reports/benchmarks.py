@@ -154,6 +154,7 @@ def sections(tables: dict, fig_dir) -> list:
     orders = tables.get("benchmarks_orders", pd.DataFrame(columns=["problem", "quantity", "method", "order"]))
     info = tables.get("benchmarks_problems", pd.DataFrame())
     fig_dir = Path(fig_dir)
+    fig_dir.mkdir(parents=True, exist_ok=True)
     data_dir = fig_dir.parent / "data"
     data_dir.mkdir(parents=True, exist_ok=True)
     figs, text, tabs = [], [_intro()], []

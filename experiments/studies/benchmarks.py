@@ -109,10 +109,21 @@ def _ref_task(name, case, prov):
 
 
 # ----------------------------------------------------------------------------- tasks
+def _methods(params: dict, kind: str) -> list:
+    """The methods run on a problem of this kind: SETTINGS, narrowed to the plan's ``methods``
+    when it names some."""
+    chosen = params.get("methods")
+    return [m for m in SETTINGS[kind]["methods"] if chosen is None or m in chosen]
+
+
 def tasks(ctx) -> list:
     """Every applicable method at every k of the plan (one run for the rigid baseline), plus
     the reference run of the problems compared against one. The benchmark cases are added to
-    ``ctx.cases`` under their own names."""
+    ``ctx.cases`` under their own names.
+
+    Plan parameters (``ctx.plan.studies["benchmarks"]``): ``ks`` (elements per link),
+    ``problems`` (case-file names, default all), ``durations`` (name -> shortened duration, s),
+    ``methods`` (optional: only these of each problem's methods)."""
     p = ctx.plan.studies[NAME]
     out = []
     for name, (case, prov) in problems(p.get("problems")).items():
@@ -122,7 +133,7 @@ def tasks(ctx) -> list:
         case = _shortened(case, p.get("durations", {}).get(name))
         ctx.cases[name] = case
         T, h = case.scenario.duration, SETTINGS[kind]["h"]
-        for m in SETTINGS[kind]["methods"]:
+        for m in _methods(p, kind):
             ks = [0] if m == "pinocchio-rigid" else p["ks"]
             out += [Task(name, m, k, h, T) for k in ks]
         ref = _ref_task(name, case, prov)
@@ -156,6 +167,33 @@ def tip_displacement(res, case, component: str) -> tuple:
     j = int(np.searchsorted(res.t, res.t[-1] - SETTLE_WINDOW))
     moved = float(np.max(np.linalg.norm(ee[j:] - ee[-1], axis=1)))
     return float(ee[-1, i] - start[i]), moved
+
+
+def elastica_tip(alpha: float) -> tuple:
+    """Tip of the inextensible cantilever elastica under a transverse end load (Bisshopp &
+    Drucker 1945): (x/L, deflection/L, tip angle in rad) for the load parameter
+    alpha = P L² / EI > 0.
+
+    With p = sin(π/4 + θ_L/2) and sin φ₁ = 1/(p√2): √alpha = K(p) − F(φ₁, p),
+    x/L = √(2(2p² − 1)/alpha), deflection/L = 1 − (2/√alpha)(E(p) − E(φ₁, p)), θ_L = asin(2p² − 1).
+    """
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
+
+    if not alpha > 0:
+        raise ValueError(f"elastica: alpha = {alpha!r} must be positive")
+
+    def phi1(p):
+        return np.arcsin(min(1.0, 1 / (p * np.sqrt(2))))
+
+    def gap(p):
+        return ellipk(p * p) - ellipkinc(phi1(p), p * p) - np.sqrt(alpha)
+
+    p = brentq(gap, 1 / np.sqrt(2), 1 - 1e-15, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    m, f1 = p * p, phi1(p)
+    x = np.sqrt(2 * (2 * m - 1) / alpha)
+    defl = 1 - 2 / np.sqrt(alpha) * (ellipe(m) - ellipeinc(f1, m))
+    return float(x), float(defl), float(np.arcsin(2 * m - 1))
 
 
 def _on_grid(res, ref):
@@ -297,23 +335,21 @@ def _task_of(r):
     return Task(r["case"], r["method"], r["k"], r["h"], r["duration"])
 
 
-def frequency_rows(name, case, prov, ks) -> list:
+_FAILS = (ImportError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+
+
+def frequency_rows(name, case, prov, ks, plan_params=None) -> list:
     """Rows of the clamped-link frequency problems: every method with forward dynamics, each k."""
-    rows = []
-    for m in SETTINGS["frequencies"]["methods"]:
+    rows, n = [], len(prov["values"])
+    for m in _methods(plan_params or {}, "frequencies"):
+        fine = _fine_frequencies(case, m, n)
         for k in ks:
             r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
             try:
-                f = frequencies(case, k, m, n=len(prov["values"]))
-            except (
-                ImportError,
-                ValueError,
-                ArithmeticError,
-                np.linalg.LinAlgError,
-            ) as exc:  # reported, not dropped
+                f = frequencies(case, k, m, n=n)
+            except _FAILS as exc:  # reported, not dropped
                 r.update(status="failed", reason=f"{type(exc).__name__}: {exc}")
-                f = [math.nan] * len(prov["values"])
-            fine = _fine_frequencies(case, m, len(f))
+                f = [math.nan] * n
             for (quantity, target), value, ref in zip(targets(prov), f, fine):
                 diff = abs(value - ref)
                 # below the finite-difference noise the difference is not a discretisation error
@@ -329,7 +365,7 @@ K_FINE = 64  # elements per link of the converged frequencies the observed order
 def _fine_frequencies(case, method, n):
     try:
         return frequencies(case, K_FINE, method, n=n)
-    except (ImportError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+    except _FAILS:
         return [math.nan] * n
 
 
@@ -342,7 +378,7 @@ def analyse(ctx, table):
     for name, (case, prov) in problems(p.get("problems")).items():
         info.append(_problem_info(name, prov))
         if prov["quantity"] == "frequencies":
-            rows += frequency_rows(name, case, prov, p["ks"])
+            rows += frequency_rows(name, case, prov, p["ks"], p)
             continue
         runs = table[table.case == name] if len(table) else table
         rows += _run_rows(ctx, name, ctx.cases.get(name, case), prov, runs)
