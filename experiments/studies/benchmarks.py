@@ -123,7 +123,8 @@ def tasks(ctx) -> list:
 
     Plan parameters (``ctx.plan.studies["benchmarks"]``): ``ks`` (elements per link),
     ``problems`` (case-file names, default all), ``durations`` (name -> shortened duration, s),
-    ``methods`` (optional: only these of each problem's methods)."""
+    ``methods`` (optional: only these of each problem's methods), ``ks_by_problem`` (name -> ks
+    replacing ``ks`` for that problem)."""
     p = ctx.plan.studies[NAME]
     out = []
     for name, (case, prov) in problems(p.get("problems")).items():
@@ -134,7 +135,7 @@ def tasks(ctx) -> list:
         ctx.cases[name] = case
         T, h = case.scenario.duration, SETTINGS[kind]["h"]
         for m in _methods(p, kind):
-            ks = [0] if m == "pinocchio-rigid" else p["ks"]
+            ks = [0] if m == "pinocchio-rigid" else p.get("ks_by_problem", {}).get(name, p["ks"])
             out += [Task(name, m, k, h, T) for k in ks]
         ref = _ref_task(name, case, prov)
         if ref is not None:
