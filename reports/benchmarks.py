@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from experiments.studies.benchmarks import K_FINE
+
 from . import figures
 from .render import Section
 
@@ -75,7 +77,7 @@ def _passes_from(g: pd.DataFrame) -> str:
 
 def error_figure(res: pd.DataFrame, problem: str):
     """Error (as the tolerance measures it) against k, one line per (method, quantity), with the
-    tolerance as a dashed line. The frequencies show their difference to k = 64 instead, since
+    tolerance as a dashed line. The frequencies show their difference to k = K_FINE instead, since
     the published values are rounded to 0.01 Hz."""
     d = res[(res.problem == problem) & (res.k > 0)].copy()
     freq = d.quantity.str.fullmatch(r"f\d+").all()
@@ -89,7 +91,7 @@ def error_figure(res: pd.DataFrame, problem: str):
             ax.axhline(g.tolerance.iloc[0], ls="--", color="0.4", lw=1, label="tolerance")
         figures._integer_ticks(ax, g.k)
         ax.set_xlabel("elements per link k")
-        kind = "|f(k) − f(64)| (Hz)" if freq else f"{g.tolerance_kind.iloc[0]} error"
+        kind = f"|f(k) − f({K_FINE})| (Hz)" if freq else f"{g.tolerance_kind.iloc[0]} error"
         ax.set_ylabel(kind)
         ax.set_title(f"{problem}: {q}", fontsize=9)
         ax.legend(fontsize=7)
