@@ -217,6 +217,12 @@ def test_study_and_report_section(tmp_path):
     assert all((tmp_path / "report" / f).exists() for f, _ in secs[0].figures)
     tab = dict(secs[0].tables)["benchmarks_cantilever_self_weight"]
     assert tab[tab.method == "dttmm"]["pass"].iloc[0] == "yes"
+    # the report builder includes the section
+    from reports.build import build
+
+    _, md = build(tables, {}, tmp_path / "full", bench_dir=tmp_path / "no_bench")
+    text = md.read_text()
+    assert "## Benchmark problems" in text and "benchmarks_deluca_link2_clamped" in text
 
 
 def test_report_section_absent_without_tables(tmp_path):
