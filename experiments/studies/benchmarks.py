@@ -132,6 +132,8 @@ def tasks(ctx) -> list:
         if kind == "frequencies":
             continue
         case = _shortened(case, p.get("durations", {}).get(name))
+        if ctx.cases.get(name, case) != case:
+            raise ValueError(f"benchmark problem {name!r} clashes with a different case of the same name")
         ctx.cases[name] = case
         T, h = case.scenario.duration, SETTINGS[kind]["h"]
         for m in _methods(p, kind):
