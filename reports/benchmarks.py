@@ -106,8 +106,13 @@ def spin_up_figure(series: pd.DataFrame):
     for ax, p in zip(axes, probs):
         s = series[series.problem == p]
         ks = sorted(set(s[s.method == "dttmm"].k))
+        good = s[s.method != "dttmm"].tip_deflection
+        # the y range of the converged curves: a run-away linear-element curve must not flatten them
+        bottom = 1.6 * float(good.min()) if len(good) else None
+        gone = []
         for i, k in enumerate(ks):
             c = s[(s.method == "dttmm") & (s.k == k)]
+            off = bottom is not None and float(c.tip_deflection.min()) < bottom
             ax.plot(
                 c.t,
                 c.tip_deflection,
@@ -116,12 +121,18 @@ def spin_up_figure(series: pd.DataFrame):
                 lw=1,
                 label=f"DT-TMM linear strain k={k}",
             )
+            if off:
+                gone.append(f"linear k={k} leaves the axes (min {c.tip_deflection.min():.3g} m)")
         for m, style in (("dttmm-2nd", "C9--"), ("exudyn-ancf", "C1:")):
             c = s[s.method == m]
             if len(c):
                 ax.plot(
                     c.t, c.tip_deflection, style, lw=1.5, label=f"{figures._label(m)} k={int(c.k.iloc[0])}"
                 )
+        if bottom is not None:
+            ax.set_ylim(bottom, -0.15 * bottom)
+        if gone:
+            ax.text(0.03, 0.03, "\n".join(gone), transform=ax.transAxes, fontsize=7, va="bottom")
         ax.set_xlabel("t (s)")
         ax.set_ylabel("tip deflection (m)")
         ax.set_title(p, fontsize=9)
