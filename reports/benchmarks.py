@@ -45,7 +45,7 @@ def summary_table(res: pd.DataFrame, orders: pd.DataFrame, problem: str) -> pd.D
         o = orders[(orders.problem == problem) & (orders.quantity == quantity) & (orders.method == method)]
         order = float(o.order.iloc[0]) if len(o) else np.nan
         row = {"quantity": quantity, "method": method, "target": _g(last.target, 5)}
-        row.update({_kcol(r.k): _g(r.value, 4) if r.status == "ok" else r.status for r in g.itertuples()})
+        row.update({_kcol(r.k): _g(r.value) if r.status == "ok" else r.status for r in g.itertuples()})
         row.update(
             {
                 f"{last.tolerance_kind} error": _g(meas.iloc[-1], 2),
