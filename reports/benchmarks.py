@@ -79,7 +79,8 @@ def overview_table(res: pd.DataFrame, orders: pd.DataFrame) -> pd.DataFrame:
         rows.append(row)
     out = pd.DataFrame(rows)
     first = [m for m in METHOD_ORDER if m in out.columns]
-    return out[["problem", "quantity", *first, *[c for c in out.columns[2:] if c not in first]]]
+    out = out[["problem", "quantity", *first, *[c for c in out.columns[2:] if c not in first]]]
+    return out.fillna("not run")  # the method does not model the problem or records no such quantity
 
 
 METHOD_ORDER = ("dttmm", "dttmm-2nd", "global", "exudyn-ancf", "exudyn-beam")
