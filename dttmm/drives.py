@@ -11,15 +11,21 @@ and the step that starts there the right limit.
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
+from pydantic import ValidationError
 
-from ._validate import finite, finite_vector, positive
 from .errors import InputError
+from .schema import LAW_FIELDS, DriveFields, check_fields
 
-__all__ = ["Constant", "BangBang", "Sine", "SpinUp", "Table", "Drive", "LAWS", "law_from_dict"]
+__all__ = ["LAWS", "BangBang", "Constant", "Drive", "Sine", "SpinUp", "Table", "law_from_dict"]
+
+
+def _set(obj, values: dict):
+    for k, v in values.items():
+        object.__setattr__(obj, k, v)
 
 
 def _check_kind(law, kind: str, where: str):
@@ -37,7 +43,7 @@ class Constant:
     kinds = ("torque", "motion")
 
     def __post_init__(self):
-        object.__setattr__(self, "value", finite("law.value", self.value))
+        _set(self, check_fields(LAW_FIELDS["constant"], "law", value=self.value))
 
     def __call__(self, t: float, left: bool = False) -> float:
         return self.value
@@ -63,12 +69,12 @@ class BangBang:
     kinds = ("torque",)
 
     def __post_init__(self):
-        lv = finite_vector("law.levels", self.levels)
-        st = finite_vector("law.switch_times", self.switch_times)
+        ok = check_fields(LAW_FIELDS["bang_bang"], "law", levels=self.levels, switch_times=self.switch_times)
+        lv, st = ok["levels"], ok["switch_times"]
         if len(lv) != len(st) + 1:
             raise InputError("law.levels", list(lv),
                              f"needs len(switch_times) + 1 = {len(st) + 1} entries")
-        if any(b <= a for a, b in zip(st, st[1:])):
+        if any(b <= a for a, b in itertools.pairwise(st)):
             raise InputError("law.switch_times", list(st), "must be strictly increasing")
         object.__setattr__(self, "levels", lv)
         object.__setattr__(self, "switch_times", st)
@@ -98,14 +104,9 @@ class Sine:
     kinds = ("torque", "motion")
 
     def __post_init__(self):
-        object.__setattr__(self, "amplitude", finite("law.amplitude", self.amplitude))
-        object.__setattr__(self, "frequency", positive("law.frequency", self.frequency))
-        object.__setattr__(self, "phase", finite("law.phase", self.phase))
-        object.__setattr__(self, "offset", finite("law.offset", self.offset))
-        u = float(self.until)
-        if math.isnan(u) or u <= 0:
-            raise InputError("law.until", self.until, "must be positive (or inf)")
-        object.__setattr__(self, "until", u)
+        _set(self, check_fields(LAW_FIELDS["sine"], "law", amplitude=self.amplitude,
+                                frequency=self.frequency, phase=self.phase, offset=self.offset,
+                                until=self.until))
 
     def _on(self, t, left):
         return t < self.until or (left and t <= self.until)
@@ -152,8 +153,7 @@ class SpinUp:
     kinds = ("motion",)
 
     def __post_init__(self):
-        object.__setattr__(self, "rate", finite("law.rate", self.rate))
-        object.__setattr__(self, "ramp_time", positive("law.ramp_time", self.ramp_time))
+        _set(self, check_fields(LAW_FIELDS["spin_up"], "law", rate=self.rate, ramp_time=self.ramp_time))
 
     def motion(self, t: float, left: bool = False):
         ws, T = self.rate, self.ramp_time
@@ -178,21 +178,26 @@ class SpinUp:
 
 @dataclass(frozen=True)
 class Table:
-    """Tabulated law: piecewise linear for torques (held outside the range); for motion the
-    angle is a cubic spline through the points (rate and acceleration from the spline)."""
+    """Tabulated law through the points (times[i], values[i]), held at the end values outside.
+
+    Torque: piecewise linear. Motion: the angle is the cubic spline through the points with
+    zero rate at the first and last point ("clamped"), so the joint starts and ends at rest and
+    angle and rate are continuous everywhere (no impulsive torque); the acceleration is
+    continuous inside the table and jumps at its two ends, which are the law's breakpoints.
+    """
 
     times: tuple[float, ...]
     values: tuple[float, ...]
     name = "table"
     kinds = ("torque", "motion")
-    _spline: object = field(default=None, repr=False, compare=False)
+    _spline: object = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        ts = finite_vector("law.times", self.times)
-        vs = finite_vector("law.values", self.values, len(ts))
-        if len(ts) < 2:
-            raise InputError("law.times", list(ts), "needs at least two points")
-        if any(b <= a for a, b in zip(ts, ts[1:])):
+        ok = check_fields(LAW_FIELDS["table"], "law", times=self.times, values=self.values)
+        ts, vs = ok["times"], ok["values"]
+        if len(vs) != len(ts):
+            raise InputError("law.values", list(vs), f"needs one value per time ({len(ts)} entries)")
+        if any(b <= a for a, b in itertools.pairwise(ts)):
             raise InputError("law.times", list(ts), "must be strictly increasing")
         object.__setattr__(self, "times", ts)
         object.__setattr__(self, "values", vs)
@@ -207,20 +212,23 @@ class Table:
         return vs[i] + (vs[i + 1] - vs[i]) * (t - ts[i]) / (ts[i + 1] - ts[i])
 
     def motion(self, t: float, left: bool = False):
+        """(α, α̇, α̈) at t; at a table end, ``left`` picks the side of the acceleration jump."""
+        t0, t1 = self.times[0], self.times[-1]
+        if t < t0 or (t == t0 and left and t0 > 0.0):
+            return self.values[0], 0.0, 0.0
+        if t > t1 or (t == t1 and not left):
+            return self.values[-1], 0.0, 0.0
         if self._spline is None:
             from scipy.interpolate import CubicSpline
 
-            object.__setattr__(self, "_spline", CubicSpline(self.times, self.values,
-                                                            bc_type="clamped" if len(self.times) > 2 else "not-a-knot"))
+            object.__setattr__(self, "_spline", CubicSpline(self.times, self.values, bc_type="clamped"))
         s = self._spline
-        tc = min(max(t, self.times[0]), self.times[-1])
-        if t != tc:  # held at the end values outside the table
-            return float(s(tc)), 0.0, 0.0
         return float(s(t)), float(s(t, 1)), float(s(t, 2))
 
     @property
     def breakpoints(self) -> tuple[float, ...]:
-        return ()
+        """The table ends: a motion table's acceleration jumps there (a torque table's slope)."""
+        return (self.times[0], self.times[-1])
 
     def params(self) -> dict:
         return {"times": list(self.times), "values": list(self.values)}
@@ -230,16 +238,22 @@ LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table)}
 
 
 def law_from_dict(params: dict, where: str = "law"):
-    """Build a law from its TOML table (``law = "sine"`` plus its parameters)."""
+    """Build a law from its table (``law = "sine"`` plus its parameters, schema-checked:
+    unknown or private keys are refused)."""
+    if not isinstance(params, dict):
+        raise InputError(where, params, "must be a table with a 'law' key")
     params = dict(params)
     name = params.pop("law", None)
-    if name not in LAWS:
+    if not isinstance(name, str) or name not in LAWS:
         raise InputError(f"{where}.law", name, f"unknown drive law (one of: {', '.join(LAWS)})")
-    cls = LAWS[name]
+    from .schema import input_error
+
     try:
-        return cls(**params)
-    except TypeError as exc:
-        raise InputError(f"{where}", params, f"bad parameters for law {name!r}: {exc}") from None
+        ok = LAW_FIELDS[name].model_validate(params)
+    except ValidationError as exc:
+        raise input_error(exc, LAW_FIELDS[name], where) from None
+    try:
+        return LAWS[name](**dict(ok))
     except InputError as exc:
         raise InputError(exc.field.replace("law.", f"{where}.", 1), exc.value, exc.reason) from None
 
@@ -262,13 +276,11 @@ class Drive:
 
     def __post_init__(self):
         w = self._where
-        if self.kind not in ("torque", "motion"):
-            raise InputError(f"{w}.kind", self.kind, "must be 'torque' or 'motion'")
+        _set(self, check_fields(DriveFields, w, kind=self.kind, initial_angle=self.initial_angle,
+                                initial_rate=self.initial_rate))
         if getattr(self.law, "name", None) not in LAWS:
             raise InputError(f"{w}.law", self.law, "must be a drive law (constant, bang_bang, sine, spin_up, table)")
         _check_kind(self.law, self.kind, w)
-        object.__setattr__(self, "initial_angle", finite(f"{w}.initial_angle", self.initial_angle))
-        object.__setattr__(self, "initial_rate", finite(f"{w}.initial_rate", self.initial_rate))
         if self.kind == "motion" and self.law.name == "sine" and math.isfinite(self.law.until):
             raise InputError(f"{w}.until", self.law.until,
                              "a motion drive cannot stop a sine abruptly (the angle or rate would jump)")

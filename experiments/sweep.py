@@ -4,7 +4,8 @@ By default a LocalCluster on this machine's cores (one process per core, one thr
 each timing is one run alone in its worker process); ``scheduler="tcp://HOST:PORT"`` uses a
 running cluster; ``scheduler="serial"`` runs in this process (debugging, tests). Each finished
 run is written at once by the :class:`~experiments.runs.RunStore`, so a killed sweep resumes
-where it stopped and recomputes only the missing runs.
+where it stopped and recomputes only the missing runs (and any stored run whose files fail
+verification, with a warning).
 """
 
 from __future__ import annotations
@@ -92,6 +93,7 @@ def run_sweep(
     pandas.DataFrame, one row per task (see RunStore.table).
     """
     tasks = list(dict.fromkeys(tasks))
+    store.bind(cases)  # runs are keyed by the content of these cases
     todo = pending(tasks, store)
     references = references or {}
     for t in todo:
@@ -121,13 +123,13 @@ def run_sweep(
             for t in runnable:
                 finish(t, execute(resolved[t.method], cases[t.case], t))
         elif runnable:
-            _distributed(runnable, resolved, cases, finish, scheduler, workers)
+            _distributed(runnable, resolved, cases, finish, scheduler, workers, store)
     finally:
         bar.close()
     return store.table(tasks, references if references else None)
 
 
-def _distributed(runnable, resolved, cases, finish, scheduler, workers):
+def _distributed(runnable, resolved, cases, finish, scheduler, workers, store):
     from dask.distributed import as_completed
 
     with _client(scheduler, workers) as client:
@@ -145,7 +147,8 @@ def _distributed(runnable, resolved, cases, finish, scheduler, workers):
                 case_f[t.case],
                 t,
                 pure=False,
-                key=f"run-{t.case}-{t.key}",
+                # the entry key: a shared scheduler never confuses two versions of a run
+                key=f"run-{t.case}-{t.key}-{store.entry_key(t)[:16]}",
                 priority=_cost(t, cases[t.case]),
             ): t
             for t in runnable

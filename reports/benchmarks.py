@@ -15,7 +15,16 @@ from experiments.studies.benchmarks import K_FINE
 from . import figures
 from .render import Section
 
-__all__ = ["error_figure", "overview_table", "sections", "sentences", "spin_up_figure", "summary_table"]
+__all__ = [
+    "error_figure",
+    "headline",
+    "overview_table",
+    "section",
+    "sections",
+    "sentences",
+    "spin_up_figure",
+    "summary_table",
+]
 
 TITLE = "Benchmark problems"
 ANCHOR = "benchmarks"
@@ -186,8 +195,16 @@ def sentences(res: pd.DataFrame, orders: pd.DataFrame, problem: str) -> list:
     return out
 
 
+def section(inputs) -> Section | None:
+    """Report-section builder (``reports.build.SECTION_BUILDERS``): reads ``inputs.tables``,
+    writes its figures into ``inputs.fig_dir``; None when the study did not run."""
+    secs = sections(inputs.tables, inputs.fig_dir)
+    return secs[0] if secs else None
+
+
 def sections(tables: dict, fig_dir) -> list:
-    """The section (a one-element list), or [] when the study did not run."""
+    """The section (a one-element list), or [] when the study did not run. Its tables are
+    written as CSV by the report builder."""
     res = tables.get("benchmarks")
     if res is None or res.empty:
         return []
@@ -195,21 +212,16 @@ def sections(tables: dict, fig_dir) -> list:
     info = tables.get("benchmarks_problems", pd.DataFrame())
     fig_dir = Path(fig_dir)
     fig_dir.mkdir(parents=True, exist_ok=True)
-    data_dir = fig_dir.parent / "data"
-    data_dir.mkdir(parents=True, exist_ok=True)
-    figs, text, tabs = [], [_intro()], []
-    overview = overview_table(res, orders)
-    overview.to_csv(data_dir / "benchmarks_overview.csv", index=False)
-    tabs.append(("benchmarks_overview", overview))
+    figs, text = [], [_intro()]
+    tabs = [
+        ("benchmarks_overview", overview_table(res, orders), "Overview: error at the largest k per method")
+    ]
     if len(info):
-        tabs.append(
-            ("benchmarks_problems", info[["problem", "compared", "target", "value_kind", "tolerance"]])
-        )
+        cols = ["problem", "compared", "target", "value_kind", "tolerance"]
+        tabs.append(("benchmarks_problems", info[cols], "Problems, compared quantities and tolerances"))
     for problem in dict.fromkeys(res.problem):
         name = f"benchmarks_{problem}"
-        tab = summary_table(res, orders, problem)
-        tab.to_csv(data_dir / f"{name}.csv", index=False)
-        tabs.append((name, tab))
+        tabs.append((name, summary_table(res, orders, problem), problem))
         figures.save(error_figure(res, problem), fig_dir / f"{name}.png")
         figs.append((f"figures/{name}.png", f"{problem}: error against elements per link"))
         text += [f"{problem}: {s}" for s in sentences(res, orders, problem)]
@@ -217,7 +229,21 @@ def sections(tables: dict, fig_dir) -> list:
     if series is not None and len(series):
         figures.save(spin_up_figure(series), fig_dir / "benchmarks_spin_up.png")
         figs.append(("figures/benchmarks_spin_up.png", "spin-up beam: tip deflection against time"))
-    return [Section(TITLE, figs, text, tabs, ANCHOR)]
+    return [Section(TITLE, figs, text, tabs, ANCHOR, summary=headline(res))]
+
+
+def headline(res: pd.DataFrame) -> str:
+    """One summary sentence: how many compared quantities DT-TMM (either strain element) gets
+    within tolerance at the largest k, and which it does not."""
+    d = res[res.method.isin(["dttmm", "dttmm-2nd"])]
+    ok, bad = [], []
+    for (problem, quantity), g in d.groupby(["problem", "quantity"], sort=False):
+        last = g[g.k == g.k.max()]
+        (ok if last.passed.astype(bool).any() else bad).append(f"{problem} {quantity}")
+    return (
+        f"Benchmark problems: DT-TMM is within tolerance at the largest k on {len(ok)} of "
+        f"{len(ok) + len(bad)} compared quantities" + (f" (not on: {', '.join(bad)})." if bad else ".")
+    )
 
 
 def _intro() -> str:

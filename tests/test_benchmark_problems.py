@@ -215,7 +215,7 @@ def test_study_and_report_section(tmp_path):
     secs = RB.sections(tables, tmp_path / "report" / "figures")
     assert len(secs) == 1 and secs[0].title == "Benchmark problems"
     assert all((tmp_path / "report" / f).exists() for f, _ in secs[0].figures)
-    tab = dict(secs[0].tables)["benchmarks_cantilever_self_weight"]
+    tab = {t[0]: t[1] for t in secs[0].tables}["benchmarks_cantilever_self_weight"]
     assert tab[tab.method == "dttmm"]["pass"].iloc[0] == "yes"
     # the report builder includes the section
     from reports.build import build
@@ -223,6 +223,16 @@ def test_study_and_report_section(tmp_path):
     _, md = build(tables, {}, tmp_path / "full", bench_dir=tmp_path / "no_bench")
     text = md.read_text()
     assert "## Benchmark problems" in text and "benchmarks_deluca_link2_clamped" in text
+
+
+def test_study_skipped_for_user_case_files(tmp_path):
+    from experiments.context import Context
+    from experiments.plan import Plan
+    from experiments.runs import RunStore
+
+    plan = Plan("t", {}, {}, {}, {B.NAME: {"ks": [2]}}, case_files={"mine": "mine.toml"})
+    ctx = Context(plan, {}, {}, {}, RunStore(tmp_path), tmp_path)
+    assert B.tasks(ctx) == [] and B.analyse(ctx, None) == {}
 
 
 def test_report_section_absent_without_tables(tmp_path):

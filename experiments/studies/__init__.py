@@ -1,5 +1,6 @@
 """The studies, one module each: ``tasks(ctx)`` lists the runs, ``analyse(ctx, table)`` turns
-the run table into the study's tables, ``main(argv)`` runs it alone (``--quick``/``--full``)."""
+the run table into the study's tables; ``python -m experiments.studies.<name> --quick`` runs
+one alone (``experiments.study.study_main``)."""
 
 from . import benchmarks, convergence_h, convergence_k, cost, paper, scheme, work_precision
 

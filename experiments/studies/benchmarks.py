@@ -116,6 +116,12 @@ def _methods(params: dict, kind: str) -> list:
     return [m for m in SETTINGS[kind]["methods"] if chosen is None or m in chosen]
 
 
+def _active(ctx) -> bool:
+    """False for a report on case files given by the user (``plan.case_files``): the benchmark
+    problems belong to the default report only."""
+    return not getattr(ctx.plan, "case_files", None)
+
+
 def tasks(ctx) -> list:
     """Every applicable method at every k of the plan (one run for the rigid baseline), plus
     the reference run of the problems compared against one. The benchmark cases are added to
@@ -125,6 +131,8 @@ def tasks(ctx) -> list:
     ``problems`` (case-file names, default all), ``durations`` (name -> shortened duration, s),
     ``methods`` (optional: only these of each problem's methods), ``ks_by_problem`` (name -> ks
     replacing ``ks`` for that problem)."""
+    if not _active(ctx):
+        return []
     p = ctx.plan.studies[NAME]
     out = []
     for name, (case, prov) in problems(p.get("problems")).items():
@@ -376,6 +384,8 @@ def analyse(ctx, table):
     """Tables: ``benchmarks`` (one row per problem, quantity, method, k: value, target, error,
     pass/fail), ``benchmarks_orders`` (observed order in k of the error) and
     ``benchmarks_problems`` (each problem's source, compared quantity, target and tolerance)."""
+    if not _active(ctx):
+        return {}
     p = ctx.plan.studies[NAME]
     rows, info = [], []
     for name, (case, prov) in problems(p.get("problems")).items():

@@ -22,6 +22,7 @@ def tasks(ctx) -> list[Task]:
     for c in p["cases"]:
         T = ctx.cases[c].scenario.duration
         out += [Task(c, m, k, h, T) for m in p["methods"] for k, h in p["path"]]
+        out += [Task(c, "mujoco-chain", k, h, T) for k, h in p.get("mujoco_path", ())]  # own (k, h) path
         rigid = p.get("rigid")
         if rigid:
             out += [Task(c, rigid["method"], 0, h, T) for h in rigid["h"]]
@@ -56,11 +57,7 @@ def analyse(ctx, table):
     return {NAME: table, f"{NAME}_summary": pd.DataFrame(rows)}
 
 
-def main(argv=None) -> int:
-    from ..study import study_main
+if __name__ == "__main__":  # python -m experiments.studies.<name> [--quick|--full] ...
+    from experiments.study import study_main
 
-    return study_main(NAME, argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(study_main(NAME))
