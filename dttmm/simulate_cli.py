@@ -14,7 +14,7 @@ from .errors import InputError, SimulationError
 from .resources import check_run_size
 from .solver import simulate
 
-EXIT_OK, EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK = 0, 1, 2, 3
+from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK  # noqa: F401
 
 
 def plot_result(res, path: Path, title: str = "") -> Path:

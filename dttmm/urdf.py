@@ -23,6 +23,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from .case import Case, load_case
+from .cliparse import OneLineParser
 from .errors import InputError
 from .model import Manipulator
 
@@ -95,7 +96,6 @@ def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
 
 def main(argv=None) -> int:
     """``dttmm urdf CASE [--out FILE]``: print (or write) the rigid arm of a case as URDF."""
-    from .cli import OneLineParser
 
     p = OneLineParser(prog="dttmm urdf", description="Print the rigid arm of a case as URDF "
                                 "(gravity is noted in a comment: URDF has no field for it).")

@@ -66,7 +66,7 @@ def test_bad_case_arguments_are_refused_with_the_path(tmp_path):
     with pytest.raises(InputError, match="nope.toml"):
         plan_for("quick", [tmp_path / "nope.toml"])
     (tmp_path / "bad.toml").write_text("[model]\n")
-    with pytest.raises(InputError, match=r"bad.toml: scenario"):
+    with pytest.raises(InputError, match=r"bad.toml: (scenario|model)"):
         plan_for("quick", [tmp_path / "bad.toml"])
     a, b = _write(tmp_path / "a.toml"), _write(tmp_path / "b.toml")
     with pytest.raises(InputError, match="names the same case"):

@@ -125,7 +125,7 @@ def analyse(ctx, table):
     table = with_task_columns(table)
     keys = {t.key for t in _compared(ctx)}
     if len(table):
-        table["role"] = [COMPARED if k in keys else ENERGY_REF for k in table.key]
+        table["role"] = [COMPARED if k in keys else ENERGY_REF for k in table.task]
     series, rows, loads, load_rows = [], [], [], []
     for case in p["cases"]:
         case_obj = ctx.cases[case]
