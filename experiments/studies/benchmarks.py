@@ -460,11 +460,7 @@ def _problem_info(name, prov) -> dict:
     }
 
 
-def main(argv=None) -> int:
-    from ..study import study_main
+if __name__ == "__main__":  # python -m experiments.studies.benchmarks [--quick|--full] ...
+    from experiments.study import study_main
 
-    return study_main(NAME, argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(study_main(NAME))
