@@ -259,3 +259,12 @@ PLANS = {
         variants=_VARIANTS_FULL,
     ),
 }
+
+# Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak (8 s),
+# no global solver (it repeats DT-TMM's discretisation to round-off and costs ~90 % of the runs).
+_BENCH = {"quick": {"ks": [2, 4, 8, 16, 32], "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
+                    "methods": ["dttmm", "dttmm-2nd", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"]},
+          "full": {"ks": [2, 4, 8, 16, 32]}}
+for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured: 2nd-order element)
+    _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
+PLANS = {n: replace(p, studies={**p.studies, "benchmarks": _BENCH[n]}) for n, p in PLANS.items()}

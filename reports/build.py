@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import bench, figures, interpret
+from . import bench, benchmarks, figures, interpret
 from .render import Section, write
 from .scoreboard import scoreboard
 
@@ -304,7 +304,7 @@ SECTION_BUILDERS = [
     _paper,
     _loads,
     _cost,
-    # benchmark problems (published single-case checks) go here
+    benchmarks.section,  # benchmark problems (published single-case checks)
     _bench_section,
 ]
 
