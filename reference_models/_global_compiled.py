@@ -14,7 +14,7 @@ from dttmm.errors import SimulationError
 from dttmm.timegrid import step_schedule
 
 from . import _global_numba as G
-from . import global_newmark as gn
+from . import _global_numpy as gn
 
 
 def _tables(case, times, left: bool, rows=None):
