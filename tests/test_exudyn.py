@@ -25,9 +25,9 @@ METHODS = [pytest.param(exudyn_ancf, id="ancf"), pytest.param(exudyn_beam, id="b
 EI_AL, RHOA_AL, EA_AL = 2.3333333333333335, 0.27, 7.0e6
 
 
-def _extra_rotary_inertia(res, length):
+def _extra_rotary_inertia(res, length, link=0):
     """Rotary inertia the element adds about the joint beyond ρA·L³/3 (GE beam: ρI·L)."""
-    return res.meta.get("cross_section_inertia", 0.0) * length
+    return res.meta.get("cross_section_inertia", [0.0] * (link + 1))[link] * length
 
 
 def _single(EI, *, EA=EA_AL, hub=Hub(0.0, 0.01), payload=None, drive, duration, output_step=1e-3,
@@ -98,7 +98,7 @@ def test_two_link_motor_reaction_and_held_joint_torque(mod):
     case = Case(Manipulator(links), Scenario(0.5, 1e-3, drives))
     res = mod.simulate(case, elements_per_link=2, h=1e-3)
     m2 = RHOA_AL * L2
-    J2 = 0.005 + m2 * L2**2 / 3 + _extra_rotary_inertia(res, L2)
+    J2 = 0.005 + m2 * L2**2 / 3 + _extra_rotary_inertia(res, L2, 1)
     w = 4 * np.pi
     angle = 0.2 / J2 * (res.t / w - np.sin(w * res.t) / w**2)            # peak 0.49 rad
     assert np.max(np.abs(res.joint_angle[:, 1] - angle)) < 1e-4
