@@ -5,6 +5,7 @@ every core would make a method look faster on an idle machine and slower on a bu
 environment variables (``OPENBLAS_NUM_THREADS=1``) only act before the library loads; the
 limit here (threadpoolctl) acts on libraries already loaded.
 """
+
 from __future__ import annotations
 
 import contextlib

@@ -45,6 +45,12 @@ METHODS: dict[str, Method] = {
             (("integrator", "newmark"),),
             label="global equations (Newmark)",
         ),
+        Method(
+            "global-2nd",
+            "reference_models.global_newmark",
+            (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
+            label="global equations (2nd-order strain, gen-α 0.8)",
+        ),
         Method("exudyn-ancf", "reference_models.exudyn_ancf", label="Exudyn ANCF"),
         Method("exudyn-beam", "reference_models.exudyn_beam", label="Exudyn GE beam"),
         Method(

@@ -17,6 +17,7 @@ Parts:
    off each method's lower envelope (the cheapest run reaching at most that error, linear
    interpolation in log-log between envelope points), the same rule for every method.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,6 +31,8 @@ import numpy as np
 
 from . import methods, metrics
 from .plan import CASE_DIR
+from .studies.work_precision import cost_at
+from .studies.work_precision import envelope as _envelope
 from .timing import measure
 
 TARGETS = (1e-3, 1e-4, 1e-5)
@@ -57,27 +60,45 @@ def _case(duration: float):
 
 def _timed(method, case, k, h, repeats, **options):
     res, t = measure(lambda: methods.run(method, case, k, h, **options), repeats)
-    return res, {"method": method, "k": k, "h": h, "options": {a: str(b) for a, b in options.items()},
-                 "n_steps": int(res.n_steps), "cpu_solve": res.meta.get("cpu_time_solve"), **t.columns()}
+    return res, {
+        "method": method,
+        "k": k,
+        "h": h,
+        "options": {a: str(b) for a, b in options.items()},
+        "n_steps": int(res.n_steps),
+        "cpu_solve": res.meta.get("cpu_time_solve"),
+        **t.columns(),
+    }
 
 
 def cost_rows(case, repeats, ks=(16, 64), h=1e-3) -> list[dict]:
     """Part 1: each peer before/after tuning (and DT-TMM for scale) at the given k."""
-    runs = [("exudyn-ancf", "before", BEFORE), ("exudyn-ancf", "tuned", {}),
-            ("exudyn-beam", "before", GE_BEFORE), ("exudyn-beam", "tuned", {}),
-            ("dttmm-2nd", "converged", {}), ("dttmm-2nd", "iterations=auto", {"iterations": "auto"}),
-            ("dttmm", "linear strain, converged", {})]
+    runs = [
+        ("exudyn-ancf", "before", BEFORE),
+        ("exudyn-ancf", "tuned", {}),
+        ("exudyn-beam", "before", GE_BEFORE),
+        ("exudyn-beam", "tuned", {}),
+        ("dttmm-2nd", "converged", {}),
+        ("dttmm-2nd", "iterations=auto", {"iterations": "auto"}),
+        ("dttmm", "linear strain, converged", {}),
+    ]
     rows = []
     n_links = case.model.n_links
     for k in ks:
         for method, label, opts in runs:
             _, row = _timed(method, case, k, h, repeats, **opts)
             cpu = row["timing_cpu_min"]
-            row.update(label=label, us_per_element_step=1e6 * cpu / (row["n_steps"] * k * n_links),
-                       s_per_simulated_s=cpu / case.scenario.duration)
+            row.update(
+                label=label,
+                us_per_element_step=1e6 * cpu / (row["n_steps"] * k * n_links),
+                s_per_simulated_s=cpu / case.scenario.duration,
+            )
             rows.append(row)
-            print(f"cost {method:12s} {label:26s} k={k:3d} cpu={cpu:.3f}s "
-                  f"{row['us_per_element_step']:.2f} us/el-step noisy={row['timing_noisy']}", flush=True)
+            print(
+                f"cost {method:12s} {label:26s} k={k:3d} cpu={cpu:.3f}s "
+                f"{row['us_per_element_step']:.2f} us/el-step noisy={row['timing_noisy']}",
+                flush=True,
+            )
     return rows
 
 
@@ -99,39 +120,29 @@ def grid_rows(case, ref, repeats, ks=KS, hs=HS) -> list[dict]:
                     res, row = _timed(method, case, k, h, repeats, **opts)
                     row["ee_l2"] = metrics.errors(res, ref)["ee_l2"]
                     row["status"] = "ok"
-                except Exception as exc:  # a failing run is recorded, not dropped
-                    row = {"method": method, "k": k, "h": h, "status": f"failed: {type(exc).__name__}: {exc}"[:200],
-                           "ee_l2": math.nan, "timing_cpu_min": math.nan}
+                except Exception as exc:  # noqa: BLE001 - a failing run is recorded, not dropped
+                    row = {
+                        "method": method,
+                        "k": k,
+                        "h": h,
+                        "status": f"failed: {type(exc).__name__}: {exc}"[:200],
+                        "ee_l2": math.nan,
+                        "timing_cpu_min": math.nan,
+                    }
                 row["label"] = label
                 rows.append(row)
-                print(f"grid {method:12s} {label:30s} k={k:2d} h={h:g} err={row['ee_l2']:.3g} "
-                      f"cpu={row['timing_cpu_min']:.3f}", flush=True)
+                print(
+                    f"grid {method:12s} {label:30s} k={k:2d} h={h:g} err={row['ee_l2']:.3g} "
+                    f"cpu={row['timing_cpu_min']:.3f}",
+                    flush=True,
+                )
     return rows
 
 
 def envelope(rows) -> list[tuple[float, float]]:
-    """Lower envelope (error, cpu) of finished runs: the cheapest run reaching each error."""
-    pts = sorted((r["timing_cpu_min"], r["ee_l2"]) for r in rows
-                 if r.get("status") == "ok" and np.isfinite(r["ee_l2"]) and r["ee_l2"] > 0)
-    out, best = [], math.inf
-    for cpu, err in pts:
-        if err < best:
-            out.append((err, cpu))
-            best = err
-    return out  # errors decreasing, cpu increasing
-
-
-def cost_at(env, target: float) -> float:
-    """CPU time to reach ``target`` on the envelope: log-log interpolation between the last point
-    above and the first point at or below it; NaN when the grid never reached it."""
-    for i, (err, cpu) in enumerate(env):
-        if err <= target:
-            if i == 0:
-                return cpu  # the cheapest run is already better than the target
-            e0, c0 = env[i - 1]
-            w = math.log(target / e0) / math.log(err / e0)
-            return math.exp(math.log(c0) + w * (math.log(cpu) - math.log(c0)))
-    return math.nan
+    """Lower envelope (error, cpu) of the finished runs (see work_precision.envelope)."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    return _envelope([r["timing_cpu_min"] for r in ok], [r["ee_l2"] for r in ok])
 
 
 def equal_accuracy(rows, targets=TARGETS) -> list[dict]:
@@ -144,7 +155,9 @@ def equal_accuracy(rows, targets=TARGETS) -> list[dict]:
     for tgt in targets:
         c = {m: cost_at(e, tgt) for m, e in envs.items()}
         ratio = c.get("exudyn-ancf", math.nan) / c.get("dttmm-2nd", math.nan)
-        out.append({"target_m": tgt, **{f"cpu_{m}": v for m, v in c.items()}, "ratio_exudyn_ancf_over_dttmm": ratio})
+        out.append(
+            {"target_m": tgt, **{f"cpu_{m}": v for m, v in c.items()}, "ratio_exudyn_ancf_over_dttmm": ratio}
+        )
     return out
 
 
@@ -153,19 +166,29 @@ def _sig2(x) -> str:
 
 
 def markdown(doc) -> str:
-    lines = ["| peer | configuration | k | µs per element-step (min / median) | s per simulated s | noisy |",
-             "|---|---|---|---|---|---|"]
+    lines = [
+        "| peer | configuration | k | µs per element-step (min / median) | s per simulated s | noisy |",
+        "|---|---|---|---|---|---|",
+    ]
     for r in doc["cost"]:
         n = r["n_steps"] * r["k"] * 3
-        lines.append(f"| {r['method']} | {r['label']} | {r['k']} | {_sig2(r['us_per_element_step'])} / "
-                     f"{_sig2(1e6 * r['timing_cpu_median'] / n)} | {_sig2(r['s_per_simulated_s'])} | "
-                     f"{r['timing_noise'] or 'no'} |")
-    lines += ["", f"Reference: {doc['reference']}; cross-check {doc['cross_check']}.", "",
-              "| target end-effector RMS (m) | DT-TMM 2nd-order CPU (s) | Exudyn ANCF tuned CPU (s) | ratio |",
-              "|---|---|---|---|"]
+        lines.append(
+            f"| {r['method']} | {r['label']} | {r['k']} | {_sig2(r['us_per_element_step'])} / "
+            f"{_sig2(1e6 * r['timing_cpu_median'] / n)} | {_sig2(r['s_per_simulated_s'])} | "
+            f"{r['timing_noise'] or 'no'} |"
+        )
+    lines += [
+        "",
+        f"Reference: {doc['reference']}; cross-check {doc['cross_check']}.",
+        "",
+        "| target end-effector RMS (m) | DT-TMM 2nd-order CPU (s) | Exudyn ANCF tuned CPU (s) | ratio |",
+        "|---|---|---|---|",
+    ]
     for r in doc["equal_accuracy"]:
-        lines.append(f"| {r['target_m']:g} | {_sig2(r.get('cpu_dttmm-2nd', math.nan))} | "
-                     f"{_sig2(r.get('cpu_exudyn-ancf', math.nan))} | {_sig2(r['ratio_exudyn_ancf_over_dttmm'])} |")
+        lines.append(
+            f"| {r['target_m']:g} | {_sig2(r.get('cpu_dttmm-2nd', math.nan))} | "
+            f"{_sig2(r.get('cpu_exudyn-ancf', math.nan))} | {_sig2(r['ratio_exudyn_ancf_over_dttmm'])} |"
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -182,9 +205,18 @@ def main(argv=None) -> int:
     case = _case(a.duration)
     ref, ref_name, chk = reference(case)
     print(f"reference {ref_name}; cross-check {chk}", flush=True)
-    doc = {"case": "three_link", "duration": a.duration, "repeats": a.repeats, "reference": ref_name,
-           "cross_check": chk, "machine": platform.platform(), "load_at_start": os.getloadavg()[0],
-           "commit": subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()}
+    doc = {
+        "case": "three_link",
+        "duration": a.duration,
+        "repeats": a.repeats,
+        "reference": ref_name,
+        "cross_check": chk,
+        "machine": platform.platform(),
+        "load_at_start": os.getloadavg()[0],
+        "commit": subprocess.run(
+            ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=False
+        ).stdout.strip(),
+    }
     doc["cost"] = [] if a.skip_cost else cost_rows(case, a.repeats)
     doc["grid"] = grid_rows(case, ref, a.repeats)
     doc["equal_accuracy"] = equal_accuracy(doc["grid"])

@@ -111,7 +111,7 @@ def _plan(
             },
             "work_precision": {
                 "cases": cases,
-                "methods": _FLEX,
+                "methods": _FLEX + ["global-2nd"],  # like-for-like partner of dttmm-2nd
                 "path": path,
                 "rigid": {"method": "pinocchio-rigid", "h": [1e-3]},
             },

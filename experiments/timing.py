@@ -12,6 +12,7 @@ the median CPU time lies more than ``SPREAD_MAX`` above the minimum.
 The first repeat's return value is the one kept (every repeat computes the same result), so
 accuracy-only studies run with ``repeats=1`` and pay nothing extra.
 """
+
 from __future__ import annotations
 
 import math
@@ -113,7 +114,19 @@ def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS) -> tuple[Any, Ti
                 first = value
     n = cores()
     load = max((x for x in loads if math.isfinite(x)), default=math.nan)
-    t = Timing(repeats, min(cpu), statistics.median(cpu), min(wall), statistics.median(wall),
-               min(solve), statistics.median(solve), load, n, int(threads), False, "")
+    t = Timing(
+        repeats,
+        min(cpu),
+        statistics.median(cpu),
+        min(wall),
+        statistics.median(wall),
+        min(solve),
+        statistics.median(solve),
+        load,
+        n,
+        int(threads),
+        False,
+        "",
+    )
     why = _noise(load, n, t.spread)
     return first, Timing(**{**asdict(t), "noisy": bool(why), "noise": why})

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import bench, figures, interpret
+from . import bench, figures, interpret, peers
 from .render import Section, write
 
 __all__ = ["build", "omissions"]
@@ -90,9 +90,10 @@ def _sections(tables, meta, out, bench_dir):
     t = tables.get("work_precision")
     if t is not None and len(t):
         s = tables["work_precision_summary"]
-        items = per_case(t, "work_precision", lambda c: figures.work_precision(t, c),
-                         "error against wall time", lambda c: interpret.work_precision(s, c))
-        add("Work-precision", "work-precision", items, ["work_precision_summary"],
+        eq = tables.get("work_precision_equal_accuracy", pd.DataFrame())
+        items = per_case(t, "work_precision", lambda c: peers.work_precision_figure(t, c), "error against CPU time",
+                         lambda c: interpret.work_precision(s, c) + peers.equal_accuracy_text(eq, c))
+        add("Work-precision", "work-precision", items, ["work_precision_summary", "work_precision_equal_accuracy"],
             f"Work-precision ({_cases(t)[-1]}): " + " ".join(interpret.work_precision(s, _cases(t)[-1])[:2]))
     t = tables.get("scheme")
     if t is not None and len(t):
@@ -113,10 +114,12 @@ def _sections(tables, meta, out, bench_dir):
         add(
             "CPU time against elements per link",
             "cost",
-            [("cost.png", figures.cost(t, e), "wall time of the solve against k", interpret.cost(t, e))],
+            [("cost.png", peers.cost_figure(t, e), "CPU time against k", peers.cost_text(t, e))],
             ["cost_exponents"],
-            interpret.cost(t, e)[0],
+            peers.cost_text(t, e)[0],
         )
+    secs.append(peers.configuration_section())
+    tables["peer_configuration"] = secs[-1].tables[0][1]
     sec, head = _bench_section(tables, fig_dir, bench_dir)
     secs.append(sec)
     if head:
@@ -171,7 +174,7 @@ def _bench_section(tables, fig_dir, bench_dir):
         return Section(BENCH_TITLE, figs, text, [("bench_exponents", be)], "bench"), None
     ex = bench.scaling_exponents(rec)
     per_el = bench.element_step_table(rec, "three_link")
-    ratios = bench.ratios(rec, tables.get("work_precision_summary"))
+    ratios = bench.ratios(rec, tables.get("work_precision_equal_accuracy"))
     tables.update(bench=rec, bench_exponents=ex, bench_element_step_us=per_el, bench_ratios=ratios)
     figs = []
     if (rec.kind == "elements").any():
@@ -180,7 +183,7 @@ def _bench_section(tables, fig_dir, bench_dir):
     if (rec.kind == "links").any():
         figures.save(figures.bench_links(rec, ex, bench.N_MIN), fig_dir / "bench_links.png")
         figs.append(("figures/bench_links.png", "time per step (solve only) against the number of links"))
-    text = interpret.bench_costs(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
+    text = bench.costs_text(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
     gone = bench.absent(rec)
     if gone:
         text.append("Absent from this benchmark file: " + ", ".join(gone) + ".")
@@ -191,7 +194,7 @@ def _bench_section(tables, fig_dir, bench_dir):
             "(bench_ratios: >1 means DT-TMM is faster); the benchmarks' tip errors are against a DT-TMM "
             "reference and are not used here for cross-method accuracy."
         ),
-        _bench_provenance(info),
+        *bench.provenance(info),
     ]
     tabs = [(n, tables[n]) for n in BENCH_TABLES[1:]]
     head = next((s for s in text if s.startswith("At equal model size")), None)
