@@ -41,14 +41,19 @@ HS = (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4)
 KS = (2, 4, 8, 16)
 BEFORE = {"drive_input": "user-function", "jacobian_per_step": False}
 GE_BEFORE = {**BEFORE, "cross_section_inertia": 1e-5}
-#: (method, label, options) of the work-precision grid; tolerances and Newton variants are part
-#: of the grid, so each method's envelope picks whichever is cheapest at a given accuracy.
+#: (configuration, method, label, options) of the work-precision grid. A configuration's
+#: envelope spans its labels: Newton tolerance and DT-TMM's iteration count are grid dimensions,
+#: so each envelope picks whichever is cheapest at a given accuracy.
 VARIANTS = (
-    ("exudyn-ancf", "tuned", {}),
-    ("exudyn-ancf", "tuned, relaxed Newton tolerance", {"newton_rel_tol": 1e-5}),
-    ("dttmm-2nd", "converged", {}),
-    ("dttmm-2nd", "iterations=auto", {"iterations": "auto"}),
+    ("exudyn-ancf tuned", "exudyn-ancf", "tuned", {}),
+    ("exudyn-ancf tuned", "exudyn-ancf", "tuned, relaxed Newton tolerance", {"newton_rel_tol": 1e-5}),
+    ("dttmm-2nd", "dttmm-2nd", "converged", {}),
+    ("dttmm-2nd", "dttmm-2nd", "iterations=auto", {"iterations": "auto"}),
+    ("exudyn-ancf before", "exudyn-ancf", "before", BEFORE),
+    ("exudyn-beam before", "exudyn-beam", "before", GE_BEFORE),
+    ("exudyn-beam tuned", "exudyn-beam", "tuned", {}),
 )
+BASE = "dttmm-2nd"  # the like-for-like DT-TMM configuration (second-order element)
 
 
 def _case(duration: float):
@@ -110,10 +115,12 @@ def reference(case):
     return ref, "exudyn-ancf k=32 h=1.25e-4", {"method": "dttmm-2nd", "k": 32, "h": 2.5e-4, "ee_l2": e}
 
 
-def grid_rows(case, ref, repeats, ks=KS, hs=HS) -> list[dict]:
-    """Part 2: every (method, variant, k, h) of the grid with its error and timing."""
+def grid_rows(case, ref, repeats, ks=KS, hs=HS, configs=None) -> list[dict]:
+    """Part 2: every (configuration, variant, k, h) of the grid with its error and timing."""
     rows = []
-    for method, label, opts in VARIANTS:
+    for config, method, label, opts in VARIANTS:
+        if configs and config not in configs:
+            continue
         for k in ks:
             for h in hs:
                 try:
@@ -129,7 +136,7 @@ def grid_rows(case, ref, repeats, ks=KS, hs=HS) -> list[dict]:
                         "ee_l2": math.nan,
                         "timing_cpu_min": math.nan,
                     }
-                row["label"] = label
+                row["label"], row["config"] = label, config
                 rows.append(row)
                 print(
                     f"grid {method:12s} {label:30s} k={k:2d} h={h:g} err={row['ee_l2']:.3g} "
@@ -146,18 +153,25 @@ def envelope(rows) -> list[tuple[float, float]]:
 
 
 def equal_accuracy(rows, targets=TARGETS) -> list[dict]:
-    """Per target: each method's CPU time to reach it and the ratio Exudyn ANCF / DT-TMM."""
+    """Per target and configuration: CPU time to reach it on the configuration's envelope, and
+    its ratio to DT-TMM's (:data:`BASE`)."""
     by = {}
     for r in rows:
-        by.setdefault(r["method"], []).append(r)
+        by.setdefault(r.get("config", r["method"]), []).append(r)
     envs = {m: envelope(rs) for m, rs in by.items()}
     out = []
     for tgt in targets:
         c = {m: cost_at(e, tgt) for m, e in envs.items()}
-        ratio = c.get("exudyn-ancf", math.nan) / c.get("dttmm-2nd", math.nan)
-        out.append(
-            {"target_m": tgt, **{f"cpu_{m}": v for m, v in c.items()}, "ratio_exudyn_ancf_over_dttmm": ratio}
-        )
+        base = c.get(BASE, math.nan)
+        for m, v in c.items():
+            out.append(
+                {
+                    "target_m": tgt,
+                    "config": m,
+                    "cpu": v,
+                    "ratio_to_dttmm": v / base if m != BASE else math.nan,
+                }
+            )
     return out
 
 
@@ -181,14 +195,16 @@ def markdown(doc) -> str:
         "",
         f"Reference: {doc['reference']}; cross-check {doc['cross_check']}.",
         "",
-        "| target end-effector RMS (m) | DT-TMM 2nd-order CPU (s) | Exudyn ANCF tuned CPU (s) | ratio |",
-        "|---|---|---|---|",
+        "| configuration | " + " | ".join(f"CPU (s) to {t:g} m | ratio" for t in TARGETS) + " |",
+        "|---|" + "---|---|" * len(TARGETS),
     ]
-    for r in doc["equal_accuracy"]:
-        lines.append(
-            f"| {r['target_m']:g} | {_sig2(r.get('cpu_dttmm-2nd', math.nan))} | "
-            f"{_sig2(r.get('cpu_exudyn-ancf', math.nan))} | {_sig2(r['ratio_exudyn_ancf_over_dttmm'])} |"
-        )
+    confs = list(dict.fromkeys(r["config"] for r in doc["equal_accuracy"]))
+    for cname in confs:
+        cells = []
+        for t in TARGETS:
+            r = next(x for x in doc["equal_accuracy"] if x["config"] == cname and x["target_m"] == t)
+            cells.append(f"{_sig2(r['cpu'])} | {_sig2(r['ratio_to_dttmm'])}")
+        lines.append(f"| {cname} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -198,6 +214,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--duration", type=float, default=2.0)
     ap.add_argument("--skip-cost", action="store_true")
+    ap.add_argument("--configs", nargs="*", default=None, help="grid configurations to run (default all)")
+    ap.add_argument(
+        "--merge", action="store_true", help="add to the cost and grid rows of an existing race.json"
+    )
     a = ap.parse_args(argv)
     import os
     import subprocess
@@ -217,10 +237,16 @@ def main(argv=None) -> int:
             ["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=False
         ).stdout.strip(),
     }
-    doc["cost"] = [] if a.skip_cost else cost_rows(case, a.repeats)
-    doc["grid"] = grid_rows(case, ref, a.repeats)
-    doc["equal_accuracy"] = equal_accuracy(doc["grid"])
     out = Path(a.out)
+    old = json.loads((out / "race.json").read_text()) if a.merge and (out / "race.json").exists() else {}
+    doc["cost"] = old.get("cost", []) + ([] if a.skip_cost else cost_rows(case, a.repeats))
+    doc["grid"] = old.get("grid", []) + grid_rows(case, ref, a.repeats, configs=a.configs)
+    if old:
+        doc["runs"] = [
+            *old.get("runs", [{k: old[k] for k in ("commit", "load_at_start")}]),
+            {k: doc[k] for k in ("commit", "load_at_start")},
+        ]
+    doc["equal_accuracy"] = equal_accuracy(doc["grid"])
     out.mkdir(parents=True, exist_ok=True)
     (out / "race.json").write_text(json.dumps(doc, indent=1, default=str))
     (out / "race.md").write_text(markdown(doc))
