@@ -49,9 +49,11 @@ VARIANTS = (
     ("exudyn-ancf tuned", "exudyn-ancf", "tuned, relaxed Newton tolerance", {"newton_rel_tol": 1e-5}),
     ("dttmm-2nd", "dttmm-2nd", "converged", {}),
     ("dttmm-2nd", "dttmm-2nd", "iterations=auto", {"iterations": "auto"}),
+    ("exudyn-ancf tuned", "exudyn-ancf", "tuned, Jacobian reused across steps", {"jacobian_per_step": False}),
     ("exudyn-ancf before", "exudyn-ancf", "before", BEFORE),
     ("exudyn-beam before", "exudyn-beam", "before", GE_BEFORE),
     ("exudyn-beam tuned", "exudyn-beam", "tuned", {}),
+    ("exudyn-beam tuned", "exudyn-beam", "tuned, Jacobian reused across steps", {"jacobian_per_step": False}),
 )
 BASE = "dttmm-2nd"  # the like-for-like DT-TMM configuration (second-order element)
 
@@ -115,11 +117,11 @@ def reference(case):
     return ref, "exudyn-ancf k=32 h=1.25e-4", {"method": "dttmm-2nd", "k": 32, "h": 2.5e-4, "ee_l2": e}
 
 
-def grid_rows(case, ref, repeats, ks=KS, hs=HS, configs=None) -> list[dict]:
+def grid_rows(case, ref, repeats, ks=KS, hs=HS, configs=None, labels=None) -> list[dict]:
     """Part 2: every (configuration, variant, k, h) of the grid with its error and timing."""
     rows = []
     for config, method, label, opts in VARIANTS:
-        if configs and config not in configs:
+        if (configs and config not in configs) or (labels and label not in labels):
             continue
         for k in ks:
             for h in hs:
@@ -240,7 +242,7 @@ def main(argv=None) -> int:
     out = Path(a.out)
     old = json.loads((out / "race.json").read_text()) if a.merge and (out / "race.json").exists() else {}
     doc["cost"] = old.get("cost", []) + ([] if a.skip_cost else cost_rows(case, a.repeats))
-    doc["grid"] = old.get("grid", []) + grid_rows(case, ref, a.repeats, configs=a.configs)
+    doc["grid"] = old.get("grid", []) + grid_rows(case, ref, a.repeats, configs=a.configs, labels=a.labels)
     if old:
         doc["runs"] = [
             *old.get("runs", [{k: old[k] for k in ("commit", "load_at_start")}]),
