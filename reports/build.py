@@ -92,9 +92,9 @@ def _sections(tables, meta, out, bench_dir):
         s = tables["work_precision_summary"]
         eq = tables.get("work_precision_equal_accuracy", pd.DataFrame())
         items = per_case(t, "work_precision", lambda c: peers.work_precision_figure(t, c), "error against CPU time",
-                         lambda c: interpret.work_precision(s, c) + peers.equal_accuracy_text(eq, c))
+                         lambda c: peers.work_precision_text(s, eq, c))
         add("Work-precision", "work-precision", items, ["work_precision_summary", "work_precision_equal_accuracy"],
-            f"Work-precision ({_cases(t)[-1]}): " + " ".join(interpret.work_precision(s, _cases(t)[-1])[:2]))
+            f"Work-precision: {peers.equal_accuracy_text(eq, _cases(t)[-1])[0]}")
     t = tables.get("scheme")
     if t is not None and len(t):
         s = tables["scheme_summary"]

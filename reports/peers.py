@@ -18,6 +18,7 @@ __all__ = [
     "equal_accuracy_text",
     "sig2",
     "work_precision_figure",
+    "work_precision_text",
 ]
 
 _DOC = "Exudyn 1.13 reference manual (exudyn.readthedocs.io)"
@@ -192,6 +193,9 @@ def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
         ax.loglog(noisy.k, noisy.cpu_time, "o", mfc="none", color=c)
         med = g.cpu_time_median.where(np.isfinite(g.cpu_time_median), g.cpu_time)
         ax.vlines(g.k, g.cpu_time, med, color=c, lw=1)
+    ks = sorted({int(k) for k in t.k})
+    ax.set_xticks(ks, [str(k) for k in ks])
+    ax.minorticks_off()
     case = t.case.iloc[0] if len(t) else ""
     n = int(t.repeats.max()) if len(t) else 0
     ax.set(
@@ -251,11 +255,37 @@ def work_precision_figure(table: pd.DataFrame, case: str) -> Figure:
     return fig
 
 
+def work_precision_text(summary: pd.DataFrame, eq: pd.DataFrame, case: str) -> list[str]:
+    """Sentences under a work-precision figure: CPU time of each method to reach the common error
+    (no ratio across physics), the rigid floor, and the like-for-like ratios."""
+    s = summary[summary.case == case] if len(summary) else summary
+    if not len(s):
+        return ["No run of this case produced an error value."]
+    out = []
+    col = "cpu_time_to_target" if "cpu_time_to_target" in s else "wall_time_to_target"
+    flex = s[s.method != "pinocchio-rigid"].dropna(subset=[col])
+    if len(flex):
+        fast = flex.sort_values(col)
+        parts = ", ".join(f"{_label(r.method)} {sig2(getattr(r, col))} s" for r in fast.itertuples())
+        out.append(
+            f"CPU time to reach the common error {flex.target_error.iloc[0]:.2g} m (least of the repeats): {parts}."
+        )
+    rigid = s[s.method == "pinocchio-rigid"]
+    if len(rigid) and np.isfinite(rigid.best_error.iloc[0]):
+        out.append(
+            f"The rigid baseline's error, {rigid.best_error.iloc[0]:.2g} m, is what ignoring the links' "
+            "flexibility costs; no step size removes it."
+        )
+    return out + equal_accuracy_text(eq, case)
+
+
 def equal_accuracy_text(eq: pd.DataFrame, case: str) -> list[str]:
     """Like-for-like ratios at each target accuracy, 2 significant digits."""
     e = eq[(eq.case == case) & np.isfinite(eq.ratio.astype(float))] if len(eq) else eq
     if e is None or not len(e):
-        return [f"{case}: no like-for-like pair reached a common target accuracy on this grid."]
+        return [
+            f"{case}: no pair of the same element strain reached one of the target accuracies (1e-3, 1e-4, 1e-5 m) on this grid."
+        ]
     parts = []
     for tgt, g in e.groupby("target_error", sort=False):
         bits = [f"{_label(r.method)} / {_label(r.against)} = {sig2(r.ratio)}" for r in g.itertuples()]
