@@ -217,6 +217,7 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=2.0)
     ap.add_argument("--skip-cost", action="store_true")
     ap.add_argument("--configs", nargs="*", default=None, help="grid configurations to run (default all)")
+    ap.add_argument("--labels", nargs="*", default=None, help="grid variants (labels) to run (default all)")
     ap.add_argument(
         "--merge", action="store_true", help="add to the cost and grid rows of an existing race.json"
     )
