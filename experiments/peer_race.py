@@ -52,8 +52,13 @@ VARIANTS = (
     ("exudyn-ancf tuned", "exudyn-ancf", "tuned, Jacobian reused across steps", {"jacobian_per_step": False}),
     ("exudyn-ancf before", "exudyn-ancf", "before", BEFORE),
     ("exudyn-beam before", "exudyn-beam", "before", GE_BEFORE),
-    ("exudyn-beam tuned", "exudyn-beam", "tuned", {}),
-    ("exudyn-beam tuned", "exudyn-beam", "tuned, Jacobian reused across steps", {"jacobian_per_step": False}),
+    ("exudyn-beam tuned", "exudyn-beam", "tuned", {"cross_section_inertia": "physical"}),
+    (
+        "exudyn-beam tuned",
+        "exudyn-beam",
+        "tuned, Jacobian reused across steps",
+        {"jacobian_per_step": False, "cross_section_inertia": "physical"},
+    ),
 )
 BASE = "dttmm-2nd"  # the like-for-like DT-TMM configuration (second-order element)
 
