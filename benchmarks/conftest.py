@@ -12,6 +12,7 @@ seconds: they are checked to work, not measured.
 from __future__ import annotations
 
 import dataclasses as dc
+import math
 import os
 import time
 from functools import lru_cache
@@ -89,7 +90,7 @@ def run_benchmark(benchmark, method: str, c: dttmm.Case, k, h: float, ref_name: 
     rounds = 1 if QUICK else 3
     cpu, solve = holder["cpu"][-rounds:], holder["solve"][-rounds:]  # the warm-up round is not kept
     n_el = (k or 0) * len(c.model.links)
-    load = max(x for x in holder["load"] if x == x) if any(x == x for x in holder["load"]) else float("nan")
+    load = max((x for x in holder["load"] if math.isfinite(x)), default=math.nan)
     spread = statistics.median(cpu) / min(cpu) - 1 if min(cpu) > 0 else 0.0
     info = benchmark.extra_info
     info.update(method=method, case=c.name, elements_per_link=k, n_links=len(c.model.links), h=h,
