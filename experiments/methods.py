@@ -79,7 +79,12 @@ _BUILTIN = (
            label="global equations (Newmark, compiled)", style=Style("C3", "^", "--", 4)),
     Method("exudyn-ancf", "reference_models.exudyn_ancf", label="Exudyn ANCF",
            style=Style("C1", "s", "-", 5)),
-    Method("exudyn-beam", "reference_models.exudyn_beam", label="Exudyn GE beam",
+    Method("global-2nd", "reference_models.global_newmark",
+           (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8), ("engine", "numba")),
+           label="global equations (2nd-order strain, gen-α 0.8, compiled)", style=Style("C6", "<", "--", 5)),
+    # physical rotary inertia: measured to run on the suite's cases (see docs/peers.md)
+    Method("exudyn-beam", "reference_models.exudyn_beam", (("cross_section_inertia", "physical"),),
+           label="Exudyn GE beam",
            style=Style("C2", "D", "-", 5)),
     Method("mujoco-chain", "reference_models.mujoco_chain", (("integrator", "implicitfast"),),
            label="MuJoCo hinge chain", style=Style("C5", "X", "-.", 6)),

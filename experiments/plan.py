@@ -196,7 +196,7 @@ def _plan(
             },
             "work_precision": {
                 "cases": cases,
-                "methods": _FLEX,
+                "methods": _FLEX + ["global-2nd"],  # like-for-like partner of dttmm-2nd
                 "path": path,
                 "rigid": {"method": "pinocchio-rigid", "h": [1e-3]},
                 # MuJoCo chain: explicit joint springs, stable step ∝ 1/k² (h_stable ≈ 0.02/k² s here)

@@ -66,13 +66,15 @@ class Task:
 
 @dataclass
 class Outcome:
-    """What a worker sends back: status ``ok`` | ``failed`` | ``unavailable`` and the Result."""
+    """What a worker sends back: status ``ok`` | ``failed`` | ``unavailable``, the Result and,
+    for a run that finished, its timing (``timing_*`` columns, see :mod:`experiments.timing`)."""
 
     status: str
     reason: str = ""
     result: object = None
-    run_time: float = math.nan  # s, build + solve, measured in the worker process
+    run_time: float = math.nan  # s, least wall time of the calls (build + solve), in the worker
     worker: str = field(default_factory=lambda: f"{os.uname().nodename}:{os.getpid()}")
+    timing: dict = field(default_factory=dict)
 
 
 def _check(result) -> str:
@@ -91,21 +93,26 @@ def _check(result) -> str:
     return ""
 
 
-def execute(simulate, case, task: Task) -> Outcome:
+def execute(simulate, case, task: Task, repeats: int = 1) -> Outcome:
     """Run one task with a resolved method; never raises for a failing run.
 
-    ``KeyboardInterrupt`` and ``SystemExit`` still propagate (they stop the sweep).
+    ``repeats`` ≥ 1 calls (one BLAS thread, CPU and wall time each, see
+    :func:`experiments.timing.measure`); the first call's Result is kept. Studies that report
+    cost ask for ≥ 3, accuracy-only studies for 1. ``KeyboardInterrupt`` and ``SystemExit``
+    still propagate (they stop the sweep).
     """
+    from .timing import measure
+
     t0 = time.perf_counter()
     try:
-        res = simulate(case, task.k, task.h, **dict(task.options))
+        res, timing = measure(lambda: simulate(case, task.k, task.h, **dict(task.options)), repeats)
     except methods.MethodUnavailable as exc:
         return Outcome("unavailable", str(exc), run_time=time.perf_counter() - t0)
     except Exception as exc:  # recorded with its reason, never dropped
         msg = str(exc).splitlines()[0][:300] if str(exc) else ""
         return Outcome("failed", f"{type(exc).__name__}: {msg}", run_time=time.perf_counter() - t0)
     why = _check(res)
-    return Outcome("failed" if why else "ok", why, res, time.perf_counter() - t0)
+    return Outcome("failed" if why else "ok", why, res, timing.wall_min, timing=timing.columns())
 
 
 def _plain(v):
@@ -237,6 +244,7 @@ class RunStore:
             "meta": _plain({k: v for k, v in meta.items() if k not in ("versions",)}),
             "versions": _plain(meta.get("versions", {})),
             "task": task.key,
+            **outcome.timing,
         }
 
     def row(self, task: Task) -> dict:

@@ -21,6 +21,10 @@ def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True)
     names = [n for n in (names or STUDIES) if n in ctx.plan.studies]
     per_study = {n: STUDIES[n].tasks(ctx) for n in names}
     every = [t for ts in per_study.values() for t in ts]
+    repeats = {}  # timed calls per run: the most any study that reports cost asks for
+    for n, ts in per_study.items():
+        for t in ts:
+            repeats[t] = max(repeats.get(t, 1), getattr(STUDIES[n], "REPEATS", 1))
     run_sweep(
         every,
         ctx.cases,
@@ -30,6 +34,7 @@ def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True)
         workers=workers,
         progress=progress,
         desc=f"{ctx.plan.name} runs",
+        repeats=repeats,
     )
     tables = {}
     for n in names:

@@ -21,9 +21,20 @@ from .runs import Outcome, RunStore, Task, execute
 __all__ = ["run_sweep", "pending"]
 
 
-def pending(tasks: Iterable[Task], store: RunStore) -> list[Task]:
-    """Tasks (deduplicated, in order) that have no finished run in the store."""
-    return [t for t in dict.fromkeys(tasks) if not store.has(t)]
+def pending(tasks: Iterable[Task], store: RunStore, repeats=None) -> list[Task]:
+    """Tasks (deduplicated, in order) that have no finished run in the store, or whose stored
+    successful run was timed with fewer repeats than ``repeats`` (Task -> int) asks for."""
+    need = repeats or {}
+
+    def done(t):
+        if not store.has(t):
+            return False
+        if need.get(t, 1) <= 1:
+            return True
+        row = store.row(t)
+        return row.get("status") != "ok" or int(row.get("timing_repeats") or 1) >= need[t]
+
+    return [t for t in dict.fromkeys(tasks) if not done(t)]
 
 
 @contextmanager
@@ -76,6 +87,7 @@ def run_sweep(
     workers=None,
     progress=True,
     desc="sweep",
+    repeats=None,
 ):
     """Run every task not yet in ``store``, writing each as it finishes; return the table.
 
@@ -87,6 +99,7 @@ def run_sweep(
     references : dict case name -> (Result or None, reference id), for the error columns
     scheduler : None (LocalCluster), ``"serial"`` (this process) or a scheduler address
     workers : number of LocalCluster workers (default: this machine's cores)
+    repeats : dict Task -> timed calls per run (default 1; cost studies ask for ≥ 3)
 
     Returns
     -------
@@ -94,7 +107,8 @@ def run_sweep(
     """
     tasks = list(dict.fromkeys(tasks))
     store.bind(cases)  # runs are keyed by the content of these cases
-    todo = pending(tasks, store)
+    repeats = repeats or {}
+    todo = pending(tasks, store, repeats)
     references = references or {}
     for t in todo:
         if abs(cases[t.case].scenario.duration - t.duration) > 1e-12:
@@ -121,15 +135,15 @@ def run_sweep(
     try:
         if scheduler == "serial":
             for t in runnable:
-                finish(t, execute(resolved[t.method], cases[t.case], t))
+                finish(t, execute(resolved[t.method], cases[t.case], t, repeats.get(t, 1)))
         elif runnable:
-            _distributed(runnable, resolved, cases, finish, scheduler, workers, store)
+            _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats)
     finally:
         bar.close()
     return store.table(tasks, references if references else None)
 
 
-def _distributed(runnable, resolved, cases, finish, scheduler, workers, store):
+def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats):
     from dask.distributed import as_completed
 
     with _client(scheduler, workers) as client:
@@ -146,6 +160,7 @@ def _distributed(runnable, resolved, cases, finish, scheduler, workers, store):
                 resolved[t.method],
                 case_f[t.case],
                 t,
+                repeats.get(t, 1),
                 pure=False,
                 # the entry key: a shared scheduler never confuses two versions of a run
                 key=f"run-{t.case}-{t.key}-{store.entry_key(t)[:16]}",

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import bench, benchmarks, figures, interpret
+from . import bench, benchmarks, figures, interpret, peers
 from .render import Section, write
 from .scoreboard import scoreboard
 
@@ -164,14 +164,16 @@ def _convergence_h(inp):
 
 def _work_precision(inp):
     t, s = inp.tables.get("work_precision"), inp.tables.get("work_precision_summary")
+    eq = inp.tables.get("work_precision_equal_accuracy", pd.DataFrame())
     return _per_case(
         inp, t, "work_precision", "Work-precision", "work-precision",
-        lambda c: figures.work_precision(t, c),
-        lambda c: "end-effector error against the wall time of the solve, each method refined along the "
-        "same (k, h) path; lower left is better; the star is the rigid-link model.",
-        lambda c: interpret.work_precision(s, c),
-        ["work_precision_summary"],
-        lambda cs: f"Work-precision ({cs[-1]}): " + " ".join(interpret.work_precision(s, cs[-1])[:2]),
+        lambda c: peers.work_precision_figure(t, c),
+        lambda c: "end-effector error against the CPU time of the solve (minimum of repeats), each method "
+        "refined along the same (k, h) path; lower left is better; hollow markers: timings taken on a "
+        "loaded machine; the star is the rigid-link model.",
+        lambda c: peers.work_precision_text(s, eq, c),
+        ["work_precision_summary", "work_precision_equal_accuracy"],
+        lambda cs: "Work-precision: " + peers.equal_accuracy_text(eq, cs[-1])[0],
     )
 
 
@@ -221,11 +223,18 @@ def _cost(inp):
     t, e = inp.tables.get("cost"), inp.tables.get("cost_exponents")
     if t is None or not len(t):
         return None
-    text = interpret.cost(t, e)
-    fig = inp.figure("cost.png", figures.cost(t, e))
-    caption = f"{_cases(t)[0]}: wall time of the solve against elements per link k at h = {_h(t)}"
+    text = peers.cost_text(t, e)
+    fig = inp.figure("cost.png", peers.cost_figure(t, e))
+    caption = (f"{_cases(t)[0]}: CPU time of the solve (minimum of repeats) against elements per link k "
+               f"at h = {_h(t)}; hollow markers: noisy points")
     return Section("CPU time against elements per link", [(fig, caption)], text, [("cost_exponents", e)], "cost",
                    text[0])
+
+
+def _peer_configuration(inp):
+    sec = peers.configuration_section()
+    inp.tables["peer_configuration"] = sec.tables[0][1]
+    return sec
 
 
 def _cases_section(inp):
@@ -236,19 +245,6 @@ def _cases_section(inp):
 
 BENCH_TITLE = "Cost scaling (benchmarks)"
 BENCH_TABLES = ("bench", "bench_exponents", "bench_element_step_us", "bench_ratios")
-
-
-def _bench_provenance(info) -> str:
-    cores = info.get("cores")
-    dirty = " (uncommitted changes)" if info.get("dirty") else ""
-    date, name = str(info["date"])[:19].replace("T", " "), Path(info["file"]).name
-    return (
-        f"Benchmark run {date} ({name}) on {info['machine'] or info['node']}"
-        f"{f', {cores} cores' if cores else ''}, Python {info['python']}, "
-        f"commit {info['commit'][:10]}{dirty}. "
-        f"Timings are from one run on a shared {f'{cores}-core ' if cores else ''}machine, not repeated: "
-        "read differences under about 20 % as noise."
-    )
 
 
 def _skipped(why: str) -> Section:
@@ -268,7 +264,7 @@ def _bench_section(inp):
         return _skipped(f"{latest.name} has no scaling-suite groups (elements:…, links:…); run `make bench`.")
     ex = bench.scaling_exponents(rec)
     per_el = bench.element_step_table(rec, "three_link")
-    ratios = bench.ratios(rec, tables.get("work_precision_summary"))
+    ratios = bench.ratios(rec, tables.get("work_precision_equal_accuracy"))
     tables.update(bench=rec, bench_exponents=ex, bench_element_step_us=per_el, bench_ratios=ratios)
     figs = []
     if (rec.kind == "elements").any():
@@ -277,7 +273,7 @@ def _bench_section(inp):
     if (rec.kind == "links").any():
         f = inp.figure("bench_links.png", figures.bench_links(rec, ex, bench.N_MIN))
         figs.append((f, "time per step (solve only) against the number of links"))
-    text = interpret.bench_costs(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
+    text = bench.costs_text(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
     gone = bench.absent(rec)
     if gone:
         text.append("Absent from this benchmark file: " + ", ".join(gone) + ".")
@@ -288,7 +284,7 @@ def _bench_section(inp):
             "(bench_ratios: >1 means DT-TMM is faster); the benchmarks' tip errors are against a DT-TMM "
             "reference and are not used here for cross-method accuracy."
         ),
-        _bench_provenance(info),
+        *bench.provenance(info),
     ]
     tabs = [(n, tables[n]) for n in BENCH_TABLES[1:]]
     head = next((s for s in text if s.startswith("At equal model size")), None)
@@ -305,6 +301,7 @@ SECTION_BUILDERS = [
     _loads,
     _cost,
     benchmarks.section,  # benchmark problems (published single-case checks)
+    _peer_configuration,
     _bench_section,
 ]
 
