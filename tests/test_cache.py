@@ -30,6 +30,11 @@ ROOT = TESTS.parent
 TIMING = ["wall_time", "run_time", "worker"]
 
 
+def _untimed(df):
+    """The table without its measured timings (they differ per run)."""
+    return df.drop(columns=[c for c in df.columns if c in TIMING or c.startswith("timing_")])
+
+
 @pytest.fixture(autouse=True)
 def _rotor():
     methods.register("rotor", rotor.simulate)
@@ -101,8 +106,8 @@ def test_damaged_entry_is_recomputed_with_a_warning_and_equals_a_fresh_run(tmp_p
         again = _sweep(tasks, cases, RunStore(tmp_path / "a"))
     assert rotor.CALLS["n"] == 1  # the damaged run alone
     fresh = _sweep(tasks, cases, RunStore(tmp_path / "fresh"))
-    pd.testing.assert_frame_equal(again.drop(columns=TIMING), fresh.drop(columns=TIMING))
-    pd.testing.assert_frame_equal(again.drop(columns=TIMING), first.drop(columns=TIMING))
+    pd.testing.assert_frame_equal(_untimed(again), _untimed(fresh))
+    pd.testing.assert_frame_equal(_untimed(again), _untimed(first))
     with warnings.catch_warnings():
         warnings.simplefilter("error", CacheWarning)  # repaired: read back without complaint
         assert all(RunStore(tmp_path / "a", cases).has(t) for t in tasks)
@@ -157,7 +162,7 @@ def test_case_edit_changes_the_key_and_the_results(tmp_path):
     rotor.CALLS["n"] = 0
     back = _sweep(tasks, cases, RunStore(tmp_path))  # the original case finds its own entries
     assert rotor.CALLS["n"] == 0
-    pd.testing.assert_frame_equal(back.drop(columns=TIMING), light.drop(columns=TIMING))
+    pd.testing.assert_frame_equal(_untimed(back), _untimed(light))
 
 
 def test_reformatting_a_case_file_keeps_the_key(tmp_path):
@@ -201,7 +206,7 @@ def test_recompute_ignores_and_rewrites_every_entry(tmp_path):
     rotor.CALLS["n"] = 0
     again = _sweep(tasks, cases, RunStore(tmp_path, recompute=True))
     assert rotor.CALLS["n"] == len(tasks)
-    pd.testing.assert_frame_equal(again.drop(columns=TIMING), first.drop(columns=TIMING))
+    pd.testing.assert_frame_equal(_untimed(again), _untimed(first))
 
 
 _SLOW_METHOD = """
@@ -383,7 +388,7 @@ def test_payload_edit_in_the_case_file_changes_the_study_tables(tmp_path):
 
     ctx1, light = study()
     _, again = study()
-    pd.testing.assert_frame_equal(again.drop(columns=TIMING), light.drop(columns=TIMING))
+    pd.testing.assert_frame_equal(_untimed(again), _untimed(light))
     (case_dir / "three_link.toml").write_text(
         text.replace("payload = { mass = 0.1,", "payload = { mass = 1.0,")
     )
