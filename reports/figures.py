@@ -16,13 +16,11 @@ __all__ = [
     "bench_links",
     "convergence_h",
     "convergence_k",
-    "cost",
     "load_label",
     "loads",
     "save",
     "scheme",
     "time_histories",
-    "work_precision",
 ]
 
 ERROR_LABEL = "end-effector position error, RMS (m)"
@@ -165,23 +163,6 @@ def convergence_h(table: pd.DataFrame, case: str) -> Figure:
     return fig
 
 
-def work_precision(table: pd.DataFrame, case: str) -> Figure:
-    """Error against wall time, one curve per flexible method, the rigid baseline as stars."""
-    fig, (ax,) = _figure()
-    g = table[table.case == case]
-    _loglog_groups(ax, g[g.k > 0], "wall_time", "ee_l2", "method")
-    rigid = g[(g.k == 0) & np.isfinite(g.ee_l2)]
-    for m, r in rigid.groupby("method"):
-        ax.loglog(r.wall_time, r.ee_l2, "*", ms=12, color="k", label=f"{_label(m)} (rigid-model floor)")
-    ax.set(
-        xlabel="wall time of the solve (s)",
-        ylabel=ERROR_LABEL,
-        title=f"{case}: work-precision (lower left is better)",
-    )
-    _legend(ax)
-    return fig
-
-
 def scheme(table: pd.DataFrame, case: str) -> Figure:
     """DT-TMM variants (sweep form × corrections per step): error against k and against h."""
     fig, axes = _figure(ncols=2)
@@ -279,24 +260,6 @@ def loads(series: pd.DataFrame, case: str) -> Figure:
         ([f"d_{q}" for q in qs], [f"Δ {load_label(q)}" for q in qs], 1.0, True),
     ]
     return _history_grid(s, rows, case, "loads and energy (top) and Δ = method − reference (bottom)")
-
-
-def cost(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
-    """Wall time against elements per link, one line per method, fitted exponent in the legend."""
-    fig, (ax,) = _figure()
-    ex = dict(zip(exponents.method, exponents.exponent)) if len(exponents) else {}
-    labels = {
-        m: f"{_label(m)} (∝ k^{ex[m]:.2f})" if np.isfinite(ex.get(m, np.nan)) else _label(m)
-        for m in table.method.unique()
-    }
-    _loglog_groups(ax, table, "k", "wall_time", "method", labels=labels)
-    _integer_ticks(ax, table.k)
-    case = table.case.iloc[0] if len(table) else ""
-    ax.set(
-        xlabel="elements per link k", ylabel="wall time of the solve (s)", title=f"{case}: CPU time against k"
-    )
-    _legend(ax)
-    return fig
 
 
 def save(fig: Figure, path) -> None:

@@ -6,14 +6,11 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
-    "bench_costs",
     "convergence_h",
     "convergence_k",
-    "cost",
     "loads",
     "paper",
     "scheme",
-    "work_precision",
 ]
 
 
@@ -100,32 +97,6 @@ def convergence_h(table, orders, case) -> list[str]:
     return out + not_ok(table[table.case == case])
 
 
-def work_precision(summary, case) -> list[str]:
-    s = summary[summary.case == case]
-    if s.empty:
-        return ["No run of this case produced an error value."]
-    flex = s[s.method != "pinocchio-rigid"].dropna(subset=["wall_time_to_target"])
-    out = []
-    if len(flex):
-        target = flex.target_error.iloc[0]
-        fast = flex.sort_values("wall_time_to_target")
-        parts = ", ".join(f"{_l(r.method)} {r.wall_time_to_target:.3g} s" for r in fast.itertuples())
-        out.append(f"Wall time to reach the common error {_e(target)} m: {parts}.")
-        if len(fast) > 1:
-            a, b = fast.iloc[0], fast.iloc[-1]
-            out.append(
-                f"{_l(a.method)} is {_sig(b.wall_time_to_target / a.wall_time_to_target)}x faster than "
-                f"{_l(b.method)} at that accuracy."
-            )
-    rigid = s[s.method == "pinocchio-rigid"]
-    if len(rigid) and np.isfinite(rigid.best_error.iloc[0]):
-        out.append(
-            f"The rigid baseline's error, {_e(rigid.best_error.iloc[0])} m, is what ignoring the links' "
-            "flexibility costs; no step size removes it."
-        )
-    return out
-
-
 def scheme(summary, case) -> list[str]:
     s = summary[summary.case == case]
     out = []
@@ -209,85 +180,7 @@ def _pct(x) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{100 * x:.2g} %"
 
 
-def cost(table, exponents) -> list[str]:
-    ex = exponents[np.isfinite(exponents.exponent)]
-    out = [
-        "Fitted exponents of wall time ∝ k^p (k ≥ 2): "
-        + (", ".join(f"{_l(r.method)} p = {r.exponent:.2g}" for r in ex.itertuples()) or "none")
-        + "."
-    ]
-    if len(ex) > 1:
-        kmax = int(ex.k_max.min())
-        at = table[(table.k == kmax) & (table.status == "ok")].set_index("method").wall_time
-        if "dttmm" in at and "global" in at:
-            out.append(
-                f"At k = {kmax}, DT-TMM takes {at['dttmm']:.3g} s and the global solver "
-                f"{at['global']:.3g} s (ratio {at['global'] / at['dttmm']:.2f})."
-            )
-    out.append("Timings come from one run per worker process on a shared machine; read them as ±20 %.")
-    return out
-
-
 def _x(v) -> str:
     return "n/a" if v is None or not np.isfinite(v) else (f"{v:.0f}" if v >= 100 else f"{v:.3g}")
 
 
-def bench_costs(exponents, per_element, ratios, *, k_min=8, n_min=2, case="three_link") -> list[str]:
-    """Sentences under the benchmark figures: fitted exponents, cost per element-step at the
-    largest k of each method, and speed ratios against DT-TMM at equal size and equal accuracy."""
-    out = []
-    el = exponents[(exponents.scan == "elements per link") & (exponents.case == case)]
-    el = el[np.isfinite(el.exponent)]
-    ln = exponents[exponents.scan.str.startswith("links") & np.isfinite(exponents.exponent)]
-    if len(el) or len(ln):
-        parts = []
-        if len(el):
-            parts.append(
-                f"over k ≥ {k_min} ({case}, the asymptotic regime: below it fixed per-step costs dominate) "
-                + ", ".join(f"{_l(r.method)} {r.exponent:.2g}" for r in el.itertuples())
-            )
-        if len(ln):
-            parts.append(
-                f"over n ≥ {n_min} links at k = 8: "
-                + ", ".join(f"{_l(r.method)} {r.exponent:.2g}" for r in ln.itertuples())
-            )
-        out.append("Fitted exponents p of time per step ∝ N^p: " + "; ".join(parts) + ".")
-    if len(per_element) and len(per_element.columns) > 1:
-        bits = []
-        for m in per_element.columns[1:]:
-            v = per_element[["k", m]].dropna()
-            if len(v):
-                bits.append(f"{_l(m)} {v[m].iloc[-1]:.3g} µs (k = {v.k.iloc[-1]})")
-        out.append(
-            f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + "."
-        )
-    cols = [c for c in ratios.columns if c.endswith("/dttmm")]
-    names = " : ".join(["DT-TMM"] + [_l(c.split("/")[0]) for c in cols])
-    size = ratios[ratios.basis.str.startswith("equal size") & (ratios.case == case) & ratios.k.notna()]
-    if len(size):
-        kmax = size.k.max()
-        parts = [
-            f"{r.basis.split('(')[-1].rstrip(')')} 1 : " + " : ".join(_x(r[c]) for c in cols)
-            for _, r in size[size.k == kmax].iterrows()
-        ]
-        out.append(
-            f"At equal model size ({case}, k = {_x(kmax)}, time per step) {names} = " + "; ".join(parts) + "."
-        )
-    acc = ratios[ratios.basis.str.startswith("equal accuracy")]
-    if len(acc):
-        parts = [
-            f"{r.case} (error {_e(r.target_error_m)} m) 1 : " + " : ".join(_x(r[c]) for c in cols)
-            for _, r in acc.iterrows()
-        ]
-        out.append(
-            "At equal accuracy (this report's work-precision study, wall time to reach the common error) "
-            f"{names} = "
-            + "; ".join(parts)
-            + (" (n/a: did not reach it)." if acc[cols].isna().any().any() else ".")
-        )
-    else:
-        out.append(
-            "No equal-accuracy ratio: the work-precision summary (wall_time_to_target) is absent from "
-            "the report data."
-        )
-    return out
