@@ -388,8 +388,9 @@ class PD:
         """(τ, ∂τ/∂α, ∂τ/∂α̇, ∂τ/∂M_root) at t (``left``: left limit of the laws of time)."""
         a_ref, r_ref, _ = self.reference.motion(t, left)
         tau = (self.feedforward_torque(t, state, left) + self.kp * (a_ref - state.angle)
-               + self.kd * (r_ref - state.rate) - self.moment_gain * state.moment
-               + self.gain_integral * state.integral)
+               + self.kd * (r_ref - state.rate) + self.gain_integral * state.integral)
+        if self.moment_gain:  # an engine without bending moments passes nan
+            tau -= self.moment_gain * state.moment
         return _saturate(tau, self.limit, (-self.kp, -self.kd, -self.moment_gain))
 
     @property
