@@ -21,8 +21,11 @@ Drives, on the shared step schedule (a step ends exactly at every drive breakpoi
   The reported torque is that motor torque, the mean of the two steps around the output time.
 
 * closed loop (``pd``, ``pid``, user laws; docs/control.md): the law is evaluated once per step,
-  at its start t_k from the state x_k, and its torque held through the step (a zero-order hold:
-  a one-step lag, first order in h). The root bending moment a law sees is the torque the first
+  at its start t_k from the state x_k, and linearised there: the motor force through the step
+  is τ_k + ∂τ/∂α (α − α_k) + ∂τ/∂α̇ (α̇ − α̇_k) (MuJoCo's affine actuator bias), whose rate term
+  ``implicitfast`` treats implicitly (an explicit rate feedback is unstable against the small
+  inertia of the piece behind an inner joint). Reference, feedforward, moment feedback and
+  everything else are sampled at t_k: a one-step lag, first order in h. The root bending moment a law sees is the torque the first
   elastic hinge of the link transmits, −(EI/l)·θ₁ − μ(EI/l)·θ̇₁ (θ₁ that hinge's angle, at l/2
   from the root); a ``pid`` integral state is advanced by explicit Euler with the same
   sample. Such runs go through ``mj_step`` one step at a time. The ``computed_torque``
@@ -136,6 +139,7 @@ class _Stepper:
         self.pres = np.array([i for i, dr in enumerate(self.drives) if dr.kind == "motion"], int)
         self.closed = np.array([i for i in self.free if self.drives[i].closed_loop], int)
         self._feedback_setup(case, k)
+        self._affine_motors()
         self.spec = mj.mjtState.mjSTATE_FULLPHYSICS
         self.nstate = mj.mj_stateSize(self.m, self.spec)
         self.messages = []
@@ -163,15 +167,36 @@ class _Stepper:
                              angles=angles, rates=rates, tip_deflections=tipdef) for i in self.closed]
 
     def feedback(self, t, x, z):
-        """(torques, integral rates) of the closed-loop joints at t from the state row x and the
-        integral states z, each (n_closed,)."""
-        tau, zdot = np.empty(self.closed.size), np.empty(self.closed.size)
+        """The closed-loop laws at t from the state row x and the integral states z: torques,
+        integral rates (n_closed,), and the affine control (n_closed,) with its slopes
+        (n_closed, 2) that reproduce the torques at x (see :meth:`set_slopes`)."""
+        nc = self.closed.size
+        tau, zdot, ctrl, slopes = np.empty(nc), np.empty(nc), np.empty(nc), np.empty((nc, 2))
         for c, s in enumerate(self.control_states(x)):
             law = self.drives[s.joint].law
             s = ControlState(**{**s.__dict__, "integral": float(z[c])})
-            tau[c] = law.evaluate(t, s)[0]
+            tau[c], da, dr, _ = law.evaluate(t, s)
             zdot[c] = law.error_rate(t, s)
-        return tau, zdot
+            slopes[c] = da, dr
+            ctrl[c] = tau[c] - da * s.angle - dr * s.rate
+        return tau, zdot, ctrl, slopes
+
+    def set_slopes(self, slopes):
+        """Motor force of closed-loop joint i = ctrl + ∂τ/∂α·α + ∂τ/∂α̇·α̇ within the step (MuJoCo's
+        affine bias): equal to the law at the step start, and the rate term enters
+        ``implicitfast``'s implicit velocity update — an explicit rate feedback would be
+        unstable against the tiny inertia of the piece behind an inner joint."""
+        self.m.actuator_biasprm[self.closed, 1:3] = slopes
+
+    def _affine_motors(self):
+        m = self.m
+        for i in self.closed:
+            m.actuator_biastype[i] = self.mj.mjtBias.mjBIAS_AFFINE
+            m.actuator_biasprm[i, :3] = 0.0
+            lim = getattr(self.drives[i].law, "limit", math.inf)
+            if math.isfinite(lim):  # keeps the affine force within the law's saturation
+                m.actuator_forcelimited[i] = 1
+                m.actuator_forcerange[i] = (-lim, lim)
 
     def initial_state(self):
         """Straight links, joint angles and rates from the drives (rigid initial rotation)."""
@@ -269,8 +294,8 @@ def _run_motion(st, x0, T, keep, ctrl, opts, stats):
         dtj = T[j + 1] - T[j]
         target = np.array([dr.motion(float(T[j + 1]), True)[0] for dr in laws])
         if cl.size:
-            fb[j], zdot = st.feedback(float(T[j]), x, z)
-            ctrl[j, cl] = fb[j]
+            fb[j], zdot, ctrl[j, cl], slopes = st.feedback(float(T[j]), x, z)
+            st.set_slopes(slopes)
             z = z + dtj * zdot
         u = ctrl[j].copy()
         J = None
