@@ -391,7 +391,7 @@ class PD:
                + self.kd * (r_ref - state.rate) + self.gain_integral * state.integral)
         if self.moment_gain:  # an engine without bending moments passes nan
             tau -= self.moment_gain * state.moment
-        return _saturate(tau, self.limit, (-self.kp, -self.kd, -self.moment_gain))
+        return _saturate(tau, self.limit, (0.0 - self.kp, 0.0 - self.kd, 0.0 - self.moment_gain))
 
     @property
     def breakpoints(self) -> tuple[float, ...]:

@@ -196,3 +196,15 @@ def test_require_open_loop_names_law_joint_and_method():
     ct = (drives[0], Drive("torque", PD(1.0, 1.0, Constant(0.0), ComputedTorque())))
     with pytest.raises(InputError, match=r"drives\[1\].feedforward.*joint 2.*mujoco-chain"):
         require_no_computed_torque(dttmm.Case(case.model, dttmm.Scenario(1.0, 0.1, ct)), "mujoco-chain")
+
+
+def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "experiments" / "cases" / "closed_loop_three_link.toml"
+    case = dttmm.load_case(path)
+    assert [d.law.name for d in case.scenario.drives] == ["pd"] * 3
+    assert all(d.closed_loop and d.law.moment_gain == 0.5 for d in case.scenario.drives)
+    assert [d.law.reference.motion(1.0)[0] for d in case.scenario.drives] == [0.8, -0.6, 0.4]
+    with pytest.raises(InputError, match="joint 1 is not supported by dttmm yet"):
+        require_open_loop(case, "dttmm")
