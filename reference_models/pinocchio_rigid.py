@@ -228,6 +228,42 @@ def _rk4(arm, q, v, T, restart, opts, stats):
     N = T.size - 1
     Q, V = np.empty((N + 1, q.size)), np.empty((N + 1, q.size))
     Ar, Al = np.empty_like(Q), np.empty_like(Q)
+    jump = np.zeros(N + 1, bool)  # nodes where the left-limit acceleration differs
+    Q[0], V[0] = q, v
+    acc = arm.acc
+    for k in range(N):
+        t0, t1 = T[k], T[k + 1]
+        dt = t1 - t0
+        tm = t0 + 0.5 * dt
+        a1 = acc(t0, False, q, v)
+        q2, v2 = q + 0.5 * dt * v, v + 0.5 * dt * a1
+        a2 = acc(tm, False, q2, v2)
+        q3, v3 = q + 0.5 * dt * v2, v + 0.5 * dt * a2
+        a3 = acc(tm, False, q3, v3)
+        q4, v4 = q + dt * v3, v + dt * a3
+        a4 = acc(t1, True, q4, v4)  # left limit: a jump at t1 belongs to the next step
+        q = q + (dt / 6) * (v + 2 * v2 + 2 * v3 + v4)
+        v = v + (dt / 6) * (a1 + 2 * a2 + 2 * a3 + a4)
+        Ar[k] = a1
+        Q[k + 1], V[k + 1] = q, v
+        if not math.isfinite(float(q.sum() + v.sum())):
+            stats["fail"] = _nonfinite(k, t1, q, v, arm)
+            N = k
+            break
+        if restart[k] or k == N - 1:
+            Al[k + 1] = acc(t1, True, q, v)
+            jump[k + 1] = True
+    if "fail" not in stats:
+        Ar[N] = Al[N]  # no step starts at the last node
+    Al[~jump] = Ar[~jump]
+    return T[:N + 1], Q[:N + 1], V[:N + 1], Ar[:N + 1], Al[:N + 1]
+
+
+def _rk4_closed(arm, q, v, T, restart, opts, stats):
+    """RK4 with the integral states of closed-loop drives integrated alongside (q, v)."""
+    N = T.size - 1
+    Q, V = np.empty((N + 1, q.size)), np.empty((N + 1, q.size))
+    Ar, Al = np.empty_like(Q), np.empty_like(Q)
     z = arm.z0  # integral states of closed-loop drives (nz,), integrated alongside
     Z, E = np.empty((N + 1, z.size)), np.empty((N + 1, z.size))
     jump = np.zeros(N + 1, bool)  # nodes where the left-limit acceleration differs
@@ -416,7 +452,8 @@ def _integrate(arm, scen, h, T_end, restart, integrator, opts, stats):
         z = np.zeros((T.size, 0))
         nodes = (T, z, z, z, z)
     else:
-        nodes = (_rk4 if integrator == "rk4" else _newmark)(arm, qf0, vf0, T, restart, opts, stats)
+        run = _newmark if integrator == "newmark" else (_rk4_closed if arm.nz else _rk4)
+        nodes = run(arm, qf0, vf0, T, restart, opts, stats)
     wall = time.perf_counter() - t0
     n_steps = nodes[0].size - 1
     tg = t_out[t_out <= nodes[0][-1] + 1e-9 * h]
