@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pydantic import BaseModel, ValidationError
 
 from .errors import InputError
-from .schema import LAW_FIELDS, DriveFields, PDGainFields, PIDGainFields, check_fields
+from .schema import LAW_FIELDS, DriveFields, PDGainFields, PIDGainFields, _short, check_fields
 
 __all__ = [
     "LAWS",
@@ -479,11 +479,6 @@ class UserLaw:
         raise InputError("law", self.label, "a user law (Python callable) cannot be written to a case file")
 
 
-def _short(v):
-    s = repr(v)
-    return v if len(s) <= 80 else s[:76] + " ..."
-
-
 LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table, PD, PID)}
 
 
@@ -513,7 +508,9 @@ class Drive:
     """How one joint is driven.
 
     kind : ``"torque"`` (the law gives τ; the joint angle is free) or ``"motion"`` (the law
-    gives the joint angle α(t); the torque is an output).
+    gives the joint angle α(t); the torque is an output). A torque drive with a closed-loop
+    law (``PD``, ``PID``, ``UserLaw``) is ``closed_loop``: its torque comes from
+    :meth:`evaluate` with the state, and :meth:`torque` refuses.
     initial_angle, initial_rate : joint state at t = 0 for torque drives. For motion drives
     they follow from the law; if given they must agree with it.
     """

@@ -41,6 +41,7 @@ not import and the method is reported unavailable.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -174,7 +175,7 @@ class _Stepper:
         tau, zdot, ctrl, slopes = np.empty(nc), np.empty(nc), np.empty(nc), np.empty((nc, 2))
         for c, s in enumerate(self.control_states(x)):
             law = self.drives[s.joint].law
-            s = ControlState(**{**s.__dict__, "integral": float(z[c])})
+            s = dataclasses.replace(s, integral=float(z[c]))
             tau[c], da, dr, _ = law.evaluate(t, s)
             zdot[c] = law.error_rate(t, s)
             slopes[c] = da, dr
