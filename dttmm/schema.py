@@ -27,6 +27,7 @@ from .errors import InputError
 
 __all__ = [
     "LAW_FIELDS",
+    "OPEN_LAW_FIELDS",
     "BodyFields",
     "CaseFile",
     "DriveFields",
@@ -34,6 +35,10 @@ __all__ = [
     "LinkFile",
     "MaterialFields",
     "NonNegative",
+    "PDFields",
+    "PDGainFields",
+    "PIDFields",
+    "PIDGainFields",
     "Positive",
     "ScenarioFields",
     "SectionFields",
@@ -137,10 +142,60 @@ class TableFields(_Strict):
     values: Annotated[FiniteList, Field(min_length=2)]
 
 
-#: law name -> the model of its parameters
-LAW_FIELDS: dict[str, type[_Strict]] = {"constant": ConstantFields, "bang_bang": BangBangFields,
-                                        "sine": SineFields, "spin_up": SpinUpFields,
-                                        "table": TableFields}
+#: open-loop law name -> the model of its parameters
+OPEN_LAW_FIELDS: dict[str, type[_Strict]] = {"constant": ConstantFields, "bang_bang": BangBangFields,
+                                             "sine": SineFields, "spin_up": SpinUpFields,
+                                             "table": TableFields}
+MOTION_LAWS = ("constant", "sine", "spin_up", "table")  # laws that can give an angle α(t)
+TORQUE_LAWS = ("constant", "bang_bang", "sine", "table")  # laws that can give a torque τ(t)
+
+
+def _tagged(name: str, fields: type[_Strict]) -> type[_Strict]:
+    """``fields`` plus the tag ``law = name``: one member of a nested law table's union."""
+    return type(f"{fields.__name__[:-6]}Table", (fields,),
+                {"__annotations__": {"law": Literal[name]}, "__module__": __name__})
+
+
+class ComputedTorqueTable(_Strict):
+    """``{ law = "computed_torque" }``: rigid-model inverse dynamics of the reference motion."""
+
+    law: Literal["computed_torque"]
+
+
+ReferenceLaw = Annotated[Union[tuple(_tagged(n, OPEN_LAW_FIELDS[n]) for n in MOTION_LAWS)],  # noqa: UP007
+                         Field(discriminator="law")]
+FeedforwardLaw = Annotated[Union[(*(_tagged(n, OPEN_LAW_FIELDS[n]) for n in TORQUE_LAWS),
+                                  ComputedTorqueTable)], Field(discriminator="law")]
+Limit = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf (no saturation) allowed
+
+
+class PDGainFields(_Strict):
+    """Gains of a PD law: kp (N·m/rad), kd (N·m·s/rad), moment_gain (1), limit (N·m)."""
+
+    kp: NonNegative
+    kd: NonNegative
+    moment_gain: Finite = 0.0
+    limit: Limit = math.inf
+
+
+class PIDGainFields(PDGainFields):
+    """PD gains plus ki (N·m/(rad·s))."""
+
+    ki: NonNegative
+
+
+class PDFields(PDGainFields):
+    reference: ReferenceLaw
+    feedforward: FeedforwardLaw | None = None
+
+
+class PIDFields(PIDGainFields):
+    reference: ReferenceLaw
+    feedforward: FeedforwardLaw | None = None
+
+
+#: law name -> the model of its parameters (every law a case file can name)
+LAW_FIELDS: dict[str, type[_Strict]] = {**OPEN_LAW_FIELDS, "pd": PDFields, "pid": PIDFields}
 
 
 # --- the file format --------------------------------------------------------------------------
@@ -307,10 +362,20 @@ def _reason(err: dict, keys) -> str:
             return f"needs at least {lo} entries"
         return f"needs at most {hi} entries"
     if t == "union_tag_not_found":
-        return f"is required (one of: {', '.join(LAW_FIELDS)})"
+        return f"is required (one of: {', '.join(keys or LAW_FIELDS)})"
     if t == "union_tag_invalid":
-        return f"unknown drive law (one of: {', '.join(LAW_FIELDS)})"
+        tags = ctx.get("expected_tags") or ", ".join(LAW_FIELDS)
+        return f"unknown drive law (one of: {tags})"
     return err.get("msg", t)
+
+
+def _tags(u) -> list[str] | None:
+    """The law names a discriminated union of law tables accepts (None: not such a union)."""
+    if not (isinstance(u, tuple) and u[0] == "union"):
+        return None
+    tags = [get_args(m.model_fields["law"].annotation) for m in u[1]
+            if isinstance(m, type) and issubclass(m, BaseModel) and "law" in m.model_fields]
+    return [a[0] for a in tags if a] or None
 
 
 def input_error(exc: ValidationError, root, prefix: str = "") -> InputError:
@@ -324,10 +389,10 @@ def input_error(exc: ValidationError, root, prefix: str = "") -> InputError:
     err = errs[0]
     loc = tuple(err["loc"])
     if err["type"] in ("union_tag_invalid", "union_tag_not_found"):
-        path, _ = _walk(root, loc)
+        path, u = _walk(root, loc)
         field = f"{path}.law" if path else "law"
         value = (err.get("input") or {}).get("law") if isinstance(err.get("input"), dict) else None
-        out = InputError(field, value, _reason(err, None))
+        out = InputError(field, value, _reason(err, _tags(u)))
     elif err["type"] == "value_error" and isinstance((err.get("ctx") or {}).get("error"), InputError):
         inner = err["ctx"]["error"]
         path, _ = _walk(root, loc)

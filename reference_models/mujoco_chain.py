@@ -20,6 +20,17 @@ Drives, on the shared step schedule (a step ends exactly at every drive breakpoi
   finite-difference Jacobian; one iteration for the linear-in-torque Euler-type integrators).
   The reported torque is that motor torque, the mean of the two steps around the output time.
 
+* closed loop (``pd``, ``pid``, user laws; docs/control.md): the law is evaluated once per step,
+  at its start t_k from the state x_k, and linearised there: the motor force through the step
+  is τ_k + ∂τ/∂α (α − α_k) + ∂τ/∂α̇ (α̇ − α̇_k) (MuJoCo's affine actuator bias), whose rate term
+  ``implicitfast`` treats implicitly (an explicit rate feedback is unstable against the small
+  inertia of the piece behind an inner joint). Reference, feedforward, moment feedback and
+  everything else are sampled at t_k: a one-step lag, first order in h. The root bending moment a law sees is the torque the first
+  elastic hinge of the link transmits, −(EI/l)·θ₁ − μ(EI/l)·θ̇₁ (θ₁ that hinge's angle, at l/2
+  from the root); a ``pid`` integral state is advanced by explicit Euler with the same
+  sample. Such runs go through ``mj_step`` one step at a time. The ``computed_torque``
+  feedforward is refused (no rigid model here).
+
 Outputs follow the suite's definitions: joint angle i = root piece angle of link i minus tip
 piece angle of link i − 1 (the arm joint's coordinate); tip deflection in the clamped-root frame;
 energy = kinetic + gravitational + spring energy (MuJoCo's, zero at y = 0).
@@ -30,6 +41,7 @@ not import and the method is reported unavailable.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 
@@ -38,6 +50,7 @@ import mujoco.rollout
 import numpy as np
 
 from dttmm.case import Case
+from dttmm.drives import ControlState, require_no_computed_torque
 from dttmm.errors import InputError, SimulationError
 from dttmm.result import make_result
 from dttmm.timegrid import step_schedule, versions
@@ -125,9 +138,66 @@ class _Stepper:
         self.n = len(self.drives)
         self.free = np.array([i for i, dr in enumerate(self.drives) if dr.kind == "torque"], int)
         self.pres = np.array([i for i, dr in enumerate(self.drives) if dr.kind == "motion"], int)
+        self.closed = np.array([i for i in self.free if self.drives[i].closed_loop], int)
+        self._feedback_setup(case, k)
+        self._affine_motors()
         self.spec = mj.mjtState.mjSTATE_FULLPHYSICS
         self.nstate = mj.mj_stateSize(self.m, self.spec)
         self.messages = []
+
+    def _feedback_setup(self, case, k):
+        """Constants of the closed-loop state: first-hinge stiffness/damping, segment lengths."""
+        require_no_computed_torque(case, "mujoco-chain")
+        links = case.model.links
+        self.k = k
+        self.hinge_k = np.array([lk.beam.EI * k / lk.beam.length for lk in links])
+        self.hinge_c = np.array([lk.beam.damping for lk in links]) * self.hinge_k
+        seg = np.ones(k)
+        seg[-1] = 0.5
+        self.seg = np.array([lk.beam.length / k for lk in links])[:, None] * seg  # (n, k)
+
+    def control_states(self, x):
+        """ControlState of every closed-loop joint from a state row x (time, qpos, qvel)."""
+        lay, nq = self.lay, self.m.nq
+        qpos, qvel = x[1:1 + nq], x[1 + nq:1 + 2 * self.m.nv]
+        flex, flexv = qpos[lay.flex_qpos], qvel[lay.flex_qpos]  # (n, k)
+        moment = -self.hinge_k * flex[:, 0] - self.hinge_c * flexv[:, 0]
+        tipdef = tuple((self.seg * np.sin(np.cumsum(flex, axis=1))).sum(axis=1).tolist())
+        angles, rates = tuple(qpos[lay.arm_qpos].tolist()), tuple(qvel[lay.arm_qpos].tolist())
+        return [ControlState(joint=int(i), angle=angles[i], rate=rates[i], moment=float(moment[i]),
+                             angles=angles, rates=rates, tip_deflections=tipdef) for i in self.closed]
+
+    def feedback(self, t, x, z):
+        """The closed-loop laws at t from the state row x and the integral states z: torques,
+        integral rates (n_closed,), and the affine control (n_closed,) with its slopes
+        (n_closed, 2) that reproduce the torques at x (see :meth:`set_slopes`)."""
+        nc = self.closed.size
+        tau, zdot, ctrl, slopes = np.empty(nc), np.empty(nc), np.empty(nc), np.empty((nc, 2))
+        for c, s in enumerate(self.control_states(x)):
+            law = self.drives[s.joint].law
+            s = dataclasses.replace(s, integral=float(z[c]))
+            tau[c], da, dr, _ = law.evaluate(t, s)
+            zdot[c] = law.error_rate(t, s)
+            slopes[c] = da, dr
+            ctrl[c] = tau[c] - da * s.angle - dr * s.rate
+        return tau, zdot, ctrl, slopes
+
+    def set_slopes(self, slopes):
+        """Motor force of closed-loop joint i = ctrl + ∂τ/∂α·α + ∂τ/∂α̇·α̇ within the step (MuJoCo's
+        affine bias): equal to the law at the step start, and the rate term enters
+        ``implicitfast``'s implicit velocity update — an explicit rate feedback would be
+        unstable against the tiny inertia of the piece behind an inner joint."""
+        self.m.actuator_biasprm[self.closed, 1:3] = slopes
+
+    def _affine_motors(self):
+        m = self.m
+        for i in self.closed:
+            m.actuator_biastype[i] = self.mj.mjtBias.mjBIAS_AFFINE
+            m.actuator_biasprm[i, :3] = 0.0
+            lim = getattr(self.drives[i].law, "limit", math.inf)
+            if math.isfinite(lim):  # keeps the affine force within the law's saturation
+                m.actuator_forcelimited[i] = 1
+                m.actuator_forcerange[i] = (-lim, lim)
 
     def initial_state(self):
         """Straight links, joint angles and rates from the drives (rigid initial rotation)."""
@@ -161,7 +231,8 @@ def _free_controls(st, T):
     mid = 0.5 * (T[:-1] + T[1:])
     u = np.zeros((mid.size, st.n))
     for i in st.free:
-        u[:, i] = [st.drives[i].torque(float(t)) for t in mid]
+        if not st.drives[i].closed_loop:
+            u[:, i] = [st.drives[i].torque(float(t)) for t in mid]
     return u
 
 
@@ -203,9 +274,11 @@ def _run_torque(st, x0, T, keep, ctrl, stats):
 
 
 def _run_motion(st, x0, T, keep, ctrl, opts, stats):
-    """Some joints prescribed: per step, Newton on their motor torques so that their angles at
-    the step end equal the law. Returns the kept states, the steps done, and the motor torques
-    per step (N, n)."""
+    """Step by step: closed-loop torques from the state at the step start (held through the
+    step), then, if some joints are prescribed, Newton on their motor torques so that their
+    angles at the step end equal the law. Returns the kept states, the steps done, and the
+    motor torques per step (N, n); ``stats["feedback"]`` holds the closed-loop torques at
+    every node (N + 1, n_closed)."""
     N = T.size - 1
     p = st.pres
     qi = st.lay.arm_qpos[p] + 1  # state row: [time, qpos..., qvel...]
@@ -215,9 +288,16 @@ def _run_motion(st, x0, T, keep, ctrl, opts, stats):
     saved = [x0[None]] if keep[0] else []
     x = x0
     iters = 0
+    cl = st.closed
+    z = np.zeros(cl.size)  # integral states, 0 at t = 0
+    fb = stats["feedback"] = np.full((N + 1, cl.size), np.nan)
     for j in range(N):
         dtj = T[j + 1] - T[j]
         target = np.array([dr.motion(float(T[j + 1]), True)[0] for dr in laws])
+        if cl.size:
+            fb[j], zdot, ctrl[j, cl], slopes = st.feedback(float(T[j]), x, z)
+            st.set_slopes(slopes)
+            z = z + dtj * zdot
         u = ctrl[j].copy()
         J = None
         for it in range(1, max_iter + 2):
@@ -252,6 +332,8 @@ def _run_motion(st, x0, T, keep, ctrl, opts, stats):
         x = xn
         if keep[j + 1]:
             saved.append(x[None])
+    if cl.size:  # the torque the law asks for at the last node (no step applies it)
+        fb[N] = st.feedback(float(T[N]), x, z)[0]
     stats["motion_iterations_mean"] = iters / max(N, 1)
     return np.concatenate(saved), N, ctrl
 
@@ -265,8 +347,9 @@ def _kinematics_and_energy(mj, m, d):
     mj.mj_energyVel(m, d)
 
 
-def _outputs(st, X, t, ctrl, T):
-    """Result fields at the output times t from the kept states X (rows)."""
+def _outputs(st, X, t, ctrl, T, fb=None):
+    """Result fields at the output times t from the kept states X (rows); fb: closed-loop
+    torques at the step nodes (N + 1, n_closed)."""
     mj, m, d, lay = st.mj, st.m, st.d, st.lay
     nt, n = t.size, st.n
     q = np.empty((nt, n))
@@ -287,8 +370,11 @@ def _outputs(st, X, t, ctrl, T):
         root[s] = d.xpos[lay.hub_body, :2]
         tip[s] = d.site_xpos[lay.tip_site, :2]
         energy[s] = d.energy[0] + d.energy[1]
+        for c, i in enumerate(st.closed):  # the torque the law gives at this node's state
+            tau[s, i] = fb[node[s], c]
         for i in st.free:  # the law (left limit; right limit at t = 0), as every method reports it
-            tau[s, i] = st.drives[i].torque(float(t[s]), t[s] > 0)
+            if not st.drives[i].closed_loop:
+                tau[s, i] = st.drives[i].torque(float(t[s]), t[s] > 0)
         for i in st.pres:  # prescribed: the law's angle and rate; torque: mean of the steps around
             a, ad, _ = st.drives[i].motion(float(t[s]))
             q[s, i], v[s, i] = a, ad
@@ -364,7 +450,7 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     mj.set_mju_user_warning(st.messages.append)  # MuJoCo would write a log file otherwise
     try:
         t0, c0 = time.perf_counter(), time.process_time()
-        if st.pres.size:
+        if st.pres.size or st.closed.size:
             X, n_steps, ctrl = _run_motion(st, x0, T, keep, ctrl, opts, stats)
         else:
             X, n_steps = _run_torque(st, x0, T, keep, ctrl, stats)
@@ -385,10 +471,12 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
         "success": "fail" not in stats,
         **opts,
     }
-    if "motion_iterations_mean" in stats:
+    if st.closed.size:
+        meta["feedback"] = "zero-order hold: law evaluated at the step start"
+    if "motion_iterations_mean" in stats and st.pres.size:
         meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
     tg = t_out[: X.shape[0]]
-    fields, energy = _outputs(st, X, tg, ctrl[:n_steps], T)  # the steps taken
+    fields, energy = _outputs(st, X, tg, ctrl[:n_steps], T, stats.get("feedback"))  # the steps taken
     res = make_result(
         t=tg,
         **fields,
