@@ -68,6 +68,7 @@ import numpy as np
 
 from dttmm import InputError, SimulationError, make_result
 from dttmm.case import Case
+from dttmm.drives import require_open_loop
 
 __all__ = ["simulate_exudyn", "check_discretisation", "stiff_axial_stiffness",
            "INEXTENSIBLE_AXIAL_RATIO", "DRIVE_INPUTS"]
@@ -191,6 +192,7 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
     (root, tip) beam nodes to which the hub and tip bodies are clamped by an ObjectJointGeneric
     locking x, y and the rotation about z (MarkerNodeRigid on the beam node).
     """
+    require_open_loop(case, element.method)
     k, h, n_steps, per_out = check_discretisation(case, elements_per_link, h)
     try:
         rho_inf = float(rho_inf)

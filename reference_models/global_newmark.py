@@ -39,6 +39,8 @@ r_O = r_I + A(θ)(l + u, v), θ_O = θ + φ; a joint adds α to the angle.
 
 from __future__ import annotations
 
+from dttmm.drives import require_open_loop
+
 from ._global_numpy import (
     _STEPPED,
     ENGINES,
@@ -114,6 +116,7 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
         Non-finite state or failed adaptive integration; ``partial`` holds the outputs so far.
     """
     case = _check_case(case)
+    require_open_loop(case, "global")
     k = _check_k(elements_per_link)
     h = _check_h(case, h)
     opt = _check_options(integrator, options)
