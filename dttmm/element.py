@@ -1,4 +1,4 @@
-"""One beam element in its corotational floating frame (METHOD.md §3).
+"""One beam element in its corotational floating frame.
 
 Frame origin at the inboard node I, frame angle θ = cross-section angle at I. Elastic
 coordinates of the outboard node in the frame: e = (u, v, φ) (extensible) or (v, φ)
