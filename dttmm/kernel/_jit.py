@@ -56,9 +56,11 @@ def _cache_dir() -> str:
 CACHE_DIR = None if PURE else _cache_dir()
 
 
-def njit(*, fastmath=False, inline="never"):
+def njit(*, fastmath=False, inline="never", nrt=True):
     """``numba.njit(cache=True, boundscheck=False, ...)`` with the cache in :data:`CACHE_DIR`;
-    the identity in the uncompiled kernel."""
+    the identity in the uncompiled kernel. ``nrt=False`` compiles without reference counting
+    (only for functions that allocate nothing): a call then does not touch the reference count
+    of every array in its named-tuple arguments."""
 
     def deco(f):
         if PURE:
@@ -68,7 +70,7 @@ def njit(*, fastmath=False, inline="never"):
         old = numba.config.CACHE_DIR
         numba.config.CACHE_DIR = CACHE_DIR
         try:
-            return numba.njit(cache=True, boundscheck=False, fastmath=fastmath, inline=inline)(f)
+            return numba.njit(cache=True, boundscheck=False, fastmath=fastmath, inline=inline, _nrt=nrt)(f)
         finally:
             numba.config.CACHE_DIR = old
 

@@ -33,21 +33,23 @@ def rotate(c, s, th_new, phi):
 
 
 @njit(inline="always")
-def coord_base(md, i, j):
-    """Index in q of the padded u of element j of link i (its v is at +1, φ at +2)."""
-    return md.links[i].e_start + j * md.links[i].ne - md.links[i].pad
+def coord_base(e_start, ne, pad, j):
+    """Index in q of the padded u of element j of a link whose elastic coordinates start at
+    ``e_start`` (its v is at +1, φ at +2)."""
+    return e_start + j * ne - pad
 
 
-@njit()
+@njit(inline="always")
 def angles(md, q, qd, dt):
     """Kinematic pass (base → tip): frame cos/sin and rate of every element, padded e and ė."""
     k = md.k
     th0 = 0.0
     thd0 = 0.0
     for i in range(md.n):
-        off = md.links[i].pad
-        th = th0 + q[md.links[i].i_alpha]
-        thd = thd0 + qd[md.links[i].i_alpha]
+        off = md.pad[i]
+        es, ne = md.e_start[i], md.ne[i]
+        th = th0 + q[md.i_alpha[i]]
+        thd = thd0 + qd[md.i_alpha[i]]
         cth = math.cos(th)
         sth = math.sin(th)
         b = 0
@@ -55,75 +57,82 @@ def angles(md, q, qd, dt):
             g = i * k + j
             if j > 0:
                 cth, sth = rotate(cth, sth, th, q[b + 2])  # b, th: from element j − 1, θ_j
-            dt.el[g].c = cth
-            dt.el[g].s = sth
-            dt.el[g].td = thd
-            b = coord_base(md, i, j)
+            dt.c[g] = cth
+            dt.s[g] = sth
+            dt.td[g] = thd
+            b = coord_base(es, ne, off, j)
             if off:
-                dt.el[g].e[0] = 0.0
-                dt.el[g].ed[0] = 0.0
+                dt.e[g, 0] = 0.0
+                dt.ed[g, 0] = 0.0
             else:
-                dt.el[g].e[0] = q[b]
-                dt.el[g].ed[0] = qd[b]
-            dt.el[g].e[1] = q[b + 1]
-            dt.el[g].ed[1] = qd[b + 1]
-            dt.el[g].e[2] = q[b + 2]
-            dt.el[g].ed[2] = qd[b + 2]
+                dt.e[g, 0] = q[b]
+                dt.ed[g, 0] = qd[b]
+            dt.e[g, 1] = q[b + 1]
+            dt.ed[g, 1] = qd[b + 1]
+            dt.e[g, 2] = q[b + 2]
+            dt.ed[g, 2] = qd[b + 2]
             th += q[b + 2]
             thd += qd[b + 2]
         th0 = th
         thd0 = thd
 
 
-@njit()
+@njit(nrt=False)
 def elastic_known(md, qt, qdt, dt):
     """K ê + D ê' of every element (constant during the frozen-coefficient iteration); for a
     link with second-order strain D ê' only, and ê itself in ``dt.e_hat`` (its elastic forces
     are linearised at each iterate inside the sweep, see :func:`second_order_terms`)."""
     k = md.k
     for i in range(md.n):
-        off = md.links[i].pad
-        so = md.links[i].second_order
+        off = md.pad[i]
+        es, ne = md.e_start[i], md.ne[i]
+        so = md.second_order[i]
         for j in range(k):
             g = i * k + j
-            b = coord_base(md, i, j)
+            b = coord_base(es, ne, off, j)
             e0 = 0.0 if off else qt[b]
             d0 = 0.0 if off else qdt[b]
             e1, e2 = qt[b + 1], qt[b + 2]
             d1, d2 = qdt[b + 1], qdt[b + 2]
             if so:
-                dt.el[g].e_hat[0] = e0
-                dt.el[g].e_hat[1] = e1
-                dt.el[g].e_hat[2] = e2
+                dt.e_hat[g, 0] = e0
+                dt.e_hat[g, 1] = e1
+                dt.e_hat[g, 2] = e2
                 for r in range(3):
-                    dt.el[g].f_known[r] = md.links[i].D[r, 0] * d0 + md.links[i].D[r, 1] * d1 + md.links[i].D[r, 2] * d2
+                    dt.f_known[g, r] = md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2
             else:
                 for r in range(3):
-                    dt.el[g].f_known[r] = (md.links[i].K[r, 0] * e0 + md.links[i].K[r, 1] * e1 + md.links[i].K[r, 2] * e2
-                                        + md.links[i].D[r, 0] * d0 + md.links[i].D[r, 1] * d1 + md.links[i].D[r, 2] * d2)
+                    dt.f_known[g, r] = (md.K[i, r, 0] * e0 + md.K[i, r, 1] * e1 + md.K[i, r, 2] * e2
+                                        + md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2)
 
 
-@njit()
+@njit(nrt=False)
 def effective_mass(md, cq, cv, dt):
     """M̃_ee = C_SS + c_q K + c_v D per link (+ the unit dummy mass of an inextensible link);
     c_q is kept for the per-element tangent of second-order links."""
     for i in range(md.n):
         for r in range(3):
             for c in range(3):
-                dt.jt[i].Mt[r, c] = md.links[i].CSS[r, c] + cq * md.links[i].K[r, c] + cv * md.links[i].D[r, c]
-        dt.jt[i].Mt[0, 0] += md.links[i].dummy
-        dt.jt[i].cq = cq
+                dt.Mt[i, r, c] = md.CSS[i, r, c] + cq * md.K[i, r, c] + cv * md.D[i, r, c]
+        dt.Mt[i, 0, 0] += md.dummy[i]
+        dt.cq[i] = cq
+
+
+@njit(inline="always")
+def strain_constants(md, i):
+    """Second-order strain constants of link i: (EA, EA·l, 1/l, G (4, row-major), K_b (4,
+    row-major), K_uu)."""
+    return (md.EA[i], md.EAl[i], md.inv_l[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1],
+            md.K[i, 1, 1], md.K[i, 1, 2], md.K[i, 2, 1], md.K[i, 2, 2], md.K[i, 0, 0])
 
 
 @njit(fastmath=CONTRACT, inline="always")
-def second_order_terms(md, i, e0, e1, e2):
-    """Second-order strain of one element (:func:`dttmm.element.elastic_forces`):
-    ε = u/l + ½ wᵀGw, w = (v, φ); f_u = EA ε, f_w = EA l ε G w + K_b w. Returns f (3) and the
-    tangent K_T = ∂f/∂e as its u–w row (T01, T02) and ΔT = K_T,ww − K_b (2×2, row-major);
-    K_T,uu = EA/l = K_uu."""
-    EA, EAl, il = md.links[i].EA, md.links[i].EAl, md.links[i].inv_l
-    G00, G01, G10, G11 = md.links[i].G[0, 0], md.links[i].G[0, 1], md.links[i].G[1, 0], md.links[i].G[1, 1]
-    Kb00, Kb01, Kb10, Kb11 = md.links[i].K[1, 1], md.links[i].K[1, 2], md.links[i].K[2, 1], md.links[i].K[2, 2]
+def second_order_terms(sc, e0, e1, e2):
+    """Second-order strain of one element (:func:`dttmm.element.elastic_forces`) with the
+    constants ``sc`` of :func:`strain_constants`: ε = u/l + ½ wᵀGw, w = (v, φ);
+    f_u = EA ε, f_w = EA l ε G w + K_b w. Returns f (3) and the tangent K_T = ∂f/∂e as its u–w
+    row (T01, T02) and ΔT = K_T,ww − K_b (2×2, row-major); K_T,uu = EA/l = K_uu."""
+    EA, EAl, il, G00, G01, G10, G11, Kb00, Kb01, Kb10, Kb11, Kuu = sc
     Gw1 = G00 * e1 + G01 * e2
     Gw2 = G10 * e1 + G11 * e2
     eps = e0 * il + 0.5 * (e1 * Gw1 + e2 * Gw2)
@@ -141,11 +150,11 @@ def second_order_terms(md, i, e0, e1, e2):
 def link_constants(md, i, g0, g1):
     """The nonzero element moments of link i and its element weight, read once per link (a
     tuple of scalars that :func:`element_terms` unpacks)."""
-    m = md.links[i].m
-    return (m, m * g0, m * g1, md.links[i].cs0[0], md.links[i].CS[0, 0], md.links[i].CS[1, 1], md.links[i].CS[1, 2], md.links[i].cs0s0, md.links[i].cs0S[0],
-            md.links[i].d1[1], md.links[i].d1[2], md.links[i].D2[0, 1], md.links[i].D2[0, 2], md.links[i].D2[1, 0], md.links[i].D2[2, 0],
-            md.links[i].CSS[0, 0], md.links[i].CSS[1, 1], md.links[i].CSS[1, 2], md.links[i].CSS[2, 2], md.links[i].CSES[0, 1],
-            md.links[i].CSES[0, 2], md.links[i].CSES[1, 0], md.links[i].CSES[2, 0], md.links[i].sO0[0], md.links[i].sO0[1], md.links[i].su)
+    m = md.m[i]
+    return (m, m * g0, m * g1, md.cs0[i, 0], md.CS[i, 0, 0], md.CS[i, 1, 1], md.CS[i, 1, 2], md.cs0s0[i], md.cs0S[i, 0],
+            md.d1[i, 1], md.d1[i, 2], md.D2[i, 0, 1], md.D2[i, 0, 2], md.D2[i, 1, 0], md.D2[i, 2, 0],
+            md.CSS[i, 0, 0], md.CSS[i, 1, 1], md.CSS[i, 1, 2], md.CSS[i, 2, 2], md.CSES[i, 0, 1],
+            md.CSES[i, 0, 2], md.CSES[i, 1, 0], md.CSES[i, 2, 0], md.sO0[i, 0], md.sO0[i, 1], md.su[i])
 
 
 @njit(fastmath=CONTRACT, inline="always")

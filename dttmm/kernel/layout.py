@@ -1,8 +1,8 @@
 """The kernel's records: a constant :class:`Model` built once per discretised case and a
 :class:`Data` workspace per run (the model/data split of Pinocchio), plus the named codes.
 
-Rows are structured records (one per link, element or joint), so numba reads the fields by
-name at the speed of a flat table, and a call passes a few arrays, not one per field. Elastic coordinates are *padded* to three per element, (u, v, φ): an inextensible link
+Both are named tuples of arrays (structure of arrays), so numba reads the fields by name at
+the speed of a flat table (measured: records with named fields were ~2× slower). Elastic coordinates are *padded* to three per element, (u, v, φ): an inextensible link
 gets a decoupled dummy u (unit effective mass, no coupling, zero load), so one code path
 serves ne = 2 and ne = 3 links mixed in one arm; the dummy never enters q.
 
@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Model", "Data", "LINK", "ELEMENT", "JOINT", "build_model", "make_data", "SYM"]
+__all__ = ["Model", "Data", "build_model", "make_data", "SYM"]
 
 # --- codes shared by the driver and the kernel -----------------------------------------------
 INT_NEWMARK, INT_RK4 = 0, 1              # integrator family
@@ -34,96 +34,83 @@ NO_SLOT = -1
 RUNAWAY_LENGTHS, RUNAWAY_ANGLE = 10.0, 100.0
 
 
-#: one row per link: the element moments (all integrals ∫ … ρA dx over one element, see
-#: :mod:`dttmm.element`), padded to ne = 3, the rigid bodies and the coordinate layout
-LINK = np.dtype([
-    ("m", "f8"),                # element mass
-    ("cs0", "f8", (2,)),        # ∫ s0
-    ("CS", "f8", (2, 3)),       # ∫ S
-    ("cs0s0", "f8"),            # ∫ s0·s0
-    ("cs0S", "f8", (3,)),       # ∫ s0ᵀS
-    ("d1", "f8", (3,)),         # ∫ s0ᵀEᵀS
-    ("D2", "f8", (3, 3)),       # ∫ SᵀEᵀS
-    ("CSS", "f8", (3, 3)),      # ∫ SᵀS (elastic mass)
-    ("CSES", "f8", (3, 3)),     # ∫ SᵀES
-    ("K", "f8", (3, 3)),        # linear stiffness
-    ("D", "f8", (3, 3)),        # damping
-    ("sO0", "f8", (2,)),        # s0 at the outboard node
-    ("su", "f8"),               # axial entry of S_O (0 for an inextensible link)
-    ("m_hub", "f8"), ("J_hub", "f8"),  # hub on the outboard side of joint i
-    ("m_pay", "f8"), ("J_pay", "f8"),  # payload at the tip of link i
-    ("dummy", "f8"),            # 1.0 for the padded dummy u of an inextensible link
-    ("EA", "f8"), ("inv_l", "f8"), ("EAl", "f8"), ("G", "f8", (2, 2)),  # second-order strain: EA, 1/l, EA·l, G
-    ("ne", "i8"),               # elastic coordinates per element (2 or 3)
-    ("i_alpha", "i8"),          # index of α_i in q
-    ("e_start", "i8"),          # index of the link's first elastic coordinate in q
-    ("pad", "i8"),              # 3 − ne
-    ("second_order", "?"),      # axial strain u/l + ½ wᵀGw
-    ("motion", "?"),            # joint i is motion-driven
-], align=True)
-
-#: one row per element g = i·k + j: what the passes of a sweep hand to each other
-ELEMENT = np.dtype([
-    ("c", "f8"), ("s", "f8"), ("td", "f8"),  # frame cos θ, sin θ, θ̇
-    ("e", "f8", (3,)), ("ed", "f8", (3,)),   # padded e, ė
-    ("f_known", "f8", (3,)),   # K ê + D ê' (second-order strain: D ê' only)
-    ("e_hat", "f8", (3,)),     # predictor ê (second-order strain)
-    ("Ka", "f8", (3, 3)), ("k0", "f8", (3,)),  # Riccati gains: ë = Ka a_I + k0
-    ("P", "f8", (6,)), ("c_I", "f8", (3,)),    # f = P a + c at the element root (P packed)
-    ("rso", "f8", (2,)), ("gbar", "f8", (2,)),  # A s_O and γ̄_O
-    ("a", "f8", (3,)),         # root acceleration
-], align=True)
-
-#: one row per joint i
-JOINT = np.dtype([
-    ("P_tip", "f8", (6,)), ("c_tip", "f8", (3,)),  # f = P a + c at the tip of link i
-    ("P_hub", "f8", (6,)), ("c_hub", "f8", (3,)),  # ... on the outboard side of joint i
-    ("ga", "f8", (3,)), ("g0", "f8"),              # α̈_i = ga·a + g0
-    ("a_tip", "f8", (3,)),                         # tip acceleration of link i
-    ("Mt", "f8", (3, 3)), ("cq", "f8"),            # M̃_ee = C_SS + c_q K + c_v D, and c_q
-    ("subs", "f8", (4, 4)),    # plain sweep: w_before = S w_after at a torque-driven joint
-    ("slot", "i8"),            # plain sweep: entry of w holding α̈_i, or NO_SLOT
-    ("substituted", "?"),      # plain sweep: subs applies
-], align=True)
-
-
 class Model(NamedTuple):
-    """Constants of the discretised arm (built once by :func:`build_model`)."""
+    """Constants of the discretised arm, one row per link (element moments padded to ne = 3;
+    all integrals ∫ … ρA dx over one element, see :mod:`dttmm.element`)."""
 
     n: int                 # links
     k: int                 # elements per link
     grav: np.ndarray       # (2,) m/s²
-    links: np.recarray     # (n,) of LINK
+    m: np.ndarray          # (n,) element mass
+    cs0: np.ndarray        # (n, 2) ∫ s0
+    CS: np.ndarray         # (n, 2, 3) ∫ S
+    cs0s0: np.ndarray      # (n,) ∫ s0·s0
+    cs0S: np.ndarray       # (n, 3) ∫ s0ᵀS
+    d1: np.ndarray         # (n, 3) ∫ s0ᵀEᵀS
+    D2: np.ndarray         # (n, 3, 3) ∫ SᵀEᵀS
+    CSS: np.ndarray        # (n, 3, 3) ∫ SᵀS (elastic mass)
+    CSES: np.ndarray       # (n, 3, 3) ∫ SᵀES
+    K: np.ndarray          # (n, 3, 3) linear stiffness
+    D: np.ndarray          # (n, 3, 3) damping
+    sO0: np.ndarray        # (n, 2) s0 at the outboard node
+    su: np.ndarray         # (n,) axial entry of S_O (0 for an inextensible link)
+    m_hub: np.ndarray      # (n,) hub mass and inertia (outboard side of joint i)
+    J_hub: np.ndarray
+    m_pay: np.ndarray      # (n,) payload mass and inertia (tip of link i)
+    J_pay: np.ndarray
+    dummy: np.ndarray      # (n,) 1.0 for the padded dummy u of an inextensible link
+    second_order: np.ndarray  # (n,) bool: axial strain u/l + ½ wᵀGw
+    EA: np.ndarray         # (n,) second-order strain constants: EA, 1/l, EA·l, G (2, 2)
+    inv_l: np.ndarray
+    EAl: np.ndarray
+    G: np.ndarray
+    ne: np.ndarray         # (n,) int: elastic coordinates per element (2 or 3)
+    i_alpha: np.ndarray    # (n,) int: index of α_i in q
+    e_start: np.ndarray    # (n,) int: index of the link's first elastic coordinate in q
+    pad: np.ndarray        # (n,) int: 3 − ne
+    motion: np.ndarray     # (n,) bool: joint i is motion-driven
     im: np.ndarray         # (n_motion,) int: indices of the motion-driven α in q
     lim: np.ndarray        # (n_dof,) runaway bound per coordinate (inf for joint angles)
 
 
 def build_model(st) -> Model:
     """Pack a :class:`dttmm.structure.Structure` into a :class:`Model`."""
-    links = np.zeros(st.n_links, LINK).view(np.recarray)
+    n = st.n_links
+    z = lambda *shape: np.zeros((n, *shape))
+    f = {name: z() for name in ("m", "cs0s0", "su", "m_hub", "J_hub", "m_pay", "J_pay", "dummy", "EA",
+                                "inv_l", "EAl")}
+    f.update(cs0=z(2), CS=z(2, 3), cs0S=z(3), d1=z(3), D2=z(3, 3), CSS=z(3, 3), CSES=z(3, 3), K=z(3, 3),
+             D=z(3, 3), sO0=z(2), G=z(2, 2))
+    ne, pad = np.zeros(n, np.int64), np.zeros(n, np.int64)
+    second_order = np.zeros(n, np.bool_)
     lim = np.full(st.n_dof, np.inf)
     for i, lk in enumerate(st.links):
-        et, L = lk.et, links[i]
+        et = lk.et
         p = 3 - et.ne
+        ne[i], pad[i] = et.ne, p
         _check_pattern(et)
-        L.ne, L.pad, L.i_alpha, L.e_start, L.motion = et.ne, p, lk.i_alpha, lk.e_slice.start, st.motion[i]
-        L.m, L.cs0s0, L.cs0, L.sO0 = et.m, et.c_s0s0, et.c_s0, et.sO0
-        L.CS[:, p:] = et.C_S
-        L.cs0S[p:], L.d1[p:] = et.c_s0S, et.d1
+        f["m"][i], f["cs0s0"][i] = et.m, et.c_s0s0
+        f["cs0"][i], f["sO0"][i] = et.c_s0, et.sO0
+        f["CS"][i, :, p:] = et.C_S
+        f["cs0S"][i, p:], f["d1"][i, p:] = et.c_s0S, et.d1
         for name, mat in (("D2", et.D2), ("CSS", et.C_SS), ("CSES", et.C_SES), ("K", et.K), ("D", et.D)):
-            getattr(L, name)[p:, p:] = mat
-        L.su = et.SO[0, 0] if et.ne == 3 else 0.0
-        L.m_hub, L.J_hub, L.m_pay, L.J_pay = lk.m_hub, lk.M_hub[2, 2], lk.m_pay, lk.M_pay[2, 2]
-        L.dummy = 1.0 if p else 0.0
+            f[name][i, p:, p:] = mat
+        f["su"][i] = et.SO[0, 0] if et.ne == 3 else 0.0
+        f["m_hub"][i], f["J_hub"][i] = lk.m_hub, lk.M_hub[2, 2]
+        f["m_pay"][i], f["J_pay"][i] = lk.m_pay, lk.M_pay[2, 2]
+        f["dummy"][i] = 1.0 if p else 0.0
         if et.second_order:
-            L.second_order = True
-            L.EA, L.inv_l, L.EAl, L.G = et.EA, 1.0 / et.l, et.EA * et.l, et.G
+            second_order[i] = True
+            f["EA"][i], f["inv_l"][i], f["EAl"][i] = et.EA, 1.0 / et.l, et.EA * et.l
+            f["G"][i] = et.G
         el = np.full((lk.k, et.ne), RUNAWAY_LENGTHS * lk.length)
         el[:, et.iphi] = RUNAWAY_ANGLE
         lim[lk.e_slice] = el.ravel()
     ia = st.alpha_index.astype(np.int64)
-    return Model(n=st.n_links, k=st.k, grav=np.ascontiguousarray(st.gravity, dtype=float), links=links,
-                 im=np.ascontiguousarray(ia[st.motion]), lim=lim)
+    return Model(n=n, k=st.k, grav=np.ascontiguousarray(st.gravity, dtype=float), ne=ne, i_alpha=ia,
+                 e_start=np.array([lk.e_slice.start for lk in st.links], np.int64), pad=pad,
+                 motion=st.motion.astype(np.bool_), im=np.ascontiguousarray(ia[st.motion]), lim=lim,
+                 second_order=second_order, **f)
 
 
 def _check_pattern(et) -> None:
@@ -150,17 +137,56 @@ def _check_pattern(et) -> None:
 
 
 class Data(NamedTuple):
-    """Workspace of one run: element and joint records, and the plain sweep's arrays
-    (allocated at full size only for that sweep)."""
+    """Workspace of one run: what the passes of a sweep hand to each other.
 
-    el: np.recarray        # (N,) of ELEMENT
-    jt: np.recarray        # (n,) of JOINT
+    Per element g = i·k + j (link i, element j): frame cos/sin and rate, padded e and ė, the
+    known elastic force K ê + D ê' (linear strain; D ê' only for second-order strain, whose
+    predictor ê is kept in ``e_hat``), the Riccati gains (ë = Ka a_I + k0), the articulated
+    inertia P (packed) and bias c_I at the element root, A s_O, γ̄_O and the root acceleration.
+    Per joint i: P and c at the link tip and at the hub, the joint gains α̈ = ga·a + g0, the
+    tip acceleration, the effective elastic mass M̃_ee and c_q. The plain sweep's arrays are
+    allocated at full size only for that sweep.
+    """
+
+    c: np.ndarray          # (N,)
+    s: np.ndarray          # (N,)
+    td: np.ndarray         # (N,)
+    e: np.ndarray          # (N, 3)
+    ed: np.ndarray         # (N, 3)
+    f_known: np.ndarray    # (N, 3)
+    e_hat: np.ndarray      # (N, 3)
+    Ka: np.ndarray         # (N, 3, 3)
+    k0: np.ndarray         # (N, 3)
+    P: np.ndarray          # (N, 6) packed symmetric
+    c_I: np.ndarray        # (N, 3)
+    rso: np.ndarray        # (N, 2)
+    gbar: np.ndarray       # (N, 2)
+    a: np.ndarray          # (N, 3)
+    P_tip: np.ndarray      # (n, 6)
+    c_tip: np.ndarray      # (n, 3)
+    P_hub: np.ndarray      # (n, 6)
+    c_hub: np.ndarray      # (n, 3)
+    ga: np.ndarray         # (n, 3)
+    g0: np.ndarray         # (n,)
+    a_tip: np.ndarray      # (n, 3)
+    Mt: np.ndarray         # (n, 3, 3)
+    cq: np.ndarray         # (n,)
     cuts: np.ndarray       # plain: (n_cuts, 6, 4) the cut state z = B w at every cut
     E: np.ndarray          # plain: (N, 3, 7) ë = E (a_I, f_I, 1)
+    subs: np.ndarray       # plain: (n, 4, 4) joint substitutions w_before = S w_after
+    substituted: np.ndarray  # plain: (n,) bool
+    slot: np.ndarray       # plain: (n,) int: entry of w holding α̈_i, or NO_SLOT
 
 
 def make_data(md: Model, plain: bool = False) -> Data:
     """A zeroed workspace for ``md`` (the plain sweep's arrays tiny unless ``plain``)."""
-    N = md.n * md.k
-    return Data(el=np.zeros(N, ELEMENT).view(np.recarray), jt=np.zeros(md.n, JOINT).view(np.recarray),
-                cuts=np.zeros((md.n * (md.k + 1) if plain else 1, 6, 4)), E=np.zeros((N if plain else 1, 3, 7)))
+    n, N = md.n, md.n * md.k
+    ncuts = n * (md.k + 1) if plain else 1
+    return Data(c=np.zeros(N), s=np.zeros(N), td=np.zeros(N), e=np.zeros((N, 3)), ed=np.zeros((N, 3)),
+                f_known=np.zeros((N, 3)), e_hat=np.zeros((N, 3)), Ka=np.zeros((N, 3, 3)), k0=np.zeros((N, 3)),
+                P=np.zeros((N, 6)), c_I=np.zeros((N, 3)), rso=np.zeros((N, 2)), gbar=np.zeros((N, 2)),
+                a=np.zeros((N, 3)), P_tip=np.zeros((n, 6)), c_tip=np.zeros((n, 3)), P_hub=np.zeros((n, 6)),
+                c_hub=np.zeros((n, 3)), ga=np.zeros((n, 3)), g0=np.zeros(n), a_tip=np.zeros((n, 3)),
+                Mt=np.zeros((n, 3, 3)), cq=np.zeros(n), cuts=np.zeros((ncuts, 6, 4)),
+                E=np.zeros((N if plain else 1, 3, 7)), subs=np.zeros((n, 4, 4)),
+                substituted=np.zeros(n, np.bool_), slot=np.zeros(n, np.int64))

@@ -137,7 +137,7 @@ def apply_motion(md, mot, q, qd):
     """Motion-driven joints take the law's angle and rate."""
     ii = 0
     for i in range(md.n):
-        if md.links[i].motion:
+        if md.motion[i]:
             q[md.im[ii]] = mot[i, 0]
             qd[md.im[ii]] = mot[i, 1]
             ii += 1
@@ -156,7 +156,7 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     effective_mass(md, 0.0, 0.0, dt)
     ok, cond = sweep(md, dt, code, ws.qs, ws.qds, tau, ws.acc, xout, torque, loads)
     for i in range(md.n):
-        if not md.links[i].motion:
+        if not md.motion[i]:
             torque[i] = tau[i]
     if want_loads and code == SW_RICCATI:
         riccati_loads(md, dt, loads)
@@ -265,7 +265,7 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
     ii = 0
     for i in range(md.n):
         ws.acc[i] = mot[i, 2]
-        if md.links[i].motion:
+        if md.motion[i]:
             ws.x[md.im[ii]] = mot[i, 2]
             ii += 1
     elastic_known(md, ws.qt, ws.qdt, dt)
@@ -288,7 +288,7 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
     apply_motion(md, mot, st.q, st.qd)
     ii = 0
     for i in range(md.n):
-        if md.links[i].motion:
+        if md.motion[i]:
             st.aux[md.im[ii]] = ws.x[md.im[ii]]
             ii += 1
         else:

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ._jit import njit
-from .element import element_terms, link_constants, second_order_terms
+from .element import element_terms, link_constants, second_order_terms, strain_constants
 from .layout import NO_SLOT
 
 
@@ -21,9 +21,9 @@ from .layout import NO_SLOT
 def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):
     """Element g's terms as dense 3×3 matrices (padded): M_aa, M_ae, h̄_a, h̃_e (with the known
     elastic force), B_a, B_e, γ̄_O (from :func:`element_terms`)."""
-    c, s = dt.el[g].c, dt.el[g].s
+    c, s = dt.c[g], dt.s[g]
     (ms0, ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
-        lc, c, s, dt.el[g].td, dt.el[g].e[0], dt.el[g].e[1], dt.el[g].e[2], dt.el[g].ed[0], dt.el[g].ed[1], dt.el[g].ed[2],
+        lc, c, s, dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1], dt.ed[g, 2],
         md.grav[0], md.grav[1])
     m, su = lc[0], lc[-1]
     Maa[:, :] = 0.0
@@ -36,9 +36,9 @@ def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):
         for cc in range(3):
             Mae[r, cc] = A[3 * r + cc]
     ha[0], ha[1], ha[2] = ha0, ha1, ha2
-    he[0] = he0 + dt.el[g].f_known[0]
-    he[1] = he1 + dt.el[g].f_known[1]
-    he[2] = he2 + dt.el[g].f_known[2]
+    he[0] = he0 + dt.f_known[g, 0]
+    he[1] = he1 + dt.f_known[g, 1]
+    he[2] = he2 + dt.f_known[g, 2]
     Ba[:, :] = 0.0
     Ba[0, 0] = Ba[1, 1] = Ba[2, 2] = 1.0
     Ba[0, 2] = -ry
@@ -55,16 +55,16 @@ def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):
 @njit()
 def _second_order_dense(md, dt, i, g, Mt, he):
     """Second-order strain of element g: h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)."""
-    e0, e1, e2 = dt.el[g].e[0], dt.el[g].e[1], dt.el[g].e[2]
-    fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(md, i, e0, e1, e2)
-    K = md.links[i].K
-    de0 = dt.el[g].e_hat[0] - e0
-    de1 = dt.el[g].e_hat[1] - e1
-    de2 = dt.el[g].e_hat[2] - e2
+    e0, e1, e2 = dt.e[g, 0], dt.e[g, 1], dt.e[g, 2]
+    fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(strain_constants(md, i), e0, e1, e2)
+    K = md.K[i]
+    de0 = dt.e_hat[g, 0] - e0
+    de1 = dt.e_hat[g, 1] - e1
+    de2 = dt.e_hat[g, 2] - e2
     he[0] += fu0 + (K[0, 0] * de0 + T01 * de1 + T02 * de2)
     he[1] += fu1 + (T01 * de0 + (dT11 + K[1, 1]) * de1 + (dT12 + K[1, 2]) * de2)
     he[2] += fu2 + (T02 * de0 + (dT21 + K[2, 1]) * de1 + (dT22 + K[2, 2]) * de2)
-    cq = dt.jt[i].cq
+    cq = dt.cq[i]
     Mt[0, 1] += cq * T01
     Mt[0, 2] += cq * T02
     Mt[1, 0] += cq * T01
@@ -138,22 +138,22 @@ def equilibrated_cond(A):
 def _joint(md, dt, i, tau, acc, B, Bn, S):
     """Joint i's condition on B: the base unknowns (joint 1), a known α̈ (motion-driven) or the
     elimination of one unknown by the torque condition (stored in dt.subs, dt.slot)."""
-    dt.jt[i].substituted = False
+    dt.substituted[i] = False
     if i == 0:
         B[:, :] = 0.0
-        if md.links[0].motion:      # w = (Fx, Fy, τ1), α̈ known
+        if md.motion[0]:      # w = (Fx, Fy, τ1), α̈ known
             B[3, 0] = B[4, 1] = B[5, 2] = 1.0
             B[2, 3] = acc[0]
-            dt.jt[0].slot = NO_SLOT
+            dt.slot[0] = NO_SLOT
         else:                 # w = (Fx, Fy, α̈1), τ1 known
             B[3, 0] = B[4, 1] = 1.0
             B[5, 3] = tau[0]
             B[2, 2] = 1.0
-            dt.jt[0].slot = 2
+            dt.slot[0] = 2
         return
-    if md.links[i].motion:
+    if md.motion[i]:
         B[2, 3] += acc[i]
-        dt.jt[i].slot = NO_SLOT
+        dt.slot[i] = NO_SLOT
         return
     # pivot: the unknown the torque row depends on most, relative to its column's size
     piv = 0
@@ -183,9 +183,9 @@ def _joint(md, dt, i, tau, acc, B, Bn, S):
             Bn[r, cc] = acc_
     B[:, :] = Bn
     B[2, piv] += 1.0
-    dt.jt[i].subs[:, :] = S
-    dt.jt[i].substituted = True
-    dt.jt[i].slot = piv
+    dt.subs[i, :, :] = S
+    dt.substituted[i] = True
+    dt.slot[i] = piv
 
 
 @njit()
@@ -302,15 +302,15 @@ def _transfer_chain(md, dt, tau, acc):
     ic = 0
     for i in range(md.n):
         _joint(md, dt, i, tau, acc, B, Bn, S)
-        _rigid_body(md, B, md.links[i].m_hub, md.links[i].J_hub)
+        _rigid_body(md, B, md.m_hub[i], md.J_hub[i])
         lc = link_constants(md, i, md.grav[0], md.grav[1])
         for j in range(k):
             g = i * k + j
             dt.cuts[ic, :, :] = B
             ic += 1
             dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb)
-            Mt[:, :] = dt.jt[i].Mt
-            if md.links[i].second_order:
+            Mt[:, :] = dt.Mt[i]
+            if md.second_order[i]:
                 _second_order_dense(md, dt, i, g, Mt, he)
             if not _element_solve(Mt, Maa, Mae, ha, he, Ba, Be, T, BeT, G, rhs, dt.E[g]):
                 return False, B
@@ -318,7 +318,7 @@ def _transfer_chain(md, dt, tau, acc):
             _apply(U, B, Bn)
         dt.cuts[ic, :, :] = B
         ic += 1
-        _rigid_body(md, B, md.links[i].m_pay, md.links[i].J_pay)
+        _rigid_body(md, B, md.m_pay[i], md.J_pay[i])
     return True, B
 
 
@@ -337,17 +337,17 @@ def _back_substitute(md, dt, wst, acc, xout, torque, loads):
     z = np.zeros(6)
     for i in range(md.n):
         wi = wst[i]
-        off = md.links[i].pad
-        xout[md.links[i].i_alpha] = acc[i] if md.links[i].motion else wi[dt.jt[i].slot]
+        off = md.pad[i]
+        xout[md.i_alpha[i]] = acc[i] if md.motion[i] else wi[dt.slot[i]]
         for j in range(k):
             _cut_state(dt.cuts[ic], wi, z, 0)
             if j == 0:  # torque at the joint: f⁻_θ = f⁺_θ + (M_h a⁺)_θ
-                torque[i] = z[5] + md.links[i].J_hub * z[2]
+                torque[i] = z[5] + md.J_hub[i] * z[2]
             loads[ic, 0] = z[3]
             loads[ic, 1] = z[4]
             loads[ic, 2] = z[5]
             E = dt.E[i * k + j]
-            b = md.links[i].e_start + j * md.links[i].ne - off
+            b = md.e_start[i] + j * md.ne[i] - off
             for r in range(off, 3):
                 v = E[r, 6]
                 for cc in range(3):
@@ -381,8 +381,8 @@ def plain(md, dt, tau, acc, xout, torque, loads):
     wv = np.array([u[0, 0], u[1, 0], u[2, 0], 1.0])
     for i in range(md.n - 1, -1, -1):
         wst[i, :] = wv
-        if dt.jt[i].substituted:
-            S = dt.jt[i].subs
+        if dt.substituted[i]:
+            S = dt.subs[i]
             wn = np.zeros(4)
             for r in range(4):
                 for c in range(4):

@@ -68,16 +68,16 @@ def _energy(lc, md, i, c, s, thd, vx, vy, px, py, e0, e1, e2, f0, f1, f2):
         sf = 0.0
         ke = 0.0
         for l in range(3):
-            sf += md.links[i].CSS[r, l] * f[l]
-            ke += md.links[i].K[r, l] * e[l]
+            sf += md.CSS[i, r, l] * f[l]
+            ke += md.K[i, r, l] * e[l]
         Tee += f[r] * sf
         Vee += e[r] * ke
-    if md.links[i].second_order:  # U = ½ EA l ε² + ½ wᵀK_b w (element.strain_energy)
-        Gw1 = md.links[i].G[0, 0] * e1 + md.links[i].G[0, 1] * e2
-        Gw2 = md.links[i].G[1, 0] * e1 + md.links[i].G[1, 1] * e2
-        eps = e0 * md.links[i].inv_l + 0.5 * (e1 * Gw1 + e2 * Gw2)
-        Vee = md.links[i].EAl * eps * eps + (e1 * (md.links[i].K[1, 1] * e1 + md.links[i].K[1, 2] * e2)
-                                       + e2 * (md.links[i].K[2, 1] * e1 + md.links[i].K[2, 2] * e2))
+    if md.second_order[i]:  # U = ½ EA l ε² + ½ wᵀK_b w (element.strain_energy)
+        Gw1 = md.G[i, 0, 0] * e1 + md.G[i, 0, 1] * e2
+        Gw2 = md.G[i, 1, 0] * e1 + md.G[i, 1, 1] * e2
+        eps = e0 * md.inv_l[i] + 0.5 * (e1 * Gw1 + e2 * Gw2)
+        Vee = md.EAl[i] * eps * eps + (e1 * (md.K[i, 1, 1] * e1 + md.K[i, 1, 2] * e2)
+                                       + e2 * (md.K[i, 2, 1] * e1 + md.K[i, 2, 2] * e2))
     Taa = m * (vx * vx + vy * vy) + 2.0 * thd * (rem0 * vx + rem1 * vy) + Jt * thd * thd
     comx = m * px + (c * ms0 - s * ms1)
     comy = m * py + (s * ms0 + c * ms1)
@@ -95,15 +95,16 @@ def sample(md, q, qd, j, rec):
     th0 = thd0 = 0.0
     etot = 0.0
     for i in range(md.n):
-        off = md.links[i].pad
-        su = md.links[i].su
-        th = th0 + q[md.links[i].i_alpha]
-        thd = thd0 + qd[md.links[i].i_alpha]
+        off = md.pad[i]
+        es, ne = md.e_start[i], md.ne[i]
+        su = md.su[i]
+        th = th0 + q[md.i_alpha[i]]
+        thd = thd0 + qd[md.i_alpha[i]]
         rec.root[j, i, 0] = px
         rec.root[j, i, 1] = py
         rec.root_angle[j, i] = th
         if want_energy:
-            mh, jh = md.links[i].m_hub, md.links[i].J_hub
+            mh, jh = md.m_hub[i], md.J_hub[i]
             etot += 0.5 * (mh * (vx * vx + vy * vy) + jh * thd * thd) - mh * (px * g0 + py * g1)
         lc = link_constants(md, i, g0, g1)
         c = math.cos(th)
@@ -112,13 +113,13 @@ def sample(md, q, qd, j, rec):
         for jj in range(md.k):
             if jj > 0:
                 c, s = rotate(c, s, th, e2)  # e2 = φ of element jj − 1, th = θ_jj
-            b = coord_base(md, i, jj)
+            b = coord_base(es, ne, off, jj)
             e0 = 0.0 if off else q[b]
             f0 = 0.0 if off else qd[b]
             e1, e2 = q[b + 1], q[b + 2]
             f1, f2 = qd[b + 1], qd[b + 2]
-            so0 = md.links[i].sO0[0] + su * e0
-            so1 = md.links[i].sO0[1] + e1
+            so0 = md.sO0[i, 0] + su * e0
+            so1 = md.sO0[i, 1] + e1
             rx = c * so0 - s * so1
             ry = s * so0 + c * so1
             sf0 = su * f0
@@ -137,7 +138,7 @@ def sample(md, q, qd, j, rec):
         rec.tip[j, i, 0] = px
         rec.tip[j, i, 1] = py
         if want_energy:
-            mp, jp = md.links[i].m_pay, md.links[i].J_pay
+            mp, jp = md.m_pay[i], md.J_pay[i]
             etot += 0.5 * (mp * (vx * vx + vy * vy) + jp * thd * thd) - mp * (px * g0 + py * g1)
         th0 = th
         thd0 = thd
@@ -174,8 +175,8 @@ def record(md, t0, t1, s0, s1, scratch, ptr, rec):
             qq = qs
             vv = qds
         for i in range(md.n):
-            rec.angle[ptr, i] = qq[md.links[i].i_alpha]
-            rec.rate[ptr, i] = vv[md.links[i].i_alpha]
+            rec.angle[ptr, i] = qq[md.i_alpha[i]]
+            rec.rate[ptr, i] = vv[md.i_alpha[i]]
             rec.torque[ptr, i] = tau1[i] if exact else (1 - x) * tau0[i] + x * tau1[i]
         sample(md, qq, vv, ptr, rec)
         if stride > 0 and ptr % stride == 0:

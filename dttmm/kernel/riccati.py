@@ -14,10 +14,10 @@ and factoring the 3×3 SPD block H by LDLᵀ.
 from __future__ import annotations
 
 from ._jit import CONTRACT, njit
-from .element import coord_base, element_terms, link_constants, second_order_terms
+from .element import coord_base, element_terms, second_order_terms
 
 
-@njit(fastmath=CONTRACT)
+@njit(fastmath=CONTRACT, nrt=False)
 def riccati(md, dt, tau, acc, xout, torque):
     """One Riccati sweep at the iterate whose angles are in ``dt`` (:func:`angles`), with
     ``dt.f_known`` and ``dt.Mt`` set. Writes q̈ into xout (α̈ and elastic), the joint torques
@@ -65,19 +65,23 @@ def _ldl_solve(H00, H01, H02, H11, H12, H22, X, r0, r1, r2):
 
 
 @njit(fastmath=CONTRACT, inline="always")
-def _element_step(md, dt, i, g, lc, Mt, so, Pc, g0, g1):
-    """Carry (P, c) = ``Pc`` (packed P, then c) across element g from its outboard to its
-    inboard cut; stores the gains, P_I, c_I, A s_O and γ̄_O in ``dt``. ``Mt`` = the diagonal
-    and (1, 2) entries of M̃_ee; ``so``: second-order strain."""
+def _element_step(lc, sc, Mt, so, kin, fk, Pc, g0, g1):
+    """Carry (P, c) = ``Pc`` (packed P, then c) across one element from its outboard to its
+    inboard cut. Pure arithmetic (the caller loads and stores: helpers inlined into a loop copy
+    their tuple arguments, so the workspace is not passed here).
+
+    lc, sc: :func:`link_constants`, :func:`strain_constants`; Mt: the (0, 0), (1, 1), (1, 2),
+    (2, 2) entries of M̃_ee and c_q; so: second-order strain; kin = (cos θ, sin θ, θ̇, e, ė, ê);
+    fk: the known elastic force. Returns (K_a (9, row-major), k_0 (3), (P_I packed, c_I) (9),
+    (r_x, r_y, γ̄_x, γ̄_y))."""
     p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
-    M00, M11, M12, M22 = Mt
-    c, s = dt.el[g].c, dt.el[g].s
-    e0, e1, e2 = dt.el[g].e[0], dt.el[g].e[1], dt.el[g].e[2]
+    M00, M11, M12, M22, cq = Mt
+    c, s, td, e0, e1, e2, f0, f1, f2, eh0, eh1, eh2 = kin
     (ms0, ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
-        lc, c, s, dt.el[g].td, e0, e1, e2, dt.el[g].ed[0], dt.el[g].ed[1], dt.el[g].ed[2], g0, g1)
-    he0 = he0 + dt.el[g].f_known[0]
-    he1 = he1 + dt.el[g].f_known[1]
-    he2 = he2 + dt.el[g].f_known[2]
+        lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1)
+    he0 = he0 + fk[0]
+    he1 = he1 + fk[1]
+    he2 = he2 + fk[2]
     m, su = lc[0], lc[-1]
     a0 = c * p00 + s * p01
     a1 = c * p01 + s * p11
@@ -109,15 +113,14 @@ def _element_step(md, dt, i, g, lc, Mt, so, Pc, g0, g1):
     if so:
         # second-order strain at the iterate e (sweeps._elastic_rhs):
         # h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)
-        fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(md, i, e0, e1, e2)
-        Kb00, Kb01, Kb10, Kb11 = md.links[i].K[1, 1], md.links[i].K[1, 2], md.links[i].K[2, 1], md.links[i].K[2, 2]
-        de0 = dt.el[g].e_hat[0] - e0
-        de1 = dt.el[g].e_hat[1] - e1
-        de2 = dt.el[g].e_hat[2] - e2
-        r0 -= fu0 + (md.links[i].K[0, 0] * de0 + T01 * de1 + T02 * de2)
+        fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(sc, e0, e1, e2)
+        Kb00, Kb01, Kb10, Kb11, Kuu = sc[7], sc[8], sc[9], sc[10], sc[11]
+        de0 = eh0 - e0
+        de1 = eh1 - e1
+        de2 = eh2 - e2
+        r0 -= fu0 + (Kuu * de0 + T01 * de1 + T02 * de2)
         r1 -= fu1 + (T01 * de0 + (dT11 + Kb00) * de1 + (dT12 + Kb01) * de2)
         r2 -= fu2 + (T02 * de0 + (dT21 + Kb10) * de1 + (dT22 + Kb11) * de2)
-        cq = dt.jt[i].cq
         H01 += cq * T01
         H02 += cq * T02
         H11 += cq * dT11
@@ -139,59 +142,24 @@ def _element_step(md, dt, i, g, lc, Mt, so, Pc, g0, g1):
     c0 = ha0 + rho0 + (X00 * k0 + X01 * k1 + X02 * k2)
     c1 = ha1 + rho1 + (X10 * k0 + X11 * k1 + X12 * k2)
     c2 = ha2 + (-ry * rho0 + rx * rho1 + rho2) + (X20 * k0 + X21 * k1 + X22 * k2)
-    dt.el[g].Ka[0, 0] = K00
-    dt.el[g].Ka[0, 1] = K01
-    dt.el[g].Ka[0, 2] = K02
-    dt.el[g].Ka[1, 0] = K10
-    dt.el[g].Ka[1, 1] = K11
-    dt.el[g].Ka[1, 2] = K12
-    dt.el[g].Ka[2, 0] = K20
-    dt.el[g].Ka[2, 1] = K21
-    dt.el[g].Ka[2, 2] = K22
-    dt.el[g].k0[0] = k0
-    dt.el[g].k0[1] = k1
-    dt.el[g].k0[2] = k2
-    _store_sym(dt.el[g].P, n00, n01, n02, n11, n12, n22)
-    dt.el[g].c_I[0] = c0
-    dt.el[g].c_I[1] = c1
-    dt.el[g].c_I[2] = c2
-    dt.el[g].rso[0] = rx
-    dt.el[g].rso[1] = ry
-    dt.el[g].gbar[0] = gb0
-    dt.el[g].gbar[1] = gb1
-    return n00, n01, n02, n11, n12, n22, c0, c1, c2
-
-
-@njit(inline="always")
-def _store_sym(out, p00, p01, p02, p11, p12, p22):
-    """Write a symmetric 3×3 into its packed form ``out`` (6,)."""
-    out[0] = p00
-    out[1] = p01
-    out[2] = p02
-    out[3] = p11
-    out[4] = p12
-    out[5] = p22
+    return (Ka, (k0, k1, k2), (n00, n01, n02, n11, n12, n22, c0, c1, c2), (rx, ry, gb0, gb1))
 
 
 @njit(fastmath=CONTRACT, inline="always")
-def _joint(md, dt, i, tau, acc, Pc):
-    """Across the hub and joint i: returns (P, c) on the inboard side of the joint and stores
-    the joint gains α̈_i = ga·a + g0 (torque-driven) or α̈_i = g0 (motion-driven)."""
+def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
+    """Across the hub and joint i: returns ((P, c) on the outboard side of the joint (9),
+    (P, c) on its inboard side (9), (ga (3), g0)) with α̈_i = ga·a + g0 (torque-driven) or
+    α̈_i = g0 (motion-driven; ga unused)."""
     p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
-    g0, g1 = md.grav[0], md.grav[1]
-    mh = md.links[i].m_hub
-    p00 += mh
-    p11 += mh
-    p22 += md.links[i].J_hub
-    c0 -= mh * g0
-    c1 -= mh * g1
-    _store_sym(dt.jt[i].P_hub, p00, p01, p02, p11, p12, p22)
-    dt.jt[i].c_hub[0] = c0
-    dt.jt[i].c_hub[1] = c1
-    dt.jt[i].c_hub[2] = c2
-    if md.links[i].motion:
-        gg = acc[i]
-        dt.jt[i].g0 = gg
+    p00 += m_hub
+    p11 += m_hub
+    p22 += J_hub
+    c0 -= m_hub * g0
+    c1 -= m_hub * g1
+    hub = (p00, p01, p02, p11, p12, p22, c0, c1, c2)
+    if motion:
+        gg = acc_i
+        ga0 = ga1 = ga2 = 0.0
         c0 += p02 * gg
         c1 += p12 * gg
         c2 += p22 * gg
@@ -199,11 +167,7 @@ def _joint(md, dt, i, tau, acc, Pc):
         ga0 = -p02 / p22
         ga1 = -p12 / p22
         ga2 = -1.0
-        gg = (tau[i] - c2) / p22
-        dt.jt[i].ga[0] = ga0
-        dt.jt[i].ga[1] = ga1
-        dt.jt[i].ga[2] = ga2
-        dt.jt[i].g0 = gg
+        gg = (tau_i - c2) / p22
         # P + outer(P[:, 2], ga), symmetric
         n00 = p00 + p02 * ga0
         n01 = p01 + p02 * ga1
@@ -213,80 +177,106 @@ def _joint(md, dt, i, tau, acc, Pc):
         c2 += p22 * gg
         p00, p01, p11 = n00, n01, n11
         p02 = p12 = p22 = 0.0
-    return p00, p01, p02, p11, p12, p22, c0, c1, c2
+    return hub, (p00, p01, p02, p11, p12, p22, c0, c1, c2), (ga0, ga1, ga2, gg)
 
 
-@njit(fastmath=CONTRACT)
+@njit(fastmath=CONTRACT, inline="always")
 def backward(md, dt, tau, acc):
-    """Tip → base: (P, c) at every cut, the element gains and the joint gains."""
+    """Tip → base: (P, c) at every cut, the element gains and the joint gains. The link
+    constants are read here, not by a helper: an inlined helper would copy ``md`` each call."""
     k = md.k
     g0 = md.grav[0]
     g1 = md.grav[1]
-    p00 = p01 = p02 = p11 = p12 = p22 = 0.0
-    c0 = c1 = c2 = 0.0
+    Pc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for i in range(md.n - 1, -1, -1):
-        # payload at the tip of link i
-        mp = md.links[i].m_pay
-        p00 += mp
-        p11 += mp
-        p22 += md.links[i].J_pay
-        c0 -= mp * g0
-        c1 -= mp * g1
-        _store_sym(dt.jt[i].P_tip, p00, p01, p02, p11, p12, p22)
-        dt.jt[i].c_tip[0] = c0
-        dt.jt[i].c_tip[1] = c1
-        dt.jt[i].c_tip[2] = c2
-        lc = link_constants(md, i, g0, g1)
-        Mt = (dt.jt[i].Mt[0, 0], dt.jt[i].Mt[1, 1], dt.jt[i].Mt[1, 2], dt.jt[i].Mt[2, 2])
-        so = md.links[i].second_order
-        Pc = (p00, p01, p02, p11, p12, p22, c0, c1, c2)
+        Pc = _rigid_body(Pc, md.m_pay[i], md.J_pay[i], g0, g1)  # payload at the tip of link i
+        _store_Pc(dt.P_tip, dt.c_tip, i, Pc)
+        m = md.m[i]
+        lc = (m, m * g0, m * g1, md.cs0[i, 0], md.CS[i, 0, 0], md.CS[i, 1, 1], md.CS[i, 1, 2], md.cs0s0[i],
+              md.cs0S[i, 0], md.d1[i, 1], md.d1[i, 2], md.D2[i, 0, 1], md.D2[i, 0, 2], md.D2[i, 1, 0],
+              md.D2[i, 2, 0], md.CSS[i, 0, 0], md.CSS[i, 1, 1], md.CSS[i, 1, 2], md.CSS[i, 2, 2], md.CSES[i, 0, 1],
+              md.CSES[i, 0, 2], md.CSES[i, 1, 0], md.CSES[i, 2, 0], md.sO0[i, 0], md.sO0[i, 1], md.su[i])
+        sc = (md.EA[i], md.EAl[i], md.inv_l[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1],
+              md.K[i, 1, 1], md.K[i, 1, 2], md.K[i, 2, 1], md.K[i, 2, 2], md.K[i, 0, 0])
+        Mt = (dt.Mt[i, 0, 0], dt.Mt[i, 1, 1], dt.Mt[i, 1, 2], dt.Mt[i, 2, 2], dt.cq[i])
+        so = md.second_order[i]
         for j in range(k - 1, -1, -1):
-            Pc = _element_step(md, dt, i, i * k + j, lc, Mt, so, Pc, g0, g1)
-        p00, p01, p02, p11, p12, p22, c0, c1, c2 = _joint(md, dt, i, tau, acc, Pc)
+            g = i * k + j
+            kin = (dt.c[g], dt.s[g], dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1],
+                   dt.ed[g, 2], dt.e_hat[g, 0], dt.e_hat[g, 1], dt.e_hat[g, 2])
+            fk = (dt.f_known[g, 0], dt.f_known[g, 1], dt.f_known[g, 2])
+            Ka, k0, Pc, rg = _element_step(lc, sc, Mt, so, kin, fk, Pc, g0, g1)
+            (dt.Ka[g, 0, 0], dt.Ka[g, 0, 1], dt.Ka[g, 0, 2], dt.Ka[g, 1, 0], dt.Ka[g, 1, 1], dt.Ka[g, 1, 2],
+             dt.Ka[g, 2, 0], dt.Ka[g, 2, 1], dt.Ka[g, 2, 2]) = Ka
+            dt.k0[g, 0], dt.k0[g, 1], dt.k0[g, 2] = k0
+            _store_Pc(dt.P, dt.c_I, g, Pc)
+            dt.rso[g, 0], dt.rso[g, 1], dt.gbar[g, 0], dt.gbar[g, 1] = rg
+        hub, Pc, gains = _joint(md.m_hub[i], md.J_hub[i], md.motion[i], tau[i], acc[i], Pc, g0, g1)
+        _store_Pc(dt.P_hub, dt.c_hub, i, hub)
+        dt.ga[i, 0], dt.ga[i, 1], dt.ga[i, 2], dt.g0[i] = gains
 
 
-@njit(fastmath=CONTRACT)
+@njit(fastmath=CONTRACT, inline="always")
+def _rigid_body(Pc, mass, inertia, g0, g1):
+    """(P, c) across a rigid body at the cut: P += diag(m, m, J), c −= m g."""
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
+    p00 += mass
+    p11 += mass
+    p22 += inertia
+    c0 -= mass * g0
+    c1 -= mass * g1
+    return p00, p01, p02, p11, p12, p22, c0, c1, c2
+
+
+@njit(inline="always")
+def _store_Pc(P, c, row, Pc):
+    """Store (P packed, c) = Pc (9) in row ``row`` of P (·, 6) and c (·, 3)."""
+    P[row, 0], P[row, 1], P[row, 2], P[row, 3], P[row, 4], P[row, 5], c[row, 0], c[row, 1], c[row, 2] = Pc
+
+
+@njit(fastmath=CONTRACT, inline="always")
 def forward(md, dt, xout, torque):
     """Base → tip: α̈, ë and the cut accelerations from the gains of :func:`backward`."""
     k = md.k
     a0 = a1 = a2 = 0.0
     for i in range(md.n):
-        off = md.links[i].pad
-        su = md.links[i].su
-        if md.links[i].motion:
-            add = dt.jt[i].g0
+        off = md.pad[i]
+        es, ne = md.e_start[i], md.ne[i]
+        su = md.su[i]
+        if md.motion[i]:
+            add = dt.g0[i]
         else:
-            add = dt.jt[i].ga[0] * a0 + dt.jt[i].ga[1] * a1 + dt.jt[i].ga[2] * a2 + dt.jt[i].g0
+            add = dt.ga[i, 0] * a0 + dt.ga[i, 1] * a1 + dt.ga[i, 2] * a2 + dt.g0[i]
         a2 += add
-        xout[md.links[i].i_alpha] = add
-        torque[i] = dt.jt[i].P_hub[2] * a0 + dt.jt[i].P_hub[4] * a1 + dt.jt[i].P_hub[5] * a2 + dt.jt[i].c_hub[2]
+        xout[md.i_alpha[i]] = add
+        torque[i] = dt.P_hub[i, 2] * a0 + dt.P_hub[i, 4] * a1 + dt.P_hub[i, 5] * a2 + dt.c_hub[i, 2]
         for j in range(k):
             g = i * k + j
-            dt.el[g].a[0] = a0
-            dt.el[g].a[1] = a1
-            dt.el[g].a[2] = a2
-            q0 = dt.el[g].Ka[0, 0] * a0 + dt.el[g].Ka[0, 1] * a1 + dt.el[g].Ka[0, 2] * a2 + dt.el[g].k0[0]
-            q1 = dt.el[g].Ka[1, 0] * a0 + dt.el[g].Ka[1, 1] * a1 + dt.el[g].Ka[1, 2] * a2 + dt.el[g].k0[1]
-            q2 = dt.el[g].Ka[2, 0] * a0 + dt.el[g].Ka[2, 1] * a1 + dt.el[g].Ka[2, 2] * a2 + dt.el[g].k0[2]
-            b = coord_base(md, i, j)
+            dt.a[g, 0] = a0
+            dt.a[g, 1] = a1
+            dt.a[g, 2] = a2
+            q0 = dt.Ka[g, 0, 0] * a0 + dt.Ka[g, 0, 1] * a1 + dt.Ka[g, 0, 2] * a2 + dt.k0[g, 0]
+            q1 = dt.Ka[g, 1, 0] * a0 + dt.Ka[g, 1, 1] * a1 + dt.Ka[g, 1, 2] * a2 + dt.k0[g, 1]
+            q2 = dt.Ka[g, 2, 0] * a0 + dt.Ka[g, 2, 1] * a1 + dt.Ka[g, 2, 2] * a2 + dt.k0[g, 2]
+            b = coord_base(es, ne, off, j)
             if not off:
                 xout[b] = q0
             xout[b + 1] = q1
             xout[b + 2] = q2
-            c = dt.el[g].c
-            s = dt.el[g].s
-            rx = dt.el[g].rso[0]
-            ry = dt.el[g].rso[1]
+            c = dt.c[g]
+            s = dt.s[g]
+            rx = dt.rso[g, 0]
+            ry = dt.rso[g, 1]
             sq0 = su * q0
-            a0 = a0 - ry * a2 + c * sq0 - s * q1 + dt.el[g].gbar[0]
-            a1 = a1 + rx * a2 + s * sq0 + c * q1 + dt.el[g].gbar[1]
+            a0 = a0 - ry * a2 + c * sq0 - s * q1 + dt.gbar[g, 0]
+            a1 = a1 + rx * a2 + s * sq0 + c * q1 + dt.gbar[g, 1]
             a2 = a2 + q2
-        dt.jt[i].a_tip[0] = a0
-        dt.jt[i].a_tip[1] = a1
-        dt.jt[i].a_tip[2] = a2
+        dt.a_tip[i, 0] = a0
+        dt.a_tip[i, 1] = a1
+        dt.a_tip[i, 2] = a2
 
 
-@njit()
+@njit(inline="always")
 def _affine(P, c, a0, a1, a2, out):
     """out = P a + c for a packed symmetric P."""
     out[0] = P[0] * a0 + P[1] * a1 + P[2] * a2 + c[0]
@@ -294,7 +284,7 @@ def _affine(P, c, a0, a1, a2, out):
     out[2] = P[2] * a0 + P[4] * a1 + P[5] * a2 + c[2]
 
 
-@njit()
+@njit(nrt=False)
 def riccati_loads(md, dt, loads):
     """Loads (Qx, Qy, M) at every cut from the last Riccati sweep: f = P a + c."""
     k = md.k
@@ -302,7 +292,7 @@ def riccati_loads(md, dt, loads):
     for i in range(md.n):
         for j in range(k):
             g = i * k + j
-            _affine(dt.el[g].P, dt.el[g].c_I, dt.el[g].a[0], dt.el[g].a[1], dt.el[g].a[2], loads[ic])
+            _affine(dt.P[g], dt.c_I[g], dt.a[g, 0], dt.a[g, 1], dt.a[g, 2], loads[ic])
             ic += 1
-        _affine(dt.jt[i].P_tip, dt.jt[i].c_tip, dt.jt[i].a_tip[0], dt.jt[i].a_tip[1], dt.jt[i].a_tip[2], loads[ic])
+        _affine(dt.P_tip[i], dt.c_tip[i], dt.a_tip[i, 0], dt.a_tip[i, 1], dt.a_tip[i, 2], loads[ic])
         ic += 1
