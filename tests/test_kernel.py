@@ -122,8 +122,10 @@ def _random_states(case, k, strain, rng, n=3):
 @pytest.mark.parametrize("sweep", ["riccati", "plain"])
 def test_kernel_accelerations_match_numpy_reference(strain, sweep):
     """q̈ of the compiled kernel at random states against the readable numpy sweeps. The plain
-    sweep loses digits in proportion to the equilibrated condition number κ of its final
-    system (κ·ε is its round-off level; measured ratio error/(κ·ε) ≤ 30 here)."""
+    sweep's round-off is its own error against the stable Riccati sweep, e_p = |q̈_plain −
+    q̈_riccati| (numpy): the two plain implementations must agree within 100·e_p (the
+    condition number of the 3×3 final system alone does not capture the loss in the transfer
+    chain: e_p reaches 1e-10 at κ = 30 here)."""
     rng = np.random.default_rng(7)
     for case in (mixed_case(), _case("three_link", 0.1), _case("spin_up", 0.1)):
         for k in (1, 2) if sweep == "plain" else (1, 3, 8):
@@ -131,7 +133,9 @@ def test_kernel_accelerations_match_numpy_reference(strain, sweep):
                 tau, mot = driver.drive_values(st, t)
                 ref = oracle(st, q, qd, tau, mot, sweep)
                 a = dttmm.accelerations(case, k, q, qd, t, sweep=sweep, engine="numba", strain=strain)
-                bound = RTOL if sweep == "riccati" else max(RTOL, 100 * ref.cond * np.finfo(float).eps)
+                bound = RTOL
+                if sweep == "plain":
+                    bound += 100 * _rel(ref.qdd, oracle(st, q, qd, tau, mot, "riccati").qdd)
                 assert _rel(a, ref.qdd) <= bound, (case.name, k, ref.cond)
 
 
