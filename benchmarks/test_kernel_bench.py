@@ -15,12 +15,12 @@ import time
 
 import numpy as np
 import pytest
-
-import dttmm
 from conftest import CASES, QUICK, case
 
+import dttmm
+
 pytest.importorskip("numba")
-from dttmm.kernel import driver  # noqa: E402
+from dttmm.kernel import driver
 
 KS = [8, 64] if QUICK else [8, 16, 32, 64, 128, 256, 1024]
 N_STEPS = 10 if QUICK else 200

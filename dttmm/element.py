@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ElementType", "element_type", "E2"]
+__all__ = ["E2", "ElementType", "element_type"]
 
 E2 = np.array([[0.0, -1.0], [1.0, 0.0]])  # rotation by +90°: d A(θ)/dθ = E A(θ)
 

@@ -14,9 +14,20 @@ from .integrators import NewmarkFamily, newmark_family
 from .kernel.loop import predict
 from .kernel.recorder import hermite_weights
 
-__all__ = ["elements_per_link", "choice", "iterations_setting", "open_fraction", "positive_number",
-           "positive_integer", "NewmarkFamily", "newmark_family", "predict", "hermite_sample",
-           "simulation_failure", "versions"]
+__all__ = [
+    "NewmarkFamily",
+    "choice",
+    "elements_per_link",
+    "hermite_sample",
+    "iterations_setting",
+    "newmark_family",
+    "open_fraction",
+    "positive_integer",
+    "positive_number",
+    "predict",
+    "simulation_failure",
+    "versions",
+]
 
 
 def positive_integer(field: str, value, minimum: int = 1) -> int:

@@ -15,7 +15,7 @@ from .kernel import driver
 from .structure import STRAINS, build_structure
 from .sweeps import SWEEPS
 
-__all__ = ["simulate", "accelerations", "INTEGRATORS"]
+__all__ = ["INTEGRATORS", "accelerations", "simulate"]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
 

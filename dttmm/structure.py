@@ -13,7 +13,7 @@ from .case import Case
 from .element import ElementType, element_terms, element_type, outboard_maps, rot, strain_energy
 from .errors import InputError
 
-__all__ = ["Structure", "build_structure", "Kinematics"]
+__all__ = ["Kinematics", "Structure", "build_structure"]
 
 
 @dataclass

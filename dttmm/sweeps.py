@@ -27,7 +27,7 @@ import numpy as np
 from .element import elastic_forces
 from .structure import Kinematics, Structure, kinematics
 
-__all__ = ["SweepOut", "riccati", "plain", "SWEEPS", "accelerations"]
+__all__ = ["SWEEPS", "SweepOut", "accelerations", "plain", "riccati"]
 
 E3 = np.array([0.0, 0.0, 1.0])
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from ._validate import positive
 from .errors import InputError
-from .plumbing import versions  # noqa: F401 - re-exported: other solvers read it from here
+from .plumbing import versions
 
 __all__ = ["step_schedule", "versions"]
 

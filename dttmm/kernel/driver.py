@@ -21,9 +21,19 @@ from ..scenario import Scenario
 from ..structure import Structure, build_structure
 from ..timegrid import step_schedule
 from . import _jit, loop
-from .layout import (INT_NEWMARK, INT_RK4, IT_AUTO, IT_FIXED, IT_TOL, ST_NONFINITE, ST_SINGULAR, SWEEP_CODES,
-                     build_model, make_data)
-from .recorder import Record, record
+from .layout import (
+    INT_NEWMARK,
+    INT_RK4,
+    IT_AUTO,
+    IT_FIXED,
+    IT_TOL,
+    ST_NONFINITE,
+    ST_SINGULAR,
+    SWEEP_CODES,
+    build_model,
+    make_data,
+)
+from .recorder import Record
 
 ENGINES = ("numba", "python")
 
@@ -133,7 +143,7 @@ def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Rec
     that they hold at most ~2e6 cut-samples."""
     nt, n = times.size, st.n_links
     ncuts = st.n_elements + n
-    stride = max(1, int(math.ceil(nt * ncuts / 2.0e6))) if want_loads else 0
+    stride = max(1, math.ceil(nt * ncuts / 2.0e6)) if want_loads else 0
     full = lambda *shape: np.full((nt, *shape), np.nan)
     loads = np.full(((nt - 1) // stride + 1, ncuts, 3), np.nan) if want_loads else np.zeros((0, ncuts, 3))
     return Record(t=times, angle=full(n), rate=full(n), torque=full(n), root=full(n, 2), tip=full(n, 2),

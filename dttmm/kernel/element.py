@@ -132,7 +132,7 @@ def second_order_terms(sc, e0, e1, e2):
     constants ``sc`` of :func:`strain_constants`: ε = u/l + ½ wᵀGw, w = (v, φ);
     f_u = EA ε, f_w = EA l ε G w + K_b w. Returns f (3) and the tangent K_T = ∂f/∂e as its u–w
     row (T01, T02) and ΔT = K_T,ww − K_b (2×2, row-major); K_T,uu = EA/l = K_uu."""
-    EA, EAl, il, G00, G01, G10, G11, Kb00, Kb01, Kb10, Kb11, Kuu = sc
+    EA, EAl, il, G00, G01, G10, G11, Kb00, Kb01, Kb10, Kb11, _Kuu = sc
     Gw1 = G00 * e1 + G01 * e2
     Gw2 = G10 * e1 + G11 * e2
     eps = e0 * il + 0.5 * (e1 * Gw1 + e2 * Gw2)
@@ -171,7 +171,7 @@ def element_terms(lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1):
     ``gb0, gb1`` = γ̄_O (its rotation entry is 0). B_a = [[1, 0, −ry], [0, 1, rx], [0, 0, 1]]
     and B_e = [[s_u c, −s, 0], [s_u s, c, 0], [0, 0, 1]] follow from (c, s, rx, ry).
     """
-    (m, mg0, mg1, s00, C00, C11, C12, css0, q0, d11, d12, D01, D02, D10, D20, S00, S11, S12, S22, E01, E02, E10, E20,
+    (_m, mg0, mg1, s00, C00, C11, C12, css0, q0, d11, d12, D01, D02, D10, D20, S00, S11, S12, S22, E01, E02, E10, E20,
      so00, so01, su) = lc
     ms0 = s00 + C00 * e0
     ms1 = C11 * e1 + C12 * e2

@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Model", "Data", "build_model", "make_data", "SYM"]
+__all__ = ["SYM", "Data", "Model", "build_model", "make_data"]
 
 # --- codes shared by the driver and the kernel -----------------------------------------------
 INT_NEWMARK, INT_RK4 = 0, 1              # integrator family

@@ -22,7 +22,7 @@ def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):
     """Element g's terms as dense 3×3 matrices (padded): M_aa, M_ae, h̄_a, h̃_e (with the known
     elastic force), B_a, B_e, γ̄_O (from :func:`element_terms`)."""
     c, s = dt.c[g], dt.s[g]
-    (ms0, ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
+    (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
         lc, c, s, dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1], dt.ed[g, 2],
         md.grav[0], md.grav[1])
     m, su = lc[0], lc[-1]

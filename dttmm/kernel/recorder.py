@@ -55,7 +55,7 @@ def _energy(lc, md, i, c, s, thd, vx, vy, px, py, e0, e1, e2, f0, f1, f2):
     moving at (vx, vy) and frame rate thd, as (T + U, g·∫r dm): T = ½ p'ᵀ M_aa p' + p'ᵀ M_ae ė
     + ½ ėᵀ C_SS ė with p' = (ṙ_I, θ̇), U(e) the strain energy."""
     g0, g1 = md.grav[0], md.grav[1]
-    (ms0, ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
+    (ms0, ms1, rem0, rem1, Jt, A, _ha0, _ha1, _ha2, _he0, _he1, _he2, _rx, _ry, _gb0, _gb1) = element_terms(
         lc, c, s, thd, e0, e1, e2, f0, f1, f2, g0, g1)
     m = lc[0]
     Tae = (vx * A[0] + vy * A[3] + thd * A[6]) * f0 + (vx * A[1] + vy * A[4] + thd * A[7]) * f1 \

@@ -77,7 +77,7 @@ def _element_step(lc, sc, Mt, so, kin, fk, Pc, g0, g1):
     p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
     M00, M11, M12, M22, cq = Mt
     c, s, td, e0, e1, e2, f0, f1, f2, eh0, eh1, eh2 = kin
-    (ms0, ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
+    (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
         lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1)
     he0 = he0 + fk[0]
     he1 = he1 + fk[1]
