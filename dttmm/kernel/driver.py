@@ -240,7 +240,7 @@ def simulate_structure(st: Structure, s: Settings):
         raise plumbing.simulation_failure("Singular matrix", t=0.0, step=0, component="step system", meta=meta,
                                           partial=partial,
                                           message="initial acceleration solve failed (Singular matrix)")
-    lp.apply_motion(md, mot0, q, qd)
+    lp.apply_motion(md.motion, md.im, mot0, q, qd)
     st0 = loop.State(q=q, qd=qd, qdd=qdd, aux=qdd.copy(), q_prev=q.copy(), qd_prev=qd.copy(),
                      torque_prev=ws.torque.copy(), loads_prev=loads.copy())
     s0 = (st0.q_prev, st0.qd_prev, st0.torque_prev, st0.loads_prev)

@@ -39,7 +39,7 @@ def coord_base(e_start, ne, pad, j):
     return e_start + j * ne - pad
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def angles(md, q, qd, dt):
     """Kinematic pass (base → tip): frame cos/sin and rate of every element, padded e and ė."""
     k = md.k

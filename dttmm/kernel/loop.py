@@ -15,10 +15,10 @@ import numpy as np
 
 from ._jit import njit
 
-# Every helper of the loop is inlined into its caller (inline="always"): a call passes each
-# array of the named tuples as separate arguments, which costs more than a small model's
-# sweep. The sweeps themselves (riccati, plain) stay calls: they are compiled with their own
-# floating-point contraction setting.
+# The loop's functions allocate nothing and are compiled without reference counting
+# (nrt=False): with it, every call would touch the count of every array of its named-tuple
+# arguments, which costs more than a small model's sweep. Not inlined either: an inlined
+# helper copies its tuple arguments at each call.
 from .element import angles, effective_mass, elastic_known
 from .layout import (
     INT_NEWMARK,
@@ -130,7 +130,14 @@ def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
                 loads_r=np.empty((n_cuts, 3)))
 
 
-@njit(inline="always")
+@njit(nrt=False)
+def copy(src, dst):
+    """dst[:] = src for 1-d arrays (a slice assignment would need reference counting)."""
+    for r in range(src.shape[0]):
+        dst[r] = src[r]
+
+
+@njit(nrt=False)
 def sweep(md, dt, code, q, qd, tau, acc, xout, torque, loads):
     """One sweep at the iterate (q, q̇) (dt.f_known and dt.Mt already set). Returns
     (ok, cond): cond is the plain sweep's final-system condition number (nan for Riccati)."""
@@ -141,26 +148,27 @@ def sweep(md, dt, code, q, qd, tau, acc, xout, torque, loads):
     return plain(md, dt, tau, acc, xout, torque, loads)
 
 
-@njit(inline="always")
-def apply_motion(md, mot, q, qd):
-    """Motion-driven joints take the law's angle and rate."""
+@njit(nrt=False)
+def apply_motion(motion, im, mot, q, qd):
+    """Motion-driven joints (``motion`` (n,) bool, their angles at ``im`` in q) take the law's
+    angle and rate from ``mot`` (n, 3)."""
     ii = 0
-    for i in range(md.n):
-        if md.motion[i]:
-            q[md.im[ii]] = mot[i, 0]
-            qd[md.im[ii]] = mot[i, 1]
+    for i in range(motion.shape[0]):
+        if motion[i]:
+            q[im[ii]] = mot[i, 0]
+            qd[im[ii]] = mot[i, 1]
             ii += 1
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     """Exact forward dynamics q̈(q, q̇) into xout (motion joints take the law's angle, rate,
     α̈), with the joint torques and, if ``want_loads``, the cut loads. Returns (ok, cond)."""
-    ws.qs[:] = q
-    ws.qds[:] = qd
+    copy(q, ws.qs)
+    copy(qd, ws.qds)
     for i in range(md.n):
         ws.acc[i] = mot[i, 2]
-    apply_motion(md, mot, ws.qs, ws.qds)
+    apply_motion(md.motion, md.im, mot, ws.qs, ws.qds)
     elastic_known(md, ws.qs, ws.qds, dt)
     effective_mass(md, 0.0, 0.0, dt)
     ok, cond = sweep(md, dt, code, ws.qs, ws.qds, tau, ws.acc, xout, torque, loads)
@@ -172,7 +180,7 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     return ok, cond
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def predict(beta, gamma, alpha_m, alpha_f, h, q, qd, qdd, a, qt, qdt):
     """Newmark-family predictor: fills q̃, q̃' (so that q_{n+1} = q̃ + c_q q̈_{n+1},
     q̇_{n+1} = q̃' + c_v q̈_{n+1}) and returns (c_q, c_v)."""
@@ -188,7 +196,7 @@ def predict(beta, gamma, alpha_m, alpha_f, h, q, qd, qdd, a, qt, qdt):
     return cq, cv
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def _stop(opts, it, dx, prev_dx, xmax, dq):
     """Stop rule of the tolerance-driven iteration after sweep ``it``: returns (stop,
     converged). dx = max|Δq̈|, xmax = max|q̈|, dq = max|q̈_{n+1} − q̈_n| ("auto" only)."""
@@ -209,15 +217,14 @@ def _stop(opts, it, dx, prev_dx, xmax, dq):
     return False, False
 
 
-@njit(inline="always")
-def _update_iterate(st, ws, cq, cv, want_dq):
-    """x ← xn, the next iterate (q, q̇) = (q̃ + c_q x, q̃' + c_v x). Returns (max|Δq̈| (nan if
-    not finite), max|q̈|, max|q̈ − q̈_n| if ``want_dq``)."""
+@njit(nrt=False)
+def _update_iterate(x, xn, qt, qdt, qi, qdi, qdd, cq, cv, want_dq):
+    """x ← xn, the next iterate (qi, qdi) = (q̃ + c_q x, q̃' + c_v x). Returns (max|Δq̈| (nan if
+    not finite), max|q̈|, max|q̈ − q̈_n| if ``want_dq``, q̈_n = qdd)."""
     dx = 0.0
     xmax = 0.0
     dq = 0.0
     bad = False
-    x, xn = ws.x, ws.xn
     for r in range(x.shape[0]):
         v = xn[r]
         d = abs(v - x[r])
@@ -226,18 +233,18 @@ def _update_iterate(st, ws, cq, cv, want_dq):
         ax = abs(v)
         xmax = max(xmax, ax)
         x[r] = v
-        ws.qi[r] = ws.qt[r] + cq * v
-        ws.qdi[r] = ws.qdt[r] + cv * v
+        qi[r] = qt[r] + cq * v
+        qdi[r] = qdt[r] + cv * v
     if want_dq:
         for r in range(x.shape[0]):
-            d2 = abs(x[r] - st.qdd[r])
+            d2 = abs(x[r] - qdd[r])
             dq = max(dq, d2)
     if bad:
         dx = np.nan
     return dx, xmax, dq
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
     """Sweeps of one Newmark step from the iterate x = ws.x. Returns (ok, sweeps used,
     converged)."""
@@ -249,14 +256,15 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
         ws.qi[r] = ws.qt[r] + cq * ws.x[r]
         ws.qdi[r] = ws.qdt[r] + cv * ws.x[r]
     for it in range(nsw):
-        apply_motion(md, mot, ws.qi, ws.qdi)
+        apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
         ok, cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.xn, ws.torque, ws.loads)
         used = it + 1
         if not ok:
             return False, used, False
         if opts.sweep == SW_PLAIN and cond > stats.cond_max[0]:
             stats.cond_max[0] = cond
-        dx, xmax, dq = _update_iterate(st, ws, cq, cv, opts.iteration == IT_AUTO)
+        dx, xmax, dq = _update_iterate(ws.x, ws.xn, ws.qt, ws.qdt, ws.qi, ws.qdi, st.qdd, cq, cv,
+                                       opts.iteration == IT_AUTO)
         if opts.iteration != IT_FIXED:
             stop, converged = _stop(opts, it, dx, prev_dx, xmax, dq)
             if stop:
@@ -265,12 +273,12 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
     return True, used, converged
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
     """One Newmark-family step of size h to the end values (tau, mot). Returns ok."""
     cq, cv = predict(opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt,
                      ws.qdt)
-    ws.x[:] = st.qdd
+    copy(st.qdd, ws.x)
     ii = 0
     for i in range(md.n):
         ws.acc[i] = mot[i, 2]
@@ -294,7 +302,7 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
         st.qd[r] = ws.qdt[r] + cv * ws.x[r]
         st.aux[r] = anew
         st.qdd[r] = ws.x[r]
-    apply_motion(md, mot, st.q, st.qd)
+    apply_motion(md.motion, md.im, mot, st.q, st.qd)
     ii = 0
     for i in range(md.n):
         if md.motion[i]:
@@ -307,7 +315,7 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
     return True
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
     """Classical RK4 on (q, q̇) with the exact acceleration solver (step s of ``drv``)."""
     q, qd, qdd = st.q, st.qd, st.qdd
@@ -336,7 +344,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
         for r in range(q.shape[0]):
             q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
             qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
-        apply_motion(md, drv.mot_left[s], q, qd)
+        apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
         ok, cond = accel(md, dt, code, q, qd, drv.tau_left[s], drv.mot_left[s], ws, qdd, ws.torque, ws.loads,
                          drv.need_loads[s])
     if not ok:
@@ -348,7 +356,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
     return True
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def check_state(md, q, qd, qdd):
     """Index of the first bad coordinate (non-finite, or an elastic displacement beyond its
     runaway bound), or -1."""
@@ -360,7 +368,7 @@ def check_state(md, q, qd, qdd):
     return -1
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
     """After step s: check the state, restart at a drive jump, record. Returns the status."""
     t1 = drv.t_end[s]
@@ -377,19 +385,21 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
             return ST_SINGULAR
         if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep
             stats.cond_max[0] = cond
-        st.aux[:] = st.qdd
+        copy(st.qdd, st.aux)
     s0 = (st.q_prev, st.qd_prev, st.torque_prev, st.loads_prev)
     s1 = (st.q, st.qd, ws.torque, ws.loads)
     stats.ptr[0] = record(md, t0, t1, s0, s1, (ws.qs, ws.qds), stats.ptr[0], rec)
-    st.q_prev[:] = st.q
-    st.qd_prev[:] = st.qd
-    st.torque_prev[:] = ws.torque
+    copy(st.q, st.q_prev)
+    copy(st.qd, st.qd_prev)
+    copy(ws.torque, st.torque_prev)
     if drv.need_loads[s]:
-        st.loads_prev[:, :] = ws.loads
+        for c in range(ws.loads.shape[0]):
+            for r in range(3):
+                st.loads_prev[c, r] = ws.loads[c, r]
     return ST_OK
 
 
-@njit()
+@njit(nrt=False)
 def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
     """Steps s_begin … s_end − 1 of the time loop, recording the output samples on the way;
     ``st`` holds the state at the end of step s_begin − 1 and is overwritten. Returns the

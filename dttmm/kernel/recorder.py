@@ -84,7 +84,7 @@ def _energy(lc, md, i, c, s, thd, vx, vy, px, py, e0, e1, e2, f0, f1, f2):
     return 0.5 * (Taa + 2.0 * Tae + Tee) + 0.5 * Vee, comx * g0 + comy * g1
 
 
-@njit(inline="always")
+@njit(nrt=False)
 def sample(md, q, qd, j, rec):
     """Link roots, tips, root angles and (if recorded) the total energy at the state (q, q̇),
     written to row j of ``rec``."""
@@ -146,7 +146,7 @@ def sample(md, q, qd, j, rec):
         rec.energy[j] = etot
 
 
-@njit()
+@njit(nrt=False)
 def record(md, t0, t1, s0, s1, scratch, ptr, rec):
     """Sample every output time in (t0, t1] between the step-end states s0 and s1, each
     (q, q̇, torque, loads); ``scratch`` = two (n_dof,) arrays. Returns the new sample pointer."""
