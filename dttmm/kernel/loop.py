@@ -16,9 +16,9 @@ import numpy as np
 from ._jit import njit
 
 # The loop's functions allocate nothing and are compiled without reference counting
-# (nrt=False): with it, every call would touch the count of every array of its named-tuple
-# arguments, which costs more than a small model's sweep. Not inlined either: an inlined
-# helper copies its tuple arguments at each call.
+# (nrt=False): with it, every call or inlined call touches the count of every array of its
+# named-tuple arguments, which costs more than a small model's sweep. They are inlined into
+# `run` (a real call would pass every array of the tuples as separate arguments).
 from .element import angles, effective_mass, elastic_known
 from .layout import (
     INT_NEWMARK,
@@ -130,14 +130,14 @@ def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
                 loads_r=np.empty((n_cuts, 3)))
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def copy(src, dst):
     """dst[:] = src for 1-d arrays (a slice assignment would need reference counting)."""
     for r in range(src.shape[0]):
         dst[r] = src[r]
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def sweep(md, dt, code, q, qd, tau, acc, xout, torque, loads):
     """One sweep at the iterate (q, q̇) (dt.f_known and dt.Mt already set). Returns
     (ok, cond): cond is the plain sweep's final-system condition number (nan for Riccati)."""
@@ -148,7 +148,7 @@ def sweep(md, dt, code, q, qd, tau, acc, xout, torque, loads):
     return plain(md, dt, tau, acc, xout, torque, loads)
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def apply_motion(motion, im, mot, q, qd):
     """Motion-driven joints (``motion`` (n,) bool, their angles at ``im`` in q) take the law's
     angle and rate from ``mot`` (n, 3)."""
@@ -160,7 +160,7 @@ def apply_motion(motion, im, mot, q, qd):
             ii += 1
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     """Exact forward dynamics q̈(q, q̇) into xout (motion joints take the law's angle, rate,
     α̈), with the joint torques and, if ``want_loads``, the cut loads. Returns (ok, cond)."""
@@ -180,7 +180,7 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     return ok, cond
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def predict(beta, gamma, alpha_m, alpha_f, h, q, qd, qdd, a, qt, qdt):
     """Newmark-family predictor: fills q̃, q̃' (so that q_{n+1} = q̃ + c_q q̈_{n+1},
     q̇_{n+1} = q̃' + c_v q̈_{n+1}) and returns (c_q, c_v)."""
@@ -196,7 +196,7 @@ def predict(beta, gamma, alpha_m, alpha_f, h, q, qd, qdd, a, qt, qdt):
     return cq, cv
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def _stop(opts, it, dx, prev_dx, xmax, dq):
     """Stop rule of the tolerance-driven iteration after sweep ``it``: returns (stop,
     converged). dx = max|Δq̈|, xmax = max|q̈|, dq = max|q̈_{n+1} − q̈_n| ("auto" only)."""
@@ -217,7 +217,7 @@ def _stop(opts, it, dx, prev_dx, xmax, dq):
     return False, False
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def _update_iterate(x, xn, qt, qdt, qi, qdi, qdd, cq, cv, want_dq):
     """x ← xn, the next iterate (qi, qdi) = (q̃ + c_q x, q̃' + c_v x). Returns (max|Δq̈| (nan if
     not finite), max|q̈|, max|q̈ − q̈_n| if ``want_dq``, q̈_n = qdd)."""
@@ -244,7 +244,7 @@ def _update_iterate(x, xn, qt, qdt, qi, qdi, qdd, cq, cv, want_dq):
     return dx, xmax, dq
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
     """Sweeps of one Newmark step from the iterate x = ws.x. Returns (ok, sweeps used,
     converged)."""
@@ -273,7 +273,7 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
     return True, used, converged
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
     """One Newmark-family step of size h to the end values (tau, mot). Returns ok."""
     cq, cv = predict(opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt,
@@ -315,7 +315,7 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
     return True
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
     """Classical RK4 on (q, q̇) with the exact acceleration solver (step s of ``drv``)."""
     q, qd, qdd = st.q, st.qd, st.qdd
@@ -356,7 +356,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
     return True
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def check_state(md, q, qd, qdd):
     """Index of the first bad coordinate (non-finite, or an elastic displacement beyond its
     runaway bound), or -1."""
@@ -368,7 +368,7 @@ def check_state(md, q, qd, qdd):
     return -1
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
     """After step s: check the state, restart at a drive jump, record. Returns the status."""
     t1 = drv.t_end[s]
