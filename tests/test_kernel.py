@@ -260,3 +260,28 @@ def test_auto_iterations_two_sweeps_and_close_to_converged():
     half = dttmm.simulate(c, elements_per_link=4, h=5e-4)
     disc = np.max(np.abs(conv.tip_deflection - half.tip_deflection))
     assert np.max(np.abs(auto.tip_deflection - conv.tip_deflection)) < 0.05 * disc
+
+
+# ---------------------------------------------------------------------------------------------
+# Result.status of a finished run
+def test_status_ok_on_every_shipped_case_at_default_settings():
+    for path in sorted(CASES.glob("*.toml")):
+        r = dttmm.simulate(dttmm.load_case(path), elements_per_link=8, h=1e-3, cut_loads=False, energy=False)
+        assert r.status == "ok" and r.warnings == (), (path.name, r.warnings)
+
+
+def test_status_unconverged_when_max_iterations_is_exhausted():
+    r = dttmm.simulate(_case("three_link", 0.05), elements_per_link=4, h=1e-3, max_iterations=1)
+    assert r.status == "unconverged" and not r.success
+    assert r.meta["unconverged_steps"] == r.n_steps
+    assert "max_iterations = 1" in r.warnings[0]
+
+
+def test_status_ill_conditioned_for_the_plain_sweep_at_k4():
+    """three_link, k = 4: the plain sweep's final system reaches κ ≈ 1e14 (the paper's form
+    loses digits exponentially in k); k = 1 stays well conditioned."""
+    c = _case("three_link", 0.05)
+    r = dttmm.simulate(c, elements_per_link=4, h=1e-3, sweep="plain")
+    assert r.status == "ill-conditioned" and r.meta["final_system_cond"] > driver.ILL_CONDITIONED
+    assert "riccati" in r.warnings[-1]
+    assert dttmm.simulate(c, elements_per_link=1, h=1e-3, sweep="plain").status == "ok"

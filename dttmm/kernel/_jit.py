@@ -33,10 +33,14 @@ CONTRACT = {"contract"}
 KERNEL_DIR = Path(__file__).resolve().parent
 
 
+#: kernel files with no compiled code (their edits need no new cache)
+NOT_COMPILED = ("__init__.py", "driver.py")
+
+
 def source_hash() -> str:
-    """First 16 hex digits of the SHA-256 of every kernel source file (sorted by name)."""
+    """First 16 hex digits of the SHA-256 of every compiled kernel source file (by name)."""
     h = hashlib.sha256()
-    for path in sorted(KERNEL_DIR.glob("*.py")):
+    for path in sorted(p for p in KERNEL_DIR.glob("*.py") if p.name not in NOT_COMPILED):
         h.update(path.name.encode())
         h.update(path.read_bytes())
     return h.hexdigest()[:16]

@@ -171,7 +171,7 @@ def load_plan(rec: Record, t_end, i0: int):
     return need
 
 
-def to_result(rec: Record, upto: int, wall: float, n_steps: int, meta: dict):
+def to_result(rec: Record, upto: int, wall: float, n_steps: int, meta: dict, status=None, warnings=()):
     """The Result of the first ``upto`` output samples."""
     sl = slice(0, upto)
     want_loads = rec.load_stride > 0
@@ -180,7 +180,7 @@ def to_result(rec: Record, upto: int, wall: float, n_steps: int, meta: dict):
                        link_root=rec.root[sl], link_root_angle=rec.root_angle[sl], link_tip=rec.tip[sl],
                        wall_time=wall, n_steps=n_steps, meta=meta, cut_loads=loads,
                        cut_load_t=rec.t[sl][:: rec.load_stride] if want_loads else None,
-                       energy=rec.energy[sl] if rec.energy.size else None)
+                       energy=rec.energy[sl] if rec.energy.size else None, status=status, warnings=warnings)
 
 
 def initial_state(st: Structure):
@@ -267,7 +267,33 @@ def simulate_structure(st: Structure, s: Settings):
         _raise_failure(st, status, stats, t_end, meta, lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]),
                                                                             m))
     _add_stats(meta, stats, s, n_steps, wall)
-    return to_result(rec, upto, wall, n_steps, meta)
+    status, warns = verdict(meta, s, n_steps)
+    return to_result(rec, upto, wall, n_steps, meta, status, warns)
+
+
+#: equilibrated condition number of the plain sweep's final system above which a run is
+#: "ill-conditioned": κ·ε > 1e-8, half the digits of a double lost in the last solve alone
+ILL_CONDITIONED = 1e8
+
+
+def verdict(meta: dict, s: Settings, n_steps: int):
+    """(status, warnings) of a finished run: "ill-conditioned" when the plain sweep's largest
+    final-system condition number exceeds :data:`ILL_CONDITIONED`; "unconverged" when a
+    tolerance-driven step used all ``max_iterations`` sweeps; else "ok" (fixed sweep counts,
+    ``iterations = m``, are not checked here)."""
+    warns = []
+    status = "ok"
+    n_unconv = meta.get("unconverged_steps", 0)
+    if n_unconv:
+        status = "unconverged"
+        warns.append(f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
+                     f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}")
+    cond = meta.get("final_system_cond", 0.0)
+    if cond > ILL_CONDITIONED:
+        status = "ill-conditioned"
+        warns.append(f"plain sweep: final-system condition number up to {cond:.3g} (> {ILL_CONDITIONED:g}); "
+                     "use sweep='riccati'")
+    return status, warns
 
 
 def _raise_failure(st, status, stats, t_end, meta, partial):
