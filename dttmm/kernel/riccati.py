@@ -65,12 +65,13 @@ def _ldl_solve(H00, H01, H02, H11, H12, H22, X, r0, r1, r2):
 
 
 @njit(fastmath=CONTRACT, inline="always")
-def _element_step(lc, sc, Mt, so, kin, fk, Pc, g0, g1):
+def _element_step(md, i, lc, Mt, so, kin, fk, Pc, g0, g1):
     """Carry (P, c) = ``Pc`` (packed P, then c) across one element from its outboard to its
     inboard cut. Pure arithmetic (the caller loads and stores: helpers inlined into a loop copy
     their tuple arguments, so the workspace is not passed here).
 
-    lc, sc: :func:`link_constants`, :func:`strain_constants`; Mt: the (0, 0), (1, 1), (1, 2),
+    lc: :func:`link_constants`; md, i: the model and link (second-order constants, read in
+    their branch); Mt: the (0, 0), (1, 1), (1, 2),
     (2, 2) entries of M̃_ee and c_q; so: second-order strain; kin = (cos θ, sin θ, θ̇, e, ė, ê);
     fk: the known elastic force. Returns (K_a (9, row-major), k_0 (3), (P_I packed, c_I) (9),
     (r_x, r_y, γ̄_x, γ̄_y))."""
@@ -113,6 +114,8 @@ def _element_step(lc, sc, Mt, so, kin, fk, Pc, g0, g1):
     if so:
         # second-order strain at the iterate e (sweeps._elastic_rhs):
         # h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)
+        sc = (md.EA[i], md.EAl[i], md.inv_l[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1],
+              md.K[i, 1, 1], md.K[i, 1, 2], md.K[i, 2, 1], md.K[i, 2, 2], md.K[i, 0, 0])
         fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(sc, e0, e1, e2)
         Kb00, Kb01, Kb10, Kb11, Kuu = sc[7], sc[8], sc[9], sc[10], sc[11]
         de0 = eh0 - e0
@@ -196,8 +199,6 @@ def backward(md, dt, tau, acc):
               md.cs0S[i, 0], md.d1[i, 1], md.d1[i, 2], md.D2[i, 0, 1], md.D2[i, 0, 2], md.D2[i, 1, 0],
               md.D2[i, 2, 0], md.CSS[i, 0, 0], md.CSS[i, 1, 1], md.CSS[i, 1, 2], md.CSS[i, 2, 2], md.CSES[i, 0, 1],
               md.CSES[i, 0, 2], md.CSES[i, 1, 0], md.CSES[i, 2, 0], md.sO0[i, 0], md.sO0[i, 1], md.su[i])
-        sc = (md.EA[i], md.EAl[i], md.inv_l[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1],
-              md.K[i, 1, 1], md.K[i, 1, 2], md.K[i, 2, 1], md.K[i, 2, 2], md.K[i, 0, 0])
         Mt = (dt.Mt[i, 0, 0], dt.Mt[i, 1, 1], dt.Mt[i, 1, 2], dt.Mt[i, 2, 2], dt.cq[i])
         so = md.second_order[i]
         for j in range(k - 1, -1, -1):
@@ -205,7 +206,7 @@ def backward(md, dt, tau, acc):
             kin = (dt.c[g], dt.s[g], dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1],
                    dt.ed[g, 2], dt.e_hat[g, 0], dt.e_hat[g, 1], dt.e_hat[g, 2])
             fk = (dt.f_known[g, 0], dt.f_known[g, 1], dt.f_known[g, 2])
-            Ka, k0, Pc, rg = _element_step(lc, sc, Mt, so, kin, fk, Pc, g0, g1)
+            Ka, k0, Pc, rg = _element_step(md, i, lc, Mt, so, kin, fk, Pc, g0, g1)
             (dt.Ka[g, 0, 0], dt.Ka[g, 0, 1], dt.Ka[g, 0, 2], dt.Ka[g, 1, 0], dt.Ka[g, 1, 1], dt.Ka[g, 1, 2],
              dt.Ka[g, 2, 0], dt.Ka[g, 2, 1], dt.Ka[g, 2, 2]) = Ka
             dt.k0[g, 0], dt.k0[g, 1], dt.k0[g, 2] = k0
