@@ -88,7 +88,10 @@ def build_model(st) -> Model:
         et = lk.et
         p = 3 - et.ne
         ne[i], pad[i] = et.ne, p
-        _check_pattern(et)
+        SO = np.zeros((2, 3))
+        SO[:, p:] = et.SO
+        if not np.array_equal(SO, [[SO[0, 0], 0.0, 0.0], [0.0, 1.0, 0.0]]):  # pragma: no cover
+            raise AssertionError("unexpected outboard shape matrix")
         f["m"][i], f["cs0s0"][i] = et.m, et.c_s0s0
         f["cs0"][i], f["sO0"][i] = et.c_s0, et.sO0
         f["CS"][i, :, p:] = et.C_S
@@ -99,6 +102,7 @@ def build_model(st) -> Model:
         f["m_hub"][i], f["J_hub"][i] = lk.m_hub, lk.M_hub[2, 2]
         f["m_pay"][i], f["J_pay"][i] = lk.m_pay, lk.M_pay[2, 2]
         f["dummy"][i] = 1.0 if p else 0.0
+        _check_pattern(f, i)
         if et.second_order:
             second_order[i] = True
             f["EA"][i], f["inv_l"][i], f["EAl"][i] = et.EA, 1.0 / et.l, et.EA * et.l
@@ -113,26 +117,17 @@ def build_model(st) -> Model:
                  second_order=second_order, **f)
 
 
-def _check_pattern(et) -> None:
+def _check_pattern(f: dict, i: int) -> None:
     """The sweeps hard-code the sparsity of the element moments (u couples to (v, φ) only
     through D2 and C_SES) and the outboard shape S_O = [[s_u, 0, 0], [0, 1, 0]]: refuse anything
-    else rather than compute it wrong."""
-    p = 3 - et.ne
-    SO = np.zeros((2, 3))
-    SO[:, p:] = et.SO
-    if not np.array_equal(SO, [[SO[0, 0], 0.0, 0.0], [0.0, 1.0, 0.0]]):  # pragma: no cover
-        raise AssertionError("unexpected outboard shape matrix")
-    pad3 = lambda a: np.pad(a, [(p, 0)] * a.ndim)
-    CS = np.zeros((2, 3))
-    CS[:, p:] = et.C_S
-    zero = [et.c_s0[1], CS[0, 1], CS[0, 2], CS[1, 0], pad3(et.c_s0S)[1], pad3(et.c_s0S)[2], pad3(et.d1)[0]]
-    for mat, entries in ((et.D2, ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))),
-                         (et.C_SS, ((0, 1), (0, 2), (1, 0), (2, 0))),
-                         (et.C_SES, ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))),
-                         (et.K, ((0, 1), (0, 2), (1, 0), (2, 0))), (et.D, ((0, 1), (0, 2), (1, 0), (2, 0)))):
-        full = pad3(mat)
-        zero += [full[r, c] for r, c in entries]
-    if np.any(np.asarray(zero) != 0.0):  # pragma: no cover
+    else rather than compute it wrong. ``f``: the padded fields of :func:`build_model`."""
+    zero = [f["cs0"][i, 1], f["CS"][i, 0, 1], f["CS"][i, 0, 2], f["CS"][i, 1, 0], f["cs0S"][i, 1], f["cs0S"][i, 2],
+            f["d1"][i, 0]]
+    for name, entries in (("D2", ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))), ("CSS", ((0, 1), (0, 2), (1, 0), (2, 0))),
+                          ("CSES", ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))), ("K", ((0, 1), (0, 2), (1, 0), (2, 0))),
+                          ("D", ((0, 1), (0, 2), (1, 0), (2, 0)))):
+        zero += [f[name][i, r, c] for r, c in entries]
+    if any(z != 0.0 for z in zero):  # pragma: no cover
         raise AssertionError("unexpected element moment pattern")
 
 
