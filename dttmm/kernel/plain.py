@@ -18,7 +18,7 @@ from .layout import NO_SLOT
 
 
 @njit()
-def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):
+def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the seven arrays after lc
     """Element g's terms as dense 3×3 matrices (padded): M_aa, M_ae, h̄_a, h̃_e (with the known
     elastic force), B_a, B_e, γ̄_O (from :func:`element_terms`)."""
     c, s = dt.c[g], dt.s[g]
@@ -200,7 +200,7 @@ def _rigid_body(md, B, mass, inertia):
 
 
 @njit()
-def _element_solve(Mt, Maa, Mae, ha, he, Ba, Be, T, BeT, G, rhs, sol):
+def _element_solve(Mt, Maa, Mae, ha, he, Ba, Be, T, BeT, G, rhs, sol):  # T..sol: scratch and output
     """ë = E (a_I, f_I, 1) of one element: sol (3, 7) = E. T = B_a⁻ᵀ. Returns False if singular."""
     T[:, :] = 0.0
     T[0, 0] = T[1, 1] = T[2, 2] = 1.0

@@ -50,18 +50,19 @@ def hermite_weights(x, h):
 
 
 @njit(inline="always")
-def _energy(lc, md, i, c, s, thd, vx, vy, px, py, e0, e1, e2, f0, f1, f2):
-    """Kinetic + elastic + gravitational energy of one element with inboard node at (px, py)
-    moving at (vx, vy) and frame rate thd, as (T + U, g·∫r dm): T = ½ p'ᵀ M_aa p' + p'ᵀ M_ae ė
+def _energy(lc, md, i, frame, e, f):
+    """Kinetic + elastic + gravitational energy of one element, frame = (cos θ, sin θ, θ̇, ẋ_I,
+    ẏ_I, x_I, y_I) of its inboard node, e and f = ė its padded coordinates, as (T + U, g·∫r dm): T = ½ p'ᵀ M_aa p' + p'ᵀ M_ae ė
     + ½ ėᵀ C_SS ė with p' = (ṙ_I, θ̇), U(e) the strain energy."""
+    c, s, thd, vx, vy, px, py = frame
+    e0, e1, e2 = e
+    f0, f1, f2 = f
     g0, g1 = md.grav[0], md.grav[1]
     (ms0, ms1, rem0, rem1, Jt, A, _ha0, _ha1, _ha2, _he0, _he1, _he2, _rx, _ry, _gb0, _gb1) = element_terms(
         lc, c, s, thd, e0, e1, e2, f0, f1, f2, g0, g1)
     m = lc[0]
     Tae = (vx * A[0] + vy * A[3] + thd * A[6]) * f0 + (vx * A[1] + vy * A[4] + thd * A[7]) * f1 \
         + (vx * A[2] + vy * A[5] + thd * A[8]) * f2
-    e = (e0, e1, e2)
-    f = (f0, f1, f2)
     Tee = 0.0
     Vee = 0.0
     for r in range(3):
@@ -126,7 +127,7 @@ def sample(md, q, qd, j, rec):
             dvx = -thd * ry + (c * sf0 - s * f1)
             dvy = thd * rx + (s * sf0 + c * f1)
             if want_energy:
-                tu, wg = _energy(lc, md, i, c, s, thd, vx, vy, px, py, e0, e1, e2, f0, f1, f2)
+                tu, wg = _energy(lc, md, i, (c, s, thd, vx, vy, px, py), (e0, e1, e2), (f0, f1, f2))
                 etot += tu
                 etot -= wg
             px += rx
