@@ -1,4 +1,4 @@
-"""The compiled DT-TMM kernel (engine="numba"): cost per element-step vs mesh size.
+"""The compiled DT-TMM kernel (engine="numba", dttmm.kernel): cost per element-step vs mesh size.
 
 three_link, fixed step count (200 steps of h = 1e-3), outputs off (cut loads, energy) so the
 sweeps are measured; the case is built and the kernel compiled (or loaded from the cache)
@@ -15,12 +15,12 @@ import time
 
 import numpy as np
 import pytest
-
-import dttmm
 from conftest import CASES, QUICK, case
 
+import dttmm
+
 pytest.importorskip("numba")
-from dttmm import _kernel  # noqa: E402
+from dttmm.kernel import driver
 
 KS = [8, 64] if QUICK else [8, 16, 32, 64, 128, 256, 1024]
 N_STEPS = 10 if QUICK else 200
@@ -46,7 +46,7 @@ def test_kernel_element_step(benchmark, k, variant):
     holder = {"walls": []}
 
     def setup():
-        _kernel.warmup()
+        driver.warmup()
         holder["case"] = case("three_link", n_steps=N_STEPS, h=H)
         return (), {}
 
@@ -70,7 +70,7 @@ def test_kernel_real_time_factor(benchmark):
         c = dc.replace(c, scenario=dc.replace(c.scenario, duration=0.02))
 
     def setup():
-        _kernel.warmup()
+        driver.warmup()
         return (), {}
 
     def target():
@@ -86,7 +86,7 @@ def test_kernel_real_time_factor(benchmark):
 def test_kernel_cost_exponent(benchmark):
     """Fit cost ∝ (elements)^p over KS from the best of 3 runs each (solve-only wall time)."""
     benchmark.group = "kernel:exponent"
-    _kernel.warmup()
+    driver.warmup()
     c = case("three_link", n_steps=N_STEPS, h=H)
     out = {}
 

@@ -7,7 +7,7 @@ Overview::
     res = dttmm.simulate(case, elements_per_link=16, h=1e-3)
     res.tip_deflection[-1], res.meta["iterations_mean"]
 """
-__version__ = "0.1.0"
+from ._version import __version__
 
 from .case import Case, case_from_dict, case_to_dict, load_case, save_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table

@@ -1,4 +1,4 @@
-"""One beam element in its corotational floating frame (METHOD.md §3).
+"""One beam element in its corotational floating frame.
 
 Frame origin at the inboard node I, frame angle θ = cross-section angle at I. Elastic
 coordinates of the outboard node in the frame: e = (u, v, φ) (extensible) or (v, φ)
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ElementType", "element_type", "E2"]
+__all__ = ["E2", "ElementType", "element_type"]
 
 E2 = np.array([[0.0, -1.0], [1.0, 0.0]])  # rotation by +90°: d A(θ)/dθ = E A(θ)
 

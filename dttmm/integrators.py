@@ -1,4 +1,4 @@
-"""Coefficients of the Newmark family on the minimal coordinates (METHOD.md §4).
+"""Coefficients of the Newmark family on the minimal coordinates.
 
 Generalised-α in the Arnold–Brüls form: the equations of motion hold at t_{n+1} for the true
 accelerations q̈_{n+1}, and an auxiliary acceleration a drives the update
@@ -18,6 +18,7 @@ import numpy as np
 
 from ._validate import finite
 from .errors import InputError
+from .kernel.loop import predict
 
 __all__ = ["NewmarkFamily", "newmark_family"]
 
@@ -29,22 +30,18 @@ class NewmarkFamily:
     alpha_m: float = 0.0
     alpha_f: float = 0.0
 
-    def predict(self, h, q, qd, qdd, a):
-        """Return (q̃, q̃', c_q, c_v) for a step of size h from (q, q̇, q̈, a)."""
-        b, g, am, af = self.beta, self.gamma, self.alpha_m, self.alpha_f
-        corr = (af * qdd - am * a) / (1.0 - am)
-        qt = q + h * qd + h * h * (0.5 - b) * a + b * h * h * corr
-        qdt = qd + h * (1.0 - g) * a + g * h * corr
-        s = (1.0 - af) / (1.0 - am)
-        return qt, qdt, b * h * h * s, g * h * s
-
-    def aux(self, qdd_new, qdd_old, a_old):
-        """Auxiliary acceleration a_{n+1}."""
-        am, af = self.alpha_m, self.alpha_f
-        return ((1.0 - af) * qdd_new + af * qdd_old - am * a_old) / (1.0 - am)
+    def predict(self, h: float, q, qd, qdd, a):
+        """Return (q̃, q̃', c_q, c_v) for a step of size h from (q, q̇, q̈, a) (arrays (n_dof,)):
+        q_{n+1} = q̃ + c_q q̈_{n+1}, q̇_{n+1} = q̃' + c_v q̈_{n+1}. The kernel's predictor."""
+        qt, qdt = np.empty(np.shape(q)), np.empty(np.shape(q))
+        args = [np.ascontiguousarray(x, dtype=float) for x in (q, qd, qdd, a)]
+        cq, cv = predict(self.beta, self.gamma, self.alpha_m, self.alpha_f, float(h), *args, qt, qdt)
+        return qt, qdt, cq, cv
 
 
 def newmark_family(integrator: str, *, beta=None, gamma=None, rho_inf=None) -> NewmarkFamily:
+    """Coefficients of "newmark" (β = ¼, γ = ½ unless given) or "generalized-alpha" (Chung–Hulbert
+    from the spectral radius at infinity ``rho_inf``, default 0.9)."""
     if integrator == "newmark":
         b = 0.25 if beta is None else finite("beta", beta)
         g = 0.5 if gamma is None else finite("gamma", gamma)

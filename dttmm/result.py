@@ -1,4 +1,4 @@
-"""The common output of every method (DESIGN.md, "Result")."""
+"""The common output of every method."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field

@@ -1,7 +1,7 @@
 """The discretised arm: coordinate layout, element types, rigid bodies, forward kinematics.
 
 Minimal coordinates, link by link: q = [α_1, e_{1,1}, …, e_{1,k}, α_2, e_{2,1}, …] with α_i
-the joint angle and e_{i,j} the elastic coordinates of element j of link i (METHOD.md §4).
+the joint angle and e_{i,j} the elastic coordinates of element j of link i.
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from .case import Case
 from .element import ElementType, element_terms, element_type, outboard_maps, rot, strain_energy
 from .errors import InputError
 
-__all__ = ["Structure", "build_structure", "Kinematics"]
+__all__ = ["Kinematics", "Structure", "build_structure"]
 
 
 @dataclass
@@ -48,10 +48,6 @@ class Structure:
     @property
     def alpha_index(self) -> np.ndarray:
         return np.array([lk.i_alpha for lk in self.links])
-
-    def element_slices(self, i):
-        lk = self.links[i]
-        return np.arange(lk.e_slice.start, lk.e_slice.stop).reshape(lk.k, lk.et.ne)
 
     def coordinate_names(self) -> list[str]:
         names = []

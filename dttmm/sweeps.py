@@ -1,4 +1,4 @@
-"""The two DT-TMM sweeps for one linear(ised) step system (METHOD.md §5–6).
+"""The two DT-TMM sweeps for one linear(ised) step system — the readable one-step reference.
 
 At a cut the state is z = (a, f): a = (ẍ, ÿ, θ̈) the acceleration of the point and of the
 cross-section, f = (Qx, Qy, M) the load the inboard part exerts on the outboard part.
@@ -15,7 +15,8 @@ predictors and c_q = βh², c_v = γh; acceleration solver: ê = e, ê' = ė, c_
 * ``plain``: the paper's transfer form z_O = U z_I carried as z = B w with three base unknowns,
   closed by a 3×3 solve at the tip. Loses digits exponentially with mesh refinement.
 
-Both return the same :class:`SweepOut`.
+Both return the same :class:`SweepOut`. :func:`accelerations` is the forward dynamics at one
+state built on them: the reference that the kernel (:mod:`dttmm.kernel`) is checked against.
 """
 from __future__ import annotations
 
@@ -24,9 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .element import elastic_forces
-from .structure import Kinematics, Structure
+from .structure import Kinematics, Structure, kinematics
 
-__all__ = ["SweepOut", "riccati", "plain", "SWEEPS"]
+__all__ = ["SWEEPS", "SweepOut", "accelerations", "plain", "riccati"]
 
 E3 = np.array([0.0, 0.0, 1.0])
 
@@ -241,3 +242,20 @@ def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, t
 
 
 SWEEPS = {"riccati": riccati, "plain": plain}
+
+
+def accelerations(st: Structure, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, mot: np.ndarray,
+                  sweep: str = "riccati") -> SweepOut:
+    """Forward dynamics at one state: q̈ (n_dof,), cut loads and joint torques at (q, q̇).
+
+    ``tau`` (n,) torques of the torque-driven joints (N·m); ``mot`` (n, 3) (α, α̇, α̈) of the
+    motion-driven joints, which override the given q, q̇ entries. ``sweep``: "riccati" or "plain".
+    Raises numpy.linalg.LinAlgError when a step system is singular.
+    """
+    q, qd = np.array(q, float), np.array(qd, float)
+    im = st.alpha_index[st.motion]
+    q[im], qd[im] = mot[st.motion, 0], mot[st.motion, 1]
+    split = lambda x: [x[lk.e_slice].reshape(lk.k, lk.et.ne) for lk in st.links]
+    out = SWEEPS[sweep](st, kinematics(st, q, qd), 0.0, 0.0, split(q), split(qd), tau, mot[:, 2])
+    out.torque[~st.motion] = tau[~st.motion]
+    return out

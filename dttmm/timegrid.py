@@ -10,6 +10,7 @@ import numpy as np
 
 from ._validate import positive
 from .errors import InputError
+from .plumbing import versions
 
 __all__ = ["step_schedule", "versions"]
 
@@ -34,16 +35,3 @@ def step_schedule(duration: float, h: float, breakpoints=()) -> tuple[np.ndarray
         grid[i] = b
         restart[i] = True
     return grid, restart
-
-
-def versions() -> dict:
-    """Versions of the interpreter and numeric packages, for Result.meta."""
-    import platform
-
-    import numpy
-    import scipy
-
-    from . import __version__
-
-    return {"dttmm": __version__, "python": platform.python_version(), "numpy": numpy.__version__,
-            "scipy": scipy.__version__}

@@ -1,15 +1,17 @@
 """Plain (paper) vs Riccati sweep: constant 3×3 final system, agreement where the plain sweep is
-well conditioned, and its measured loss of accuracy as the mesh is refined (METHOD.md §6)."""
-import dataclasses as dc
+well conditioned, and its measured loss of accuracy as the mesh is refined."""
+
+import itertools
 
 import numpy as np
 import pytest
+from conftest import case, shortened
 
 import dttmm
-from dttmm import Case, Constant, Drive, Hub, Link, Manipulator, Payload, Scenario, Section, Sine
-from dttmm.solver import _System
-
-from conftest import case, shortened
+from dttmm import Case, Drive, Hub, Link, Manipulator, Payload, Scenario, Section, Sine
+from dttmm.kernel.driver import drive_values
+from dttmm.structure import build_structure, kinematics
+from dttmm.sweeps import SWEEPS
 
 
 def chain(n, *, extensible=True, motion_joint=None):
@@ -25,16 +27,14 @@ def chain(n, *, extensible=True, motion_joint=None):
 def step_systems(c, k, seed=0, h=1e-3):
     """The same frozen step system for both sweeps at a random state."""
     rng = np.random.default_rng(seed)
-    out = {}
-    for sw in ("riccati", "plain"):
-        s = _System(c, k, sw)
-        n = s.st.n_dof
-        q = rng.normal(size=n) * 0.02
-        qd = rng.normal(size=n) * 0.2
-        rng = np.random.default_rng(seed)
-        es, eds = s.elastic_split(q), s.elastic_split(qd)
-        tau, mot = s.drv.torques(0.3), s.drv.motions(0.3)
-        out[sw] = s.solve(q, qd, 0.25 * h * h, 0.5 * h, es, eds, tau, mot[:, 2])
+    st = build_structure(c, k)
+    q = rng.normal(size=st.n_dof) * 0.02
+    qd = rng.normal(size=st.n_dof) * 0.2
+    split = lambda x: [x[lk.e_slice].reshape(lk.k, lk.et.ne) for lk in st.links]
+    tau, mot = drive_values(st, 0.3)
+    kin = kinematics(st, q, qd)
+    out = {sw: SWEEPS[sw](st, kin, 0.25 * h * h, 0.5 * h, split(q), split(qd), tau, mot[:, 2])
+           for sw in ("riccati", "plain")}
     return out["riccati"], out["plain"]
 
 
@@ -66,7 +66,7 @@ def test_plain_accuracy_degrades_with_k_and_is_recorded():
         r, p = step_systems(c, k)
         conds.append(p.cond)
         errs.append(np.max(np.abs(r.qdd - p.qdd)) / np.max(np.abs(r.qdd)))
-    assert all(b > 5 * a for a, b in zip(conds, conds[1:]))      # grows fast with k
+    assert all(b > 5 * a for a, b in itertools.pairwise(conds))  # grows fast with k
     assert errs[0] < 1e-12 and errs[-1] > 1e3 * errs[0]
     # and a simulation records it
     res = dttmm.simulate(shortened(c, 0.01), elements_per_link=4, h=1e-3, sweep="plain")

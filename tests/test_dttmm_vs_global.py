@@ -143,7 +143,7 @@ def test_second_order_acceleration_solver_equals_global(name, k):
     free = lay.free
     for _ in range(3):
         q, qd = physical_state(st, rng)
-        a = dttmm.accelerations(c, k, q, qd, 0.3, strain="second-order", engine="numpy")
+        a = dttmm.accelerations(c, k, q, qd, 0.3, strain="second-order")
         b = gm.accelerations(c, k, q, qd, 0.3, strain="second-order")
         M, _ = gnp._assemble(lay, q, qd)
         bound = max(1e-9, 20 * np.linalg.cond(M[np.ix_(free, free)]) * np.finfo(float).eps)
@@ -162,7 +162,7 @@ def test_second_order_newmark_trajectories_equal_global(name, k, iterations):
     iterates in both solvers, trajectories equal to round-off (≤ 1e-9 m, 1e-9 rad)."""
     c = shortened(case(name), 0.3)
     kw = dict(elements_per_link=k, h=1e-3, iterations=iterations, strain="second-order")
-    a = dttmm.simulate(c, cut_loads=False, energy=False, engine="numpy", **kw)
+    a = dttmm.simulate(c, cut_loads=False, energy=False, **kw)
     b = gm.simulate(c, **kw)
     d_ee, d_ang = _compare(a, b)
     assert d_ee <= 1e-9 and d_ang <= 1e-9, (d_ee, d_ang)
@@ -174,13 +174,13 @@ def test_second_order_newmark_trajectories_equal_global(name, k, iterations):
 def test_second_order_motion_joint_torque_and_generalized_alpha_equal_global():
     c = shortened(case("spin_up"), 1.0)
     kw = dict(elements_per_link=4, h=1e-2, iterations=2, strain="second-order")
-    a = dttmm.simulate(c, cut_loads=False, energy=False, engine="numpy", **kw)
+    a = dttmm.simulate(c, cut_loads=False, energy=False, **kw)
     b = gm.simulate(c, **kw)
     np.testing.assert_allclose(a.joint_torque, b.joint_torque, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(a.tip_deflection, b.tip_deflection, atol=1e-10)
     c = shortened(case("three_link"), 0.1)
     kw = dict(elements_per_link=4, h=1e-3, integrator="generalized-alpha", rho_inf=0.7, iterations=2,
               strain="second-order")
-    a = dttmm.simulate(c, cut_loads=False, energy=False, engine="numpy", **kw)
+    a = dttmm.simulate(c, cut_loads=False, energy=False, **kw)
     b = gm.simulate(c, **kw)
     assert max(_compare(a, b)) <= 1e-9

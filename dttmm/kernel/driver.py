@@ -1,0 +1,371 @@
+"""The Python side of the kernel: builds the records of a discretised case, evaluates the
+drive laws on the step schedule, runs the time loop (compiled or not) in chunks, and turns
+what it recorded into a :class:`dttmm.Result` — or a SimulationError with the partial result.
+"""
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import plumbing
+from ..case import Case
+from ..drives import Constant, Drive, Sine
+from ..errors import InputError
+from ..model import Hub, Link, Manipulator, Payload, Section
+from ..result import make_result
+from ..scenario import Scenario
+from ..structure import Structure, build_structure
+from ..timegrid import step_schedule
+from . import _jit, loop
+from .layout import (
+    INT_NEWMARK,
+    INT_RK4,
+    IT_AUTO,
+    IT_FIXED,
+    IT_TOL,
+    ST_NONFINITE,
+    ST_SINGULAR,
+    SWEEP_CODES,
+    build_model,
+    make_data,
+)
+from .recorder import Record
+
+ENGINES = ("numba", "python")
+
+
+def resolve_engine(engine) -> str:
+    """None → "numba" when numba imports, else "python"; "numpy" is a deprecated alias of
+    "python" (the numpy time loop is gone; the uncompiled kernel replaces it)."""
+    if engine == "numpy":
+        warnings.warn('engine="numpy" is deprecated: the numpy time loop was replaced by the uncompiled '
+                      'kernel, engine="python"', DeprecationWarning, stacklevel=3)
+        engine = "python"
+    if engine is None:
+        return "numba" if _jit.HAVE_NUMBA else "python"
+    plumbing.choice("engine", engine, ENGINES)
+    if engine == "numba" and not _jit.HAVE_NUMBA:
+        raise InputError("engine", engine, "numba is not installed (pip install 'dttmm[fast]'); use "
+                                           "engine='python'")
+    return engine
+
+
+def _modules(engine: str):
+    """(loop, recorder) modules of the engine: compiled, or the uncompiled copy."""
+    if engine == "numba" or _jit.PURE:
+        from . import recorder
+        return loop, recorder
+    from ..kernel_python import loop as ploop
+    from ..kernel_python import recorder as precorder
+    return ploop, precorder
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Validated settings of one run (see :func:`dttmm.simulate`)."""
+
+    h: float
+    integrator: str
+    sweep: str
+    iterations: int | str | None
+    tol: float
+    max_iterations: int
+    family: plumbing.NewmarkFamily | None
+    auto_fraction: float
+    cut_loads: bool
+    energy: bool
+    progress: bool | None
+    engine: str
+    strain: str
+
+    def options(self) -> loop.Options:
+        """The kernel's run options."""
+        fam = self.family
+        if fam is None:  # RK4
+            beta = gamma = am = af = lte = 0.0
+            mode, nfix = IT_FIXED, 3
+        else:
+            beta, gamma, am, af = fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f
+            lte = abs(beta - 1.0 / 6.0) / beta  # the Newmark truncation error (β − 1/6)h²Δq̈ over βh²
+            if self.iterations is None:
+                mode, nfix = IT_TOL, 0
+            elif self.iterations == "auto":
+                mode, nfix = IT_AUTO, 0
+            else:
+                mode, nfix = IT_FIXED, int(self.iterations)
+        return loop.Options(integrator=INT_RK4 if fam is None else INT_NEWMARK, sweep=SWEEP_CODES[self.sweep],
+                            iteration=mode, n_fixed=nfix, tol=float(self.tol),
+                            max_iterations=int(self.max_iterations), auto_fraction=float(self.auto_fraction),
+                            beta=float(beta), gamma=float(gamma), alpha_m=float(am), alpha_f=float(af),
+                            lte=float(lte))
+
+
+def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
+    """Drive values the kernel needs, per step: torques and motion (α, α̇, α̈) at the step end
+    (left limits), at restart steps also the right limits, and for RK4 at the mid-step."""
+    n, ns = st.n_links, t_end.size
+    t_start = np.concatenate(([0.0], t_end[:-1]))
+    t_mid = t_start + 0.5 * (t_end - t_start)
+    taul, motl = np.zeros((ns, n)), np.zeros((ns, n, 3))
+    taur, motr = np.zeros((ns, n)), np.zeros((ns, n, 3))
+    taum, motm = (np.zeros((ns, n)), np.zeros((ns, n, 3))) if rk4 else (np.zeros((1, n)), np.zeros((1, n, 3)))
+    rs = np.flatnonzero(restart)
+    for i, (d, m) in enumerate(zip(st.case.scenario.drives, st.motion)):
+        law, tau_or_mot = (d.motion, (motl, motr, motm)) if m else (d.torque, (taul, taur, taum))
+        left, right, mid = tau_or_mot
+        left[:, i] = [law(t, True) for t in t_end]
+        if rs.size:
+            right[rs, i] = [law(t, False) for t in t_end[rs]]
+        if rk4:
+            mid[:, i] = [law(t, False) for t in t_mid]
+    return loop.Drives(t_end=t_end, restart=np.asarray(restart, np.bool_), need_loads=need_loads, tau_left=taul,
+                       mot_left=motl, tau_right=taur, mot_right=motr, tau_mid=taum, mot_mid=motm)
+
+
+def drive_values(st: Structure, t: float, left: bool = False):
+    """(torques (n,), motions (n, 3)) of all joints at time t (zeros where not applicable)."""
+    n = st.n_links
+    tau, mot = np.zeros(n), np.zeros((n, 3))
+    for i, (d, m) in enumerate(zip(st.case.scenario.drives, st.motion)):
+        if m:
+            mot[i] = d.motion(t, left)
+        else:
+            tau[i] = d.torque(t, left)
+    return tau, mot
+
+
+def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Record:
+    """NaN-filled output arrays on the grid ``times``; cut loads every stride-th sample so
+    that they hold at most ~2e6 cut-samples."""
+    nt, n = times.size, st.n_links
+    ncuts = st.n_elements + n
+    stride = max(1, math.ceil(nt * ncuts / 2.0e6)) if want_loads else 0
+    full = lambda *shape: np.full((nt, *shape), np.nan)
+    loads = np.full(((nt - 1) // stride + 1, ncuts, 3), np.nan) if want_loads else np.zeros((0, ncuts, 3))
+    return Record(t=times, angle=full(n), rate=full(n), torque=full(n), root=full(n, 2), tip=full(n, 2),
+                  root_angle=full(n), energy=full() if want_energy else np.zeros(0), loads=loads,
+                  load_stride=stride)
+
+
+def load_plan(rec: Record, t_end, i0: int):
+    """Step ends whose cut loads the recorder needs (samples j ≡ 0 mod load_stride, and the
+    step end before a sample that is interpolated)."""
+    need = np.zeros(t_end.size, np.bool_)
+    if rec.load_stride == 0:
+        return need
+    stride = rec.load_stride
+    j = np.arange(((i0 + stride - 1) // stride) * stride, rec.t.size, stride)
+    t_start = np.concatenate(([0.0], t_end[:-1]))
+    eps = 1e-9 * (t_end - t_start)
+    nj = np.searchsorted(t_end + eps, rec.t[j], side="left")
+    ok = nj < t_end.size
+    j, nj = j[ok], nj[ok]
+    need[nj] = True
+    inexact = np.abs(rec.t[j] - t_end[nj]) > eps[nj]
+    prev = nj[inexact] - 1
+    need[prev[prev >= 0]] = True
+    return need
+
+
+def to_result(rec: Record, upto: int, wall: float, n_steps: int, meta: dict, status=None, warnings=()):
+    """The Result of the first ``upto`` output samples."""
+    sl = slice(0, upto)
+    want_loads = rec.load_stride > 0
+    loads = rec.loads[: (upto - 1) // rec.load_stride + 1] if want_loads and upto else None
+    return make_result(t=rec.t[sl], joint_angle=rec.angle[sl], joint_rate=rec.rate[sl], joint_torque=rec.torque[sl],
+                       link_root=rec.root[sl], link_root_angle=rec.root_angle[sl], link_tip=rec.tip[sl],
+                       wall_time=wall, n_steps=n_steps, meta=meta, cut_loads=loads,
+                       cut_load_t=rec.t[sl][:: rec.load_stride] if want_loads else None,
+                       energy=rec.energy[sl] if rec.energy.size else None, status=status, warnings=warnings)
+
+
+def initial_state(st: Structure):
+    """(q, q̇) at t = 0 from the drives' initial angles and rates (elastic coordinates zero)."""
+    q, qd = np.zeros(st.n_dof), np.zeros(st.n_dof)
+    for i, d in enumerate(st.case.scenario.drives):
+        q[st.links[i].i_alpha], qd[st.links[i].i_alpha] = d.initial_angle, d.initial_rate
+    return q, qd
+
+
+def base_meta(st: Structure, s: Settings) -> dict:
+    meta = {"method": "dttmm", "sweep": s.sweep, "elements_per_link": st.k, "h": float(s.h),
+            "integrator": s.integrator, "iterations": s.iterations, "tol": s.tol, "n_dof": st.n_dof,
+            "final_system_size": 3, "versions": plumbing.versions(), "success": True, "engine": s.engine,
+            "strain": s.strain}
+    if s.iterations == "auto":
+        meta["auto_fraction"] = s.auto_fraction
+    return meta
+
+
+def _progress_bar(total: int, enabled: bool):
+    if not enabled:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # pragma: no cover - tqdm is a dependency, but the bar is optional
+        return None
+    return tqdm(total=total, unit="step", desc="dttmm", leave=False)
+
+
+def simulate_structure(st: Structure, s: Settings):
+    """Run the time loop on the discretised case ``st`` with settings ``s`` (validated)."""
+    lp, rp = _modules(s.engine)
+    compile_time = warmup() if s.engine == "numba" and not _WARM else None
+    scen = st.case.scenario
+    t_end, restart = step_schedule(scen.duration, s.h, scen.breakpoints)
+    md = build_model(st)
+    dt = make_data(md, s.sweep == "plain")
+    meta = base_meta(st, s)
+    if compile_time is not None:
+        meta["compile_time"] = compile_time
+    rec = new_record(st, scen.output_times, s.cut_loads, s.energy)
+    n_steps = t_end.size
+    progress = s.progress if s.progress is not None else n_steps * max(st.n_elements, 1) > 2e8
+    wall0 = time.perf_counter()
+    ncuts = st.n_elements + st.n_links
+    ws = lp.new_work(st.n_dof, st.n_links, ncuts)
+    stats = lp.new_stats()
+
+    # initial accelerations, and the samples at t = 0
+    q, qd = initial_state(st)
+    tau0, mot0 = drive_values(st, 0.0)
+    qdd, loads = np.empty(st.n_dof), np.empty((ncuts, 3))
+    ok, cond0 = lp.accel(md, dt, SWEEP_CODES[s.sweep], q, qd, tau0, mot0, ws, qdd, ws.torque, loads, True)
+    partial = lambda m, upto=0: to_result(rec, upto, time.perf_counter() - wall0, int(stats.steps_done[0]), m)
+    if not ok:
+        raise plumbing.simulation_failure("Singular matrix", t=0.0, step=0, component="step system", meta=meta,
+                                          partial=partial,
+                                          message="initial acceleration solve failed (Singular matrix)")
+    lp.apply_motion(md.motion, md.im, mot0, q, qd)
+    st0 = loop.State(q=q, qd=qd, qdd=qdd, aux=qdd.copy(), q_prev=q.copy(), qd_prev=qd.copy(),
+                     torque_prev=ws.torque.copy(), loads_prev=loads.copy())
+    s0 = (st0.q_prev, st0.qd_prev, st0.torque_prev, st0.loads_prev)
+    stats.ptr[0] = rp.record(md, -1.0, 0.0, s0, s0, (ws.qs, ws.qds), 0, rec)
+    stats.cond_max[0] = 0.0 if math.isnan(cond0) else cond0
+    drv = drive_tables(st, t_end, restart, load_plan(rec, t_end, int(stats.ptr[0])), s.integrator == "rk4")
+    opts = s.options()
+
+    bar = _progress_bar(n_steps, progress)
+    chunk = n_steps if bar is None else max(1, n_steps // 200)
+    status = 0
+    for a in range(0, n_steps, chunk):
+        b = min(n_steps, a + chunk)
+        status = lp.run(md, dt, opts, drv, st0, rec, stats, ws, a, b)
+        if bar is not None:
+            bar.update(int(stats.steps_done[0]) - a)
+        if status:
+            break
+    wall = time.perf_counter() - wall0
+    if bar is not None:
+        bar.close()
+    upto = int(stats.ptr[0])
+    if status:
+        _raise_failure(st, status, stats, t_end, meta, lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]),
+                                                                            m))
+    _add_stats(meta, stats, s, n_steps, wall)
+    status, warns = verdict(meta, s, n_steps)
+    return to_result(rec, upto, wall, n_steps, meta, status, warns)
+
+
+#: equilibrated condition number of the plain sweep's final system above which a run is
+#: "ill-conditioned": κ·ε > 1e-8, half the digits of a double lost in the last solve alone
+ILL_CONDITIONED = 1e8
+
+
+def verdict(meta: dict, s: Settings, n_steps: int):
+    """(status, warnings) of a finished run: "ill-conditioned" when the plain sweep's largest
+    final-system condition number exceeds :data:`ILL_CONDITIONED`; "unconverged" when a
+    tolerance-driven step used all ``max_iterations`` sweeps; else "ok" (fixed sweep counts,
+    ``iterations = m``, are not checked here)."""
+    warns = []
+    status = "ok"
+    n_unconv = meta.get("unconverged_steps", 0)
+    if n_unconv:
+        status = "unconverged"
+        warns.append(f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
+                     f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}")
+    cond = meta.get("final_system_cond", 0.0)
+    if cond > ILL_CONDITIONED:
+        status = "ill-conditioned"
+        warns.append(f"plain sweep: final-system condition number up to {cond:.3g} (> {ILL_CONDITIONED:g}); "
+                     "use sweep='riccati'")
+    return status, warns
+
+
+def _raise_failure(st, status, stats, t_end, meta, partial):
+    step = int(stats.steps_done[0])
+    if status == ST_SINGULAR:
+        raise plumbing.simulation_failure("Singular matrix", t=t_end[step], step=step, component="step system",
+                                          meta=meta, partial=partial,
+                                          message="linear solve failed (Singular matrix)")
+    why = "non-finite state" if status == ST_NONFINITE else "runaway elastic displacement"
+    raise plumbing.simulation_failure(why, t=t_end[step], step=step,
+                                      component=st.coordinate_names()[int(stats.bad_index[0])], meta=meta,
+                                      partial=partial, message=f"simulation diverged ({why})")
+
+
+def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float) -> None:
+    if s.integrator == "rk4":
+        meta.update({"iterations_mean": 4.0, "iterations_max": 4, "unconverged_steps": 0})
+    else:
+        meta.update({"iterations_mean": float(stats.sweeps[0]) / max(n_steps, 1),
+                     "iterations_max": int(stats.max_sweeps[0]), "unconverged_steps": int(stats.unconverged[0])})
+    if s.sweep == "plain":
+        meta["final_system_cond"] = float(stats.cond_max[0])
+    meta["time_per_step"] = wall / n_steps
+
+
+def accelerations_at(st: Structure, q, qd, t: float, sweep: str, engine: str):
+    """q̈ (n_dof,) of the discretised case at (q, q̇) and time t by the kernel."""
+    lp, _ = _modules(engine)
+    if engine == "numba":
+        warmup()
+    md = build_model(st)
+    dt = make_data(md, sweep == "plain")
+    ncuts = st.n_elements + st.n_links
+    ws = lp.new_work(st.n_dof, st.n_links, ncuts)
+    tau, mot = drive_values(st, t)
+    qdd = np.empty(st.n_dof)
+    ok, _ = lp.accel(md, dt, SWEEP_CODES[sweep], np.ascontiguousarray(q, float), np.ascontiguousarray(qd, float),
+                     tau, mot, ws, qdd, ws.torque, ws.loads, True)
+    if not ok:
+        raise np.linalg.LinAlgError("singular matrix")
+    return qdd
+
+
+# ---------------------------------------------------------------------------------------------
+_WARM = False
+
+
+def _tiny_case() -> Case:
+    """Two links (extensible with a hub, inextensible with a payload), a torque and a motion
+    drive with a jump: every code path of the loop."""
+    links = (Link(Section(0.5, 2.0, 0.3, 7e6), hub=Hub(0.1, 0.01)),
+             Link(Section(0.5, 2.0, 0.3, None), payload=Payload(0.1, 0.0)))
+    drives = (Drive("torque", Sine(1.0, 1.0, until=0.0025)), Drive("motion", Constant(0.0)))
+    return Case(Manipulator(links, gravity=(0.0, -9.81)), Scenario(0.004, 0.002, drives))
+
+
+def warmup() -> float:
+    """Compile (or load from the on-disk cache) every kernel entry point on a tiny case and
+    return the seconds it took. A no-op returning 0.0 once done in this process, or without
+    numba."""
+    global _WARM
+    if _WARM or _jit.PURE:
+        return 0.0
+    t = time.perf_counter()
+    # one run compiles every branch (integrators and sweeps are run-time codes of one signature)
+    s = Settings(h=1e-3, integrator="newmark", sweep="riccati", iterations=None, tol=1e-10, max_iterations=50,
+                 family=plumbing.newmark_family("newmark"), auto_fraction=0.1, cut_loads=True, energy=True,
+                 progress=False, engine="numba", strain="linear")
+    _WARM = True  # simulate_structure must not recurse into warmup
+    try:
+        simulate_structure(build_structure(_tiny_case(), 1), s)
+    except BaseException:
+        _WARM = False
+        raise
+    return time.perf_counter() - t

@@ -1,0 +1,424 @@
+"""The time loop: Newmark family (with the frozen-coefficient iteration) and RK4, stepping
+the state and recording outputs on the way. The one implementation of the DT-TMM time loop,
+compiled by numba or run as plain Python (see :mod:`dttmm.kernel._jit`).
+
+Each Newmark step solves the equations of motion at t_{n+1} with q = q̃ + c_q q̈ and
+q̇ = q̃' + c_v q̈ (:func:`predict`): sweeps at the latest iterate until the stop rule of
+:func:`_stop` holds (or a fixed number of sweeps).
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ._jit import njit
+
+# The loop's functions allocate nothing and are compiled without reference counting
+# (nrt=False): with it, every call or inlined call touches the count of every array of its
+# named-tuple arguments, which costs more than a small model's sweep. They are inlined into
+# `run` (a real call would pass every array of the tuples as separate arguments).
+from .element import angles, effective_mass, elastic_known
+from .layout import (
+    INT_NEWMARK,
+    IT_AUTO,
+    IT_FIXED,
+    ST_NONFINITE,
+    ST_OK,
+    ST_RUNAWAY,
+    ST_SINGULAR,
+    SW_PLAIN,
+    SW_RICCATI,
+)
+from .plain import plain
+from .recorder import record
+from .riccati import riccati, riccati_loads
+
+
+class Options(NamedTuple):
+    """Run settings (codes from :mod:`dttmm.kernel.layout`)."""
+
+    integrator: int        # INT_NEWMARK or INT_RK4
+    sweep: int             # SW_RICCATI or SW_PLAIN
+    iteration: int         # IT_FIXED, IT_TOL or IT_AUTO
+    n_fixed: int           # IT_FIXED: sweeps per step − 1
+    tol: float
+    max_iterations: int
+    auto_fraction: float
+    beta: float            # Newmark family (β, γ, α_m, α_f) and |β − 1/6|/β
+    gamma: float
+    alpha_m: float
+    alpha_f: float
+    lte: float
+
+
+class Drives(NamedTuple):
+    """Drive values per step (the drive laws are Python objects, evaluated beforehand):
+    torques (n_steps, n) and motions (n_steps, n, 3) = (α, α̇, α̈) at the step end (left
+    limits), the right limits at restart steps, the mid-step values (RK4)."""
+
+    t_end: np.ndarray
+    restart: np.ndarray     # (n_steps,) bool: a drive jumps at the step end
+    need_loads: np.ndarray  # (n_steps,) bool: the recorder needs the cut loads of this step
+    tau_left: np.ndarray
+    mot_left: np.ndarray
+    tau_right: np.ndarray
+    mot_right: np.ndarray
+    tau_mid: np.ndarray
+    mot_mid: np.ndarray
+
+
+class State(NamedTuple):
+    """(q, q̇, q̈, a) now (a: the auxiliary acceleration of generalised-α) and the last
+    recorded step end (q, q̇, torques, cut loads), all overwritten as the run goes."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    aux: np.ndarray
+    q_prev: np.ndarray
+    qd_prev: np.ndarray
+    torque_prev: np.ndarray
+    loads_prev: np.ndarray
+
+
+class Stats(NamedTuple):
+    """Counters of a run, one-element arrays accumulated across calls of :func:`run`."""
+
+    sweeps: np.ndarray        # total sweeps
+    max_sweeps: np.ndarray    # most sweeps in one step
+    unconverged: np.ndarray   # steps that stopped before the tolerance
+    cond_max: np.ndarray      # largest final-system condition number (plain sweep)
+    steps_done: np.ndarray
+    status: np.ndarray        # ST_* code
+    bad_index: np.ndarray     # coordinate that failed the state check
+    ptr: np.ndarray           # next output sample
+
+
+def new_stats() -> Stats:
+    i = lambda: np.zeros(1, np.int64)
+    return Stats(sweeps=i(), max_sweeps=i(), unconverged=i(), cond_max=np.zeros(1), steps_done=i(),
+                 status=i(), bad_index=i(), ptr=i())
+
+
+class Work(NamedTuple):
+    """Scratch arrays of the time loop."""
+
+    x: np.ndarray          # (n_dof,) q̈ iterates
+    xn: np.ndarray
+    qt: np.ndarray         # predictors q̃, q̃'
+    qdt: np.ndarray
+    qi: np.ndarray         # iterate (q, q̇)
+    qdi: np.ndarray
+    k2: np.ndarray         # RK4 stages
+    k3: np.ndarray
+    ka: np.ndarray
+    qs: np.ndarray         # (q, q̇) with the motion laws applied / interpolated samples
+    qds: np.ndarray
+    acc: np.ndarray        # (n,) prescribed α̈
+    torque: np.ndarray     # (n,) and (n_cuts, 3): of the step's solve
+    loads: np.ndarray
+    torque_r: np.ndarray   # of a restart solve (not recorded)
+    loads_r: np.ndarray
+
+
+def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
+    v = lambda: np.empty(n_dof)
+    return Work(x=v(), xn=v(), qt=v(), qdt=v(), qi=v(), qdi=v(), k2=v(), k3=v(), ka=v(), qs=v(), qds=v(),
+                acc=np.empty(n), torque=np.empty(n), loads=np.empty((n_cuts, 3)), torque_r=np.empty(n),
+                loads_r=np.empty((n_cuts, 3)))
+
+
+@njit(nrt=False, inline="always")
+def copy(src, dst):
+    """dst[:] = src for 1-d arrays (a slice assignment would need reference counting)."""
+    for r in range(src.shape[0]):
+        dst[r] = src[r]
+
+
+@njit(nrt=False, inline="always")
+def sweep(md, dt, code, q, qd, tau, acc, xout, torque, loads):
+    """One sweep at the iterate (q, q̇) (dt.f_known and dt.Mt already set). Returns
+    (ok, cond): cond is the plain sweep's final-system condition number (nan for Riccati)."""
+    angles(md, q, qd, dt)
+    if code == SW_RICCATI:
+        riccati(md, dt, tau, acc, xout, torque)
+        return True, np.nan
+    return plain(md, dt, tau, acc, xout, torque, loads)
+
+
+@njit(nrt=False, inline="always")
+def apply_motion(motion, im, mot, q, qd):
+    """Motion-driven joints (``motion`` (n,) bool, their angles at ``im`` in q) take the law's
+    angle and rate from ``mot`` (n, 3)."""
+    ii = 0
+    for i in range(motion.shape[0]):
+        if motion[i]:
+            q[im[ii]] = mot[i, 0]
+            qd[im[ii]] = mot[i, 1]
+            ii += 1
+
+
+@njit(nrt=False, inline="always")
+def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
+    """Exact forward dynamics q̈(q, q̇) into xout (motion joints take the law's angle, rate,
+    α̈), with the joint torques and, if ``want_loads``, the cut loads. Returns (ok, cond)."""
+    copy(q, ws.qs)
+    copy(qd, ws.qds)
+    for i in range(md.n):
+        ws.acc[i] = mot[i, 2]
+    apply_motion(md.motion, md.im, mot, ws.qs, ws.qds)
+    elastic_known(md, ws.qs, ws.qds, dt)
+    effective_mass(md, 0.0, 0.0, dt)
+    ok, cond = sweep(md, dt, code, ws.qs, ws.qds, tau, ws.acc, xout, torque, loads)
+    for i in range(md.n):
+        if not md.motion[i]:
+            torque[i] = tau[i]
+    if want_loads and code == SW_RICCATI:
+        riccati_loads(md, dt, loads)
+    return ok, cond
+
+
+@njit(nrt=False, inline="always")
+def predict(beta, gamma, alpha_m, alpha_f, h, q, qd, qdd, a, qt, qdt):
+    """Newmark-family predictor: fills q̃, q̃' (so that q_{n+1} = q̃ + c_q q̈_{n+1},
+    q̇_{n+1} = q̃' + c_v q̈_{n+1}) and returns (c_q, c_v)."""
+    hh = h * h
+    sc = (1.0 - alpha_f) / (1.0 - alpha_m)
+    cq = beta * hh * sc
+    cv = gamma * h * sc
+    i1m = 1.0 / (1.0 - alpha_m)
+    for r in range(q.shape[0]):
+        corr = (alpha_f * qdd[r] - alpha_m * a[r]) * i1m
+        qt[r] = q[r] + h * qd[r] + hh * (0.5 - beta) * a[r] + beta * hh * corr
+        qdt[r] = qd[r] + h * (1.0 - gamma) * a[r] + gamma * h * corr
+    return cq, cv
+
+
+@njit(nrt=False, inline="always")
+def _stop(opts, it, dx, prev_dx, xmax, dq):
+    """Stop rule of the tolerance-driven iteration after sweep ``it``: returns (stop,
+    converged). dx = max|Δq̈|, xmax = max|q̈|, dq = max|q̈_{n+1} − q̈_n| ("auto" only)."""
+    scale = max(1.0, xmax)
+    if dx <= opts.tol * scale:
+        return True, True
+    if it >= 3 and dx >= 0.9 * prev_dx and dx <= 1e3 * opts.tol * scale:
+        return True, True  # stagnation at the round-off floor
+    if not math.isfinite(dx):
+        return True, False
+    if opts.iteration == IT_AUTO and it >= 1 and dx < prev_dx:
+        # the contraction ρ = dx/prev_dx predicts the remaining iteration error dx·ρ/(1 − ρ);
+        # stop once it is below auto_fraction × the local truncation error estimate
+        # |β − 1/6|/β · max|q̈_{n+1} − q̈_n| (both scaled by βh²)
+        rr = dx / prev_dx
+        if dx * rr / (1.0 - rr) <= opts.auto_fraction * opts.lte * dq:
+            return True, True
+    return False, False
+
+
+@njit(nrt=False, inline="always")
+def _update_iterate(x, xn, qt, qdt, qi, qdi, qdd, cq, cv, want_dq):
+    """x ← xn, the next iterate (qi, qdi) = (q̃ + c_q x, q̃' + c_v x). Returns (max|Δq̈| (nan if
+    not finite), max|q̈|, max|q̈ − q̈_n| if ``want_dq``, q̈_n = qdd)."""
+    dx = 0.0
+    xmax = 0.0
+    dq = 0.0
+    bad = False
+    for r in range(x.shape[0]):
+        v = xn[r]
+        d = abs(v - x[r])
+        bad |= d != d  # noqa: PLR0124 - NaN test without a call
+        dx = max(dx, d)
+        ax = abs(v)
+        xmax = max(xmax, ax)
+        x[r] = v
+        qi[r] = qt[r] + cq * v
+        qdi[r] = qdt[r] + cv * v
+    if want_dq:
+        for r in range(x.shape[0]):
+            d2 = abs(x[r] - qdd[r])
+            dq = max(dq, d2)
+    if bad:
+        dx = np.nan
+    return dx, xmax, dq
+
+
+@njit(nrt=False, inline="always")
+def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
+    """Sweeps of one Newmark step from the iterate x = ws.x. Returns (ok, sweeps used,
+    converged)."""
+    nsw = opts.max_iterations if opts.iteration != IT_FIXED else opts.n_fixed + 1
+    converged = opts.iteration == IT_FIXED
+    prev_dx = np.inf
+    used = 0
+    for r in range(ws.x.shape[0]):
+        ws.qi[r] = ws.qt[r] + cq * ws.x[r]
+        ws.qdi[r] = ws.qdt[r] + cv * ws.x[r]
+    for it in range(nsw):
+        apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
+        ok, cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.xn, ws.torque, ws.loads)
+        used = it + 1
+        if not ok:
+            return False, used, False
+        if opts.sweep == SW_PLAIN and cond > stats.cond_max[0]:
+            stats.cond_max[0] = cond
+        dx, xmax, dq = _update_iterate(ws.x, ws.xn, ws.qt, ws.qdt, ws.qi, ws.qdi, st.qdd, cq, cv,
+                                       opts.iteration == IT_AUTO)
+        if opts.iteration != IT_FIXED:
+            stop, converged = _stop(opts, it, dx, prev_dx, xmax, dq)
+            if stop:
+                break
+            prev_dx = dx
+    return True, used, converged
+
+
+@njit(nrt=False, inline="always")
+def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
+    """One Newmark-family step of size h to the end values (tau, mot). Returns ok."""
+    cq, cv = predict(opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt,
+                     ws.qdt)
+    copy(st.qdd, ws.x)
+    ii = 0
+    for i in range(md.n):
+        ws.acc[i] = mot[i, 2]
+        if md.motion[i]:
+            ws.x[md.im[ii]] = mot[i, 2]
+            ii += 1
+    elastic_known(md, ws.qt, ws.qdt, dt)
+    effective_mass(md, cq, cv, dt)
+    ok, used, converged = _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats)
+    if not ok:
+        return False
+    stats.sweeps[0] += used
+    stats.max_sweeps[0] = max(stats.max_sweeps[0], used)
+    if not converged:
+        stats.unconverged[0] += 1
+    am, af = opts.alpha_m, opts.alpha_f
+    i1m = 1.0 / (1.0 - am)
+    for r in range(st.q.shape[0]):
+        anew = ((1.0 - af) * ws.x[r] + af * st.qdd[r] - am * st.aux[r]) * i1m
+        st.q[r] = ws.qt[r] + cq * ws.x[r]
+        st.qd[r] = ws.qdt[r] + cv * ws.x[r]
+        st.aux[r] = anew
+        st.qdd[r] = ws.x[r]
+    apply_motion(md.motion, md.im, mot, st.q, st.qd)
+    ii = 0
+    for i in range(md.n):
+        if md.motion[i]:
+            st.aux[md.im[ii]] = ws.x[md.im[ii]]
+            ii += 1
+        else:
+            ws.torque[i] = tau[i]
+    if want_loads and opts.sweep == SW_RICCATI:
+        riccati_loads(md, dt, ws.loads)
+    return True
+
+
+@njit(nrt=False, inline="always")
+def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
+    """Classical RK4 on (q, q̇) with the exact acceleration solver (step s of ``drv``)."""
+    q, qd, qdd = st.q, st.qd, st.qdd
+    qi, qdi, k2v, k3v, ka, x, xn = ws.qi, ws.qdi, ws.k2, ws.k3, ws.ka, ws.x, ws.xn
+    hf = 0.5 * h
+    code = opts.sweep
+    for r in range(q.shape[0]):
+        qi[r] = q[r] + hf * qd[r]
+        qdi[r] = qd[r] + hf * qdd[r]
+        k2v[r] = qdi[r]
+    ok, cond = accel(md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, ka, ws.torque, ws.loads, False)
+    if ok:
+        for r in range(q.shape[0]):
+            qi[r] = q[r] + hf * k2v[r]
+            qdi[r] = qd[r] + hf * ka[r]
+            k3v[r] = qdi[r]
+        ok, cond = accel(md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, x, ws.torque, ws.loads, False)
+    if ok:
+        for r in range(q.shape[0]):
+            qi[r] = q[r] + h * k3v[r]
+            qdi[r] = qd[r] + h * x[r]
+        ok, cond = accel(md, dt, code, qi, qdi, drv.tau_left[s], drv.mot_left[s], ws, xn, ws.torque, ws.loads,
+                         False)
+    if ok:
+        # k1 = (q̇, q̈), k2 = (k2v, ka), k3 = (k3v, x), k4 = (qdi, xn)
+        for r in range(q.shape[0]):
+            q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
+            qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
+        apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
+        ok, cond = accel(md, dt, code, q, qd, drv.tau_left[s], drv.mot_left[s], ws, qdd, ws.torque, ws.loads,
+                         drv.need_loads[s])
+    if not ok:
+        return False
+    if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep: keep the max
+        stats.cond_max[0] = cond
+    stats.sweeps[0] += 4
+    stats.max_sweeps[0] = 4
+    return True
+
+
+@njit(nrt=False, inline="always")
+def check_state(md, q, qd, qdd):
+    """Index of the first bad coordinate (non-finite, or an elastic displacement beyond its
+    runaway bound), or -1."""
+    for i in range(q.shape[0]):
+        if not (math.isfinite(q[i]) and math.isfinite(qd[i]) and math.isfinite(qdd[i])):
+            return i
+        if abs(q[i]) > md.lim[i]:
+            return i
+    return -1
+
+
+@njit(nrt=False, inline="always")
+def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
+    """After step s: check the state, restart at a drive jump, record. Returns the status."""
+    t1 = drv.t_end[s]
+    bad = check_state(md, st.q, st.qd, st.qdd)
+    if bad >= 0:
+        stats.bad_index[0] = bad
+        finite = math.isfinite(st.q[bad] + st.qd[bad] + st.qdd[bad])
+        return ST_RUNAWAY if finite else ST_NONFINITE
+    if drv.restart[s]:  # a drive jumps at t1: restart with the right-hand limit; the
+        # recorded sample at t1 keeps the left limit (the step's own solve)
+        ok, cond = accel(md, dt, opts.sweep, st.q, st.qd, drv.tau_right[s], drv.mot_right[s], ws, st.qdd,
+                         ws.torque_r, ws.loads_r, False)
+        if not ok:
+            return ST_SINGULAR
+        if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep
+            stats.cond_max[0] = cond
+        copy(st.qdd, st.aux)
+    s0 = (st.q_prev, st.qd_prev, st.torque_prev, st.loads_prev)
+    s1 = (st.q, st.qd, ws.torque, ws.loads)
+    stats.ptr[0] = record(md, t0, t1, s0, s1, (ws.qs, ws.qds), stats.ptr[0], rec)
+    copy(st.q, st.q_prev)
+    copy(st.qd, st.qd_prev)
+    copy(ws.torque, st.torque_prev)
+    if drv.need_loads[s]:
+        for c in range(ws.loads.shape[0]):
+            for r in range(3):
+                st.loads_prev[c, r] = ws.loads[c, r]
+    return ST_OK
+
+
+@njit(nrt=False)
+def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
+    """Steps s_begin … s_end − 1 of the time loop, recording the output samples on the way;
+    ``st`` holds the state at the end of step s_begin − 1 and is overwritten. Returns the
+    status (also in stats.status; stats.steps_done: steps completed)."""
+    t0 = 0.0 if s_begin == 0 else drv.t_end[s_begin - 1]
+    status = ST_OK
+    done = s_begin
+    for s in range(s_begin, s_end):
+        t1 = drv.t_end[s]
+        if opts.integrator == INT_NEWMARK:
+            ok = newmark_step(md, dt, opts, st, ws, t1 - t0, drv.tau_left[s], drv.mot_left[s],
+                              drv.need_loads[s], stats)
+        else:
+            ok = rk4_step(md, dt, opts, st, ws, t1 - t0, drv, s, stats)
+        status = _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats) if ok else ST_SINGULAR
+        if status != ST_OK:
+            break
+        t0 = t1
+        done = s + 1
+    stats.steps_done[0] = done
+    stats.status[0] = status
+    return status

@@ -1,0 +1,299 @@
+"""The Riccati (articulated-inertia) sweep: tip → base the affine relation f = P a + c at every
+cut, then base → tip the accelerations. O(N) and stable (:func:`dttmm.sweeps.riccati` is the
+readable version).
+
+Per element, with the element terms of :func:`element_terms`:
+
+    H = M̃_ee + B_eᵀ P B_e,  X = M_ae + B_aᵀ P B_e,  ρ = P γ̄_O + c
+    ë = K_a a_I + k_0 with K_a = −H⁻¹Xᵀ, k_0 = −H⁻¹(h̃_e + B_eᵀ ρ)
+    P_I = M_aa + B_aᵀ P B_a + X K_a,  c_I = h̄_a + B_aᵀ ρ + X k_0
+
+exploiting B_a = [[1, 0, −r_y], [0, 1, r_x], [0, 0, 1]], B_e = blockdiag(A(θ)·diag(s_u, 1), 1),
+and factoring the 3×3 SPD block H by LDLᵀ.
+"""
+from __future__ import annotations
+
+from ._jit import CONTRACT, njit
+from .element import coord_base, element_terms, second_order_terms
+
+
+@njit(fastmath=CONTRACT, nrt=False)
+def riccati(md, dt, tau, acc, xout, torque):
+    """One Riccati sweep at the iterate whose angles are in ``dt`` (:func:`angles`), with
+    ``dt.f_known`` and ``dt.Mt`` set. Writes q̈ into xout (α̈ and elastic), the joint torques
+    into torque, and leaves in ``dt`` what :func:`riccati_loads` needs."""
+    backward(md, dt, tau, acc)
+    forward(md, dt, xout, torque)
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def _ldl_solve(H00, H01, H02, H11, H12, H22, X, r0, r1, r2):
+    """K_a = H⁻¹(−Xᵀ) (row-major 3×3) and k_0 = H⁻¹ r for the SPD H, by LDLᵀ."""
+    (X00, X01, X02, X10, X11, X12, X20, X21, X22) = X
+    i0 = 1.0 / H00
+    l10 = H01 * i0
+    l20 = H02 * i0
+    dd1 = H11 - l10 * H01
+    i1 = 1.0 / dd1
+    l21 = (H12 - l20 * H01) * i1
+    dd2 = H22 - l20 * H02 - l21 * l21 * dd1
+    i2 = 1.0 / dd2
+    y0 = -X00
+    y1 = -X01 - l10 * y0
+    y2 = -X02 - l20 * y0 - l21 * y1
+    K20 = y2 * i2
+    K10 = y1 * i1 - l21 * K20
+    K00 = y0 * i0 - l10 * K10 - l20 * K20
+    y0 = -X10
+    y1 = -X11 - l10 * y0
+    y2 = -X12 - l20 * y0 - l21 * y1
+    K21 = y2 * i2
+    K11 = y1 * i1 - l21 * K21
+    K01 = y0 * i0 - l10 * K11 - l20 * K21
+    y0 = -X20
+    y1 = -X21 - l10 * y0
+    y2 = -X22 - l20 * y0 - l21 * y1
+    K22 = y2 * i2
+    K12 = y1 * i1 - l21 * K22
+    K02 = y0 * i0 - l10 * K12 - l20 * K22
+    y1 = r1 - l10 * r0
+    y2 = r2 - l20 * r0 - l21 * y1
+    k2 = y2 * i2
+    k1 = y1 * i1 - l21 * k2
+    k0 = r0 * i0 - l10 * k1 - l20 * k2
+    return (K00, K01, K02, K10, K11, K12, K20, K21, K22), k0, k1, k2
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def _element_step(md, i, lc, Mt, so, kin, fk, Pc, g0, g1):
+    """Carry (P, c) = ``Pc`` (packed P, then c) across one element from its outboard to its
+    inboard cut. Pure arithmetic (the caller loads and stores: helpers inlined into a loop copy
+    their tuple arguments, so the workspace is not passed here).
+
+    lc: :func:`link_constants`; md, i: the model and link (second-order constants, read in
+    their branch); Mt: the (0, 0), (1, 1), (1, 2),
+    (2, 2) entries of M̃_ee and c_q; so: second-order strain; kin = (cos θ, sin θ, θ̇, e, ė, ê);
+    fk: the known elastic force. Returns (K_a (9, row-major), k_0 (3), (P_I packed, c_I) (9),
+    (r_x, r_y, γ̄_x, γ̄_y))."""
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
+    M00, M11, M12, M22, cq = Mt
+    c, s, td, e0, e1, e2, f0, f1, f2, eh0, eh1, eh2 = kin
+    (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
+        lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1)
+    he0 = he0 + fk[0]
+    he1 = he1 + fk[1]
+    he2 = he2 + fk[2]
+    m, su = lc[0], lc[-1]
+    a0 = c * p00 + s * p01
+    a1 = c * p01 + s * p11
+    a2 = c * p02 + s * p12
+    b0 = -s * p00 + c * p01
+    b1 = -s * p01 + c * p11
+    b2 = -s * p02 + c * p12
+    H00 = M00 + su * su * (c * a0 + s * a1)
+    H01 = su * (c * b0 + s * b1)
+    H02 = su * (c * p02 + s * p12)
+    H11 = M11 + (-s * b0 + c * b1)
+    H12 = M12 + (-s * p02 + c * p12)
+    H22 = M22 + p22
+    X00 = A[0] + su * a0
+    X10 = A[3] + su * a1
+    X20 = A[6] + su * (-ry * a0 + rx * a1 + a2)
+    X01 = A[1] + b0
+    X11 = A[4] + b1
+    X21 = A[7] + (-ry * b0 + rx * b1 + b2)
+    X02 = A[2] + p02
+    X12 = A[5] + p12
+    X22 = A[8] + (-ry * p02 + rx * p12 + p22)
+    rho0 = p00 * gb0 + p01 * gb1 + c0
+    rho1 = p01 * gb0 + p11 * gb1 + c1
+    rho2 = p02 * gb0 + p12 * gb1 + c2
+    r0 = -(he0 + su * (c * rho0 + s * rho1))
+    r1 = -(he1 + (-s * rho0 + c * rho1))
+    r2 = -(he2 + rho2)
+    if so:
+        # second-order strain at the iterate e (sweeps._elastic_rhs):
+        # h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)
+        sc = (md.EA[i], md.EAl[i], md.inv_l[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1],
+              md.K[i, 1, 1], md.K[i, 1, 2], md.K[i, 2, 1], md.K[i, 2, 2], md.K[i, 0, 0])
+        fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(sc, e0, e1, e2)
+        Kb00, Kb01, Kb10, Kb11, Kuu = sc[7], sc[8], sc[9], sc[10], sc[11]
+        de0 = eh0 - e0
+        de1 = eh1 - e1
+        de2 = eh2 - e2
+        r0 -= fu0 + (Kuu * de0 + T01 * de1 + T02 * de2)
+        r1 -= fu1 + (T01 * de0 + (dT11 + Kb00) * de1 + (dT12 + Kb01) * de2)
+        r2 -= fu2 + (T02 * de0 + (dT21 + Kb10) * de1 + (dT22 + Kb11) * de2)
+        H01 += cq * T01
+        H02 += cq * T02
+        H11 += cq * dT11
+        H12 += cq * dT12
+        H22 += cq * dT22
+    X = (X00, X01, X02, X10, X11, X12, X20, X21, X22)
+    Ka, k0, k1, k2 = _ldl_solve(H00, H01, H02, H11, H12, H22, X, r0, r1, r2)
+    K00, K01, K02, K10, K11, K12, K20, K21, K22 = Ka
+    # P_I = M_aa + B_aᵀ P B_a + X K_a ; c_I = h_a + B_aᵀ ρ + X k0
+    u0 = -ry * p00 + rx * p01 + p02
+    u1 = -ry * p01 + rx * p11 + p12
+    u2 = -ry * p02 + rx * p12 + p22
+    n00 = m + p00 + (X00 * K00 + X01 * K10 + X02 * K20)
+    n01 = p01 + (X00 * K01 + X01 * K11 + X02 * K21)
+    n02 = rem0 + u0 + (X00 * K02 + X01 * K12 + X02 * K22)
+    n11 = m + p11 + (X10 * K01 + X11 * K11 + X12 * K21)
+    n12 = rem1 + u1 + (X10 * K02 + X11 * K12 + X12 * K22)
+    n22 = Jt + (-ry * u0 + rx * u1 + u2) + (X20 * K02 + X21 * K12 + X22 * K22)
+    c0 = ha0 + rho0 + (X00 * k0 + X01 * k1 + X02 * k2)
+    c1 = ha1 + rho1 + (X10 * k0 + X11 * k1 + X12 * k2)
+    c2 = ha2 + (-ry * rho0 + rx * rho1 + rho2) + (X20 * k0 + X21 * k1 + X22 * k2)
+    return (Ka, (k0, k1, k2), (n00, n01, n02, n11, n12, n22, c0, c1, c2), (rx, ry, gb0, gb1))
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
+    """Across the hub and joint i: returns ((P, c) on the outboard side of the joint (9),
+    (P, c) on its inboard side (9), (ga (3), g0)) with α̈_i = ga·a + g0 (torque-driven) or
+    α̈_i = g0 (motion-driven; ga unused)."""
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
+    p00 += m_hub
+    p11 += m_hub
+    p22 += J_hub
+    c0 -= m_hub * g0
+    c1 -= m_hub * g1
+    hub = (p00, p01, p02, p11, p12, p22, c0, c1, c2)
+    if motion:
+        gg = acc_i
+        ga0 = ga1 = ga2 = 0.0
+        c0 += p02 * gg
+        c1 += p12 * gg
+        c2 += p22 * gg
+    else:
+        ga0 = -p02 / p22
+        ga1 = -p12 / p22
+        ga2 = -1.0
+        gg = (tau_i - c2) / p22
+        # P + outer(P[:, 2], ga), symmetric
+        n00 = p00 + p02 * ga0
+        n01 = p01 + p02 * ga1
+        n11 = p11 + p12 * ga1
+        c0 += p02 * gg
+        c1 += p12 * gg
+        c2 += p22 * gg
+        p00, p01, p11 = n00, n01, n11
+        p02 = p12 = p22 = 0.0
+    return hub, (p00, p01, p02, p11, p12, p22, c0, c1, c2), (ga0, ga1, ga2, gg)
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def backward(md, dt, tau, acc):
+    """Tip → base: (P, c) at every cut, the element gains and the joint gains. The link
+    constants are read here, not by a helper: an inlined helper would copy ``md`` each call."""
+    k = md.k
+    g0 = md.grav[0]
+    g1 = md.grav[1]
+    Pc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    for i in range(md.n - 1, -1, -1):
+        Pc = _rigid_body(Pc, md.m_pay[i], md.J_pay[i], g0, g1)  # payload at the tip of link i
+        _store_Pc(dt.P_tip, dt.c_tip, i, Pc)
+        m = md.m[i]
+        lc = (m, m * g0, m * g1, md.cs0[i, 0], md.CS[i, 0, 0], md.CS[i, 1, 1], md.CS[i, 1, 2], md.cs0s0[i],
+              md.cs0S[i, 0], md.d1[i, 1], md.d1[i, 2], md.D2[i, 0, 1], md.D2[i, 0, 2], md.D2[i, 1, 0],
+              md.D2[i, 2, 0], md.CSS[i, 0, 0], md.CSS[i, 1, 1], md.CSS[i, 1, 2], md.CSS[i, 2, 2], md.CSES[i, 0, 1],
+              md.CSES[i, 0, 2], md.CSES[i, 1, 0], md.CSES[i, 2, 0], md.sO0[i, 0], md.sO0[i, 1], md.su[i])
+        Mt = (dt.Mt[i, 0, 0], dt.Mt[i, 1, 1], dt.Mt[i, 1, 2], dt.Mt[i, 2, 2], dt.cq[i])
+        so = md.second_order[i]
+        for j in range(k - 1, -1, -1):
+            g = i * k + j
+            kin = (dt.c[g], dt.s[g], dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1],
+                   dt.ed[g, 2], dt.e_hat[g, 0], dt.e_hat[g, 1], dt.e_hat[g, 2])
+            fk = (dt.f_known[g, 0], dt.f_known[g, 1], dt.f_known[g, 2])
+            Ka, k0, Pc, rg = _element_step(md, i, lc, Mt, so, kin, fk, Pc, g0, g1)
+            (dt.Ka[g, 0, 0], dt.Ka[g, 0, 1], dt.Ka[g, 0, 2], dt.Ka[g, 1, 0], dt.Ka[g, 1, 1], dt.Ka[g, 1, 2],
+             dt.Ka[g, 2, 0], dt.Ka[g, 2, 1], dt.Ka[g, 2, 2]) = Ka
+            dt.k0[g, 0], dt.k0[g, 1], dt.k0[g, 2] = k0
+            _store_Pc(dt.P, dt.c_I, g, Pc)
+            dt.rso[g, 0], dt.rso[g, 1], dt.gbar[g, 0], dt.gbar[g, 1] = rg
+        hub, Pc, gains = _joint(md.m_hub[i], md.J_hub[i], md.motion[i], tau[i], acc[i], Pc, g0, g1)
+        _store_Pc(dt.P_hub, dt.c_hub, i, hub)
+        dt.ga[i, 0], dt.ga[i, 1], dt.ga[i, 2], dt.g0[i] = gains
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def _rigid_body(Pc, mass, inertia, g0, g1):
+    """(P, c) across a rigid body at the cut: P += diag(m, m, J), c −= m g."""
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
+    p00 += mass
+    p11 += mass
+    p22 += inertia
+    c0 -= mass * g0
+    c1 -= mass * g1
+    return p00, p01, p02, p11, p12, p22, c0, c1, c2
+
+
+@njit(inline="always")
+def _store_Pc(P, c, row, Pc):
+    """Store (P packed, c) = Pc (9) in row ``row`` of P (·, 6) and c (·, 3)."""
+    P[row, 0], P[row, 1], P[row, 2], P[row, 3], P[row, 4], P[row, 5], c[row, 0], c[row, 1], c[row, 2] = Pc
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def forward(md, dt, xout, torque):
+    """Base → tip: α̈, ë and the cut accelerations from the gains of :func:`backward`."""
+    k = md.k
+    a0 = a1 = a2 = 0.0
+    for i in range(md.n):
+        off = md.pad[i]
+        es, ne = md.e_start[i], md.ne[i]
+        su = md.su[i]
+        if md.motion[i]:
+            add = dt.g0[i]
+        else:
+            add = dt.ga[i, 0] * a0 + dt.ga[i, 1] * a1 + dt.ga[i, 2] * a2 + dt.g0[i]
+        a2 += add
+        xout[md.i_alpha[i]] = add
+        torque[i] = dt.P_hub[i, 2] * a0 + dt.P_hub[i, 4] * a1 + dt.P_hub[i, 5] * a2 + dt.c_hub[i, 2]
+        for j in range(k):
+            g = i * k + j
+            dt.a[g, 0] = a0
+            dt.a[g, 1] = a1
+            dt.a[g, 2] = a2
+            q0 = dt.Ka[g, 0, 0] * a0 + dt.Ka[g, 0, 1] * a1 + dt.Ka[g, 0, 2] * a2 + dt.k0[g, 0]
+            q1 = dt.Ka[g, 1, 0] * a0 + dt.Ka[g, 1, 1] * a1 + dt.Ka[g, 1, 2] * a2 + dt.k0[g, 1]
+            q2 = dt.Ka[g, 2, 0] * a0 + dt.Ka[g, 2, 1] * a1 + dt.Ka[g, 2, 2] * a2 + dt.k0[g, 2]
+            b = coord_base(es, ne, off, j)
+            if not off:
+                xout[b] = q0
+            xout[b + 1] = q1
+            xout[b + 2] = q2
+            c = dt.c[g]
+            s = dt.s[g]
+            rx = dt.rso[g, 0]
+            ry = dt.rso[g, 1]
+            sq0 = su * q0
+            a0 = a0 - ry * a2 + c * sq0 - s * q1 + dt.gbar[g, 0]
+            a1 = a1 + rx * a2 + s * sq0 + c * q1 + dt.gbar[g, 1]
+            a2 = a2 + q2
+        dt.a_tip[i, 0] = a0
+        dt.a_tip[i, 1] = a1
+        dt.a_tip[i, 2] = a2
+
+
+@njit(inline="always")
+def _affine(P, c, a0, a1, a2, out):
+    """out = P a + c for a packed symmetric P."""
+    out[0] = P[0] * a0 + P[1] * a1 + P[2] * a2 + c[0]
+    out[1] = P[1] * a0 + P[3] * a1 + P[4] * a2 + c[1]
+    out[2] = P[2] * a0 + P[4] * a1 + P[5] * a2 + c[2]
+
+
+@njit(nrt=False)
+def riccati_loads(md, dt, loads):
+    """Loads (Qx, Qy, M) at every cut from the last Riccati sweep: f = P a + c."""
+    k = md.k
+    ic = 0
+    for i in range(md.n):
+        for j in range(k):
+            g = i * k + j
+            _affine(dt.P[g], dt.c_I[g], dt.a[g, 0], dt.a[g, 1], dt.a[g, 2], loads[ic])
+            ic += 1
+        _affine(dt.P_tip[i], dt.c_tip[i], dt.a_tip[i, 0], dt.a_tip[i, 1], dt.a_tip[i, 2], loads[ic])
+        ic += 1
