@@ -54,7 +54,7 @@ def simulate_parser() -> argparse.ArgumentParser:
                    help="spectral radius at infinity of generalized-alpha (default 0.9)")
     p.add_argument("--strain", default="linear", choices=["linear", "second-order"],
                    help="axial strain of the elements (default linear)")
-    p.add_argument("--engine", default=None, choices=["numba", "numpy"], help="default: numba when installed")
+    p.add_argument("--engine", default=None, choices=["numba", "python"], help="default: numba when installed")
     p.add_argument("--format", default="csv", choices=["csv", "parquet"])
     p.add_argument("--out", default="out/simulate", help="output folder (created before the run)")
     return p

@@ -9,6 +9,7 @@ import numpy as np
 import scipy
 
 from ._version import __version__
+from . import _validate
 from .errors import InputError, SimulationError
 from .integrators import NewmarkFamily, newmark_family
 from .kernel.loop import predict
@@ -38,16 +39,13 @@ def positive_integer(field: str, value, minimum: int = 1) -> int:
 
 
 def elements_per_link(value) -> int:
-    """The mesh size k (integer ≥ 1)."""
-    return positive_integer("elements_per_link", value)
+    """The mesh size k (integer ≥ 1); the same rule as the case schema's validators."""
+    return _validate.elements_per_link(value)
 
 
 def positive_number(field: str, value) -> float:
-    """A positive finite real number (bools refused)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-            or not np.isfinite(value) or not value > 0:
-        raise InputError(field, value, "must be positive")
-    return float(value)
+    """A positive finite real number (bools and strings refused); the case schema's rule."""
+    return _validate.positive(field, value)
 
 
 def open_fraction(field: str, value) -> float:

@@ -10,8 +10,10 @@ import numpy as np
 
 from . import plumbing
 from .case import Case
+from .drives import require_open_loop
 from .errors import InputError
 from .kernel import driver
+from .resources import check_run_size
 from .structure import STRAINS, build_structure
 from .sweeps import SWEEPS
 
@@ -31,6 +33,7 @@ def accelerations(case: Case, elements_per_link: int, q, qd, t: float = 0.0, *, 
     """
     if not isinstance(case, Case):
         raise InputError("case", case, "must be a dttmm.Case")
+    require_open_loop(case, "dttmm")
     engine = driver.resolve_engine(engine)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
     st = build_structure(case, elements_per_link, strain)
@@ -86,6 +89,8 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     plumbing.choice("integrator", integrator, INTEGRATORS)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
     plumbing.choice("strain", strain, STRAINS)
+    require_open_loop(case, "dttmm")
+    check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy)
     s = driver.Settings(
         h=plumbing.positive_number("h", h), integrator=integrator, sweep=sweep,
         iterations=plumbing.iterations_setting(iterations), tol=plumbing.open_fraction("tol", tol),

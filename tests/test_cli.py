@@ -138,10 +138,10 @@ def test_solver_options_pass_through(short_case, tmp_path, monkeypatch):
     monkeypatch.setattr(sc, "simulate", lambda *a, **k: seen.update(k) or real(*a, **k))
     out = tmp_path / "o"
     assert main(["simulate", str(short_case), "-k", "1", "--h", "1e-3", "--integrator", "generalized-alpha",
-                 "--rho-inf", "0.7", "--tol", "1e-8", "--strain", "linear", "--engine", "numpy",
+                 "--rho-inf", "0.7", "--tol", "1e-8", "--strain", "linear", "--engine", "python",
                  "--out", str(out)]) == 0
     meta = json.loads((out / "meta.json").read_text())
-    assert meta["tol"] == 1e-8 and meta["strain"] == "linear" and meta["engine"] == "numpy"
+    assert meta["tol"] == 1e-8 and meta["strain"] == "linear" and meta["engine"] == "python"
     assert meta["integrator"] == "generalized-alpha" and seen["rho_inf"] == 0.7
 
 
