@@ -5,7 +5,7 @@ only in how one link's beam is meshed and how its ends are tied to the hub and t
 hubs, tip bodies, joints, drives, gravity, sensors, solver settings, failure checks and the
 conversion to :class:`dttmm.Result` live here.
 
-Model conventions (the suite's, see DESIGN.md):
+Model conventions (the suite's, see docs/architecture.md and docs/cases.md):
 
 * Planar, counter-clockwise angles, joint 1 at the origin. In the reference configuration every
   link is straight along its root direction θ_root,i = θ_tip,i−1 + α_i(0) (θ_tip,0 = 0).

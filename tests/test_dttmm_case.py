@@ -40,7 +40,7 @@ def test_single_link_material_form_gives_section_values():
 
 
 def test_design_example_format_loads(tmp_path):
-    # the exact user-facing example of DESIGN.md ("Case files")
+    # the user-facing example of docs/cases.md
     text = (CASES / "three_link.toml").read_text()
     p = tmp_path / "x.toml"
     p.write_text(text)

@@ -122,7 +122,7 @@ def test_bang_bang_switch_keeps_second_order(single_link):
 def test_spin_up_stays_bounded(spin_up):
     """Geometric stiffening from the corotated chain: |v| < 1 m over 20 s at k = 8 (the
     classic single floating-frame element diverges here); peak near 0.40 m (Exudyn ANCF
-    k = 64 gives −0.40015 m, shared/notes/exudyn.md §4.1)."""
+    k = 64 gives −0.40015 m; recorded for this suite)."""
     res = dttmm.simulate(spin_up, elements_per_link=8, h=1e-2, cut_loads=False, energy=False)
     v = res.tip_deflection[:, 0]
     assert np.all(np.isfinite(v)) and np.max(np.abs(v)) < 1.0

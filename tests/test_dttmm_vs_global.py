@@ -1,5 +1,5 @@
 """DT-TMM is exact: it reproduces the global-equation ("traditional") solver of the same
-discretisation (reference_models/global_newmark.py, written independently from METHOD.md)."""
+discretisation (reference_models/global_newmark.py, written independently of the kernel, from the mechanics in docs/method.md)."""
 import numpy as np
 import pytest
 
