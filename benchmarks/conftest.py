@@ -2,8 +2,9 @@
 
 Every benchmark runs a method on the same case for a fixed number of steps; the timed call is
 the whole ``simulate`` (model build included, it is small), and ``extra_info`` carries the
-solve-only time per step from ``Result.wall_time``, sizes, iterations and the error against
-the case's reference, so that timing and accuracy join in the report.
+least solve-only time per step over the rounds (``Result.wall_time``), the least CPU time per
+step of the whole call, sizes, iterations, load and the error against the case's reference,
+so that timing and accuracy join in the report.
 
 ``DTTMM_BENCH_QUICK=1`` (CI) shrinks the parameter lists so the suites run once, untimed, in
 seconds: they are checked to work, not measured.
@@ -11,7 +12,9 @@ seconds: they are checked to work, not measured.
 from __future__ import annotations
 
 import dataclasses as dc
+import math
 import os
+import time
 from functools import lru_cache
 from pathlib import Path
 
@@ -57,26 +60,48 @@ def tip_error(res: dttmm.Result, ref: dttmm.Result) -> float:
 
 
 def run_benchmark(benchmark, method: str, c: dttmm.Case, k, h: float, ref_name: str | None, **options):
-    """Time ``method`` on ``c`` (one warm-up round: numba compiles, caches fill) and fill extra_info."""
+    """Time ``method`` on ``c`` (one warm-up round: numba compiles, caches fill) and fill extra_info.
+
+    Timing protocol (:mod:`experiments.timing`): one BLAS thread; per round the CPU time of the
+    whole call and the method's solve-only wall time; extra_info keeps the least (and median)
+    of the rounds per step, the largest load average seen and whether the point is noisy.
+    """
+    import statistics
+
+    from dttmm.threads import one_blas_thread
+    from experiments.timing import SPREAD_MAX, cores, load_average
+
     try:
         f = resolve(method)
     except MethodUnavailable as exc:
         pytest.skip(str(exc))
-    holder = {}
+    holder = {"cpu": [], "solve": [], "load": [load_average()]}
 
     def target():
+        c0 = time.process_time()
         holder["res"] = f(c, k, h, **options)
+        holder["cpu"].append(time.process_time() - c0)
+        holder["solve"].append(holder["res"].wall_time)
+        holder["load"].append(load_average())
 
-    benchmark.pedantic(target, rounds=1 if QUICK else 3, iterations=1, warmup_rounds=0 if QUICK else 1)
+    with one_blas_thread():
+        benchmark.pedantic(target, rounds=1 if QUICK else 3, iterations=1, warmup_rounds=0 if QUICK else 1)
     res = holder["res"]
+    rounds = 1 if QUICK else 3
+    cpu, solve = holder["cpu"][-rounds:], holder["solve"][-rounds:]  # the warm-up round is not kept
     n_el = (k or 0) * len(c.model.links)
+    load = max((x for x in holder["load"] if math.isfinite(x)), default=math.nan)
+    spread = statistics.median(cpu) / min(cpu) - 1 if min(cpu) > 0 else 0.0
     info = benchmark.extra_info
     info.update(method=method, case=c.name, elements_per_link=k, n_links=len(c.model.links), h=h,
                 n_steps=res.n_steps, n_dof=res.meta.get("n_dof"),
                 final_system_size=res.meta.get("final_system_size"),
                 iterations=res.meta.get("iterations_mean", res.meta.get("newton_iterations_per_step")),
-                solve_time=res.wall_time, time_per_step=res.wall_time / res.n_steps,
-                time_per_element_step=res.wall_time / res.n_steps / n_el if n_el else None,
+                solve_time=min(solve), time_per_step=min(solve) / res.n_steps,
+                time_per_step_median=statistics.median(solve) / res.n_steps,
+                time_per_element_step=min(solve) / res.n_steps / n_el if n_el else None,
+                cpu_per_step=min(cpu) / res.n_steps, cpu_per_step_median=statistics.median(cpu) / res.n_steps,
+                rounds=len(cpu), load_max=load, noisy=bool(load > cores() or spread > SPREAD_MAX),
                 options={k_: str(v) for k_, v in options.items()})
     if ref_name is not None:
         info["tip_error_l2"] = tip_error(res, reference(ref_name, res.n_steps))

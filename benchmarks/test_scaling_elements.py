@@ -26,6 +26,14 @@ def test_dttmm_newmark(benchmark, name, k, variant):
 
 
 @pytest.mark.parametrize("name", CASES)
+@pytest.mark.parametrize("k", KS_DTTMM)
+def test_dttmm_second_order(benchmark, name, k):
+    """The second-order element: the like-for-like partner of the Exudyn elements."""
+    benchmark.group = f"elements:{name}:dttmm-2nd"
+    run_benchmark(benchmark, "dttmm-2nd", case(name), k, H, name, cut_loads=False, energy=False)
+
+
+@pytest.mark.parametrize("name", CASES)
 @pytest.mark.parametrize("method", ["global", "exudyn-ancf", "exudyn-beam", "dttmm-rk4"])
 @pytest.mark.parametrize("k", KS)
 def test_reference_methods(benchmark, name, method, k):

@@ -13,6 +13,7 @@ from .case import Case, case_from_dict, case_to_dict, load_case, save_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
 from .errors import InputError, SimulationError
 from .model import Hub, Link, Manipulator, Payload, Section
+from .resources import check_run_size
 from .result import Result, make_result, tip_deflection
 from .scenario import Scenario
 from .solver import accelerations, simulate
@@ -24,4 +25,5 @@ __all__ = [
     "Result", "make_result", "tip_deflection",
     "InputError", "SimulationError",
     "simulate", "accelerations",
+    "check_run_size",
 ]

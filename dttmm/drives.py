@@ -3,6 +3,11 @@
 A law is a small named function of time. For a torque drive it gives the motor torque
 τ(t) (N·m); for a motion drive the joint angle α(t) (rad) with its rate and acceleration.
 
+Closed-loop laws (``pd``, ``pid``, :class:`UserLaw`) compute the torque from the state of the
+arm instead: ``law.evaluate(t, state)`` with a :class:`ControlState`. A drive with such a law is
+``closed_loop``; its ``torque(t)`` is refused (there is no torque without a state). Engines that
+do not support them yet call :func:`require_open_loop`. Reference: docs/control.md.
+
 Every law lists its ``breakpoints``: instants where its value (torque) or acceleration
 (motion) may jump. Integrators end a step exactly there and restart, so a jump costs no order
 of accuracy; at a breakpoint the step that ends there sees the left limit (``left=True``)
@@ -11,15 +16,38 @@ and the step that starts there the right limit.
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from dataclasses import dataclass, field
 
-import numpy as np
+from pydantic import BaseModel, ValidationError
 
-from ._validate import finite, finite_vector, positive
 from .errors import InputError
+from .schema import LAW_FIELDS, DriveFields, PDGainFields, PIDGainFields, _short, check_fields
 
-__all__ = ["Constant", "BangBang", "Sine", "SpinUp", "Table", "Drive", "LAWS", "law_from_dict"]
+__all__ = [
+    "LAWS",
+    "PD",
+    "PID",
+    "BangBang",
+    "ComputedTorque",
+    "Constant",
+    "ControlState",
+    "Drive",
+    "Sine",
+    "SpinUp",
+    "Table",
+    "UserLaw",
+    "law_from_dict",
+    "reference_of",
+    "require_no_computed_torque",
+    "require_open_loop",
+]
+
+
+def _set(obj, values: dict):
+    for k, v in values.items():
+        object.__setattr__(obj, k, v)
 
 
 def _check_kind(law, kind: str, where: str):
@@ -37,7 +65,7 @@ class Constant:
     kinds = ("torque", "motion")
 
     def __post_init__(self):
-        object.__setattr__(self, "value", finite("law.value", self.value))
+        _set(self, check_fields(LAW_FIELDS["constant"], "law", value=self.value))
 
     def __call__(self, t: float, left: bool = False) -> float:
         return self.value
@@ -63,12 +91,12 @@ class BangBang:
     kinds = ("torque",)
 
     def __post_init__(self):
-        lv = finite_vector("law.levels", self.levels)
-        st = finite_vector("law.switch_times", self.switch_times)
+        ok = check_fields(LAW_FIELDS["bang_bang"], "law", levels=self.levels, switch_times=self.switch_times)
+        lv, st = ok["levels"], ok["switch_times"]
         if len(lv) != len(st) + 1:
             raise InputError("law.levels", list(lv),
                              f"needs len(switch_times) + 1 = {len(st) + 1} entries")
-        if any(b <= a for a, b in zip(st, st[1:])):
+        if any(b <= a for a, b in itertools.pairwise(st)):
             raise InputError("law.switch_times", list(st), "must be strictly increasing")
         object.__setattr__(self, "levels", lv)
         object.__setattr__(self, "switch_times", st)
@@ -98,14 +126,9 @@ class Sine:
     kinds = ("torque", "motion")
 
     def __post_init__(self):
-        object.__setattr__(self, "amplitude", finite("law.amplitude", self.amplitude))
-        object.__setattr__(self, "frequency", positive("law.frequency", self.frequency))
-        object.__setattr__(self, "phase", finite("law.phase", self.phase))
-        object.__setattr__(self, "offset", finite("law.offset", self.offset))
-        u = float(self.until)
-        if math.isnan(u) or u <= 0:
-            raise InputError("law.until", self.until, "must be positive (or inf)")
-        object.__setattr__(self, "until", u)
+        _set(self, check_fields(LAW_FIELDS["sine"], "law", amplitude=self.amplitude,
+                                frequency=self.frequency, phase=self.phase, offset=self.offset,
+                                until=self.until))
 
     def _on(self, t, left):
         return t < self.until or (left and t <= self.until)
@@ -152,8 +175,7 @@ class SpinUp:
     kinds = ("motion",)
 
     def __post_init__(self):
-        object.__setattr__(self, "rate", finite("law.rate", self.rate))
-        object.__setattr__(self, "ramp_time", positive("law.ramp_time", self.ramp_time))
+        _set(self, check_fields(LAW_FIELDS["spin_up"], "law", rate=self.rate, ramp_time=self.ramp_time))
 
     def motion(self, t: float, left: bool = False):
         ws, T = self.rate, self.ramp_time
@@ -178,21 +200,26 @@ class SpinUp:
 
 @dataclass(frozen=True)
 class Table:
-    """Tabulated law: piecewise linear for torques (held outside the range); for motion the
-    angle is a cubic spline through the points (rate and acceleration from the spline)."""
+    """Tabulated law through the points (times[i], values[i]), held at the end values outside.
+
+    Torque: piecewise linear. Motion: the angle is the cubic spline through the points with
+    zero rate at the first and last point ("clamped"), so the joint starts and ends at rest and
+    angle and rate are continuous everywhere (no impulsive torque); the acceleration is
+    continuous inside the table and jumps at its two ends, which are the law's breakpoints.
+    """
 
     times: tuple[float, ...]
     values: tuple[float, ...]
     name = "table"
     kinds = ("torque", "motion")
-    _spline: object = field(default=None, repr=False, compare=False)
+    _spline: object = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        ts = finite_vector("law.times", self.times)
-        vs = finite_vector("law.values", self.values, len(ts))
-        if len(ts) < 2:
-            raise InputError("law.times", list(ts), "needs at least two points")
-        if any(b <= a for a, b in zip(ts, ts[1:])):
+        ok = check_fields(LAW_FIELDS["table"], "law", times=self.times, values=self.values)
+        ts, vs = ok["times"], ok["values"]
+        if len(vs) != len(ts):
+            raise InputError("law.values", list(vs), f"needs one value per time ({len(ts)} entries)")
+        if any(b <= a for a, b in itertools.pairwise(ts)):
             raise InputError("law.times", list(ts), "must be strictly increasing")
         object.__setattr__(self, "times", ts)
         object.__setattr__(self, "values", vs)
@@ -207,39 +234,271 @@ class Table:
         return vs[i] + (vs[i + 1] - vs[i]) * (t - ts[i]) / (ts[i + 1] - ts[i])
 
     def motion(self, t: float, left: bool = False):
+        """(α, α̇, α̈) at t; at a table end, ``left`` picks the side of the acceleration jump."""
+        t0, t1 = self.times[0], self.times[-1]
+        if t < t0 or (t == t0 and left and t0 > 0.0):
+            return self.values[0], 0.0, 0.0
+        if t > t1 or (t == t1 and not left):
+            return self.values[-1], 0.0, 0.0
         if self._spline is None:
             from scipy.interpolate import CubicSpline
 
-            object.__setattr__(self, "_spline", CubicSpline(self.times, self.values,
-                                                            bc_type="clamped" if len(self.times) > 2 else "not-a-knot"))
+            object.__setattr__(self, "_spline", CubicSpline(self.times, self.values, bc_type="clamped"))
         s = self._spline
-        tc = min(max(t, self.times[0]), self.times[-1])
-        if t != tc:  # held at the end values outside the table
-            return float(s(tc)), 0.0, 0.0
         return float(s(t)), float(s(t, 1)), float(s(t, 2))
 
     @property
     def breakpoints(self) -> tuple[float, ...]:
-        return ()
+        """The table ends: a motion table's acceleration jumps there (a torque table's slope)."""
+        return (self.times[0], self.times[-1])
 
     def params(self) -> dict:
         return {"times": list(self.times), "values": list(self.values)}
 
 
-LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table)}
+# --- closed-loop laws ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ControlState:
+    """What a closed-loop law sees of the arm at time t (SI units, angles CCW).
+
+    joint : 0-based index of the driven joint.
+    angle, rate : α (rad) and α̇ (rad/s) of the driven joint.
+    moment : root bending moment of the driven link (N·m): the moment the inboard side (joint and
+        hub) exerts on the beam at its root cross-section, CCW positive — positive while the hub
+        drags a lagging beam forward.
+    integral : ∫₀ᵗ (α_ref − α) dt (rad·s), the integrator state of a ``pid`` law (0 at t = 0).
+    angles, rates : (n,) every joint's angle and rate.
+    tip_deflections : (n,) transverse tip deflection of every link in its clamped-root frame (m).
+    computed_torque : rigid inverse-dynamics torque of the reference motion at this joint (N·m),
+        filled only by engines that compute the ``computed_torque`` feedforward; else None.
+    """
+
+    joint: int
+    angle: float
+    rate: float
+    moment: float = 0.0
+    integral: float = 0.0
+    angles: tuple = ()
+    rates: tuple = ()
+    tip_deflections: tuple = ()
+    computed_torque: float | None = None
+
+
+@dataclass(frozen=True)
+class ComputedTorque:
+    """Feedforward of the rigid-model inverse dynamics of the reference motion of all joints.
+
+    Only an engine with a rigid model computes it (it passes the value in
+    ``ControlState.computed_torque``); elsewhere :func:`require_no_computed_torque` refuses it.
+    """
+
+    name = "computed_torque"
+    kinds = ("torque",)
+
+    @property
+    def breakpoints(self) -> tuple[float, ...]:
+        return ()  # the reference's breakpoints are the drive's already
+
+    def params(self) -> dict:
+        return {}
+
+
+def _sub_law(value, where: str, kind: str):
+    """A reference (``kind="motion"``) or feedforward (``"torque"``) law from a law object, a
+    table (dict) or a validated schema model; open-loop laws only."""
+    if isinstance(value, BaseModel):
+        value = value.model_dump()
+    if isinstance(value, dict):
+        if kind == "torque" and value.get("law") == "computed_torque":
+            extra = sorted(k for k in value if k != "law")
+            if extra:
+                raise InputError(f"{where}.{extra[0]}", value[extra[0]],
+                                 "unknown key (computed_torque takes no parameters)")
+            return ComputedTorque()
+        value = law_from_dict(value, where)
+    if isinstance(value, ComputedTorque) and kind == "torque":
+        return value
+    if getattr(value, "closed_loop", False) or getattr(value, "name", None) not in LAWS:
+        raise InputError(where, value, "must be an open-loop drive law (constant, bang_bang, sine, "
+                                       "spin_up, table) or a table with a 'law' key")
+    _check_kind(value, kind, where)
+    if kind == "motion" and value.name == "sine" and math.isfinite(value.until):
+        raise InputError(f"{where}.until", value.until,
+                         "a reference motion cannot stop a sine abruptly (the rate would jump)")
+    return value
+
+
+def _saturate(tau: float, limit: float, slopes: tuple) -> tuple:
+    """(τ, slopes…) clipped to |τ| ≤ limit; beyond the limit every slope is zero."""
+    if abs(tau) > limit:
+        return (math.copysign(limit, tau),) + (0.0,) * len(slopes)
+    return (tau, *slopes)
+
+
+@dataclass(frozen=True)
+class PD:
+    """τ = τ_ff(t) + kp (α_ref − α) + kd (α̇_ref − α̇) − moment_gain·M_root, then |τ| ≤ limit.
+
+    kp : N·m/rad, kd : N·m·s/rad (both ≥ 0); reference : a motion law (or its table) giving
+    α_ref(t); feedforward : None, a torque law or :class:`ComputedTorque`; moment_gain : 1;
+    limit : N·m (inf: no saturation). Beyond the limit τ = ±limit and every slope is 0.
+    """
+
+    kp: float
+    kd: float
+    reference: object
+    feedforward: object = None
+    moment_gain: float = 0.0
+    limit: float = math.inf
+    name = "pd"
+    kinds = ("torque",)
+    closed_loop = True
+    _gain_fields = PDGainFields
+
+    def __post_init__(self):
+        _set(self, check_fields(self._gain_fields, "law", **self._gains()))
+        _set(self, {"reference": _sub_law(self.reference, "law.reference", "motion")})
+        if self.feedforward is not None:
+            _set(self, {"feedforward": _sub_law(self.feedforward, "law.feedforward", "torque")})
+
+    def _gains(self) -> dict:
+        return {"kp": self.kp, "kd": self.kd, "moment_gain": self.moment_gain, "limit": self.limit}
+
+    @property
+    def gain_integral(self) -> float:
+        """∂τ/∂(integral state) before saturation (N·m/(rad·s)); 0 for a PD law."""
+        return 0.0
+
+    def feedforward_torque(self, t: float, state: ControlState, left: bool = False) -> float:
+        ff = self.feedforward
+        if ff is None:
+            return 0.0
+        if isinstance(ff, ComputedTorque):
+            if state.computed_torque is None:
+                raise InputError("law.feedforward", "computed_torque",
+                                 "needs an engine that computes the rigid inverse dynamics")
+            return float(state.computed_torque)
+        return float(ff(t, left))
+
+    def error_rate(self, t: float, state: ControlState, left: bool = False) -> float:
+        """d(integral)/dt = α_ref(t) − α (rad): the right-hand side of the integrator state."""
+        return self.reference.motion(t, left)[0] - state.angle
+
+    def evaluate(self, t: float, state: ControlState, left: bool = False):
+        """(τ, ∂τ/∂α, ∂τ/∂α̇, ∂τ/∂M_root) at t (``left``: left limit of the laws of time)."""
+        a_ref, r_ref, _ = self.reference.motion(t, left)
+        tau = (self.feedforward_torque(t, state, left) + self.kp * (a_ref - state.angle)
+               + self.kd * (r_ref - state.rate) + self.gain_integral * state.integral)
+        if self.moment_gain:  # an engine without bending moments passes nan
+            tau -= self.moment_gain * state.moment
+        return _saturate(tau, self.limit, (0.0 - self.kp, 0.0 - self.kd, 0.0 - self.moment_gain))
+
+    @property
+    def breakpoints(self) -> tuple[float, ...]:
+        ff = () if self.feedforward is None else tuple(self.feedforward.breakpoints)
+        return tuple(sorted(set(self.reference.breakpoints) | set(ff)))
+
+    def params(self) -> dict:
+        d = {k: v for k, v in self._gains().items() if k in ("kp", "kd", "ki")}
+        d["reference"] = {"law": self.reference.name, **self.reference.params()}
+        if self.feedforward is not None:
+            d["feedforward"] = {"law": self.feedforward.name, **self.feedforward.params()}
+        if self.moment_gain:
+            d["moment_gain"] = self.moment_gain
+        if math.isfinite(self.limit):
+            d["limit"] = self.limit
+        return d
+
+
+@dataclass(frozen=True)
+class PID(PD):
+    """PD plus ki·∫(α_ref − α)dt: ki in N·m/(rad·s), the integral state starts at 0.
+
+    The integral is an extra state every engine integrates (no anti-windup: it keeps
+    integrating while the torque is saturated).
+    """
+
+    ki: float = None  # required: None is refused with a clear message
+    name = "pid"
+    _gain_fields = PIDGainFields
+
+    def _gains(self) -> dict:
+        return {**super()._gains(), "ki": self.ki}
+
+    @property
+    def gain_integral(self) -> float:
+        return self.ki
+
+
+@dataclass(frozen=True)
+class UserLaw:
+    """A closed-loop law written in Python: ``fn(t, state) -> (τ, ∂τ/∂α, ∂τ/∂α̇)``.
+
+    ``state`` is a :class:`ControlState`. ``breakpoints`` (s): instants where τ may jump (the
+    integrators end a step there). ``label`` names the law in messages. A user law cannot be
+    written to a case file.
+    """
+
+    fn: object
+    breakpoints: tuple = ()
+    label: str = "user"
+    name = "user"
+    kinds = ("torque",)
+    closed_loop = True
+    feedforward = None
+    moment_gain = 0.0
+    gain_integral = 0.0
+
+    def __post_init__(self):
+        if not callable(self.fn):
+            raise InputError("law.fn", self.fn, "must be a callable fn(t, state) -> (tau, dtau_dalpha, "
+                                                "dtau_dalphadot)")
+        bp = tuple(float(b) for b in self.breakpoints)
+        if any(not (math.isfinite(b) and b > 0) for b in bp) or any(b <= a for a, b in itertools.pairwise(bp)):
+            raise InputError("law.breakpoints", self.breakpoints, "must be positive, finite and increasing")
+        _set(self, {"breakpoints": bp})
+
+    def error_rate(self, t, state, left=False) -> float:
+        return 0.0
+
+    def evaluate(self, t: float, state: ControlState, left: bool = False):
+        """(τ, ∂τ/∂α, ∂τ/∂α̇, 0.0) from the user's function."""
+        out = self.fn(t, state)
+        try:
+            tau, da, dr = (float(x) for x in out)
+        except (TypeError, ValueError):
+            raise InputError(f"law {self.label!r}", _short(out),
+                             f"at t = {t:g} s must return three numbers (tau, dtau_dalpha, "
+                             "dtau_dalphadot)") from None
+        if not all(map(math.isfinite, (tau, da, dr))):
+            raise InputError(f"law {self.label!r}", out, f"returned a non-finite value at t = {t:g} s "
+                                                         f"(joint {state.joint + 1})")
+        return tau, da, dr, 0.0
+
+    def params(self) -> dict:
+        raise InputError("law", self.label, "a user law (Python callable) cannot be written to a case file")
+
+
+LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table, PD, PID)}
 
 
 def law_from_dict(params: dict, where: str = "law"):
-    """Build a law from its TOML table (``law = "sine"`` plus its parameters)."""
+    """Build a law from its table (``law = "sine"`` plus its parameters, schema-checked:
+    unknown or private keys are refused)."""
+    if not isinstance(params, dict):
+        raise InputError(where, params, "must be a table with a 'law' key")
     params = dict(params)
     name = params.pop("law", None)
-    if name not in LAWS:
+    if not isinstance(name, str) or name not in LAWS:
         raise InputError(f"{where}.law", name, f"unknown drive law (one of: {', '.join(LAWS)})")
-    cls = LAWS[name]
+    from .schema import input_error
+
     try:
-        return cls(**params)
-    except TypeError as exc:
-        raise InputError(f"{where}", params, f"bad parameters for law {name!r}: {exc}") from None
+        ok = LAW_FIELDS[name].model_validate(params)
+    except ValidationError as exc:
+        raise input_error(exc, LAW_FIELDS[name], where) from None
+    try:
+        return LAWS[name](**dict(ok))
     except InputError as exc:
         raise InputError(exc.field.replace("law.", f"{where}.", 1), exc.value, exc.reason) from None
 
@@ -249,7 +508,9 @@ class Drive:
     """How one joint is driven.
 
     kind : ``"torque"`` (the law gives τ; the joint angle is free) or ``"motion"`` (the law
-    gives the joint angle α(t); the torque is an output).
+    gives the joint angle α(t); the torque is an output). A torque drive with a closed-loop
+    law (``PD``, ``PID``, ``UserLaw``) is ``closed_loop``: its torque comes from
+    :meth:`evaluate` with the state, and :meth:`torque` refuses.
     initial_angle, initial_rate : joint state at t = 0 for torque drives. For motion drives
     they follow from the law; if given they must agree with it.
     """
@@ -262,13 +523,12 @@ class Drive:
 
     def __post_init__(self):
         w = self._where
-        if self.kind not in ("torque", "motion"):
-            raise InputError(f"{w}.kind", self.kind, "must be 'torque' or 'motion'")
-        if getattr(self.law, "name", None) not in LAWS:
-            raise InputError(f"{w}.law", self.law, "must be a drive law (constant, bang_bang, sine, spin_up, table)")
+        _set(self, check_fields(DriveFields, w, kind=self.kind, initial_angle=self.initial_angle,
+                                initial_rate=self.initial_rate))
+        if getattr(self.law, "name", None) not in LAWS and not isinstance(self.law, UserLaw):
+            raise InputError(f"{w}.law", self.law, "must be a drive law (constant, bang_bang, sine, spin_up, "
+                                                   "table, pd, pid or a dttmm.drives.UserLaw)")
         _check_kind(self.law, self.kind, w)
-        object.__setattr__(self, "initial_angle", finite(f"{w}.initial_angle", self.initial_angle))
-        object.__setattr__(self, "initial_rate", finite(f"{w}.initial_rate", self.initial_rate))
         if self.kind == "motion" and self.law.name == "sine" and math.isfinite(self.law.until):
             raise InputError(f"{w}.until", self.law.until,
                              "a motion drive cannot stop a sine abruptly (the angle or rate would jump)")
@@ -286,10 +546,59 @@ class Drive:
     def breakpoints(self) -> tuple[float, ...]:
         return tuple(self.law.breakpoints)
 
+    @property
+    def closed_loop(self) -> bool:
+        """True when the torque is a function of the state (``pd``, ``pid``, a user law)."""
+        return bool(getattr(self.law, "closed_loop", False))
+
     def torque(self, t: float, left: bool = False) -> float:
-        """Motor torque of a torque drive at t (left limit when ``left``)."""
+        """Motor torque of an open-loop torque drive at t (left limit when ``left``)."""
+        if self.closed_loop:
+            raise InputError(f"{self._where}.law", self.law.name,
+                             "is a closed-loop law: its torque depends on the state; "
+                             "use drive.evaluate(t, state)")
         return self.law(t, left)
+
+    def evaluate(self, t: float, state: ControlState, left: bool = False):
+        """(τ, ∂τ/∂α, ∂τ/∂α̇, ∂τ/∂M_root) of a closed-loop drive at t (see :class:`PD`)."""
+        if not self.closed_loop:
+            raise InputError(f"{self._where}.law", self.law.name,
+                             "is an open-loop law: use drive.torque(t) or drive.motion(t)")
+        return self.law.evaluate(t, state, left)
 
     def motion(self, t: float, left: bool = False) -> tuple[float, float, float]:
         """(α, α̇, α̈) of a motion drive at t."""
         return self.law.motion(t, left)
+
+
+def reference_of(drive: Drive):
+    """The motion law a joint follows or tracks (a motion drive's law, a closed-loop law's
+    reference), or None for an open-loop torque drive or a user law."""
+    if drive.kind == "motion":
+        return drive.law
+    return getattr(drive.law, "reference", None)
+
+
+def require_open_loop(case, method: str) -> None:
+    """Refuse a case with a closed-loop drive for an engine that does not support them yet.
+
+    Raises
+    ------
+    InputError
+        ``scenario.drives[1].law = 'pd': closed-loop drive law 'pd' on joint 2 is not supported
+        by <method> yet``.
+    """
+    for i, d in enumerate(case.scenario.drives):
+        if d.closed_loop:
+            raise InputError(f"scenario.drives[{i}].law", d.law.name,
+                             f"closed-loop drive law {d.law.name!r} on joint {i + 1} is not "
+                             f"supported by {method} yet")
+
+
+def require_no_computed_torque(case, method: str) -> None:
+    """Refuse a ``computed_torque`` feedforward for an engine without a rigid model."""
+    for i, d in enumerate(case.scenario.drives):
+        if isinstance(getattr(d.law, "feedforward", None), ComputedTorque):
+            raise InputError(f"scenario.drives[{i}].feedforward", "computed_torque",
+                             f"the computed_torque feedforward on joint {i + 1} is not supported by "
+                             f"{method} (only pinocchio-rigid computes it)")

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ._validate import finite_vector, non_negative, positive
 from .errors import InputError
+from .schema import BodyFields, MaterialFields, ModelFields, SectionFields, check_fields
 
-__all__ = ["Section", "Hub", "Payload", "Link", "Manipulator"]
+__all__ = ["Hub", "Link", "Manipulator", "Payload", "Section"]
 
 
 @dataclass(frozen=True)
@@ -39,23 +39,18 @@ class Section:
     _where: str = field(default="section", repr=False, compare=False)
 
     def __post_init__(self):
-        w = self._where
-        object.__setattr__(self, "length", positive(f"{w}.length", self.length))
-        object.__setattr__(self, "EI", positive(f"{w}.EI", self.EI))
-        object.__setattr__(self, "rhoA", positive(f"{w}.rhoA", self.rhoA))
-        if self.EA is not None:
-            object.__setattr__(self, "EA", positive(f"{w}.EA", self.EA))
-        object.__setattr__(self, "damping", non_negative(f"{w}.damping", self.damping))
+        ok = check_fields(SectionFields, self._where, length=self.length, EI=self.EI, rhoA=self.rhoA,
+                          EA=self.EA, damping=self.damping)
+        for k, v in ok.items():
+            object.__setattr__(self, k, v)
 
     @classmethod
     def from_material(cls, length, E, rho, width, thickness, *, EA=True, damping=0.0,
-                      where="section") -> "Section":
+                      where="section") -> Section:
         """Rectangular section from Young's modulus E (Pa), density ρ (kg/m³), width and
         thickness (m). ``EA=True`` derives E·A; ``EA=None`` makes the link inextensible."""
-        E = positive(f"{where}.E", E)
-        rho = positive(f"{where}.rho", rho)
-        b = positive(f"{where}.width", width)
-        t = positive(f"{where}.thickness", thickness)
+        m = check_fields(MaterialFields, where, E=E, rho=rho, width=width, thickness=thickness)
+        E, rho, b, t = m["E"], m["rho"], m["width"], m["thickness"]
         ea = E * b * t if EA is True else EA
         return cls(length, E * b * t**3 / 12.0, rho * b * t, ea, damping, _where=where)
 
@@ -77,8 +72,9 @@ class _Body:
     _where: str = field(default="body", repr=False, compare=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "mass", non_negative(f"{self._where}.mass", self.mass))
-        object.__setattr__(self, "inertia", non_negative(f"{self._where}.inertia", self.inertia))
+        ok = check_fields(BodyFields, self._where, mass=self.mass, inertia=self.inertia)
+        for k, v in ok.items():
+            object.__setattr__(self, k, v)
 
 
 @dataclass(frozen=True)
@@ -140,6 +136,8 @@ class Manipulator:
     gravity: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self):
+        if not isinstance(self.links, (tuple, list)):
+            raise InputError("model.links", self.links, "must be a tuple of dttmm.Link")
         links = tuple(self.links)
         if not links:
             raise InputError("model.links", self.links, "needs at least one link")
@@ -147,7 +145,7 @@ class Manipulator:
             if not isinstance(link, Link):
                 raise InputError(f"model.links[{i}]", link, "must be a dttmm.Link")
         object.__setattr__(self, "links", links)
-        object.__setattr__(self, "gravity", finite_vector("model.gravity", self.gravity, 2))
+        object.__setattr__(self, "gravity", check_fields(ModelFields, "model", gravity=self.gravity)["gravity"])
 
     @property
     def n_links(self) -> int:

@@ -5,9 +5,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import positive
 from .drives import Drive
 from .errors import InputError
+from .schema import ScenarioFields, check_fields
 
 __all__ = ["Scenario"]
 
@@ -21,11 +21,14 @@ class Scenario:
     drives: tuple[Drive, ...]
 
     def __post_init__(self):
-        object.__setattr__(self, "duration", positive("scenario.duration", self.duration))
-        object.__setattr__(self, "output_step", positive("scenario.output_step", self.output_step))
+        ok = check_fields(ScenarioFields, "scenario", duration=self.duration, output_step=self.output_step)
+        for k, v in ok.items():
+            object.__setattr__(self, k, v)
         if self.output_step > self.duration:
             raise InputError("scenario.output_step", self.output_step,
                              f"must not exceed the duration {self.duration}")
+        if not isinstance(self.drives, (tuple, list)):
+            raise InputError("scenario.drives", self.drives, "must be a tuple of dttmm.Drive")
         drives = tuple(self.drives)
         for i, d in enumerate(drives):
             if not isinstance(d, Drive):

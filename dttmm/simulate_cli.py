@@ -1,13 +1,20 @@
-"""``dttmm simulate CASE --elements K --h H --out DIR``: run DT-TMM, write the table and a plot."""
+"""``dttmm simulate CASE --elements K --h H --out DIR``: run DT-TMM, write the table and a plot.
+
+Exit codes are those of :mod:`dttmm.cli`.
+"""
 from __future__ import annotations
 
 import json
 import sys
+import tempfile
 from pathlib import Path
 
 from .case import load_case
 from .errors import InputError, SimulationError
+from .resources import check_run_size
 from .solver import simulate
+
+from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK  # noqa: F401
 
 
 def plot_result(res, path: Path, title: str = "") -> Path:
@@ -34,35 +41,85 @@ def plot_result(res, path: Path, title: str = "") -> Path:
     return path
 
 
-def run_simulate(a) -> int:
+def prepare_out(out) -> Path:
+    """Create the output folder and prove it writable, before any computing.
+
+    Raises InputError on ``--out`` when it cannot be created or written.
+    """
+    out = Path(out)
     try:
-        case = load_case(a.case)
-        res = simulate(case, elements_per_link=a.elements, h=a.h, integrator=a.integrator, sweep=a.sweep,
-                       iterations=a.iterations, engine=a.engine, progress=True)
-    except InputError as exc:
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return 2
-    except SimulationError as exc:
-        print(f"dttmm: {exc}", file=sys.stderr)
-        res = exc.partial
-        if res is None:
-            return 1
-        print(f"dttmm: writing the partial result up to t = {res.t[-1] if res.t.size else 0:.6g} s", file=sys.stderr)
-        code = 1
-    else:
-        code = 0
-    out = Path(a.out)
-    out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out, prefix=".dttmm-write-test-"):
+            pass
+    except OSError as exc:
+        raise InputError("--out", str(out), f"cannot create or write the folder ({exc.strerror or exc})") from None
+    return out
+
+
+def _close_progress_bars():
+    """End any progress bar a failed run left open, so that the next message has its own line."""
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return
+    for bar in list(getattr(tqdm, "_instances", ())):
+        bar.close()
+
+
+def _own_line(message: str) -> None:
+    """Print a message on stderr on a line of its own, even after a cleared progress bar
+    (which leaves the cursor after a carriage return, not a newline)."""
+    _close_progress_bars()
+    print("\n" + message, file=sys.stderr)
+
+
+def _write(res, case, a, out: Path) -> None:
+    name = case.name or "case"
     df = res.to_frame()
-    table = out / f"{case.name or 'case'}.{a.format}"
+    table = out / f"{name}.{a.format}"
     if a.format == "parquet":
         df.to_parquet(table)
     else:
         df.to_csv(table, index=False)
-    meta = {k: v for k, v in res.meta.items()}
+    meta = dict(res.meta)
     meta.update(wall_time=res.wall_time, n_steps=res.n_steps, case=str(a.case))
     (out / "meta.json").write_text(json.dumps(meta, indent=2, default=str))
-    png = plot_result(res, out / f"{case.name or 'case'}.png",
-                      f"{case.name}: DT-TMM k = {a.elements}, h = {a.h:g} s ({a.integrator})")
-    print(f"wrote {table}, {png}, {out / 'meta.json'}  (solve {res.wall_time:.3g} s, {res.n_steps} steps)")
-    return code
+    written = [str(table), str(out / "meta.json")]
+    if res.t.size >= 2:
+        png = plot_result(res, out / f"{name}.png",
+                          f"{case.name}: DT-TMM k = {a.elements}, h = {a.h:g} s ({a.integrator})")
+        written.insert(1, str(png))
+    print(f"wrote {', '.join(written)}  (solve {res.wall_time:.3g} s, {res.n_steps} steps)")
+
+
+def run_simulate(a) -> int:
+    """Run ``dttmm simulate`` for the parsed arguments ``a``; return the exit code."""
+    try:
+        out = prepare_out(a.out)
+        case = load_case(a.case)
+        check_run_size(case, a.elements, a.h)
+        res = simulate(case, elements_per_link=a.elements, h=a.h, integrator=a.integrator, sweep=a.sweep,
+                       iterations=a.iterations, tol=a.tol, rho_inf=a.rho_inf, strain=a.strain,
+                       engine=a.engine, progress=True)
+    except InputError as exc:
+        _close_progress_bars()
+        print(f"dttmm: bad input: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except SimulationError as exc:
+        res = exc.partial
+        msg = f"dttmm: simulation failed: {' '.join(str(exc).split())}"
+        if res is None:
+            _own_line(msg)
+            return EXIT_FAILED
+        t_last = res.t[-1] if res.t.size else 0.0
+        _own_line(f"{msg}; writing the partial result up to t = {t_last:.6g} s")
+        _write(res, case, a, out)
+        return EXIT_FAILED
+    _write(res, case, a, out)
+    status = getattr(res, "status", "ok")
+    print(f"status: {status}")
+    for w in getattr(res, "warnings", ()):
+        print(f"warning: {w}")
+    if status == "ok":
+        return EXIT_OK
+    return EXIT_FAILED if status == "failed" else EXIT_NOT_OK

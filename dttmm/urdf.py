@@ -18,12 +18,12 @@ has no URDF form and is dropped.
 """
 from __future__ import annotations
 
-import argparse
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from .case import Case, load_case
+from .cliparse import OneLineParser
 from .errors import InputError
 from .model import Manipulator
 
@@ -96,7 +96,8 @@ def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
 
 def main(argv=None) -> int:
     """``dttmm urdf CASE [--out FILE]``: print (or write) the rigid arm of a case as URDF."""
-    p = argparse.ArgumentParser(prog="dttmm urdf", description="Print the rigid arm of a case as URDF "
+
+    p = OneLineParser(prog="dttmm urdf", description="Print the rigid arm of a case as URDF "
                                 "(gravity is noted in a comment: URDF has no field for it).")
     p.add_argument("case", help="case TOML file")
     p.add_argument("--out", metavar="FILE", help="write to FILE instead of standard output")
@@ -107,7 +108,11 @@ def main(argv=None) -> int:
         print(f"dttmm urdf: {exc}", file=sys.stderr)
         return 2
     if a.out:
-        Path(a.out).write_text(text)
+        try:
+            Path(a.out).write_text(text)
+        except OSError as exc:
+            print(f"dttmm urdf: --out = {a.out!r}: cannot write ({exc.strerror or exc})", file=sys.stderr)
+            return 2
     else:
         sys.stdout.write(text)
     return 0

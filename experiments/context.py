@@ -29,7 +29,9 @@ def prepare(plan: Plan, data="data", *, case_dir=None, recompute=False, log=prin
     """Load the cases and compute (or load) their references.
 
     References go to ``<data>/references/<plan>/`` (small, worth keeping), run histories to
-    ``<data>/cache/runs/<plan>_dt<output step>/`` (recomputable).
+    ``<data>/cache/runs/<plan>_dt<output step>/`` (recomputable). Both are keyed by the cases'
+    content and the code of the methods, and verified on read. ``recompute`` ignores every
+    stored reference and run and writes them again.
     """
     data = Path(data)
     cases = load_cases(plan) if case_dir is None else load_cases(plan, case_dir)
@@ -54,4 +56,5 @@ def prepare(plan: Plan, data="data", *, case_dir=None, recompute=False, log=prin
                 )
             )
     grid = "_".join(sorted({f"dt{c.scenario.output_step:g}" for c in cases.values()}))
-    return Context(plan, cases, refs, prov, RunStore(data / "cache" / "runs" / f"{plan.name}_{grid}"), data)
+    store = RunStore(data / "cache" / "runs" / f"{plan.name}_{grid}", cases, recompute=recompute)
+    return Context(plan, cases, refs, prov, store, data)

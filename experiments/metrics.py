@@ -10,7 +10,18 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["KINDS", "quantities", "columns", "errors", "nan_errors", "difference_series"]
+__all__ = [
+    "KINDS",
+    "columns",
+    "difference_series",
+    "errors",
+    "load_differences",
+    "load_errors",
+    "load_series",
+    "nan_errors",
+    "quantities",
+    "without_cut_loads",
+]
 
 KINDS = ("l2", "linf", "final")
 
@@ -75,4 +86,73 @@ def errors(result, reference) -> dict[str, float]:
         out[f"{q}_l2"] = float(np.sqrt(np.mean(a**2)))
         out[f"{q}_linf"] = float(np.max(a))
         out[f"{q}_final"] = float(a[-1])
+    return {k: (v if np.isfinite(v) else float("nan")) for k, v in out.items()}
+
+
+# --- Beyond the end-effector: loads and energy -------------------------------------------------
+#
+# ``moment1``: bending moment at the root of link 1 (N·m). The hub of link 1 turns about the
+# fixed base joint, so its moment balance gives M = τ₁ − J₁ θ̈₁ for every method, from the stored
+# joint torque and rate (θ̈₁ by central differences on the output grid); without a hub (J₁ = 0) it
+# is joint 1's torque and is left out. The cut loads a DT-TMM
+# Result carries give the same value (checked in tests/test_report_loads.py); they are used when
+# both results have them. ``torque{i}``: torque of joint i where the joint is motion-driven (there
+# it is an output; a torque-driven joint's torque is the input law). ``energy``: total energy (J)
+# where the method records it.
+
+LOAD_KINDS = ("l2", "linf")
+
+
+def load_series(result, case) -> dict[str, np.ndarray]:
+    """Load quantities of ``result`` on its output times: name -> (nt,) array (see above)."""
+    t = np.asarray(result.t, float)
+    out = {}
+    if result.cut_loads is not None and result.cut_load_t is not None:
+        out["moment1"] = np.interp(t, result.cut_load_t, result.cut_loads[:, 0, 0])
+    elif t.size >= 3 and case.model.links[0].hub_inertia > 0:  # without a hub it is joint 1's torque
+        J = case.model.links[0].hub_inertia
+        out["moment1"] = result.joint_torque[:, 0] - J * np.gradient(result.joint_rate[:, 0], t, edge_order=2)
+    for i, d in enumerate(case.scenario.drives):
+        if d.kind == "motion":
+            out[f"torque{i + 1}"] = np.asarray(result.joint_torque[:, i], float)
+    if result.energy is not None:
+        out["energy"] = np.asarray(result.energy, float)
+    return out
+
+
+def load_differences(result, reference, case, *, both_cut_loads=None):
+    """(t, {quantity: result minus reference}) for the load quantities both have.
+
+    Only the reference's time span is kept; the reference is interpolated to the result's times.
+    The root moment is taken the same way for both (from cut loads only when both have them).
+    """
+    if both_cut_loads is None:
+        both_cut_loads = result.cut_loads is not None and reference.cut_loads is not None
+    a = load_series(result if both_cut_loads else without_cut_loads(result), case)
+    b = load_series(reference if both_cut_loads else without_cut_loads(reference), case)
+    t, rt = np.asarray(result.t, float), np.asarray(reference.t, float)
+    keep = (t >= rt[0] - 1e-12) & (t <= rt[-1] + 1e-12)
+    diffs = {q: a[q][keep] - np.interp(t[keep], rt, b[q]) for q in a if q in b}
+    return t[keep], diffs
+
+
+def without_cut_loads(result):
+    """``result`` without its cut loads (the root moment then comes from the hub balance)."""
+    from dataclasses import replace
+
+    return replace(result, cut_loads=None, cut_load_t=None) if result.cut_loads is not None else result
+
+
+def load_errors(result, reference, case) -> dict[str, float]:
+    """``{quantity}_l2`` (RMS) and ``{quantity}_linf`` (max abs) of the load differences, plus
+    ``{quantity}_scale``: the largest absolute value of the reference (for relative errors)."""
+    both = result.cut_loads is not None and reference.cut_loads is not None
+    _, diffs = load_differences(result, reference, case, both_cut_loads=both)
+    ref = load_series(reference if both else without_cut_loads(reference), case)
+    out = {}
+    for q, e in diffs.items():
+        a = np.abs(e)
+        out[f"{q}_l2"] = float(np.sqrt(np.mean(a**2))) if a.size else float("nan")
+        out[f"{q}_linf"] = float(np.max(a)) if a.size else float("nan")
+        out[f"{q}_scale"] = float(np.max(np.abs(ref[q])))
     return {k: (v if np.isfinite(v) else float("nan")) for k, v in out.items()}

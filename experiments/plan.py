@@ -1,20 +1,25 @@
 """Study sizes: which cases, durations, references and (method, k, h) grids each study uses.
 
 ``PLANS["quick"]`` is what ``make report`` runs (under ten minutes on two cores: shortened
-durations, cheaper references); ``PLANS["full"]`` the paper-size studies. Tests build their
-own tiny :class:`Plan`.
+durations, cheaper references); ``PLANS["full"]`` the paper-size studies. ``plan_for(size,
+case_files)`` gives the same sizes on any case files (``dttmm report --case PATH``). Tests build
+their own tiny :class:`Plan`.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .references import RefSpec
 
-__all__ = ["Plan", "PLANS", "CASE_DIR", "load_cases"]
+__all__ = ["CASE_DIR", "PLANS", "SHIPPED", "Plan", "case_fingerprint", "load_cases", "plan_for"]
 
 CASE_DIR = Path(__file__).resolve().parent / "cases"
+SHIPPED = ("single_link", "three_link", "spin_up")  # the cases of the default report, in order
+QUICK_MAX_DURATION = 6.0  # s: the quick size shortens longer cases to this
 
 
 @dataclass(frozen=True)
@@ -26,6 +31,7 @@ class Plan:
     studies : study name -> its parameters (see each study module's ``tasks``)
     output_step : common output grid (s) of every run, or None to keep each TOML's value. The
         Exudyn adapters sample on their step grid, so it must be a multiple of every h studied.
+    case_files : case name -> TOML path; a case not listed is read from ``CASE_DIR/<name>.toml``
     """
 
     name: str
@@ -35,9 +41,24 @@ class Plan:
     studies: dict = field(default_factory=dict)
     note: str = ""
     output_step: float | None = None
+    case_files: dict = field(default_factory=dict)
 
-    def with_studies(self, **studies) -> "Plan":
-        return replace(self, studies={**self.studies, **studies})
+
+def case_fingerprint(case) -> str:
+    """Eight hex digits that change with any parameter of the case (its TOML content).
+
+    A case from outside the repository carries it in its name, so cached references and runs
+    of an edited file are never mistaken for those of the earlier version.
+    """
+    from dttmm.case import case_to_dict
+
+    d = case_to_dict(case)
+    d.pop("name", None)
+    return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:8]
+
+
+def _case_path(plan: Plan, name: str, case_dir) -> Path:
+    return Path(plan.case_files.get(name) or Path(case_dir) / f"{name}.toml")
 
 
 def load_cases(plan: Plan, case_dir=CASE_DIR) -> dict:
@@ -46,7 +67,7 @@ def load_cases(plan: Plan, case_dir=CASE_DIR) -> dict:
 
     out = {}
     for name, duration in plan.durations.items():
-        case = dttmm.load_case(Path(case_dir) / f"{name}.toml")
+        case = replace(dttmm.load_case(_case_path(plan, name, case_dir)), name=name)
         changes = {}
         if duration is not None and duration != case.scenario.duration:
             changes["duration"] = float(duration)
@@ -56,6 +77,69 @@ def load_cases(plan: Plan, case_dir=CASE_DIR) -> dict:
             case = replace(case, scenario=replace(case.scenario, **changes))
         out[name] = case
     return out
+
+
+def plan_for(size: str, case_files=()) -> Plan:
+    """The plan ``size`` ("quick" or "full") over the given case TOML files instead of the
+    shipped cases (none given: ``PLANS[size]`` itself).
+
+    A file inside ``CASE_DIR`` keeps its name; any other case is named ``<name>-<fingerprint>``
+    (see :func:`case_fingerprint`). Durations are those of the files, except that the quick size
+    shortens a case longer than ``QUICK_MAX_DURATION``. Raises InputError for a missing file or
+    two files of the same name.
+    """
+    import dttmm
+    from dttmm.errors import InputError
+
+    base = PLANS[size]
+    if not case_files:
+        return base
+    files, durations = {}, {}
+    for p in map(Path, case_files):
+        if not p.is_file():
+            raise InputError("--case", str(p), "is not a file")
+        try:
+            case = dttmm.load_case(p)
+        except InputError as exc:  # name the file as well as the field
+            raise InputError(f"{p}: {exc.field}", exc.value, exc.reason) from None
+        shipped = p.resolve().parent == CASE_DIR
+        name = case.name if shipped else f"{case.name}-{case_fingerprint(case)}"
+        if name in files:
+            raise InputError("--case", str(p), f"names the same case as {files[name]} ({name})")
+        files[name] = str(p.resolve())
+        T = case.scenario.duration
+        durations[name] = min(T, QUICK_MAX_DURATION) if size == "quick" and T > QUICK_MAX_DURATION else None
+    return _retarget(base, files, durations)
+
+
+def _durations_text(durations: dict) -> str:
+    return ", ".join(
+        f"{n}: {'as written' if T is None else f'its first {T:g} s'}" for n, T in durations.items()
+    )
+
+
+def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
+    """``base`` with every study and reference moved onto the cases ``files``."""
+    names = list(files)
+    ref, chk = next(iter(base.reference.values())), next(iter(base.check.values()))
+    studies = {}
+    for s, p in base.studies.items():
+        p = dict(p)
+        if "cases" in p:
+            p["cases"] = names
+        if "case" in p:
+            p["case"] = names[-1]
+        studies[s] = p
+    return replace(
+        base,
+        durations=durations,
+        reference=dict.fromkeys(names, ref),
+        check=dict.fromkeys(names, chk),
+        studies=studies,
+        case_files=files,
+        note=f"{base.name} size on the cases given on the command line ({_durations_text(durations)}); "
+        + _GRID_NOTE.get(base.name, ""),
+    )
 
 
 _FLEX = ["dttmm", "dttmm-2nd", "global", "exudyn-ancf", "exudyn-beam"]
@@ -92,6 +176,7 @@ def _plan(
     note,
     variants,
     cost_cap=None,
+    cost_case="three_link",
 ):
     ref, chk = _refs(*ref_kh, check)
     cases = list(durations)
@@ -111,9 +196,11 @@ def _plan(
             },
             "work_precision": {
                 "cases": cases,
-                "methods": _FLEX,
+                "methods": _FLEX + ["global-2nd"],  # like-for-like partner of dttmm-2nd
                 "path": path,
                 "rigid": {"method": "pinocchio-rigid", "h": [1e-3]},
+                # MuJoCo chain: explicit joint springs, stable step ∝ 1/k² (h_stable ≈ 0.02/k² s here)
+                "mujoco_path": [(2, 2e-3), (4, 1e-3), (8, 2.5e-4), (16, 6.25e-5), (32, 1.5625e-5)],
             },
             "scheme": {"cases": cases, "variants": variants, "ks": scheme_ks, "h": 1e-3, "hs": hs, "k": k_h},
             "paper": {
@@ -122,18 +209,27 @@ def _plan(
                 "k": 8,
                 "h": 1e-3,
                 "h_by_method": {"dttmm-rk4": rk4_h[-1]},
+                # Exudyn records no energy: the energy errors are taken against DT-TMM at the
+                # reference's k and h (also the reference's cross-check)
+                "energy_reference": {"method": "dttmm", "k": ref_kh[0], "h": ref_kh[1]},
             },
-            "cost": {"case": cases[-1], "methods": _FLEX, "ks": cost_ks, "h": 1e-3, "max_k": cost_cap or {}},
+            "cost": {"case": cost_case, "methods": _FLEX, "ks": cost_ks, "h": 1e-3, "max_k": cost_cap or {}},
         },
         note,
         output_step=max(max(hs), max(h for _, h in path)),
     )
 
 
+_GRID_NOTE = {
+    "quick": "references at h = 2.5e-4 instead of 1e-4; h down to 5e-4 and k up to 16 (32 for cost); errors "
+    "on a 4 ms output grid (a multiple of every step studied); the global solver's cost curve stops at k = 16.",
+    "full": "errors on a 4 ms output grid.",
+}
+
 PLANS = {
     "quick": _plan(
         "quick",
-        durations={"single_link": None, "three_link": None},
+        durations={"single_link": None, "three_link": None, "spin_up": QUICK_MAX_DURATION},
         ref_kh=(32, 2.5e-4),
         check=[("dttmm", 32, 2.5e-4), ("exudyn-beam", 64, 2.5e-4)],
         ks=[1, 2, 4, 8, 16],
@@ -143,15 +239,13 @@ PLANS = {
         rk4_h=[1e-4, 2e-5, 1e-5, 5e-6],
         cost_ks=[1, 2, 4, 8, 16, 32],
         scheme_ks=[1, 2, 4, 8, 16],
-        note="quick size: the cases as written (2 s); references at h = 2.5e-4 instead of 1e-4; "
-        "h down to 5e-4 and k up to 16 (32 for cost); errors on a 4 ms output grid "
-        "(a multiple of every step studied); the global solver's cost curve stops at k = 16.",
+        note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; " + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
         cost_cap={"global": 16},
     ),
     "full": _plan(
         "full",
-        durations={"single_link": None, "three_link": None},
+        durations={"single_link": None, "three_link": None, "spin_up": None},
         ref_kh=(32, 1e-4),
         check=[("dttmm", 32, 1e-4), ("exudyn-beam", 64, 1e-4)],
         ks=[1, 2, 4, 8, 16, 32],
@@ -161,7 +255,16 @@ PLANS = {
         rk4_h=[1e-4, 2e-5, 1e-5, 5e-6, 2.5e-6],
         cost_ks=[1, 2, 4, 8, 16, 32, 64],
         scheme_ks=[1, 2, 4, 8, 16, 32],
-        note="full size: the cases as written, errors on a 4 ms output grid.",
+        note="full size: the cases as written; " + _GRID_NOTE["full"],
         variants=_VARIANTS_FULL,
     ),
 }
+
+# Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak (8 s),
+# no global solver (it repeats DT-TMM's discretisation to round-off and costs ~90 % of the runs).
+_BENCH = {"quick": {"ks": [2, 4, 8, 16, 32], "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
+                    "methods": ["dttmm", "dttmm-2nd", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"]},
+          "full": {"ks": [2, 4, 8, 16, 32]}}
+for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured: 2nd-order element)
+    _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
+PLANS = {n: replace(p, studies={**p.studies, "benchmarks": _BENCH[n]}) for n, p in PLANS.items()}

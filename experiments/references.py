@@ -1,25 +1,31 @@
 """Reference solutions: computed once per case at high accuracy, cached on disk, reused.
 
 Each reference is stored as ``<folder>/<case>_T<duration>_dt<output step>.parquet``
-(``Result.to_frame``) with a
-JSON provenance beside it: method, k, h, options, versions, date, wall time, the size it was
-made for, and a cross-check — the errors of a second, independent method against it.
-A cached reference is reused only when its provenance matches the requested spec.
+(``Result.to_frame``) with a JSON provenance beside it: method, k, h, options, versions, date,
+wall time, the size it was made for, and a cross-check — the errors of a second, independent
+method against it. The provenance carries a key: the hash of the case's content, the candidate
+and cross-check specs and the code version of every method among them (see
+``experiments.fingerprint``). A cached reference is reused only when its key matches and its
+files verify (see ``experiments.cachefiles``); otherwise it is computed again and overwritten.
 """
 
 from __future__ import annotations
 
 import datetime
-import json
 import math
 import platform
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from . import methods, metrics
+from . import cachefiles, fingerprint, methods, metrics
+from .runs import _check
 
-__all__ = ["RefSpec", "reference", "load_reference"]
+__all__ = ["RefSpec", "load_reference", "reference", "reference_key"]
+
+
+# Layout of the stored provenance; part of the key, so raise it when its fields change.
+PROVENANCE_FORMAT = 1
 
 
 @dataclass(frozen=True)
@@ -40,18 +46,39 @@ def _paths(folder, case) -> tuple[Path, Path]:
     return Path(folder) / f"{stem}.parquet", Path(folder) / f"{stem}.json"
 
 
-def load_reference(folder, case):
-    """(Result, provenance) from the cache, or (None, None) when absent."""
-    import pandas as pd
-    from dttmm import Result
+def reference_key(case, candidates, check=()) -> str:
+    """sha256 of what a reference depends on: the case's content, the candidate and
+    cross-check specs, and the code version of each of their methods."""
+    specs = list(candidates) + list(check)
+    return fingerprint.digest(
+        {
+            "case": fingerprint.case_digest(case),
+            "candidates": [asdict(c) for c in candidates],
+            "check": [asdict(c) for c in check],
+            "code": {m: fingerprint.code_version(m) for m in dict.fromkeys(s.method for s in specs)},
+            "format": PROVENANCE_FORMAT,
+        }
+    )
 
+
+def load_reference(folder, case, key: str):
+    """(Result or None, provenance) of the stored reference made for ``key``, or (None, None)
+    when there is none or it does not verify (a CacheWarning then says why)."""
     ppath, jpath = _paths(folder, case)
-    if not (ppath.exists() and jpath.exists()):
+    try:
+        got = cachefiles.read_entry(jpath, ppath, key)
+    except cachefiles.BadEntry as exc:
+        cachefiles.warn(jpath, str(exc))
         return None, None
-    prov = json.loads(jpath.read_text())
+    if got is None:
+        return None, None
+    prov, data = got
     if prov.get("status") != "ok":
         return None, prov
-    return Result.from_frame(pd.read_parquet(ppath)), prov
+    if data is None:
+        cachefiles.warn(jpath, "provenance says ok but there is no history")
+        return None, None
+    return cachefiles.result_from_bytes(data), prov
 
 
 def _versions(res) -> dict:
@@ -66,11 +93,11 @@ def _try(spec: RefSpec, case):
     t0 = time.perf_counter()
     try:
         res = methods.run(spec.method, case, spec.k, spec.h, **dict(spec.options))
-    except Exception as exc:  # a failing candidate is recorded and the next one tried
+    except Exception as exc:  # noqa: BLE001 -- a failing candidate is recorded and the next one tried
         return None, f"{spec.describe()}: {type(exc).__name__}: {str(exc)[:200]}", time.perf_counter() - t0
-    from .runs import _check
-
     why = _check(res)
+    if not why and res.status != "ok":  # a reference must be a fully trusted run
+        why = f"status {res.status}: " + ("; ".join(res.warnings) or "no reason given")
     return (None if why else res), (f"{spec.describe()}: {why}" if why else ""), time.perf_counter() - t0
 
 
@@ -84,18 +111,20 @@ def reference(case, candidates, folder, *, check=(), size="", recompute=False):
     folder : cache folder
     check : sequence of RefSpec for the cross-check (the first that runs is used)
     size : name of the study size (recorded; e.g. ``quick`` references are cheaper)
+    recompute : ignore the stored reference and compute (and store) it again
 
     Returns
     -------
     (Result or None, dict). With no candidate working the Result is None and the provenance
     lists every failure; studies then report NaN errors with that reason.
     """
-    candidates = list(candidates)
+    candidates, check = list(candidates), list(check)
     ppath, jpath = _paths(folder, case)
     want = [asdict(c) for c in candidates]
+    key = reference_key(case, candidates, check)
     if not recompute:
-        res, prov = load_reference(folder, case)
-        if prov is not None and prov.get("candidates") == json.loads(json.dumps(want)):
+        res, prov = load_reference(folder, case, key)
+        if prov is not None:
             return res, prov
     jpath.parent.mkdir(parents=True, exist_ok=True)
     failures, res, used, wall = [], None, None, math.nan
@@ -114,10 +143,10 @@ def reference(case, candidates, folder, *, check=(), size="", recompute=False):
         "date": datetime.datetime.now().isoformat(timespec="seconds"),
         "machine": f"{platform.node()} ({platform.machine()}, {platform.processor() or '?'})",
     }
+    prov["key"] = key
     if res is None:
         prov.update(status="failed", id=f"none-{prov['date']}")
-        jpath.write_text(json.dumps(prov, indent=1))
-        return None, prov
+        return None, cachefiles.write_entry(jpath, ppath, prov, None)
     prov.update(
         status="ok",
         method=used.method,
@@ -128,24 +157,22 @@ def reference(case, candidates, folder, *, check=(), size="", recompute=False):
         run_time=wall,
         n_steps=res.n_steps,
         versions=_versions(res),
-        id=f"{used.describe()} @ {prov['date']}",
+        id=f"{used.describe()} @ {prov['date']} #{key[:12]}",
         cross_check=_cross_check(case, res, check),
     )
-    res.to_frame().to_parquet(ppath)
-    jpath.write_text(json.dumps(prov, indent=1))
-    return res, prov
+    return res, cachefiles.write_entry(jpath, ppath, prov, cachefiles.result_bytes(res))
 
 
 def _cross_check(case, ref, check) -> dict:
     """Errors of the first working check method against the reference."""
     tried = []
     for spec in check:
-        res, why, wall = _try(spec, case)
+        res, why, _ = _try(spec, case)
         if res is None:
             tried.append(why)
             continue
         err = metrics.errors(res, ref)
-        keep = {k: v for k, v in err.items() if k.endswith("_l2") or k.endswith("_linf")}
+        keep = {k: v for k, v in err.items() if k.endswith(("_l2", "_linf"))}
         return {
             "method": spec.method,
             "k": spec.k,

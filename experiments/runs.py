@@ -2,25 +2,34 @@
 
 A :class:`Task` names a run: (case, duration, method, k, h, options). :func:`execute` runs it
 (on any worker) and returns an :class:`Outcome`; :class:`RunStore` writes each finished run
-at once as ``<case>/<key>.parquet`` (its time history) and ``<case>/<key>.json`` (its row),
-the JSON last, so a run counts as done only when both are on disk.
+at once as a parquet time history and a JSON row (the row last, so a run counts as done only
+when both are on disk), keyed by the case's content and the method's code, verified on read.
 """
 
 from __future__ import annotations
 
-import json
+import functools
 import math
 import os
 import re
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from . import methods, metrics
+from . import cachefiles, fingerprint, methods, metrics
 
-__all__ = ["Task", "Outcome", "execute", "RunStore", "options_text", "task_from_row"]
+__all__ = [
+    "WITH_HISTORY",
+    "Outcome",
+    "RunStore",
+    "Task",
+    "execute",
+    "options_text",
+    "row_status",
+    "task_from_row",
+]
 
 
 def options_text(options) -> str:
@@ -57,41 +66,53 @@ class Task:
 
 @dataclass
 class Outcome:
-    """What a worker sends back: status ``ok`` | ``failed`` | ``unavailable`` and the Result."""
+    """What a worker sends back: status ``ok`` | ``failed`` | ``unavailable``, the Result and,
+    for a run that finished, its timing (``timing_*`` columns, see :mod:`experiments.timing`)."""
 
     status: str
     reason: str = ""
     result: object = None
-    run_time: float = math.nan  # s, build + solve, measured in the worker process
+    run_time: float = math.nan  # s, least wall time of the calls (build + solve), in the worker
     worker: str = field(default_factory=lambda: f"{os.uname().nodename}:{os.getpid()}")
+    timing: dict = field(default_factory=dict)
 
 
 def _check(result) -> str:
-    """Why a returned Result is not usable ('' when it is)."""
-    meta = result.meta or {}
-    if meta.get("success", True) is False:
-        return f"method reported failure: {meta.get('reason') or meta.get('message') or 'no reason given'}"
+    """Why a returned Result is not usable ('' when it is).
+
+    A Result with status "failed" or with non-finite output is not; "unconverged" and
+    "ill-conditioned" ones are kept (their errors are measured) and marked by their status.
+    """
+    if getattr(result, "status", "ok") == "failed":
+        meta = result.meta or {}
+        why = "; ".join(result.warnings) or meta.get("reason") or meta.get("message") or "no reason given"
+        return f"method reported failure: {why}"
     arrays = (result.joint_angle, result.tip_deflection, result.end_effector)
     if not all(np.all(np.isfinite(a)) for a in arrays):
         return "non-finite output (diverged)"
     return ""
 
 
-def execute(simulate, case, task: Task) -> Outcome:
+def execute(simulate, case, task: Task, repeats: int = 1) -> Outcome:
     """Run one task with a resolved method; never raises for a failing run.
 
-    ``KeyboardInterrupt`` and ``SystemExit`` still propagate (they stop the sweep).
+    ``repeats`` ≥ 1 calls (one BLAS thread, CPU and wall time each, see
+    :func:`experiments.timing.measure`); the first call's Result is kept. Studies that report
+    cost ask for ≥ 3, accuracy-only studies for 1. ``KeyboardInterrupt`` and ``SystemExit``
+    still propagate (they stop the sweep).
     """
+    from .timing import measure
+
     t0 = time.perf_counter()
     try:
-        res = simulate(case, task.k, task.h, **dict(task.options))
+        res, timing = measure(lambda: simulate(case, task.k, task.h, **dict(task.options)), repeats)
     except methods.MethodUnavailable as exc:
         return Outcome("unavailable", str(exc), run_time=time.perf_counter() - t0)
     except Exception as exc:  # recorded with its reason, never dropped
         msg = str(exc).splitlines()[0][:300] if str(exc) else ""
         return Outcome("failed", f"{type(exc).__name__}: {msg}", run_time=time.perf_counter() - t0)
     why = _check(res)
-    return Outcome("failed" if why else "ok", why, res, time.perf_counter() - t0)
+    return Outcome("failed" if why else "ok", why, res, timing.wall_min, timing=timing.columns())
 
 
 def _plain(v):
@@ -107,40 +128,102 @@ def _plain(v):
     return str(v)
 
 
+# Layout of a stored row; part of every entry key, so raise it when the row's columns change.
+STORE_FORMAT = 2
+
+# Row statuses whose run left a time history (errors are computed; only "ok" counts as ok).
+WITH_HISTORY = ("ok", "unconverged", "ill-conditioned")
+
+
 class RunStore:
-    """Folder of finished runs: one JSON row and one parquet history per task."""
+    """Folder of finished runs: one verified JSON row and parquet history per run.
 
-    def __init__(self, root):
+    Entries are named ``<case>/<task.key>@<entry key>`` where the entry key hashes the task,
+    the case's content and the method's code version (see ``experiments.fingerprint``), so a
+    changed case or changed code never finds an old entry. Every read is verified (see
+    ``experiments.cachefiles``); a damaged entry is reported with a ``CacheWarning`` and run
+    again.
+
+    Parameters
+    ----------
+    root : folder of the store
+    cases : dict case name -> dttmm.Case (more can be added with :meth:`bind`)
+    recompute : ignore every entry not written by this store object (rewrite them all)
+    """
+
+    def __init__(self, root, cases=None, *, recompute: bool = False):
         self.root = Path(root)
+        self.recompute = recompute
+        self._case_digest: dict[str, str] = {}
+        self._code: dict[str, dict] = {}
+        self._fresh: set[str] = set()
+        self._warned: set[str] = set()
+        self.bind(cases or {})
 
-    def _paths(self, task: Task) -> tuple[Path, Path]:
-        d = self.root / task.case
-        return d / f"{task.key}.json", d / f"{task.key}.parquet"
+    def bind(self, cases: dict) -> None:
+        """Make the cases (name -> dttmm.Case) known; runs are keyed by their content."""
+        for name, case in cases.items():
+            self._case_digest[name] = fingerprint.case_digest(case)
+
+    def entry_key(self, task: Task) -> str:
+        """sha256 of the task, its case's content and its method's code version."""
+        if task.case not in self._case_digest:
+            raise KeyError(f"RunStore: case {task.case!r} is unknown; pass it in cases= or bind()")
+        if task.method not in self._code:
+            self._code[task.method] = fingerprint.code_version(task.method)
+        return fingerprint.digest(
+            {
+                "task": [task.case, task.method, task.k, task.h, task.duration, options_text(task.options)],
+                "case": self._case_digest[task.case],
+                "code": self._code[task.method],
+                "format": STORE_FORMAT,
+            }
+        )
+
+    def _paths(self, task: Task) -> tuple[Path, Path, str]:
+        key = self.entry_key(task)
+        folder, stem = self.root / task.case, f"{task.key}@{key[:16]}"
+        return folder / f"{stem}.json", folder / f"{stem}.parquet", key
+
+    def _load(self, task: Task):
+        """(row, history bytes or None) of a usable entry, else None (warned when damaged)."""
+        jpath, ppath, key = self._paths(task)
+        if self.recompute and key not in self._fresh:
+            return None
+        try:
+            return cachefiles.read_entry(jpath, ppath, key)
+        except cachefiles.BadEntry as exc:
+            if key not in self._warned:
+                self._warned.add(key)
+                cachefiles.warn(jpath, str(exc))
+            return None
 
     def has(self, task: Task) -> bool:
-        return self._paths(task)[0].exists()
+        """Whether a verified entry of the run exists (damaged ones are warned about)."""
+        return self._load(task) is not None
 
     def write(self, task: Task, outcome: Outcome, n_joints: int, reference=None, reference_id="") -> dict:
         """Store one finished run and return its row (errors against ``reference`` included)."""
-        jpath, ppath = self._paths(task)
+        jpath, ppath, key = self._paths(task)
         jpath.parent.mkdir(parents=True, exist_ok=True)
         row = self._row(task, outcome, n_joints)
-        if outcome.result is not None:
-            tmp = ppath.with_suffix(".tmp.parquet")
-            outcome.result.to_frame().to_parquet(tmp)
-            os.replace(tmp, ppath)
-        row.update(score(outcome.result if outcome.status == "ok" else None, reference, n_joints, row))
+        has_history = row["status"] in WITH_HISTORY and outcome.result is not None
+        row.update(score(outcome.result if has_history else None, reference, n_joints, row))
         row["reference_id"] = reference_id
-        tmp = jpath.with_suffix(".tmp")
-        tmp.write_text(json.dumps(row, indent=1))
-        os.replace(tmp, jpath)
+        row["scored_with"] = _metrics_version()
+        row["key"] = key
+        history = cachefiles.result_bytes(outcome.result) if outcome.result is not None else None
+        row = cachefiles.write_entry(jpath, ppath, row, history)
+        self._fresh.add(key)
+        self._warned.discard(key)
         return row
 
     @staticmethod
     def _row(task: Task, outcome: Outcome, n_joints: int) -> dict:
         res = outcome.result
         meta = dict(res.meta) if res is not None else {}
-        row = {
+        status, reason = row_status(outcome)
+        return {
             "case": task.case,
             "method": task.method,
             "k": task.k,
@@ -148,8 +231,9 @@ class RunStore:
             "duration": task.duration,
             "options": options_text(task.options),
             **{f"opt_{k}": str(v) for k, v in task.options},
-            "status": outcome.status,
-            "reason": outcome.reason,
+            "status": status,
+            "reason": reason,
+            "warnings": "; ".join(getattr(res, "warnings", ())),
             "n_joints": n_joints,
             "wall_time": float(res.wall_time) if res is not None else math.nan,
             "run_time": outcome.run_time,
@@ -159,20 +243,21 @@ class RunStore:
             "iterations_mean": _plain(meta.get("iterations_mean")),
             "meta": _plain({k: v for k, v in meta.items() if k not in ("versions",)}),
             "versions": _plain(meta.get("versions", {})),
-            "key": task.key,
+            "task": task.key,
+            **outcome.timing,
         }
-        return row
 
     def row(self, task: Task) -> dict:
-        return json.loads(self._paths(task)[0].read_text())
+        """The stored row of a finished run (KeyError when there is no usable entry)."""
+        got = self._load(task)
+        if got is None:
+            raise KeyError(f"no usable stored run for {task.case}/{task.key}")
+        return got[0]
 
     def history(self, task: Task):
         """The stored Result of a finished run, or None when the run left none."""
-        from dttmm import Result
-        import pandas as pd
-
-        p = self._paths(task)[1]
-        return Result.from_frame(pd.read_parquet(p)) if p.exists() else None
+        got = self._load(task)
+        return cachefiles.result_from_bytes(got[1]) if got is not None and got[1] is not None else None
 
     def table(self, tasks, references=None):
         """Rows of the given (finished) tasks as a DataFrame, errors rescored where the stored
@@ -181,16 +266,40 @@ class RunStore:
 
         rows = []
         for task in dict.fromkeys(tasks):
-            if not self.has(task):
+            got = self._load(task)
+            if got is None:
                 continue
-            row = self.row(task)
+            row, data = got
             ref, ref_id = (references or {}).get(task.case, (None, ""))
-            if references is not None and row.get("reference_id") != ref_id:
-                res = self.history(task) if row["status"] == "ok" else None
+            stale = row.get("reference_id") != ref_id or row.get("scored_with") != _metrics_version()
+            if references is not None and stale:
+                usable = row["status"] in WITH_HISTORY and data is not None
+                res = cachefiles.result_from_bytes(data) if usable else None
                 row.update(score(res, ref, row["n_joints"], row))
                 row["reference_id"] = ref_id
-            rows.append({k: v for k, v in row.items() if k not in ("meta", "versions")})
+                row["scored_with"] = _metrics_version()
+            drop = ("meta", "versions", "history_sha256", cachefiles.SEAL, "scored_with")
+            rows.append({k: v for k, v in row.items() if k not in drop})
         return pd.DataFrame(rows)
+
+
+@functools.cache
+def _metrics_version() -> str:
+    """Hash of the code that computes the error columns: a stored row scored by other code is
+    scored again when it is read."""
+    return fingerprint.tree_hash(Path(metrics.__file__))[:16]
+
+
+def row_status(outcome: Outcome) -> tuple[str, str]:
+    """(status, reason) of a run's row: the outcome's, refined by the Result's own status
+    ("unconverged", "ill-conditioned") when the run returned one; the reason then lists the
+    Result's warnings."""
+    res = outcome.result
+    status = getattr(res, "status", "ok") if outcome.status == "ok" and res is not None else outcome.status
+    reason = outcome.reason
+    if status != outcome.status and not reason:
+        reason = "; ".join(getattr(res, "warnings", ())) or f"method reported {status}"
+    return status, reason
 
 
 def score(result, reference, n_joints: int, row: dict) -> dict:
@@ -210,8 +319,3 @@ def task_from_row(row) -> Task:
     """The task of a stored row (option values come back as text; the key is the same)."""
     opts = dict(x.split("=", 1) for x in row["options"].split(",")) if row["options"] else {}
     return Task(row["case"], row["method"], row["k"], row["h"], row["duration"], tuple(opts.items()))
-
-
-def task_dict(task: Task) -> dict:
-    """Plain-data form of a task (for provenance files)."""
-    return asdict(task)

@@ -10,6 +10,7 @@ import pandas as pd
 
 from .context import prepare
 from .plan import PLANS
+from .studies import STUDIES
 from .sweep import run_sweep
 
 __all__ = ["run_studies", "save_tables", "load_tables", "study_main"]
@@ -17,11 +18,13 @@ __all__ = ["run_studies", "save_tables", "load_tables", "study_main"]
 
 def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True) -> dict:
     """Run the studies ``names`` (default: every study of the plan) and return their tables."""
-    from .studies import STUDIES
-
     names = [n for n in (names or STUDIES) if n in ctx.plan.studies]
     per_study = {n: STUDIES[n].tasks(ctx) for n in names}
     every = [t for ts in per_study.values() for t in ts]
+    repeats = {}  # timed calls per run: the most any study that reports cost asks for
+    for n, ts in per_study.items():
+        for t in ts:
+            repeats[t] = max(repeats.get(t, 1), getattr(STUDIES[n], "REPEATS", 1))
     run_sweep(
         every,
         ctx.cases,
@@ -31,6 +34,7 @@ def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True)
         workers=workers,
         progress=progress,
         desc=f"{ctx.plan.name} runs",
+        repeats=repeats,
     )
     tables = {}
     for n in names:
@@ -66,7 +70,8 @@ def load_tables(folder) -> dict:
 
 
 def study_main(name: str, argv=None) -> int:
-    """``python -m experiments.studies.<name> [--quick|--full] [--out DIR] [--scheduler ADDR]``."""
+    """``python -m experiments.studies.<name> [--quick|--full] [--out DIR] [--scheduler ADDR]
+    [--recompute]``."""
     ap = argparse.ArgumentParser(prog=f"python -m experiments.studies.{name}")
     g = ap.add_mutually_exclusive_group()
     g.add_argument("--quick", dest="size", action="store_const", const="quick")
@@ -75,8 +80,9 @@ def study_main(name: str, argv=None) -> int:
     ap.add_argument("--data", default="data", help="folder of references and cached runs")
     ap.add_argument("--scheduler", default=None, help="dask scheduler address, or 'serial'")
     ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--recompute", action="store_true", help="ignore cached runs and references")
     a = ap.parse_args(argv)
-    ctx = prepare(PLANS[a.size or "quick"], a.data)
+    ctx = prepare(PLANS[a.size or "quick"], a.data, recompute=a.recompute)
     tables = run_studies(ctx, [name], scheduler=a.scheduler, workers=a.workers)
     out = save_tables(tables, a.out)
     print(f"{name}: tables in {out}")

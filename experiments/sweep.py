@@ -4,7 +4,8 @@ By default a LocalCluster on this machine's cores (one process per core, one thr
 each timing is one run alone in its worker process); ``scheduler="tcp://HOST:PORT"`` uses a
 running cluster; ``scheduler="serial"`` runs in this process (debugging, tests). Each finished
 run is written at once by the :class:`~experiments.runs.RunStore`, so a killed sweep resumes
-where it stopped and recomputes only the missing runs.
+where it stopped and recomputes only the missing runs (and any stored run whose files fail
+verification, with a warning).
 """
 
 from __future__ import annotations
@@ -20,9 +21,20 @@ from .runs import Outcome, RunStore, Task, execute
 __all__ = ["run_sweep", "pending"]
 
 
-def pending(tasks: Iterable[Task], store: RunStore) -> list[Task]:
-    """Tasks (deduplicated, in order) that have no finished run in the store."""
-    return [t for t in dict.fromkeys(tasks) if not store.has(t)]
+def pending(tasks: Iterable[Task], store: RunStore, repeats=None) -> list[Task]:
+    """Tasks (deduplicated, in order) that have no finished run in the store, or whose stored
+    successful run was timed with fewer repeats than ``repeats`` (Task -> int) asks for."""
+    need = repeats or {}
+
+    def done(t):
+        if not store.has(t):
+            return False
+        if need.get(t, 1) <= 1:
+            return True
+        row = store.row(t)
+        return row.get("status") != "ok" or int(row.get("timing_repeats") or 1) >= need[t]
+
+    return [t for t in dict.fromkeys(tasks) if not done(t)]
 
 
 @contextmanager
@@ -75,6 +87,7 @@ def run_sweep(
     workers=None,
     progress=True,
     desc="sweep",
+    repeats=None,
 ):
     """Run every task not yet in ``store``, writing each as it finishes; return the table.
 
@@ -86,13 +99,16 @@ def run_sweep(
     references : dict case name -> (Result or None, reference id), for the error columns
     scheduler : None (LocalCluster), ``"serial"`` (this process) or a scheduler address
     workers : number of LocalCluster workers (default: this machine's cores)
+    repeats : dict Task -> timed calls per run (default 1; cost studies ask for ≥ 3)
 
     Returns
     -------
     pandas.DataFrame, one row per task (see RunStore.table).
     """
     tasks = list(dict.fromkeys(tasks))
-    todo = pending(tasks, store)
+    store.bind(cases)  # runs are keyed by the content of these cases
+    repeats = repeats or {}
+    todo = pending(tasks, store, repeats)
     references = references or {}
     for t in todo:
         if abs(cases[t.case].scenario.duration - t.duration) > 1e-12:
@@ -119,15 +135,15 @@ def run_sweep(
     try:
         if scheduler == "serial":
             for t in runnable:
-                finish(t, execute(resolved[t.method], cases[t.case], t))
+                finish(t, execute(resolved[t.method], cases[t.case], t, repeats.get(t, 1)))
         elif runnable:
-            _distributed(runnable, resolved, cases, finish, scheduler, workers)
+            _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats)
     finally:
         bar.close()
     return store.table(tasks, references if references else None)
 
 
-def _distributed(runnable, resolved, cases, finish, scheduler, workers):
+def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats):
     from dask.distributed import as_completed
 
     with _client(scheduler, workers) as client:
@@ -144,8 +160,10 @@ def _distributed(runnable, resolved, cases, finish, scheduler, workers):
                 resolved[t.method],
                 case_f[t.case],
                 t,
+                repeats.get(t, 1),
                 pure=False,
-                key=f"run-{t.case}-{t.key}",
+                # the entry key: a shared scheduler never confuses two versions of a run
+                key=f"run-{t.case}-{t.key}-{store.entry_key(t)[:16]}",
                 priority=_cost(t, cases[t.case]),
             ): t
             for t in runnable

@@ -60,7 +60,8 @@ def simulate(case, *, elements_per_link, h, rho_inf=0.8, reduced_integration=Fal
     Options: ``rho_inf`` (generalized-α spectral radius, 0.8), ``reduced_integration`` (False),
     and the common ones of :func:`reference_models._exudyn_common.simulate_exudyn`:
     ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: scaled to the problem),
-    ``newton_max_iterations`` (25), ``modified_newton`` (True), ``inextensible_axial_ratio`` (1e6).
+    ``newton_max_iterations`` (25), ``modified_newton`` (True), ``jacobian_per_step`` (True), ``drive_input``
+    ("pre-step" or "user-function"), ``inextensible_axial_ratio`` (1e6).
     Returns a :class:`dttmm.Result` (meta["method"] = "exudyn-ancf"); raises
     :class:`dttmm.InputError` on bad input and :class:`dttmm.SimulationError` on any failure.
     """

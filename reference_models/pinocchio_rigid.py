@@ -9,6 +9,14 @@ Torque-driven joints follow forward dynamics with τ = drive.torque(t); motion-d
 follow their law and their torque comes from inverse dynamics (RNEA). With both kinds the free
 accelerations solve M_ff q̈_f = τ_f − b_f − M_fp q̈_p.
 
+Closed-loop drives (``pd``, ``pid``, user laws; docs/control.md) are evaluated at every RK4
+stage with the stage's state; a ``pid`` law's integral of the angle error is an extra state
+integrated by the same RK4 (0 at t = 0). A rigid link transmits no bending moment the model
+can resolve (hub and rod are one body), so ``moment_gain != 0`` is refused and user laws see
+``moment = nan``; tip deflections are 0. The ``computed_torque`` feedforward is τ_ct(t) =
+RNEA(α_ref(t), α̇_ref(t), α̈_ref(t)) of this rigid model, with every joint's reference (a motion
+drive's law or a closed-loop drive's reference). Only ``"rk4"`` supports closed-loop drives.
+
 Integrators: ``"rk4"`` and ``"newmark"`` (β = ¼, γ = ½, Newton on the joint-space equations)
 on the shared step schedule (a step ends exactly at each drive jump; the step ending there
 sees the left limit), and ``"dop853"`` (scipy's adaptive solver, restarted at every jump).
@@ -17,6 +25,7 @@ Pinocchio is imported here only; ``dttmm`` itself never needs it.
 """
 from __future__ import annotations
 
+import itertools
 import math
 import time
 
@@ -24,6 +33,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
+from dttmm.drives import ComputedTorque, ControlState, reference_of
 from dttmm.errors import InputError, SimulationError
 from dttmm.result import make_result
 from dttmm.timegrid import step_schedule, versions
@@ -81,15 +91,66 @@ class _Arm:
         self.motion_drives = [self.drives[i] for i in self.p]
         self.all_free = self.p.size == 0
         self.ff = slice(None) if self.all_free else np.ix_(self.f, self.f)
+        self._closed_loop_setup()
         # some Pinocchio versions fill only the upper triangle of M; test once, mirror if so
         M = pin.crba(self.model, self.data, np.linspace(0.3, 1.1, self.n))
         self.mirror = not np.array_equal(M, M.T)
 
+    def _closed_loop_setup(self):
+        """Closed-loop drives: their joints (all torque joints), one integral state each."""
+        self.closed = [j for j, i in enumerate(self.f) if self.drives[i].closed_loop]  # in free order
+        self.nz = len(self.closed)
+        self.z0 = np.zeros(self.nz)
+        self.ct = False
+        for i, d in enumerate(self.drives):
+            if not d.closed_loop:
+                continue
+            if getattr(d.law, "moment_gain", 0.0):
+                raise InputError(f"scenario.drives[{i}].moment_gain", d.law.moment_gain,
+                                 "is not supported by pinocchio-rigid: a rigid link has no root bending "
+                                 "moment to feed back (set it to 0)")
+            self.ct |= isinstance(d.law.feedforward, ComputedTorque)
+        if self.ct:
+            self.refs = [reference_of(d) for d in self.drives]
+            for i, r in enumerate(self.refs):
+                if r is None:
+                    raise InputError(f"scenario.drives[{i}].law", self.drives[i].law.name,
+                                     "the computed_torque feedforward needs a reference motion on "
+                                     "every joint (a motion drive or a pd/pid drive)")
+
+    def computed_torque(self, t, left=False):
+        """RNEA of the rigid model along the references at t, (n,) N·m."""
+        m = np.array([r.motion(t, left) for r in self.refs])
+        return pin.rnea(self.model, self.data, m[:, 0].copy(), m[:, 1].copy(), m[:, 2].copy()).copy()
+
+    def _state(self, j, q, v, z, tct):
+        i = int(self.f[j])
+        c = self.closed.index(j)
+        return ControlState(joint=i, angle=float(q[i]), rate=float(v[i]), moment=math.nan,
+                            integral=float(z[c]), angles=tuple(q), rates=tuple(v),
+                            tip_deflections=(0.0,) * self.n,
+                            computed_torque=None if tct is None else float(tct[i]))
+
     def _sym(self, M):
         return np.triu(M) + np.triu(M, 1).T if self.mirror else M
 
-    def tau_f(self, t, left=False):
-        return np.array([d.torque(t, left) for d in self.free_drives])
+    def tau_f(self, t, left=False, q=None, v=None, z=None):
+        """Torques of the free joints at t; closed-loop ones from the full state (q, v) (n,) and
+        the integral states z (nz,)."""
+        if not self.nz:
+            return np.array([d.torque(t, left) for d in self.free_drives])
+        tct = self.computed_torque(t, left) if self.ct else None
+        return np.array([d.evaluate(t, self._state(j, q, v, z, tct), left)[0] if d.closed_loop
+                         else d.torque(t, left) for j, d in enumerate(self.free_drives)])
+
+    def z_rate(self, t, left, qf, vf):
+        """d/dt of the integral states: α_ref − α of each closed-loop joint (nz,)."""
+        if not self.nz:
+            return self.z0
+        q, v, _ = self.full(t, left, qf, vf)
+        return np.array([self.free_drives[j].law.error_rate(t, ControlState(int(self.f[j]), q[self.f[j]],
+                                                                             v[self.f[j]]), left)
+                         for j in self.closed])
 
     def prescribed(self, t, left=False):
         """(α, α̇, α̈) of the motion joints at t, each (n_p,)."""
@@ -106,16 +167,18 @@ class _Arm:
         a[self.f] = 0.0 if af is None else af
         return q, v, a
 
-    def acc(self, t, left, qf, vf):
-        """Free accelerations q̈_f at t (left limit of the laws when ``left``)."""
+    def acc(self, t, left, qf, vf, z=None):
+        """Free accelerations q̈_f at t (left limit of the laws when ``left``); z: integral
+        states of the closed-loop drives."""
         if self.all_free:
-            return pin.aba(self.model, self.data, qf, vf, self.tau_f(t, left))
+            return pin.aba(self.model, self.data, qf, vf, self.tau_f(t, left, qf, vf, z))
         q, v, a = self.full(t, left, qf, vf)
         if self.f.size == 0:
             return np.zeros(0)
+        tau = self.tau_f(t, left, q, v, z)
         b = pin.rnea(self.model, self.data, q, v, a)  # = b + M[:, p] q̈_p with q̈_f = 0
         M = self._sym(pin.crba(self.model, self.data, q))
-        return np.linalg.solve(M[self.ff], self.tau_f(t, left) - b[self.f])
+        return np.linalg.solve(M[self.ff], tau - b[self.f])
 
     def newmark_residual(self, t, tau_f, qf, vf, af, c_q, c_v):
         """Residual τ(q, v, q̈)_f − τ_f at t (motion laws: left limit) and its Jacobian in q̈_f
@@ -196,6 +259,48 @@ def _rk4(arm, q, v, T, restart, opts, stats):
     return T[:N + 1], Q[:N + 1], V[:N + 1], Ar[:N + 1], Al[:N + 1]
 
 
+def _rk4_closed(arm, q, v, T, restart, opts, stats):
+    """RK4 with the integral states of closed-loop drives integrated alongside (q, v)."""
+    N = T.size - 1
+    Q, V = np.empty((N + 1, q.size)), np.empty((N + 1, q.size))
+    Ar, Al = np.empty_like(Q), np.empty_like(Q)
+    z = arm.z0  # integral states of closed-loop drives (nz,), integrated alongside
+    Z, E = np.empty((N + 1, z.size)), np.empty((N + 1, z.size))
+    jump = np.zeros(N + 1, bool)  # nodes where the left-limit acceleration differs
+    Q[0], V[0], Z[0] = q, v, z
+    acc, zr = arm.acc, arm.z_rate
+    for k in range(N):
+        t0, t1 = T[k], T[k + 1]
+        dt = t1 - t0
+        tm = t0 + 0.5 * dt
+        a1, e1 = acc(t0, False, q, v, z), zr(t0, False, q, v)
+        q2, v2, z2 = q + 0.5 * dt * v, v + 0.5 * dt * a1, z + 0.5 * dt * e1
+        a2, e2 = acc(tm, False, q2, v2, z2), zr(tm, False, q2, v2)
+        q3, v3, z3 = q + 0.5 * dt * v2, v + 0.5 * dt * a2, z + 0.5 * dt * e2
+        a3, e3 = acc(tm, False, q3, v3, z3), zr(tm, False, q3, v3)
+        q4, v4, z4 = q + dt * v3, v + dt * a3, z + dt * e3
+        # left limit: a jump at t1 belongs to the next step
+        a4, e4 = acc(t1, True, q4, v4, z4), zr(t1, True, q4, v4)
+        q = q + (dt / 6) * (v + 2 * v2 + 2 * v3 + v4)
+        v = v + (dt / 6) * (a1 + 2 * a2 + 2 * a3 + a4)
+        z = z + (dt / 6) * (e1 + 2 * e2 + 2 * e3 + e4)
+        Ar[k], E[k] = a1, e1
+        Q[k + 1], V[k + 1], Z[k + 1] = q, v, z
+        if not math.isfinite(float(q.sum() + v.sum())):
+            stats["fail"] = _nonfinite(k, t1, q, v, arm)
+            N = k
+            break
+        if restart[k] or k == N - 1:
+            Al[k + 1] = acc(t1, True, q, v, z)
+            jump[k + 1] = True
+    if "fail" not in stats:
+        Ar[N] = Al[N]  # no step starts at the last node
+        E[N] = zr(T[N], True, q, v)
+    Al[~jump] = Ar[~jump]
+    stats["z_nodes"] = (Z[:N + 1], E[:N + 1])
+    return T[:N + 1], Q[:N + 1], V[:N + 1], Ar[:N + 1], Al[:N + 1]
+
+
 def _newmark(arm, q, v, T, restart, opts, stats):
     beta, gamma, tol, max_iter = opts["beta"], opts["gamma"], opts["tol"], opts["max_iter"]
     N = T.size - 1
@@ -223,8 +328,8 @@ def _newmark(arm, q, v, T, restart, opts, stats):
             if np.abs(da).max() <= tol * (1.0 + np.abs(an).max()):
                 break
         else:
-            stats["fail"] = (f"Newmark Newton iteration did not converge in {max_iter} iterations "
-                             f"(last correction {np.abs(da).max():.3g} rad/s²)", k, t1,
+            stats["fail"] = ((f"Newmark Newton iteration did not converge in {max_iter} iterations "
+                             f"(last correction {np.abs(da).max():.3g} rad/s²)"), k, t1,
                              "joint accelerations")
         iters += it
         q, v = qp + cq * an, vp + cv * an
@@ -258,6 +363,17 @@ def _hermite(T, Q, V, Ar, Al, t, h):
     return q, v
 
 
+def _hermite_z(T, Z, E, t, h):
+    """Integral states at times t: cubic Hermite on (z, ż) between the nodes."""
+    if Z.shape[1] == 0:
+        return np.zeros((t.size, 0))
+    k = np.clip(np.searchsorted(T, t, side="right") - 1, 0, T.size - 2)
+    d = (T[k + 1] - T[k])[:, None]
+    s = (t[:, None] - T[k][:, None]) / d
+    h00, h10, h01, h11 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2, s * s * (3 - 2 * s), s * s * (s - 1)
+    return h00 * Z[k] + h10 * d * E[k] + h01 * Z[k + 1] + h11 * d * E[k + 1]
+
+
 def _dop853(arm, q, v, T_out, duration, h, breakpoints, opts, stats):
     nf = q.size
     edges = [0.0, *breakpoints, duration]
@@ -265,7 +381,7 @@ def _dop853(arm, q, v, T_out, duration, h, breakpoints, opts, stats):
     y = np.concatenate([q, v])
     steps = nfev = 0
     done = np.zeros(T_out.size, bool)
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in itertools.pairwise(edges):
         def fun(t, y, b=b):
             return np.concatenate([y[nf:], arm.acc(t, t >= b, y[:nf], y[nf:])])
 
@@ -289,8 +405,9 @@ def _dop853(arm, q, v, T_out, duration, h, breakpoints, opts, stats):
     return Qo, Vo, done
 
 
-def _outputs(arm, t, qf, vf):
-    """Everything the Result holds at the output times t (nt,), from the free states."""
+def _outputs(arm, t, qf, vf, z):
+    """Everything the Result holds at the output times t (nt,), from the free states and the
+    integral states z (nt, nz)."""
     model, data = arm.model, arm.data
     n, nt = arm.n, t.size
     q, v, tau = np.empty((nt, n)), np.empty((nt, n)), np.empty((nt, n))
@@ -302,10 +419,10 @@ def _outputs(arm, t, qf, vf):
         q[s], v[s] = qs, vs
         if arm.p.size:
             a = as_.copy()
-            a[arm.f] = arm.acc(t[s], False, qf[s], vf[s])
+            a[arm.f] = arm.acc(t[s], False, qf[s], vf[s], z[s])
             tau[s] = pin.rnea(model, data, qs, vs, a)
         if arm.f.size:  # the applied torques exactly (RNEA returns them up to round-off)
-            tau[s, arm.f] = arm.tau_f(t[s])
+            tau[s, arm.f] = arm.tau_f(t[s], False, qs, vs, z[s])
         energy[s] = pin.computeMechanicalEnergy(model, data, qs, vs)  # also runs forward kinematics
         pin.updateFramePlacements(model, data)
         for i in range(n):
@@ -325,24 +442,26 @@ def _integrate(arm, scen, h, T_end, restart, integrator, opts, stats):
         if nothing:
             stats["steps"] = stats["nfev"] = 0
             z = np.zeros((t_out.size, 0))
-            return t_out, z, z, 0, time.perf_counter() - t0
+            return t_out, z, z, z, 0, time.perf_counter() - t0
         qf, vf, good = _dop853(arm, qf0, vf0, t_out, scen.duration, float(h), scen.breakpoints,
                                opts, stats)
         wall = time.perf_counter() - t0
-        return t_out[good], qf[good], vf[good], stats["steps"], wall
+        return t_out[good], qf[good], vf[good], np.zeros((int(good.sum()), 0)), stats["steps"], wall
     T = np.concatenate([[0.0], T_end])
     if nothing:
         z = np.zeros((T.size, 0))
         nodes = (T, z, z, z, z)
     else:
-        nodes = (_rk4 if integrator == "rk4" else _newmark)(arm, qf0, vf0, T, restart, opts, stats)
+        run = _newmark if integrator == "newmark" else (_rk4_closed if arm.nz else _rk4)
+        nodes = run(arm, qf0, vf0, T, restart, opts, stats)
     wall = time.perf_counter() - t0
     n_steps = nodes[0].size - 1
     tg = t_out[t_out <= nodes[0][-1] + 1e-9 * h]
+    Z, E = stats.pop("z_nodes", (np.zeros((n_steps + 1, 0)),) * 2)
     if n_steps == 0:  # failed in the first step
-        return tg, nodes[1][:1], nodes[2][:1], 0, wall
+        return tg, nodes[1][:1], nodes[2][:1], Z[:1], 0, wall
     qf, vf = _hermite(*nodes, tg, float(h))
-    return tg, qf, vf, n_steps, wall
+    return tg, qf, vf, _hermite_z(nodes[0], Z, E, tg, float(h)), n_steps, wall
 
 
 def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
@@ -378,19 +497,22 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     opts = _check_options(integrator, options)
     T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     arm = _Arm(case)
+    if arm.nz and integrator != "rk4":
+        raise InputError("integrator", integrator, "closed-loop drives are supported by pinocchio-rigid "
+                                                   "with integrator 'rk4' only")
     stats = {}
     meta = {"method": "pinocchio-rigid", "h": float(h), "integrator": integrator,
             "elements_per_link": None, "versions": {**versions(), "pinocchio": pin.__version__},
             **opts}
 
     with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
-        tg, qf, vf, n_steps, wall = _integrate(arm, scen, h, T_end, restart, integrator, opts, stats)
+        tg, qf, vf, zf, n_steps, wall = _integrate(arm, scen, h, T_end, restart, integrator, opts, stats)
     for key in ("nfev", "iterations_mean"):
         if key in stats:
             meta[key] = stats[key]
     meta["success"] = "fail" not in stats
     meta["n_steps"] = int(n_steps)
-    q, v, tau, root, tip, energy = _outputs(arm, tg, qf, vf)
+    q, v, tau, root, tip, energy = _outputs(arm, tg, qf, vf, zf)
     res = make_result(t=tg, joint_angle=q, joint_rate=v, joint_torque=tau, link_root=root,
                       link_root_angle=np.cumsum(q, axis=1), link_tip=tip, wall_time=wall,
                       n_steps=n_steps, meta=meta, energy=energy)

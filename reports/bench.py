@@ -9,16 +9,19 @@ import numpy as np
 import pandas as pd
 
 __all__ = [
+    "absent",
+    "code_commit",
+    "costs_text",
+    "element_step_table",
+    "exponents",
+    "has_scans",
+    "info_of",
     "latest",
     "load",
-    "exponents",
-    "read",
-    "info_of",
-    "has_scans",
-    "scaling_exponents",
-    "element_step_table",
+    "provenance",
     "ratios",
-    "absent",
+    "read",
+    "scaling_exponents",
 ]
 
 _K_KEYS = ("elements_per_link", "k", "elements", "n_elements")
@@ -90,9 +93,27 @@ def exponents(table: pd.DataFrame) -> pd.DataFrame:
 # "one-step:k=<k>". Times are the solve-only time per step from extra_info (model build and
 # the benchmark's own overhead excluded), not the pytest-benchmark mean.
 
-ELEMENT_METHODS = ("dttmm-converged", "dttmm-one-shot", "global", "exudyn-ancf", "exudyn-beam", "dttmm-rk4")
+ELEMENT_METHODS = (
+    "dttmm-converged",
+    "dttmm-one-shot",
+    "dttmm-2nd",
+    "global",
+    "exudyn-ancf",
+    "exudyn-beam",
+    "dttmm-rk4",
+)
 LINK_METHODS = ("dttmm", "global", "exudyn-ancf")
-RATIO_METHODS = ("global", "exudyn-ancf", "exudyn-beam")  # each against DT-TMM
+# Like-for-like ratios only (same element strain): (method, the DT-TMM run it is divided by).
+# The linear element: global solver against DT-TMM (converged Newmark); the nonlinear strain:
+# Exudyn's geometrically exact elements and the global solver with the second-order element
+# against DT-TMM with the second-order element.
+RATIO_PAIRS = (
+    ("global", ("dttmm-converged", "dttmm")),
+    ("global-2nd", ("dttmm-2nd",)),
+    ("exudyn-ancf", ("dttmm-2nd",)),
+    ("exudyn-beam", ("dttmm-2nd",)),
+)
+RATIO_COLUMNS = tuple(f"{m}/{bases[-1]}" for m, bases in RATIO_PAIRS)
 K_MIN = 8  # exponents in k are fitted over k ≥ K_MIN: below it per-step overhead dominates
 N_MIN = 2  # exponents in the number of links: n ≥ N_MIN
 _RECORD_COLS = [
@@ -110,6 +131,10 @@ _RECORD_COLS = [
     "time_per_element_step",
     "mean",
     "tip_error_l2",
+    "cpu_per_step",
+    "cpu_per_step_median",
+    "rounds",
+    "noisy",
 ]
 
 
@@ -171,6 +196,10 @@ def _record(b: dict) -> dict:
         "time_per_element_step": tpe,
         "mean": mean,
         "tip_error_l2": _num(e.get("tip_error_l2")),
+        "cpu_per_step": _num(e.get("cpu_per_step")),
+        "cpu_per_step_median": _num(e.get("cpu_per_step_median")),
+        "rounds": _num(e.get("rounds")),
+        "noisy": bool(e.get("noisy", True)),  # files without the timing protocol count as noisy
     }
 
 
@@ -233,48 +262,135 @@ def element_step_table(records: pd.DataFrame, case: str = "three_link") -> pd.Da
     return w
 
 
-def _dttmm(methods) -> str | None:
-    return next((m for m in ("dttmm-converged", "dttmm") if m in set(methods)), None)
+def _ratio_row(basis, case, k, times, target=np.nan) -> dict:
+    """One ratio row: each like-for-like pair's time over its DT-TMM partner's (NaN if absent)."""
+    row = {"basis": basis, "case": case, "k": k, "target_error_m": target}
+    for (m, bases), col in zip(RATIO_PAIRS, RATIO_COLUMNS):
+        base = next((b for b in bases if b in times), None)
+        t0 = times.get(base, np.nan) if base else np.nan
+        row[col] = times.get(m, np.nan) / t0 if np.isfinite(t0) and t0 > 0 else np.nan
+    return row
 
 
-def ratios(records: pd.DataFrame, work_precision=None, ks=(4, 16, 64)) -> pd.DataFrame:
-    """Speed ratios against DT-TMM (converged Newmark): ``<method>/dttmm`` = that method's time
-    over DT-TMM's, so DT-TMM : global : Exudyn = 1 : x : y. Rows: equal model size (time per step
-    at the same k) from the "elements" scans (k in ``ks``) and from the "one-step" groups; equal
-    accuracy (wall time to reach the common target error) from the work-precision summary table
-    when given. ``dttmm_s`` is DT-TMM's own time (s); NaN where a method is absent."""
+def ratios(records: pd.DataFrame, equal_accuracy=None, ks=(4, 16, 64)) -> pd.DataFrame:
+    """Speed ratios between runs of the same element strain (:data:`RATIO_PAIRS`): each column
+    ``<method>/<dttmm run>`` is that method's time over DT-TMM's, > 1 when DT-TMM is faster.
+    Rows: equal model size (time per step at the same k) from the "elements" scans (k in
+    ``ks``) and the "one-step" groups; equal accuracy (CPU time to reach each target error on
+    the method's lower envelope) from the work-precision ``equal_accuracy`` table when given."""
     rows = []
-
-    def add(basis, case, k, times, target=np.nan):
-        ref = _dttmm(times)
-        t0 = times.get(ref, np.nan) if ref else np.nan
-        row = {"basis": basis, "case": case, "k": k, "target_error_m": target, "dttmm_s": t0}
-        for m in RATIO_METHODS:
-            row[f"{m}/dttmm"] = times.get(m, np.nan) / t0 if np.isfinite(t0) and t0 > 0 else np.nan
-        rows.append(row)
-
     el = records[records.kind == "elements"]
     for case in dict.fromkeys(el.case):
         for k in ks:
             d = el[(el.case == case) & (el.k == k)]
             if len(d):
-                add(
-                    "equal size: time per step (elements scan)", case, k, dict(zip(d.method, d.time_per_step))
+                rows.append(
+                    _ratio_row(
+                        "equal size: time per step (elements scan)", case, k, dict(zip(d.method, d.time_per_step))
+                    )
                 )
     one = records[records.kind == "one-step"]
     for (case, k), d in one.groupby(["case", "k"], sort=True):
-        add("equal size: time per step (one-step)", case, int(k), dict(zip(d.method, d.time_per_step)))
-    if work_precision is not None and len(work_precision):
-        for case, d in work_precision.groupby("case", sort=False):
-            add(
-                "equal accuracy: wall time to target (work-precision)",
-                case,
-                np.nan,
-                dict(zip(d.method, d.wall_time_to_target.astype(float))),
-                float(d.target_error.iloc[0]),
-            )
-    cols = ["basis", "case", "k", "target_error_m", "dttmm_s"] + [f"{m}/dttmm" for m in RATIO_METHODS]
+        rows.append(
+            _ratio_row("equal size: time per step (one-step)", case, int(k), dict(zip(d.method, d.time_per_step)))
+        )
+    if equal_accuracy is not None and len(equal_accuracy):
+        for (case, tgt), d in equal_accuracy.groupby(["case", "target_error"], sort=False):
+            times = dict(zip(d.method, d.cpu_time.astype(float)))
+            rows.append(_ratio_row("equal accuracy: CPU time to target (work-precision)", case, np.nan, times, tgt))
+    cols = ["basis", "case", "k", "target_error_m", *RATIO_COLUMNS]
     return pd.DataFrame(rows, columns=cols)
+
+
+def _sig2(v) -> str:
+    from .peers import sig2
+
+    return sig2(v)
+
+
+def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case="three_link") -> list[str]:
+    """Sentences under the benchmark figures: fitted exponents, cost per element-step at each
+    method's largest k, and the like-for-like ratios (2 significant digits)."""
+    out = []
+    el = exponents[(exponents.scan == "elements per link") & (exponents.case == case)]
+    el = el[np.isfinite(el.exponent)]
+    ln = exponents[exponents.scan.str.startswith("links") & np.isfinite(exponents.exponent)]
+    parts = []
+    if len(el):
+        parts.append(
+            f"over k ≥ {k_min} ({case}; below it fixed per-step costs dominate) "
+            + ", ".join(f"{r.method} {r.exponent:.2f}" for r in el.itertuples())
+        )
+    if len(ln):
+        parts.append(f"over n ≥ {n_min} links at k = 8: " + ", ".join(f"{r.method} {r.exponent:.2f}" for r in ln.itertuples()))
+    if parts:
+        out.append("Fitted exponents p of time per step ∝ N^p: " + "; ".join(parts) + ".")
+    if len(per_element) and len(per_element.columns) > 1:
+        bits = []
+        for m in per_element.columns[1:]:
+            v = per_element[["k", m]].dropna()
+            if len(v):
+                bits.append(f"{m} {_sig2(v[m].iloc[-1])} µs (k = {v.k.iloc[-1]})")
+        out.append(f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + ".")
+    pairs = " ; ".join(RATIO_COLUMNS)
+    size = ratios[ratios.basis.str.startswith("equal size") & (ratios.case == case) & ratios.k.notna()]
+    if len(size):
+        kmax = size.k.max()
+        for _, r in size[size.k == kmax].iterrows():
+            shown = [f"{c} = {_sig2(r[c])}" for c in RATIO_COLUMNS if np.isfinite(r[c])]
+            out.append(
+                f"At equal model size ({case}, k = {int(kmax)}, time per step, {r.basis.split('(')[-1].rstrip(')')}; "
+                f"same element strain only): " + (", ".join(shown) or "no like-for-like pair in this file") + "."
+            )
+    acc = ratios[ratios.basis.str.startswith("equal accuracy")]
+    if len(acc):
+        parts = []
+        for _, r in acc.iterrows():
+            shown = [f"{c} = {_sig2(r[c])}" for c in RATIO_COLUMNS if np.isfinite(r[c])]
+            parts.append(f"{r['case']} at {r['target_error_m']:.0e} m: " + (", ".join(shown) or "n/a"))
+        out.append("At equal accuracy (work-precision study, CPU time to reach the error): " + "; ".join(parts) + ".")
+    else:
+        out.append(
+            "No equal-accuracy ratio: the work-precision equal-accuracy table is absent from the report data."
+        )
+    out.append(f"Ratio columns ({pairs}): > 1 means DT-TMM is faster.")
+    return out
+
+
+def code_commit(root=None) -> str:
+    """The git commit of the code the report describes ('' when not a git checkout)."""
+    import subprocess
+
+    root = Path(root) if root else Path(__file__).resolve().parents[1]
+    try:
+        r = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=False)
+    except OSError:
+        return ""
+    return r.stdout.strip() if r.returncode == 0 else ""
+
+
+def provenance(info, commit: str | None = None) -> list[str]:
+    """Where the benchmark numbers come from, how they were timed, and a warning when the file
+    was made at another commit than the code (``commit``; found with git when None)."""
+    commit = code_commit() if commit is None else commit
+    cores = info.get("cores")
+    dirty = " (uncommitted changes)" if info.get("dirty") else ""
+    date, name = str(info["date"])[:19].replace("T", " "), Path(info["file"]).name
+    out = [
+        (f"Benchmark run {date} ({name}) on {info['machine'] or info['node']}"
+        f"{f', {cores} cores' if cores else ''}, Python {info['python']}, commit {info['commit'][:10]}{dirty}. "
+        f"Times per step are the least solve-only time of the rounds (CPU time beside it where recorded) "
+        f"on a shared {f'{cores}-core ' if cores else ''}machine: read differences under about 20 % as noise.")
+    ]
+    bc = str(info.get("commit") or "")
+    if commit and bc and not (commit.startswith(bc) or bc.startswith(commit)):
+        out.append(
+            f"Warning: this benchmark file was made at commit {bc[:10]}, not at the code's commit "
+            f"{commit[:10]}; its timings may not describe this code (rerun `make bench`)."
+        )
+    elif info.get("dirty"):
+        out.append("Warning: this benchmark file was made with uncommitted changes.")
+    return out
 
 
 def absent(records: pd.DataFrame) -> list[str]:

@@ -1,20 +1,83 @@
-"""Assemble the report from stored study tables: figures, interpretation, omissions, footer.
+"""Assemble the report from stored study tables: scoreboard, sections, omissions, footer.
 
 Needs only the tables (``<out>/data/*.parquet``) and ``report_meta.json``: figures are
 rebuilt from stored data without re-simulating.
+
+Sections come from ``SECTION_BUILDERS``, in order: each is ``builder(inputs) -> Section | None``
+(None: nothing to show for this report). To add a section, write a builder and add it to the
+list; it saves its figures with ``inputs.figure(name, fig)``.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from . import bench, figures, interpret
+from . import bench, benchmarks, figures, interpret, peers
 from .render import Section, write
+from .scoreboard import scoreboard
 
-__all__ = ["build", "omissions"]
+__all__ = ["SECTION_BUILDERS", "Inputs", "build", "omissions"]
+
+TITLE = "dttmm: accuracy and cost of DT-TMM against reference methods"
+CITATION = (
+    "X. Zhang, R. Sørensen, M. R. Iversen, H. Li, \"Computationally efficient dynamic modeling of robot "
+    "manipulators with multiple flexible-links using acceleration-based discrete time transfer matrix "
+    "method\", Robotics and Computer-Integrated Manufacturing 49 (2018) 181–193"
+)
+PAPER_CASES = ("single_link", "three_link")  # the shipped cases that model the paper's arms
+
+
+def lead(meta: dict) -> list[str]:
+    """The paragraphs under the title: what is compared, the seed paper and what of it is shown."""
+    cases = list(meta.get("cases") or {})
+    shown = [c for c in PAPER_CASES if c in cases] if cases else list(PAPER_CASES)
+    if shown:
+        what = (
+            "Reproduced, with the models and scenarios as defined in this project (the case tables below): its "
+            "simulations of a 1-DOF arm with one flexible link (single_link) and of a 3-DOF arm with three "
+            "flexible links (three_link), and its comparison of CPU time against the number of elements per link."
+        )
+    else:
+        what = (
+            "This report runs the same studies on the cases given on the command line; the paper's arms "
+            "(single_link, three_link) and its CPU time against elements per link are in the default report "
+            "(`dttmm report --quick`)."
+        )
+    return [
+        (
+            "DT-TMM (the acceleration-based discrete time transfer matrix method) against a global-equation "
+            "solver of the same discretisation, Exudyn ANCF and geometrically exact beams, and a rigid Pinocchio "
+            "model, on the same cases: accuracy against converged references and cost."
+        ),
+        (
+            f"Seed paper: {CITATION}. {what} The paper's experimental data are not available, so no figure is "
+            "compared with measurements; its numbers are not reused either: every curve here is computed by "
+            "the methods above."
+        ),
+    ]
+
+
+RUN_TABLES = ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost")
+
+
+@dataclass
+class Inputs:
+    """What a section builder reads: the study tables, the report's metadata, the figure folder
+    and the benchmark JSON folder."""
+
+    tables: dict
+    meta: dict
+    fig_dir: Path
+    bench_dir: Path
+
+    def figure(self, name: str, fig) -> str:
+        """Save ``fig`` as ``figures/<name>`` and return that relative path."""
+        figures.save(fig, self.fig_dir / name)
+        return f"figures/{name}"
 
 
 def _floor(meta, case) -> float:
@@ -23,13 +86,14 @@ def _floor(meta, case) -> float:
 
 
 def _cases(df) -> list:
-    return list(dict.fromkeys(df.case)) if "case" in df and len(df) else []
+    return list(dict.fromkeys(df.case)) if df is not None and "case" in df and len(df) else []
 
 
 def omissions(tables: dict) -> pd.DataFrame:
-    """Every planned run without an error value: study, case, method, k, h, options, status, why."""
+    """Every planned run that is not ok or has no error value: study, case, method, k, h,
+    options, status (failed, unavailable, or flagged unconverged / ill-conditioned), why."""
     rows = []
-    for name in ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost"):
+    for name in RUN_TABLES:
         df = tables.get(name)
         if df is None or df.empty:
             continue
@@ -52,135 +116,164 @@ def omissions(tables: dict) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=cols).drop_duplicates(subset=cols[1:])
 
 
-def _sections(tables, meta, out, bench_dir):
-    fig_dir = out / "figures"
-    fig_dir.mkdir(parents=True, exist_ok=True)
-    secs, summary = [], []
+def _per_case(inp, table, stem, title, anchor, plot, caption, interp, tabs=(), summary=None):
+    """A section of one figure (with its sentences) per case of ``table``."""
+    if table is None or not len(table):
+        return None
+    figs, text = [], []
+    order = list(inp.meta.get("cases") or {})
+    cases = sorted(_cases(table), key=lambda c: order.index(c) if c in order else len(order))
+    for c in cases:
+        figs.append((inp.figure(f"{stem}_{c}.png", plot(c)), f"{c}: {caption(c)}"))
+        sentences = interp(c)
+        text += [f"{c}: {sentences[0]}", *sentences[1:]] if len(cases) > 1 and sentences else sentences
+    tables = [(n, inp.tables[n]) for n in tabs if n in inp.tables]
+    return Section(title, figs, text, tables, anchor, summary(cases) if summary and cases else "")
 
-    def add(sec_title, anchor, items, tabs, head=None):
-        figs, text = [], []
-        for fname, fig, caption, sentences in items:
-            figures.save(fig, fig_dir / fname)
-            figs.append((f"figures/{fname}", caption))
-            who = caption.split(":")[0] if len(items) > 1 else ""
-            text += [f"{who}: {sentences[0]}" if who else sentences[0], *sentences[1:]] if sentences else []
-        secs.append(Section(sec_title, figs, text, [(n, tables[n]) for n in tabs if n in tables], anchor))
-        if head:
-            summary.append(head)
 
-    def per_case(t, stem, plot, caption, interp):
-        """One figure and its sentences per case of table t."""
-        return [(f"{stem}_{c}.png", plot(c), f"{c}: {caption}", interp(c)) for c in _cases(t)]
+def _h(table) -> str:
+    return f"{table.h.iloc[0]:g} s" if len(table) else "?"
 
-    t = tables.get("convergence_k")
-    if t is not None and len(t):
-        o = tables["convergence_k_orders"]
-        items = per_case(t, "convergence_k", lambda c: figures.convergence_k(t, c, floor=_floor(meta, c)),
-                         "end-effector error against elements per link",
-                         lambda c: interpret.convergence_k(t, o, c, _floor(meta, c)))
-        add("Convergence in elements per link", "convergence-k", items, ["convergence_k_orders"],
-            f"Convergence in k ({_cases(t)[0]}): " + interpret.convergence_k(t, o, _cases(t)[0])[0])
-    t = tables.get("convergence_h")
-    if t is not None and len(t):
-        o = tables["convergence_h_orders"]
-        items = per_case(t, "convergence_h", lambda c: figures.convergence_h(t, c),
-                         "end-effector error against step", lambda c: interpret.convergence_h(t, o, c))
-        add("Convergence in the time step", "convergence-h", items, ["convergence_h_orders"],
-            f"Convergence in h ({_cases(t)[0]}): " + interpret.convergence_h(t, o, _cases(t)[0])[0])
-    t = tables.get("work_precision")
-    if t is not None and len(t):
-        s = tables["work_precision_summary"]
-        items = per_case(t, "work_precision", lambda c: figures.work_precision(t, c),
-                         "error against wall time", lambda c: interpret.work_precision(s, c))
-        add("Work-precision", "work-precision", items, ["work_precision_summary"],
-            f"Work-precision ({_cases(t)[-1]}): " + " ".join(interpret.work_precision(s, _cases(t)[-1])[:2]))
-    t = tables.get("scheme")
-    if t is not None and len(t):
-        s = tables["scheme_summary"]
-        items = per_case(t, "scheme", lambda c: figures.scheme(t, c),
-                         "DT-TMM plain vs Riccati sweep, corrections per step", lambda c: interpret.scheme(s, c))
-        add("The paper's scheme under test", "scheme", items, ["scheme_summary"],
-            f"Paper's scheme ({_cases(t)[-1]}): " + interpret.scheme(s, _cases(t)[-1])[0])
-    t = tables.get("paper_series")
-    if t is not None and len(t):
-        s = tables["paper_summary"]
-        items = per_case(t, "paper", lambda c: figures.time_histories(t, c),
-                         "joint angles and tip deflections", lambda c: interpret.paper(s, c))
-        add("Paper figures: time histories", "paper", items, ["paper_summary"])
-    t = tables.get("cost")
-    if t is not None and len(t):
-        e = tables["cost_exponents"]
-        add(
-            "CPU time against elements per link",
-            "cost",
-            [("cost.png", figures.cost(t, e), "wall time of the solve against k", interpret.cost(t, e))],
-            ["cost_exponents"],
-            interpret.cost(t, e)[0],
-        )
-    sec, head = _bench_section(tables, fig_dir, bench_dir)
-    secs.append(sec)
-    if head:
-        summary.append(head)
-    return secs, summary
+
+def _convergence_k(inp):
+    t, o = inp.tables.get("convergence_k"), inp.tables.get("convergence_k_orders")
+    return _per_case(
+        inp, t, "convergence_k", "Convergence in elements per link", "convergence-k",
+        lambda c: figures.convergence_k(t, c, floor=_floor(inp.meta, c)),
+        lambda c: f"end-effector position error (RMS over time, against the reference) against the number "
+        f"of elements per link k at h = {_h(t[t.case == c])}; dotted: the difference between the reference "
+        "and its independent cross-check.",
+        lambda c: interpret.convergence_k(t, o, c, _floor(inp.meta, c)),
+        ["convergence_k_orders"],
+        lambda cs: f"Convergence in k ({cs[0]}): " + interpret.convergence_k(t, o, cs[0])[0],
+    )
+
+
+def _convergence_h(inp):
+    t, o = inp.tables.get("convergence_h"), inp.tables.get("convergence_h_orders")
+    return _per_case(
+        inp, t, "convergence_h", "Convergence in the time step", "convergence-h",
+        lambda c: figures.convergence_h(t, c),
+        lambda c: "end-effector position error against the step h at fixed k; solid: against the reference, "
+        "dashed: against the same method at h/2 (the time error alone).",
+        lambda c: interpret.convergence_h(t, o, c),
+        ["convergence_h_orders"],
+        lambda cs: f"Convergence in h ({cs[0]}): " + interpret.convergence_h(t, o, cs[0])[0],
+    )
+
+
+def _work_precision(inp):
+    t, s = inp.tables.get("work_precision"), inp.tables.get("work_precision_summary")
+    eq = inp.tables.get("work_precision_equal_accuracy", pd.DataFrame())
+    return _per_case(
+        inp, t, "work_precision", "Work-precision", "work-precision",
+        lambda c: peers.work_precision_figure(t, c),
+        lambda c: "end-effector error against the CPU time of the solve (minimum of repeats), each method "
+        "refined along the same (k, h) path; lower left is better; hollow markers: timings taken on a "
+        "loaded machine; the star is the rigid-link model.",
+        lambda c: peers.work_precision_text(s, eq, c),
+        ["work_precision_summary", "work_precision_equal_accuracy"],
+        lambda cs: "Work-precision: " + peers.equal_accuracy_text(eq, cs[-1])[0],
+    )
+
+
+def _scheme(inp):
+    t, s = inp.tables.get("scheme"), inp.tables.get("scheme_summary")
+    return _per_case(
+        inp, t, "scheme", "The paper's scheme under test", "scheme",
+        lambda c: figures.scheme(t, c),
+        lambda c: "DT-TMM with the paper's plain transfer sweep or the Riccati sweep, and 0, 1 or converged "
+        "corrections per step: error against k (left) and against h (right).",
+        lambda c: interpret.scheme(s, c),
+        ["scheme_summary"],
+        lambda cs: f"Paper's scheme ({cs[-1]}): " + interpret.scheme(s, cs[-1])[0],
+    )
+
+
+def _paper(inp):
+    t, s = inp.tables.get("paper_series"), inp.tables.get("paper_summary")
+    return _per_case(
+        inp, t, "paper", "Paper figures: time histories", "paper",
+        lambda c: figures.time_histories(t, c),
+        lambda c: "joint angles and tip deflections of every method with the reference (wide grey), and "
+        "below them Δ = method minus reference; the rigid model's Δ, far larger, is left out of the lower "
+        "panels (its RMS is in the table).",
+        lambda c: interpret.paper(s, c),
+        ["paper_summary"],
+    )
+
+
+def _loads(inp):
+    t, s = inp.tables.get("paper_load_series"), inp.tables.get("paper_loads")
+    if s is None:
+        return None
+    return _per_case(
+        inp, t, "loads", "Loads and energy", "loads",
+        lambda c: figures.loads(t, c),
+        lambda c: "bending moment at the root of link 1 (from the hub balance M = τ₁ − J₁θ̈₁), torques of "
+        "motion-driven joints and total energy of every method with its reference (wide grey; for the "
+        "energy, the energy reference named below), and below them Δ = method minus reference (rigid "
+        "model left out of the lower panels).",
+        lambda c: interpret.loads(s, c),
+        ["paper_loads"],
+    )
+
+
+def _cost(inp):
+    t, e = inp.tables.get("cost"), inp.tables.get("cost_exponents")
+    if t is None or not len(t):
+        return None
+    text = peers.cost_text(t, e)
+    fig = inp.figure("cost.png", peers.cost_figure(t, e))
+    caption = (f"{_cases(t)[0]}: CPU time of the solve (minimum of repeats) against elements per link k "
+               f"at h = {_h(t)}; hollow markers: noisy points")
+    return Section("CPU time against elements per link", [(fig, caption)], text, [("cost_exponents", e)], "cost",
+                   text[0])
+
+
+def _peer_configuration(inp):
+    sec = peers.configuration_section()
+    inp.tables["peer_configuration"] = sec.tables[0][1]
+    return sec
+
+
+def _cases_section(inp):
+    from .cases import case_section
+
+    return case_section(inp.meta)
 
 
 BENCH_TITLE = "Cost scaling (benchmarks)"
 BENCH_TABLES = ("bench", "bench_exponents", "bench_element_step_us", "bench_ratios")
 
 
-def _bench_provenance(info) -> str:
-    cores = info.get("cores")
-    dirty = " (uncommitted changes)" if info.get("dirty") else ""
-    date, name = str(info["date"])[:19].replace("T", " "), Path(info["file"]).name
-    return (
-        f"Benchmark run {date} ({name}) on {info['machine'] or info['node']}"
-        f"{f', {cores} cores' if cores else ''}, Python {info['python']}, "
-        f"commit {info['commit'][:10]}{dirty}. "
-        f"Timings are from one run on a shared {f'{cores}-core ' if cores else ''}machine, not repeated: "
-        "read differences under about 20 % as noise."
-    )
+def _skipped(why: str) -> Section:
+    return Section(BENCH_TITLE, [], [f"Skipped: {why}"], [], "bench")
 
 
-def _bench_section(tables, fig_dir, bench_dir):
-    """The cost-scaling section from the newest pytest-benchmark JSON: (Section, summary line)."""
-    latest = bench.latest(bench_dir)
+def _bench_section(inp):
+    """The cost-scaling section from the newest pytest-benchmark JSON of the scaling suites."""
+    tables, latest = inp.tables, bench.latest(inp.bench_dir)
     if latest is None:
-        why = f"Skipped: no pytest-benchmark JSON in {bench_dir}/ (run `make bench` to produce one)."
-        return Section(BENCH_TITLE, [], [why], [], "bench"), None
+        return _skipped(f"no pytest-benchmark JSON in {inp.bench_dir}/ (run `make bench` to produce one).")
     try:
         rec, info = bench.read(latest)
     except (ValueError, TypeError, AttributeError, KeyError) as exc:  # not a pytest-benchmark JSON
-        return Section(BENCH_TITLE, [], [f"Skipped: cannot read {latest}: {exc}."], [], "bench"), None
-    if not bench.has_scans(rec):  # an older file: every group against its element count
-        bt, _ = bench.load(latest)
-        if bt.empty:
-            return Section(
-                BENCH_TITLE, [], [f"Skipped: {latest} has no benchmark with an element count."], [], "bench"
-            ), None
-        be = bench.exponents(bt)
-        tables["bench"], tables["bench_exponents"] = bt, be
-        figures.save(figures.bench_scaling(bt, be), fig_dir / "bench_scaling.png")
-        text = interpret.bench(be) + [
-            (
-                f"No scaling-suite groups (elements:…, links:…) in {latest.name}: every group is shown "
-                "against its element count."
-            ),
-            f"Benchmark run {info['date']} on {info['machine']}, commit {info['commit'][:10]}.",
-        ]
-        figs = [("figures/bench_scaling.png", f"time per step against elements ({latest.name})")]
-        return Section(BENCH_TITLE, figs, text, [("bench_exponents", be)], "bench"), None
+        return _skipped(f"cannot read {latest}: {exc}.")
+    if not bench.has_scans(rec):
+        return _skipped(f"{latest.name} has no scaling-suite groups (elements:…, links:…); run `make bench`.")
     ex = bench.scaling_exponents(rec)
     per_el = bench.element_step_table(rec, "three_link")
-    ratios = bench.ratios(rec, tables.get("work_precision_summary"))
+    ratios = bench.ratios(rec, tables.get("work_precision_equal_accuracy"))
     tables.update(bench=rec, bench_exponents=ex, bench_element_step_us=per_el, bench_ratios=ratios)
     figs = []
     if (rec.kind == "elements").any():
-        figures.save(figures.bench_elements(rec, ex, bench.K_MIN), fig_dir / "bench_elements.png")
-        figs.append(("figures/bench_elements.png", "time per step (solve only) against elements per link"))
+        f = inp.figure("bench_elements.png", figures.bench_elements(rec, ex, bench.K_MIN))
+        figs.append((f, "time per step (solve only) against elements per link"))
     if (rec.kind == "links").any():
-        figures.save(figures.bench_links(rec, ex, bench.N_MIN), fig_dir / "bench_links.png")
-        figs.append(("figures/bench_links.png", "time per step (solve only) against the number of links"))
-    text = interpret.bench_costs(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
+        f = inp.figure("bench_links.png", figures.bench_links(rec, ex, bench.N_MIN))
+        figs.append((f, "time per step (solve only) against the number of links"))
+    text = bench.costs_text(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
     gone = bench.absent(rec)
     if gone:
         text.append("Absent from this benchmark file: " + ", ".join(gone) + ".")
@@ -191,31 +284,37 @@ def _bench_section(tables, fig_dir, bench_dir):
             "(bench_ratios: >1 means DT-TMM is faster); the benchmarks' tip errors are against a DT-TMM "
             "reference and are not used here for cross-method accuracy."
         ),
-        _bench_provenance(info),
+        *bench.provenance(info),
     ]
     tabs = [(n, tables[n]) for n in BENCH_TABLES[1:]]
     head = next((s for s in text if s.startswith("At equal model size")), None)
-    return Section(BENCH_TITLE, figs, text, tabs, "bench"), head and f"Benchmarks: a{head[1:]}"
+    return Section(BENCH_TITLE, figs, text, tabs, "bench", head and f"Benchmarks: a{head[1:]}")
 
 
-def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra=None):
-    """Write figures, ``index.html`` and ``REPORT.md`` into ``out`` from the study tables."""
-    from pathlib import Path
+SECTION_BUILDERS = [
+    _cases_section,
+    _convergence_k,
+    _convergence_h,
+    _work_precision,
+    _scheme,
+    _paper,
+    _loads,
+    _cost,
+    benchmarks.section,  # benchmark problems (published single-case checks)
+    _peer_configuration,
+    _bench_section,
+]
 
-    out = Path(out)
-    tables = dict(tables)
-    secs, summary = _sections(tables, meta, out, bench_dir)
-    om = omissions(tables)
-    (out / "data").mkdir(parents=True, exist_ok=True)
-    om.to_csv(out / "data" / "omissions.csv", index=False)
-    for name in BENCH_TABLES:
-        if name in tables:
-            tables[name].to_csv(out / "data" / f"{name}.csv", index=False)
+
+def _head(meta, om) -> list[str]:
     avail = meta.get("availability", {})
     missing = {m: r for m, r in avail.items() if r}
+    from experiments.methods import label
+
+    note = meta.get("note", "")
     head = [
-        f"Size: {meta.get('plan', '?')}. {meta.get('note', '')}",
-        "Methods run: " + (", ".join(m for m, r in avail.items() if not r) or "none") + ".",
+        note[:1].upper() + note[1:] if note else f"Size: {meta.get('plan', '?')}.",
+        "Methods run: " + (", ".join(label(m) for m, r in avail.items() if not r) or "none") + ".",
     ]
     if missing:
         head.append("Unavailable: " + "; ".join(f"{m} ({r})" for m, r in missing.items()) + ".")
@@ -235,7 +334,23 @@ def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra
                 f"Reference {case}: none could be computed ({'; '.join(p.get('failures', []))}); "
                 "errors for this case are NaN."
             )
-    head += summary
+    return head
+
+
+def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra=None):
+    """Write figures, ``index.html`` and ``REPORT.md`` into ``out`` from the study tables."""
+    out = Path(out)
+    tables = dict(tables)
+    inp = Inputs(tables, meta, out / "figures", Path(bench_dir))
+    inp.fig_dir.mkdir(parents=True, exist_ok=True)
+    secs = [s for s in (b(inp) for b in SECTION_BUILDERS) if s is not None]
+    om = omissions(tables)
+    board = scoreboard(tables, meta)
+    (out / "data").mkdir(parents=True, exist_ok=True)
+    om.to_csv(out / "data" / "omissions.csv", index=False)
+    for name, df, *_ in [t for s in [*secs, board] for t in s.tables]:
+        df.to_csv(out / "data" / f"{name}.csv", index=False)
+    head = _head(meta, om) + [s.summary for s in secs if s.summary]
     head.append(f"{len(om)} planned run(s) without an error value (see Omissions).")
     footer = {
         "built": meta.get("date", ""),
@@ -247,4 +362,4 @@ def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra
         "rebuild": meta.get("command", ""),
         **(footer_extra or {}),
     }
-    return write(out, "dttmm: accuracy and cost of DT-TMM against reference methods", head, secs, om, footer)
+    return write(out, TITLE, head, secs, om, footer, lead=lead(meta), front=board)

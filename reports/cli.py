@@ -1,8 +1,10 @@
-"""``dttmm report [--quick|--full] [--out DIR] [--scheduler ADDR] [--from-data]``.
+"""``dttmm report [--quick|--full] [--case PATH ...] [--out DIR] [--scheduler ADDR] [--from-data] [--recompute]``.
 
 Runs every study (one resumable sweep on Dask), stores the tables under ``<out>/data/`` and
-writes ``<out>/index.html`` and ``<out>/REPORT.md``. ``--from-data`` only rebuilds the figures
-and pages from the stored tables.
+writes ``<out>/index.html`` and ``<out>/REPORT.md``. ``--case`` (repeatable) runs the studies on
+the given case files instead of the shipped ones; their references are computed and cached
+like those of the shipped cases. ``--from-data`` only rebuilds the figures and pages from the
+stored tables.
 """
 
 from __future__ import annotations
@@ -39,8 +41,11 @@ def run_report(
     command="",
     bench_dir="data/bench",
     log=print,
+    recompute=False,
 ):
-    """Run the plan's studies and write the report into ``out``; returns (html, md) paths."""
+    """Run the plan's studies and write the report into ``out``; returns (html, md) paths.
+    ``recompute``: ignore every cached run and reference and write them again."""
+    from dttmm.case import case_to_dict
     from experiments import methods
     from experiments.context import prepare
     from experiments.study import run_studies, save_tables
@@ -54,7 +59,7 @@ def run_report(
     for m, why in avail.items():
         if why:
             log(f"unavailable: {m}: {why}")
-    ctx = prepare(plan, data, log=log)
+    ctx = prepare(plan, data, log=log, recompute=recompute)
     tables = run_studies(ctx, scheduler=scheduler, workers=workers, progress=progress)
     save_tables(tables, out / "data")
     meta = {
@@ -65,6 +70,8 @@ def run_report(
         "references": ctx.provenance,
         "elapsed": time.perf_counter() - t0,
         "studies": plan.studies,
+        "cases": {n: case_to_dict(c) for n, c in ctx.cases.items()},
+        "case_files": dict(plan.case_files),
     }
     (out / "data" / "report_meta.json").write_text(json.dumps(meta, indent=1, default=str))
     paths = build(tables, meta, out, bench_dir=bench_dir)
@@ -101,7 +108,7 @@ def _from_data(out, command, bench_dir, log=print):
 
 def main(argv=None) -> int:
     """Entry point of ``dttmm report``."""
-    from experiments.plan import PLANS
+    from experiments.plan import plan_for
 
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(prog="dttmm report", description=__doc__.splitlines()[0])
@@ -123,13 +130,33 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--bench", default="data/bench", help="pytest-benchmark JSON folder")
     ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument(
+        "--recompute",
+        action="store_true",
+        help="ignore every cached run and reference solution and compute (and store) them again",
+    )
+    ap.add_argument(
+        "--case",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="case TOML file to report on instead of the shipped cases (repeat for several)",
+    )
     a = ap.parse_args(argv)
     command = "dttmm report " + shlex.join(argv)
+    if a.from_data and a.recompute:
+        ap.error("--recompute computes the runs again; --from-data only redraws stored tables")
     if a.from_data:
         _from_data(a.out, command, a.bench)
         return 0
+    from dttmm.errors import InputError
+
+    try:
+        plan = plan_for(a.size or "quick", a.case)
+    except InputError as exc:
+        ap.error(str(exc))
     run_report(
-        PLANS[a.size or "quick"],
+        plan,
         a.out,
         data=a.data,
         scheduler=a.scheduler,
@@ -137,6 +164,7 @@ def main(argv=None) -> int:
         progress=not a.no_progress,
         command=command,
         bench_dir=a.bench,
+        recompute=a.recompute,
     )
     return 0
 

@@ -12,32 +12,18 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 __all__ = [
-    "convergence_k",
-    "convergence_h",
-    "work_precision",
-    "scheme",
-    "time_histories",
-    "cost",
-    "bench_scaling",
     "bench_elements",
     "bench_links",
+    "convergence_h",
+    "convergence_k",
+    "load_label",
+    "loads",
     "save",
+    "scheme",
+    "time_histories",
 ]
 
 ERROR_LABEL = "end-effector position error, RMS (m)"
-_MARKERS = "osD^v<>ph*"
-# One colour and marker per method in every figure; DT-TMM and the global solver often agree to
-# round-off, so their markers differ in shape and size to keep both visible.
-_STYLE = {
-    "dttmm": ("C0", "o", 7),
-    "global": ("C3", "^", 4),
-    "exudyn-ancf": ("C1", "s", 5),
-    "exudyn-beam": ("C2", "D", 5),
-    "dttmm-rk4": ("C4", "v", 5),
-    "dttmm-2nd": ("C9", "P", 6),
-    "pinocchio-rigid": ("k", "*", 9),
-    "reference": ("0.3", "", 0),
-}
 
 
 def _figure(ncols=1, nrows=1, size=(6.0, 4.2)):
@@ -53,6 +39,34 @@ def _label(method: str) -> str:
     return label(method)
 
 
+def _uses_k(method: str) -> bool:
+    from experiments.methods import uses_k
+
+    return uses_k(method)
+
+
+def _style(name: str, index: int = 0):
+    from experiments.methods import style
+
+    return style(name, index)
+
+
+def _legend(ax, ncol: int = 2, fontsize: float = 8) -> None:
+    """Legend below the axes, outside the plotting area, so it never hides a curve."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=fontsize, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=ncol, frameon=False)
+
+
+def _fig_legend(fig, axes, ncol: int = 4) -> None:
+    """One legend for the whole figure, below every panel (labels merged over ``axes``)."""
+    seen = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            seen.setdefault(lab, h)
+    if seen:
+        fig.legend(list(seen.values()), list(seen), loc="outside lower center", ncol=ncol, fontsize=8, frameon=False)
+
+
 def _integer_ticks(ax, values):
     """Label a log axis of element counts with the counts themselves."""
     v = sorted({int(x) for x in values if x > 0})
@@ -61,27 +75,43 @@ def _integer_ticks(ax, values):
         ax.minorticks_off()
 
 
-def _loglog_groups(ax, table, x, y, group, *, style="-", labels=None, lw=1.5):
-    """One log-log line per group; failed points as crosses at the bottom edge."""
+def _loglog_groups(ax, table, x, y, group, *, style=None, labels=None, lw=1.5):
+    """One log-log line per group; failed points as crosses at the bottom edge, flagged ones
+    (unconverged, ill-conditioned) ringed."""
     fails = []
     for i, (name, g) in enumerate(table.groupby(group, sort=False)):
         g = g.sort_values(x)
         ok = np.isfinite(g[y]) & (g[y] > 0)
         lab = (labels or {}).get(name, _label(name) if group == "method" else str(name))
-        color, marker, ms = _STYLE.get(name, (f"C{i % 10}", _MARKERS[i % len(_MARKERS)], 5))
+        st = _style(name, i) if group == "method" else _style(f"{group}:{name}", i)
         if ok.any():
             ax.loglog(
                 g[x][ok],
                 g[y][ok],
-                style,
-                color=color,
-                marker=marker,
-                ms=ms,
+                style or st.linestyle,
+                color=st.color,
+                marker=st.marker,
+                ms=st.size,
                 lw=lw,
                 label=lab,
-                mfc="none" if ms >= 7 else color,
+                mfc="none" if st.hollow else st.color,
             )
         fails += list(g[x][~ok])
+    # runs the method flagged (unconverged, ill-conditioned): their value, ringed
+    flagged = table[table.status.isin(("unconverged", "ill-conditioned"))] if "status" in table else table[:0]
+    flagged = flagged[np.isfinite(flagged[y]) & (flagged[y] > 0)]
+    if len(flagged):
+        ax.loglog(
+            flagged[x],
+            flagged[y],
+            "o",
+            ms=11,
+            mfc="none",
+            mec="red",
+            mew=1.2,
+            ls="none",
+            label="flagged by the method (unconverged / ill-conditioned)",
+        )
     if fails:
         ax.plot(
             fails,
@@ -105,7 +135,7 @@ def convergence_k(table: pd.DataFrame, case: str, *, floor: float | None = None,
     _integer_ticks(ax, g.k)
     h = g.h.iloc[0] if len(g) else np.nan
     ax.set(xlabel="elements per link k", ylabel=ERROR_LABEL, title=f"{case}: convergence in k (h = {h:g} s)")
-    ax.legend(fontsize=8)
+    _legend(ax)
     return fig
 
 
@@ -129,24 +159,7 @@ def convergence_h(table: pd.DataFrame, case: str) -> Figure:
         )
     k = g.k.iloc[0] if len(g) else np.nan
     ax.set(xlabel="step h (s)", ylabel=ERROR_LABEL, title=f"{case}: convergence in h (k = {k})")
-    ax.legend(fontsize=7)
-    return fig
-
-
-def work_precision(table: pd.DataFrame, case: str) -> Figure:
-    """Error against wall time, one curve per flexible method, the rigid baseline as stars."""
-    fig, (ax,) = _figure()
-    g = table[table.case == case]
-    _loglog_groups(ax, g[g.k > 0], "wall_time", "ee_l2", "method")
-    rigid = g[(g.k == 0) & np.isfinite(g.ee_l2)]
-    for m, r in rigid.groupby("method"):
-        ax.loglog(r.wall_time, r.ee_l2, "*", ms=12, color="k", label=f"{_label(m)} (rigid-model floor)")
-    ax.set(
-        xlabel="wall time of the solve (s)",
-        ylabel=ERROR_LABEL,
-        title=f"{case}: work-precision (lower left is better)",
-    )
-    ax.legend(fontsize=8)
+    _legend(ax)
     return fig
 
 
@@ -163,67 +176,90 @@ def scheme(table: pd.DataFrame, case: str) -> Figure:
             f"h = {s.h.iloc[0]:g} s" if series == "k" and len(s) else (f"k = {s.k.iloc[0]}" if len(s) else "")
         )
         ax.set(xlabel=xl, ylabel=ERROR_LABEL, title=f"{case}: DT-TMM variants ({fixed})")
-        ax.legend(fontsize=7)
+        _legend(ax)
     return fig
+
+
+def _line_kw(method: str) -> dict:
+    """Line style of a time history: the reference wide and pale underneath, methods thin."""
+    if method == "reference":
+        return {"color": "k", "lw": 2.5, "alpha": 0.35, "zorder": 0}
+    st = _style(method)
+    return {"lw": 1, "color": st.color, "ls": st.linestyle}
+
+
+def _history_grid(s, rows, case, title):
+    """Panels rows × columns of time histories; ``rows`` = [(column stem per panel list,
+    y label per panel list, scale, difference?)]; one legend below all panels."""
+    ncols = max(len(r[0]) for r in rows)
+    fig, axes = _figure(ncols=ncols, nrows=len(rows), size=(4.6, 2.7))
+    axes = axes.reshape(len(rows), ncols)
+    for m, g in s.groupby("method", sort=False):
+        for i, (cols, _, scale, diff) in enumerate(rows):
+            if diff and (m == "reference" or not _uses_k(m)):
+                continue  # the rigid model's differences would set the scale: they are in the tables
+            for j, c in enumerate(cols):
+                if c in g and g[c].notna().any():
+                    axes[i, j].plot(g.t, g[c] * scale, label=_label(m), **_line_kw(m))
+    for i, (cols, ylabels, _, diff) in enumerate(rows):
+        for j in range(ncols):
+            ax = axes[i, j]
+            if j >= len(cols):
+                ax.set_visible(False)
+                continue
+            ax.set(xlabel="t (s)", ylabel=ylabels[j])
+            ax.grid(True, alpha=0.3)
+            if diff:
+                _mark_round_off(ax)
+                ax.axhline(0, color="k", lw=0.6)
+    _fig_legend(fig, axes.ravel())
+    fig.suptitle(f"{case}: {title}")
+    return fig
+
+
+def _mark_round_off(ax, tiny: float = 1e-12) -> None:
+    """Say so on a difference panel whose every curve is at round-off (a prescribed motion)."""
+    ys = [np.nanmax(np.abs(ln.get_ydata())) for ln in ax.get_lines() if len(ln.get_ydata())]
+    if ys and max(ys) < tiny:
+        ax.text(0.5, 0.85, "Δ at round-off (prescribed motion)", transform=ax.transAxes, ha="center", fontsize=8)
 
 
 def time_histories(series: pd.DataFrame, case: str) -> Figure:
-    """Joint angles (top row) and tip deflections (bottom row) against time, every method."""
+    """Joint angles and tip deflections of every method with the reference (top rows), and
+    each method minus the reference (bottom rows), against time."""
     s = series[series.case == case]
     n = sum(1 for c in s.columns if c.startswith("joint_angle_") and s[c].notna().any())
-    fig, axes = _figure(ncols=max(n, 1), nrows=2, size=(5.0, 3.2))
-    axes = axes.reshape(2, max(n, 1))
-    for m, g in s.groupby("method", sort=False):
-        ref = m == "reference"
-        kw = (
-            dict(color="k", lw=2.5, alpha=0.35, zorder=0)
-            if ref
-            else dict(lw=1, color=_STYLE.get(m, ("C9",))[0])
-        )
-        lab = "reference" if ref else _label(m)
-        for j in range(n):
-            axes[0, j].plot(g.t, g[f"joint_angle_{j + 1}"], label=lab, **kw)
-            axes[1, j].plot(g.t, g[f"tip_deflection_{j + 1}"] * 1e3, label=lab, **kw)
-    for j in range(n):
-        name = "hub angle" if n == 1 else f"joint {j + 1} angle"
-        axes[0, j].set(xlabel="t (s)", ylabel=f"{name} (rad)")
-        axes[1, j].set(xlabel="t (s)", ylabel=f"link {j + 1} tip deflection (mm)")
-        for ax in axes[:, j]:
-            ax.grid(True, alpha=0.3)
-    axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"{case}: time histories")
-    return fig
+    joint = ["hub angle"] if n == 1 else [f"joint {j} angle" for j in range(1, n + 1)]
+    ang = [f"joint_angle_{j}" for j in range(1, n + 1)]
+    tip = [f"tip_deflection_{j}" for j in range(1, n + 1)]
+    tipl = [f"link {j} tip deflection" for j in range(1, n + 1)]
+    rows = [
+        (ang, [f"{a} (rad)" for a in joint], 1.0, False),
+        (tip, [f"{a} (mm)" for a in tipl], 1e3, False),
+        ([f"d_{c}" for c in ang], [f"Δ {a} (rad)" for a in joint], 1.0, True),
+        ([f"d_{c}" for c in tip], [f"Δ link {j} tip (mm)" for j in range(1, n + 1)], 1e3, True),
+    ]
+    return _history_grid(s, rows, case, "time histories (top) and Δ = method − reference (bottom)")
 
 
-def cost(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
-    """Wall time against elements per link, one line per method, fitted exponent in the legend."""
-    fig, (ax,) = _figure()
-    ex = dict(zip(exponents.method, exponents.exponent)) if len(exponents) else {}
-    labels = {
-        m: f"{_label(m)} (∝ k^{ex[m]:.2f})" if np.isfinite(ex.get(m, np.nan)) else _label(m)
-        for m in table.method.unique()
-    }
-    _loglog_groups(ax, table, "k", "wall_time", "method", labels=labels)
-    _integer_ticks(ax, table.k)
-    case = table.case.iloc[0] if len(table) else ""
-    ax.set(
-        xlabel="elements per link k", ylabel="wall time of the solve (s)", title=f"{case}: CPU time against k"
-    )
-    ax.legend(fontsize=8)
-    return fig
+LOAD_LABELS = {"moment1": "root moment, link 1 (N·m)", "energy": "total energy (J)"}
 
 
-def bench_scaling(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
-    """Benchmark time per step against elements (pytest-benchmark data), one line per group."""
-    fig, (ax,) = _figure()
-    ex = dict(zip(exponents.group, exponents.exponent)) if len(exponents) else {}
-    labels = {
-        g: f"{g} (∝ n^{ex[g]:.2f})" if np.isfinite(ex.get(g, np.nan)) else g for g in table.group.unique()
-    }
-    _loglog_groups(ax, table, "elements", "time_per_step", "group", labels=labels)
-    ax.set(xlabel="elements per link", ylabel="time per step (s)", title="benchmarks: cost scaling")
-    ax.legend(fontsize=7)
-    return fig
+def load_label(q: str) -> str:
+    """Axis label of a load quantity (``moment1``, ``torque{i}``, ``energy``)."""
+    return LOAD_LABELS.get(q, f"joint {q[6:]} torque (N·m)" if q.startswith("torque") else q)
+
+
+def loads(series: pd.DataFrame, case: str) -> Figure:
+    """Root bending moment, torques of motion-driven joints and energy of every method with the
+    reference (top row), and each method minus its reference (bottom row), against time."""
+    s = series[series.case == case]
+    qs = [q for q in s.columns if (q in LOAD_LABELS or q.startswith("torque")) and s[q].notna().any()]
+    rows = [
+        (qs, [load_label(q) for q in qs], 1.0, False),
+        ([f"d_{q}" for q in qs], [f"Δ {load_label(q)}" for q in qs], 1.0, True),
+    ]
+    return _history_grid(s, rows, case, "loads and energy (top) and Δ = method − reference (bottom)")
 
 
 def save(fig: Figure, path) -> None:
@@ -233,28 +269,19 @@ def save(fig: Figure, path) -> None:
 
 # --- Benchmark scaling (pytest-benchmark groups "elements:<case>:<method>", "links:<method>") ---
 
-_BENCH_STYLE = {
-    "dttmm-converged": ("C0", "o", "DT-TMM (Newmark), converged"),
-    "dttmm-one-shot": ("C9", "v", "DT-TMM (Newmark), one sweep per step"),
-    "dttmm": ("C0", "o", "DT-TMM (Newmark)"),
-    "global": ("C3", "^", "global equations (Newmark)"),
-    "exudyn-ancf": ("C1", "s", "Exudyn ANCF"),
-    "exudyn-beam": ("C2", "D", "Exudyn GE beam"),
-    "dttmm-rk4": ("C4", "P", "DT-TMM (RK4, stable step)"),
-}
+_BENCH_ORDER = ("dttmm-converged", "dttmm-one-shot", "dttmm", "global", "exudyn-ancf", "exudyn-beam", "dttmm-rk4")
 
 
 def _bench_curves(ax, d, x, exps, fit_note):
     """One log-log curve of time per step per method, the fitted exponent in its label."""
-    names = [m for m in _BENCH_STYLE if m in set(d.method)] + sorted(set(d.method) - set(_BENCH_STYLE))
+    names = [m for m in _BENCH_ORDER if m in set(d.method)] + sorted(set(d.method) - set(_BENCH_ORDER))
     for i, m in enumerate(names):
         g = d[(d.method == m) & (d[x] > 0) & np.isfinite(d.time_per_step)].sort_values(x)
         if g.empty:
             continue
-        color, marker, lab = _BENCH_STYLE.get(m, (f"C{i % 10}", _MARKERS[i % len(_MARKERS)], m))
-        p = exps.get(m, np.nan)
-        lab += f", p = {p:.2f}" if np.isfinite(p) else ", p: too few points"
-        ax.loglog(g[x], g.time_per_step, "-", color=color, marker=marker, ms=5, lw=1.5, label=lab)
+        st, p = _style(m, i), exps.get(m, np.nan)
+        lab = _label(m) + (f", p = {p:.2f}" if np.isfinite(p) else ", p: too few points")
+        ax.loglog(g[x], g.time_per_step, "-", color=st.color, marker=st.marker, ms=5, lw=1.5, label=lab)
     ax.plot([], [], " ", label=fit_note)
 
 

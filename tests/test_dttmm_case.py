@@ -3,12 +3,25 @@ import math
 
 import numpy as np
 import pytest
+from conftest import CASES, case
 
 import dttmm
-from dttmm import (BangBang, Case, Constant, Drive, Hub, InputError, Link, Manipulator, Payload, Scenario,
-                   Section, Sine, SpinUp, Table)
-
-from conftest import CASES, case
+from dttmm import (
+    BangBang,
+    Case,
+    Constant,
+    Drive,
+    Hub,
+    InputError,
+    Link,
+    Manipulator,
+    Payload,
+    Scenario,
+    Section,
+    Sine,
+    SpinUp,
+    Table,
+)
 
 
 @pytest.mark.parametrize("name", ["single_link", "three_link", "spin_up"])
@@ -42,7 +55,7 @@ def test_drive_laws():
     bb = BangBang((1.0, -1.0, 0.0), (0.5, 1.0))
     assert bb(0.49) == 1 and bb(0.5) == -1 and bb(0.5, left=True) == 1 and bb(1.2) == 0
     s = SpinUp(4.0, 15.0)
-    a, r, acc = s.motion(7.5)
+    a, r, _acc = s.motion(7.5)
     assert r == pytest.approx((4 / 15) * (7.5 - 15 / (2 * math.pi) * math.sin(math.pi)))
     # the angle is the integral of the rate: check by quadrature
     ts = np.linspace(0, 7.5, 20001)
@@ -90,7 +103,7 @@ def test_bad_fields_are_named(make, field, value):
 
 
 def test_wrong_number_of_drives():
-    sec, man, scen = _valid_parts()
+    _sec, man, scen = _valid_parts()
     scen2 = Scenario(1.0, 0.01, scen.drives * 2)
     with pytest.raises(InputError, match="scenario.drives"):
         Case(man, scen2)
@@ -111,14 +124,14 @@ def test_negative_stiffness_in_file(tmp_path):
 
 
 @pytest.mark.parametrize("kw, field", [
-    (dict(elements_per_link=0, h=1e-3), "elements_per_link"),
-    (dict(elements_per_link=2.5, h=1e-3), "elements_per_link"),
-    (dict(elements_per_link=2, h=0.0), "h"),
-    (dict(elements_per_link=2, h=-1e-3), "h"),
-    (dict(elements_per_link=2, h=5.0), "h"),
-    (dict(elements_per_link=2, h=1e-3, integrator="euler"), "integrator"),
-    (dict(elements_per_link=2, h=1e-3, sweep="lu"), "sweep"),
-    (dict(elements_per_link=2, h=1e-3, iterations=-1), "iterations"),
+    ({"elements_per_link": 0, "h": 1e-3}, "elements_per_link"),
+    ({"elements_per_link": 2.5, "h": 1e-3}, "elements_per_link"),
+    ({"elements_per_link": 2, "h": 0.0}, "h"),
+    ({"elements_per_link": 2, "h": -1e-3}, "h"),
+    ({"elements_per_link": 2, "h": 5.0}, "h"),
+    ({"elements_per_link": 2, "h": 1e-3, "integrator": "euler"}, "integrator"),
+    ({"elements_per_link": 2, "h": 1e-3, "sweep": "lu"}, "sweep"),
+    ({"elements_per_link": 2, "h": 1e-3, "iterations": -1}, "iterations"),
 ])
 def test_bad_solver_settings(single_link, kw, field):
     with pytest.raises(InputError) as exc:

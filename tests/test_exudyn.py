@@ -25,9 +25,9 @@ METHODS = [pytest.param(exudyn_ancf, id="ancf"), pytest.param(exudyn_beam, id="b
 EI_AL, RHOA_AL, EA_AL = 2.3333333333333335, 0.27, 7.0e6
 
 
-def _extra_rotary_inertia(res, length):
+def _extra_rotary_inertia(res, length, link=0):
     """Rotary inertia the element adds about the joint beyond ρA·L³/3 (GE beam: ρI·L)."""
-    return res.meta.get("cross_section_inertia", 0.0) * length
+    return res.meta.get("cross_section_inertia", [0.0] * (link + 1))[link] * length
 
 
 def _single(EI, *, EA=EA_AL, hub=Hub(0.0, 0.01), payload=None, drive, duration, output_step=1e-3,
@@ -98,7 +98,7 @@ def test_two_link_motor_reaction_and_held_joint_torque(mod):
     case = Case(Manipulator(links), Scenario(0.5, 1e-3, drives))
     res = mod.simulate(case, elements_per_link=2, h=1e-3)
     m2 = RHOA_AL * L2
-    J2 = 0.005 + m2 * L2**2 / 3 + _extra_rotary_inertia(res, L2)
+    J2 = 0.005 + m2 * L2**2 / 3 + _extra_rotary_inertia(res, L2, 1)
     w = 4 * np.pi
     angle = 0.2 / J2 * (res.t / w - np.sin(w * res.t) / w**2)            # peak 0.49 rad
     assert np.max(np.abs(res.joint_angle[:, 1] - angle)) < 1e-4
@@ -296,3 +296,47 @@ def test_spin_up_ancf_is_bounded_with_the_known_peak():
     v = res.tip_deflection[:, 0]
     assert np.max(np.abs(v)) == pytest.approx(0.400, abs=2e-3)
     assert np.max(np.abs(v[res.t > 15.0])) < 1e-2
+
+
+# --------------------------------------------------------------------------------------------
+# tuning options: drive inputs once per step, Jacobian per step, physical rotary inertia
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("mod", METHODS)
+def test_pre_step_inputs_equal_user_functions(mod):
+    """Torques and prescribed angles set once per step (PreStepUserFunction, at the step end) give
+    the results of load/offset user functions evaluated at every residual evaluation."""
+    links = (Link(Section(0.5, EI_AL, RHOA_AL, EA_AL), Hub(0.0, 0.01)),
+             Link(Section(0.5, EI_AL, RHOA_AL, EA_AL), Hub(0.1, 0.005), Payload(0.1, 0.0)))
+    drives = (Drive("motion", SpinUp(2.0, 0.1)), Drive("torque", BangBang((0.2, -0.2), (0.03,))))
+    case = Case(Manipulator(links, (0.0, -9.81)), Scenario(0.06, 1e-3, drives))
+    a = mod.simulate(case, elements_per_link=2, h=1e-3, drive_input="user-function")
+    b = mod.simulate(case, elements_per_link=2, h=1e-3, drive_input="pre-step")
+    assert a.meta["drive_input"] == "user-function" and b.meta["drive_input"] == "pre-step"
+    assert np.max(np.abs(a.link_tip - b.link_tip)) < 1e-11          # of ~0.1 m of motion
+    assert np.max(np.abs(a.joint_torque - b.joint_torque)) < 1e-6 * np.max(np.abs(a.joint_torque))
+
+
+@pytest.mark.parametrize("mod", METHODS)
+def test_jacobian_per_step_changes_only_the_iteration(mod):
+    case = _single(EI_AL, drive=Drive("torque", Sine(1.0, 2.0)), duration=0.1, output_step=2e-3)
+    a = mod.simulate(case, elements_per_link=4, h=2e-3, jacobian_per_step=True)
+    b = mod.simulate(case, elements_per_link=4, h=2e-3, jacobian_per_step=False)
+    assert a.meta["jacobian_per_step"] and not b.meta["jacobian_per_step"]
+    assert a.meta["jacobians"] >= a.meta["steps_taken"]                # at least one per step
+    assert np.max(np.abs(a.tip_deflection - b.tip_deflection)) < 1e-6  # Newton tolerance level
+    with pytest.raises(InputError, match="jacobian_per_step"):
+        mod.simulate(case, elements_per_link=4, h=2e-3, jacobian_per_step="yes")
+    with pytest.raises(InputError, match="drive_input"):
+        mod.simulate(case, elements_per_link=4, h=2e-3, drive_input="python")
+
+
+def test_beam_physical_rotary_inertia():
+    """"physical": ρI = ρA·EI/EA (I/A = EI/EA for a homogeneous section), 9e-8 kg·m for the
+    50 × 2 mm strip, the value 2700 kg/m³ · 0.05 · 0.002³ / 12 m⁴ from the geometry; default 1e-5."""
+    case = _single(EI_AL, drive=Drive("torque", Constant(0.1)), duration=0.01)
+    res = exudyn_beam.simulate(case, elements_per_link=2, h=1e-3, cross_section_inertia="physical")
+    assert res.meta["cross_section_inertia_rule"] == "physical"
+    assert res.meta["cross_section_inertia"] == [pytest.approx(2700 * 0.05 * 0.002**3 / 12, rel=1e-12)]
+    assert exudyn_beam.simulate(case, elements_per_link=2, h=1e-3).meta["cross_section_inertia"] == [1e-5]
+    with pytest.raises(InputError, match="cross_section_inertia"):
+        exudyn_beam.simulate(case, elements_per_link=2, h=1e-3, cross_section_inertia="exact")

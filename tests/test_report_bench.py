@@ -15,7 +15,7 @@ from reports import bench, build
 KS = [1, 2, 4, 8, 16, 32, 64]
 NS = [1, 2, 3, 5, 8]
 # time per step (s) = c · x^p, so the fitted exponents and the ratios are known exactly
-LAWS = {"dttmm-converged": (1e-6, 1), "global": (1e-6, 3), "exudyn-ancf": (2e-5, 1)}
+LAWS = {"dttmm-converged": (1e-6, 1), "dttmm-2nd": (2e-6, 1), "global": (1e-6, 3), "exudyn-ancf": (2e-5, 1)}
 REAL = sorted(Path(__file__).resolve().parents[1].glob("data/bench/*.json"))
 
 
@@ -108,40 +108,73 @@ def test_exponents_tables_and_figures_from_known_power_laws(tmp_path):
 
 
 def test_ratios_equal_the_known_values(tmp_path):
-    wp = pd.DataFrame(
+    """Ratios only between runs of the same element strain, stated with 2 significant digits."""
+    eq = pd.DataFrame(
         {
-            "case": ["three_link"] * 3,
-            "method": ["dttmm", "global", "exudyn-beam"],
-            "target_error": [1e-4] * 3,
-            "wall_time_to_target": [0.5, 50.0, np.nan],
+            "case": ["three_link"] * 5,
+            "target_error": [1e-4] * 5,
+            "method": ["dttmm", "global", "dttmm-2nd", "exudyn-ancf", "exudyn-beam"],
+            "cpu_time": [0.5, 50.0, 1.0, 28.0, np.nan],
         }
     )
-    out = _build(tmp_path, synthetic(tmp_path / "bench"), {"work_precision_summary": wp})
+    out = _build(tmp_path, synthetic(tmp_path / "bench"), {"work_precision_equal_accuracy": eq})
     r = pd.read_csv(out / "data" / "bench_ratios.csv")
+    assert [c for c in r.columns if "/" in c] == [
+        "global/dttmm",
+        "global-2nd/dttmm-2nd",
+        "exudyn-ancf/dttmm-2nd",
+        "exudyn-beam/dttmm-2nd",
+    ]
     size = r[r.basis.str.startswith("equal size") & (r.case == "three_link")]
     assert sorted(size.k[size.basis.str.contains("elements")]) == [4, 16, 64]
-    for _, row in size.iterrows():
-        assert row["global/dttmm"] == pytest.approx(row.k**2)  # k³ / k
-        assert row["exudyn-ancf/dttmm"] == pytest.approx(20.0)
-        assert np.isnan(row["exudyn-beam/dttmm"])  # did not run
+    for _, row in size[size.basis.str.contains("elements")].iterrows():
+        assert row["global/dttmm"] == pytest.approx(row.k**2)  # k³ / k, linear element against linear
+        assert row["exudyn-ancf/dttmm-2nd"] == pytest.approx(10.0)  # 2e-5 / 2e-6, nonlinear strain pair
+        assert np.isnan(row["exudyn-beam/dttmm-2nd"])  # did not run
     assert len(r[r.basis.str.contains("one-step")]) == 2
     acc = r[r.basis.str.startswith("equal accuracy")].iloc[0]
-    assert acc["global/dttmm"] == pytest.approx(100.0) and np.isnan(acc["exudyn-beam/dttmm"])
-    assert acc.target_error_m == pytest.approx(1e-4)
+    assert acc["global/dttmm"] == pytest.approx(100.0) and acc["exudyn-ancf/dttmm-2nd"] == pytest.approx(28.0)
+    assert np.isnan(acc["exudyn-beam/dttmm-2nd"]) and acc.target_error_m == pytest.approx(1e-4)
     md = (out / "REPORT.md").read_text()
     sec = md[md.index("## Cost scaling (benchmarks)") : md.index("## Omissions")]
-    assert "1 : 4096 : 20 : n/a" in sec  # k = 64, elements scan
-    assert "At equal accuracy" in sec and "1 : 100 : n/a : n/a" in sec
+    assert "global/dttmm = 4100, exudyn-ancf/dttmm-2nd = 10." in sec  # k = 64: 4096 to 2 digits
+    assert "three_link at 1e-04 m: global/dttmm = 100, exudyn-ancf/dttmm-2nd = 28" in sec
     assert "exudyn-beam (three_link)" in sec  # listed as absent
     assert "2026-01-02 03:04:05" in sec and "Test CPU" in sec and "0123456789" in sec
     assert "shared 2-core machine" in sec and "k ≥ 8" in sec
+    # the synthetic file names another commit than the code's
+    assert "Warning: this benchmark file was made at commit 0123456789" in sec
     for t in ("bench_exponents", "bench_element_step_us", "bench_ratios"):
         assert f"data/{t}.csv" in md
+    assert "## Peer configuration" in md and "SetPreStepUserFunction" in md
+
+
+def test_provenance_warns_only_for_another_commit():
+    info = {
+        "file": "b.json",
+        "date": "2026-01-02T03:04:05",
+        "machine": "M",
+        "node": "",
+        "cores": 2,
+        "python": "3.11",
+        "commit": "abcdef0123",
+        "dirty": False,
+    }
+    assert len(bench.provenance(info, "abcdef0123456789")) == 1
+    warn = bench.provenance(info, "99999999")
+    assert len(warn) == 2 and "abcdef0123" in warn[1] and "99999999" in warn[1]
+
+
+def test_two_significant_digits():
+    from reports.peers import sig2
+
+    assert [sig2(x) for x in (8031.0, 2304.4, 2.84, 0.0456, 4096.0)] == ["8000", "2300", "2.8", "0.046", "4100"]
+    assert sig2(float("nan")) == "n/a" and sig2(None) == "n/a"
 
 
 def test_equal_accuracy_absent_without_work_precision(tmp_path):
     out = _build(tmp_path, synthetic(tmp_path / "bench"))
-    assert "work-precision summary (wall_time_to_target) is absent" in (out / "REPORT.md").read_text()
+    assert "work-precision equal-accuracy table is absent" in (out / "REPORT.md").read_text()
 
 
 def test_partial_and_old_files_do_not_crash(tmp_path):
@@ -166,8 +199,8 @@ def test_partial_and_old_files_do_not_crash(tmp_path):
         ],
     )
     out = _build(tmp_path / "b", old)
-    _is_png(out / "figures" / "bench_scaling.png")
-    assert "No scaling-suite groups" in (out / "REPORT.md").read_text()
+    assert not (out / "figures" / "bench_scaling.png").exists()  # files without scans are skipped
+    assert "has no scaling-suite groups" in (out / "REPORT.md").read_text()
     out = _build(tmp_path / "c", tmp_path / "none")
     assert "Skipped: no pytest-benchmark JSON" in (out / "REPORT.md").read_text()
     (tmp_path / "bad").mkdir()

@@ -218,4 +218,5 @@ def test_separate_cluster_gives_the_same_table_as_a_local_run(tmp_path, loopback
     )
     assert len(local) == len(tasks) and (local.status == "ok").sum() == len(tasks) - 1
     assert local.worker.nunique() >= 1 and not local.worker.str.contains(str(os.getpid())).any()
-    pd.testing.assert_frame_equal(local.drop(columns=TIMING), remote.drop(columns=TIMING))
+    timing = TIMING + [c for c in local.columns if c.startswith("timing_")]  # measured, differ per run
+    pd.testing.assert_frame_equal(local.drop(columns=timing), remote.drop(columns=timing))

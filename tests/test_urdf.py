@@ -87,3 +87,11 @@ def test_console_script():
         pytest.skip("the dttmm console script is not installed")
     out = subprocess.run([exe, "urdf", str(THREE)], capture_output=True, text=True, check=True).stdout
     assert ET.fromstring(out).get("name") == "three_link"
+
+
+def test_cli_unwritable_out_is_one_line_exit_2(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert cli_main(["urdf", str(CASES / "single_link.toml"), "--out", str(blocker / "arm.urdf")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--out" in err

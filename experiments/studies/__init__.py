@@ -1,8 +1,9 @@
 """The studies, one module each: ``tasks(ctx)`` lists the runs, ``analyse(ctx, table)`` turns
-the run table into the study's tables, ``main(argv)`` runs it alone (``--quick``/``--full``)."""
+the run table into the study's tables; ``python -m experiments.studies.<name> --quick`` runs
+one alone (``experiments.study.study_main``)."""
 
-from . import convergence_h, convergence_k, cost, paper, scheme, work_precision
+from . import benchmarks, convergence_h, convergence_k, cost, paper, scheme, work_precision
 
-STUDIES = {m.NAME: m for m in (convergence_k, convergence_h, work_precision, scheme, paper, cost)}
+STUDIES = {m.NAME: m for m in (convergence_k, convergence_h, work_precision, scheme, paper, cost, benchmarks)}
 
 __all__ = ["STUDIES"]

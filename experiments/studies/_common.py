@@ -24,6 +24,8 @@ def fit_orders(table: pd.DataFrame, x: str, y: str, by: list, *, refine_descendi
         return pd.DataFrame(columns=[*by, "order", "n_points", "x_min", "x_max", "quantity"])
     for key, g in table.groupby(by, dropna=False, sort=False):
         g = g.sort_values(x, ascending=not refine_descending)
+        if "status" in g:
+            g = g.assign(**{y: g[y].where(g.status == "ok")})
         m = decreasing_prefix(g[x], g[y])
         s, n = slope(g[x][m], g[y][m])
         order = s if refine_descending else -s

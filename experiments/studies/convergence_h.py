@@ -64,11 +64,7 @@ def analyse(ctx, table):
     return {NAME: table, f"{NAME}_orders": orders}
 
 
-def main(argv=None) -> int:
-    from ..study import study_main
+if __name__ == "__main__":  # python -m experiments.studies.<name> [--quick|--full] ...
+    from experiments.study import study_main
 
-    return study_main(NAME, argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(study_main(NAME))

@@ -1,4 +1,9 @@
-"""CPU time against the number of elements per link, with fitted exponents (t ∝ k^p)."""
+"""CPU time against the number of elements per link, with fitted exponents (t ∝ k^p).
+
+Every run is timed with :data:`REPEATS` calls (see :mod:`experiments.timing`): the figure and the
+exponents use the least CPU time of the calls (``cpu_time``), the median is kept beside it, and
+runs measured under load or with a wide spread are marked ``noisy``.
+"""
 
 from __future__ import annotations
 
@@ -7,9 +12,11 @@ import pandas as pd
 
 from ..fit import slope
 from ..runs import Task
+from ..timing import COST_REPEATS
 from ._common import with_task_columns
 
 NAME = "cost"
+REPEATS = COST_REPEATS  # timed calls per run (the sweep gives every run of this study that many)
 
 
 def tasks(ctx) -> list[Task]:
@@ -20,34 +27,50 @@ def tasks(ctx) -> list[Task]:
     return [Task(p["case"], m, k, p["h"], T) for m in p["methods"] for k in p["ks"] if k <= cap.get(m, k)]
 
 
+def timing_columns(table: pd.DataFrame) -> pd.DataFrame:
+    """The run table with ``cpu_time``/``cpu_time_median`` (s, whole call), ``repeats`` and
+    ``noisy``; runs stored without a timing fall back to their wall time, marked noisy."""
+    t = table.copy()
+    has = "timing_cpu_min" in t
+    t["cpu_time"] = t["timing_cpu_min"].astype(float) if has else np.nan
+    t["cpu_time_median"] = t["timing_cpu_median"].astype(float) if has else np.nan
+    t["repeats"] = t["timing_repeats"].fillna(0).astype(int) if has else 0
+    t["noisy"] = t["timing_noisy"].fillna(True).astype(bool) if has else True
+    t["noise"] = t["timing_noise"].fillna("not timed with repeats") if has else "not timed with repeats"
+    old = ~np.isfinite(t["cpu_time"])
+    t.loc[old, "cpu_time"] = t.loc[old, "wall_time"]
+    t.loc[old, "noise"] = "not timed with repeats (one wall time)"
+    t.loc[old, "noisy"] = True
+    return t
+
+
 def analyse(ctx, table):
-    """Tables: runs with ``time_per_step`` (s), and the exponent p of wall time ∝ k^p per
-    method, fitted over k ≥ 2 (k = 1 is dominated by fixed costs)."""
+    """Tables: runs with ``cpu_time`` (s, least of the repeats) and ``time_per_step`` (s), and
+    the exponent p of CPU time ∝ k^p per method, fitted over k ≥ 2 (k = 1 is dominated by
+    fixed costs), with the number of noisy points in the fit."""
     table = with_task_columns(table)
     if table.empty:
         return {NAME: table, f"{NAME}_exponents": table}
-    table["time_per_step"] = table["wall_time"] / table["n_steps"].where(table["n_steps"] > 0)
+    table = timing_columns(table)
+    table["time_per_step"] = table["cpu_time"] / table["n_steps"].where(table["n_steps"] > 0)
     rows = []
     for m, g in table.groupby("method"):
         g = g[(g.status == "ok") & (g.k >= 2)]
-        p, n = slope(g.k, g.wall_time)
+        p, n = slope(g.k, g.cpu_time)
         rows.append(
             {
                 "method": m,
                 "exponent": p,
                 "n_points": n,
+                "noisy_points": int(g.noisy.sum()),
                 "k_max": int(g.k.max()) if n else np.nan,
-                "wall_time_at_k_max": float(g.loc[g.k.idxmax(), "wall_time"]) if n else np.nan,
+                "cpu_time_at_k_max": float(g.loc[g.k.idxmax(), "cpu_time"]) if n else np.nan,
             }
         )
     return {NAME: table, f"{NAME}_exponents": pd.DataFrame(rows)}
 
 
-def main(argv=None) -> int:
-    from ..study import study_main
+if __name__ == "__main__":  # python -m experiments.studies.<name> [--quick|--full] ...
+    from experiments.study import study_main
 
-    return study_main(NAME, argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(study_main(NAME))

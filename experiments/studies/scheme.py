@@ -1,8 +1,9 @@
 """The paper's own scheme under test: DT-TMM with the plain (paper) transfer or the Riccati
 sweep, and 0, 1 or converged corrections per step, as the mesh and the step are refined.
 
-The plain sweep loses digits exponentially with k (METHOD.md §6); its failures are recorded
-as NaN with the reason, and the summary says at which k it breaks.
+The plain sweep loses digits exponentially with k; its failures are recorded as NaN with the
+reason, and the summary says at which k it breaks. A run the solver itself flags
+("unconverged", "ill-conditioned") counts as broken there, like a failed one.
 """
 
 from __future__ import annotations
@@ -44,10 +45,22 @@ def tasks(ctx) -> list[Task]:
     return out
 
 
+FLAGGED = ("unconverged", "ill-conditioned")
+
+
+def _first_reason(fails: pd.DataFrame) -> str:
+    """``status: reason`` of the not-ok run at the smallest k ('' when none)."""
+    if fails.empty:
+        return ""
+    r = fails.sort_values("k").iloc[0]
+    return f"{r.status}: {r.reason}" if r.status != "failed" else str(r.reason)
+
+
 def analyse(ctx, table):
     """Tables: runs with ``variant``, ``sweep``, ``iterations`` and ``series`` (k or h), and a
-    summary per (case, variant): failures and the smallest k at which the error exceeds ten
-    times the converged Riccati error (or the run fails)."""
+    summary per (case, variant): runs not ok (``failed``: every status but "ok"; ``flagged``:
+    those the solver marked unconverged or ill-conditioned) and the smallest k at which the
+    error exceeds ten times the converged Riccati error or the run is not ok."""
     p = ctx.plan.studies[NAME]
     table = with_task_columns(table)
     if table.empty:
@@ -68,7 +81,7 @@ def analyse(ctx, table):
     base_label = variant_label("riccati", None)
     for (case, var), g in table[table.series == "k"].groupby(["case", "variant"]):
         base = table[(table.series == "k") & (table.case == case) & (table.variant == base_label)]
-        base = base.set_index("k")[MAIN_ERROR]
+        base = base[base.status == "ok"].set_index("k")[MAIN_ERROR]
         bad = [
             k
             for k, e, s in zip(g.k, g[MAIN_ERROR], g.status)
@@ -81,18 +94,15 @@ def analyse(ctx, table):
                 "variant": var,
                 "runs": len(g),
                 "failed": len(fails),
+                "flagged": int(fails.status.isin(FLAGGED).sum()),
                 "breaks_at_k": min(bad) if bad else np.nan,
-                "first_reason": fails.sort_values("k")["reason"].iloc[0] if len(fails) else "",
+                "first_reason": _first_reason(fails),
             }
         )
     return {NAME: table, f"{NAME}_summary": pd.DataFrame(rows)}
 
 
-def main(argv=None) -> int:
-    from ..study import study_main
+if __name__ == "__main__":  # python -m experiments.studies.<name> [--quick|--full] ...
+    from experiments.study import study_main
 
-    return study_main(NAME, argv)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(study_main(NAME))

@@ -1,0 +1,466 @@
+"""Benchmark problems of the field with published, closed-form or recorded values.
+
+Each problem is a case file in ``experiments/cases/benchmarks/`` with a ``[provenance]`` table
+(source, parameters, the quantity compared, its value, the tolerance). This study runs every
+method that can model a problem at a few k through the sweep runner (cached, parallel), extracts
+the compared quantity from each run and reports the error, pass/fail at the stated tolerance and
+the observed order in k. The clamped-link frequencies need no time integration: they come from
+the linearised forward dynamics of the methods that expose it.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..runs import Task
+from ._common import fit_orders
+
+NAME = "benchmarks"
+CASE_DIR = Path(__file__).resolve().parents[1] / "cases" / "benchmarks"
+
+FLEX = ["dttmm", "dttmm-2nd", "global", "exudyn-ancf", "exudyn-beam"]
+# Damped runs to rest leave out the second-order element: its Kelvin-Voigt damping acts on the
+# linear element coordinates, so a damped static run with that strain creeps.
+STATIC = ["dttmm", "global", "exudyn-ancf", "exudyn-beam"]
+SETTINGS = {
+    "peak_tip_deflection": {"methods": FLEX, "h": 2e-3},
+    "static_tip_displacement": {"methods": STATIC, "h": 1e-2},
+    "tip_deflection_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
+    "tip_path_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
+    "frequencies": {"methods": ["dttmm", "global"]},
+}
+REQUIRED = (
+    "source",
+    "parameters",
+    "quantity",
+    "compared",
+    "value_kind",
+    "units",
+    "tolerance",
+    "tolerance_kind",
+)
+SETTLE_WINDOW = 1.0  # s: a static run is at rest when its tip moved < SETTLE_TOL over this window
+SETTLE_TOL = 1e-6  # m
+
+
+# ----------------------------------------------------------------------------- case files
+def load_problem(path) -> tuple:
+    """(dttmm.Case, provenance dict) of one benchmark case file.
+
+    The ``[provenance]`` table is removed before the case is built, so the case loader never
+    sees it (whether or not it accepts the table).
+    """
+    import dttmm
+
+    path = Path(path)
+    with path.open("rb") as f:
+        data = tomllib.load(f)
+    prov = data.pop("provenance", {})
+    data.setdefault("name", path.stem)
+    return dttmm.case_from_dict(data), prov
+
+
+def problems(names=None, case_dir=CASE_DIR) -> dict:
+    """Problem name -> (Case, provenance), for every case file (or the given names)."""
+    paths = sorted(Path(case_dir).glob("*.toml"))
+    out = {p.stem: load_problem(p) for p in paths}
+    if names is not None:
+        missing = [n for n in names if n not in out]
+        if missing:
+            raise KeyError(f"no benchmark case file for {missing} in {case_dir}")
+        out = {n: out[n] for n in names}
+    return out
+
+
+def missing_provenance(prov: dict) -> list:
+    """Keys a provenance table lacks: the REQUIRED ones, a value, and a reference where needed."""
+    miss = [k for k in REQUIRED if k not in prov]
+    if "value" not in prov and "values" not in prov:
+        miss.append("value")
+    if prov.get("value_kind") == "reference run" and "reference" not in prov:
+        miss.append("reference")
+    return miss
+
+
+def targets(prov: dict) -> list:
+    """[(quantity label, target value)] of a problem."""
+    if prov["quantity"] == "frequencies":
+        return [(f"f{i + 1}", float(v)) for i, v in enumerate(prov["values"])]
+    return [(prov["quantity"], float(prov["value"]))]
+
+
+def _shortened(case, duration):
+    if duration is None or duration == case.scenario.duration:
+        return case
+    return replace(case, scenario=replace(case.scenario, duration=float(duration)))
+
+
+def _ref_task(name, case, prov):
+    r = prov.get("reference")
+    if not r:
+        return None
+    return Task(name, r["method"], int(r["k"]), float(r["h"]), case.scenario.duration)
+
+
+# ----------------------------------------------------------------------------- tasks
+def _methods(params: dict, kind: str) -> list:
+    """The methods run on a problem of this kind: SETTINGS, narrowed to the plan's ``methods``
+    when it names some."""
+    chosen = params.get("methods")
+    return [m for m in SETTINGS[kind]["methods"] if chosen is None or m in chosen]
+
+
+def _active(ctx) -> bool:
+    """False for a report on case files given by the user (``plan.case_files``): the benchmark
+    problems belong to the default report only."""
+    return not getattr(ctx.plan, "case_files", None)
+
+
+def tasks(ctx) -> list:
+    """Every applicable method at every k of the plan (one run for the rigid baseline), plus
+    the reference run of the problems compared against one. The benchmark cases are added to
+    ``ctx.cases`` under their own names.
+
+    Plan parameters (``ctx.plan.studies["benchmarks"]``): ``ks`` (elements per link),
+    ``problems`` (case-file names, default all), ``durations`` (name -> shortened duration, s),
+    ``methods`` (optional: only these of each problem's methods), ``ks_by_problem`` (name -> ks
+    replacing ``ks`` for that problem)."""
+    if not _active(ctx):
+        return []
+    p = ctx.plan.studies[NAME]
+    out = []
+    for name, (case, prov) in problems(p.get("problems")).items():
+        kind = prov["quantity"]
+        if kind == "frequencies":
+            continue
+        case = _shortened(case, p.get("durations", {}).get(name))
+        if ctx.cases.get(name, case) != case:
+            raise ValueError(f"benchmark problem {name!r} clashes with a different case of the same name")
+        ctx.cases[name] = case
+        T, h = case.scenario.duration, SETTINGS[kind]["h"]
+        for m in _methods(p, kind):
+            ks = [0] if m == "pinocchio-rigid" else p.get("ks_by_problem", {}).get(name, p["ks"])
+            out += [Task(name, m, k, h, T) for k in ks]
+        ref = _ref_task(name, case, prov)
+        if ref is not None:
+            out.append(ref)
+    return list(dict.fromkeys(out))
+
+
+# ----------------------------------------------------------------------------- quantities
+def peak_tip_deflection(res) -> float:
+    """Most negative tip deflection of the last link (m), the sampled minimum refined by the
+    parabola through it and its two neighbours."""
+    v = np.asarray(res.tip_deflection[:, -1], float)
+    i = int(np.argmin(v))
+    if i == 0 or i == v.size - 1:
+        return float(v[i])
+    a, b, c = v[i - 1], v[i], v[i + 1]
+    curv = a - 2 * b + c
+    if curv <= 0:
+        return float(b)
+    return float(b - (a - c) ** 2 / (8 * curv))
+
+
+def tip_displacement(res, case, component: str) -> tuple:
+    """(displacement of the end effector from the straight arm at the last output time (m),
+    its movement over the last SETTLE_WINDOW s (m))."""
+    ee = np.asarray(res.end_effector, float)
+    straight = sum(link.beam.length for link in case.model.links)
+    i = {"x": 0, "y": 1}[component]
+    start = np.array([straight, 0.0])
+    j = int(np.searchsorted(res.t, res.t[-1] - SETTLE_WINDOW))
+    moved = float(np.max(np.linalg.norm(ee[j:] - ee[-1], axis=1)))
+    return float(ee[-1, i] - start[i]), moved
+
+
+def elastica_tip(alpha: float) -> tuple:
+    """Tip of the inextensible cantilever elastica under a transverse end load (Bisshopp &
+    Drucker 1945): (x/L, deflection/L, tip angle in rad) for the load parameter
+    alpha = P L² / EI > 0.
+
+    With p = sin(π/4 + θ_L/2) and sin φ₁ = 1/(p√2): √alpha = K(p) − F(φ₁, p),
+    x/L = √(2(2p² − 1)/alpha), deflection/L = 1 − (2/√alpha)(E(p) − E(φ₁, p)), θ_L = asin(2p² − 1).
+    """
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
+
+    if not alpha > 0:
+        raise ValueError(f"elastica: alpha = {alpha!r} must be positive")
+
+    def phi1(p):
+        return np.arcsin(min(1.0, 1 / (p * np.sqrt(2))))
+
+    def gap(p):
+        return ellipk(p * p) - ellipkinc(phi1(p), p * p) - np.sqrt(alpha)
+
+    p = brentq(gap, 1 / np.sqrt(2), 1 - 1e-15, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    m, f1 = p * p, phi1(p)
+    x = np.sqrt(2 * (2 * m - 1) / alpha)
+    defl = 1 - 2 / np.sqrt(alpha) * (ellipe(m) - ellipeinc(f1, m))
+    return float(x), float(defl), float(np.arcsin(2 * m - 1))
+
+
+def _on_grid(res, ref):
+    n = min(len(res.t), len(ref.t))
+    if not np.allclose(res.t[:n], ref.t[:n]) or n < 2:
+        raise ValueError("run and reference are on different output grids")
+    return n
+
+
+def tip_deflection_rms(res, ref) -> float:
+    """RMS over time of the last link's tip-deflection difference to ``ref``, divided by the
+    reference's largest |tip deflection| (dimensionless)."""
+    n = _on_grid(res, ref)
+    d = res.tip_deflection[:n, -1] - ref.tip_deflection[:n, -1]
+    return float(np.sqrt(np.mean(d**2)) / np.max(np.abs(ref.tip_deflection[:n, -1])))
+
+
+def tip_path_rms(res, ref, length: float) -> float:
+    """RMS over time of the distance between the two end effectors, divided by ``length``."""
+    n = _on_grid(res, ref)
+    d = np.linalg.norm(res.end_effector[:n] - ref.end_effector[:n], axis=1)
+    return float(np.sqrt(np.mean(d**2)) / length)
+
+
+def energy_drift(res, case) -> float:
+    """max |E(t) − E(0)| / (m g L / 2) of a one-link arm; NaN when no energy is recorded."""
+    if res.energy is None or not np.all(np.isfinite(res.energy)):
+        return math.nan
+    b = case.model.links[0].beam
+    scale = b.rhoA * b.length * np.hypot(*case.model.gravity) * b.length / 2
+    return float(np.max(np.abs(res.energy - res.energy[0])) / scale)
+
+
+def frequencies(case, k: int, method: str = "dttmm", n: int = 2, eps: float = 1e-9) -> np.ndarray:
+    """Lowest ``n`` natural frequencies (Hz) of a case at rest, from the central-difference
+    Jacobian of the method's forward dynamics: eigenvalues of −∂q̈/∂q over the free coordinates
+    (those whose acceleration responds at all; a held joint does not)."""
+    acc = _accelerations(method)
+    nd = _n_dof(case, k)
+    q0 = np.zeros(nd)
+    J = np.empty((nd, nd))
+    for j in range(nd):
+        dq = np.zeros(nd)
+        dq[j] = eps
+        J[:, j] = (acc(case, k, q0 + dq, q0) - acc(case, k, q0 - dq, q0)) / (2 * eps)
+    free = np.flatnonzero(np.abs(J).max(axis=1) > 0)
+    lam = np.linalg.eigvals(-J[np.ix_(free, free)])
+    return np.sort(np.sqrt(np.abs(lam.real)))[:n] / (2 * np.pi)
+
+
+def _accelerations(method):
+    if method == "dttmm":
+        import dttmm
+
+        return dttmm.accelerations
+    if method == "global":
+        from reference_models import global_newmark
+
+        return global_newmark.accelerations
+    raise ValueError(f"frequencies: no forward dynamics for method {method!r}")
+
+
+def _n_dof(case, k) -> int:
+    """Number of coordinates at k elements per link (the layout both solvers share)."""
+    from reference_models.global_newmark import coordinate_names
+
+    return len(coordinate_names(case, k))
+
+
+# ----------------------------------------------------------------------------- analysis
+def _row(name, prov, quantity, target, r, value, **extra) -> dict:
+    """One result row: the value against its target, error, relative error, pass/fail."""
+    err = abs(value - target) if np.isfinite(value) else math.nan
+    tol = float(prov.get("energy_tolerance") if quantity == "energy_drift" else prov["tolerance"])
+    relative = prov["tolerance_kind"] == "relative" and quantity != "energy_drift"
+    rel = err / abs(target) if target else err
+    measure = rel if relative else err
+    return {
+        "problem": name,
+        "quantity": quantity,
+        "method": r["method"],
+        "k": int(r["k"]),
+        "h": float(r["h"]),
+        "status": r["status"],
+        "reason": r.get("reason", ""),
+        "target": target,
+        "value": value,
+        "error": err,
+        "rel_error": rel,
+        "tolerance": tol,
+        "tolerance_kind": "relative" if relative else "absolute",
+        "passed": bool(np.isfinite(measure) and measure <= tol),
+        "order_error": err,
+        **extra,
+    }
+
+
+def _values(name, case, prov, res, ref) -> list:
+    """[(quantity, value, extra columns)] of one finished run."""
+    kind = prov["quantity"]
+    if kind == "peak_tip_deflection":
+        return [(kind, peak_tip_deflection(res), {})]
+    if kind == "static_tip_displacement":
+        v, moved = tip_displacement(res, case, prov["component"])
+        return [(kind, v, {"settle_motion": moved, "settled": moved < SETTLE_TOL})]
+    if ref is None:
+        return [(kind, math.nan, {"reason": "no reference run"})]
+    if kind == "tip_deflection_rms":
+        return [(kind, tip_deflection_rms(res, ref), {})]
+    if kind == "tip_path_rms":
+        out = [(kind, tip_path_rms(res, ref, case.model.links[0].beam.length), {})]
+        drift = energy_drift(res, case)
+        if np.isfinite(drift):
+            out.append(("energy_drift", drift, {}))
+        return out
+    raise ValueError(f"{name}: unknown quantity {kind!r}")
+
+
+def _run_rows(ctx, name, case, prov, runs) -> list:
+    ref_task = _ref_task(name, case, prov)
+    ref = ctx.store.history(ref_task) if ref_task is not None and ctx.store.has(ref_task) else None
+    rows = []
+    for _, r in runs.iterrows():
+        if ref_task is not None and (r["method"], r["k"], r["h"]) == (
+            ref_task.method,
+            ref_task.k,
+            ref_task.h,
+        ):
+            continue  # the reference itself
+        res = ctx.store.history(_task_of(r)) if r["status"] == "ok" else None
+        vals = _values(name, case, prov, res, ref) if res is not None else [(prov["quantity"], math.nan, {})]
+        for quantity, value, extra in vals:
+            target = 0.0 if quantity == "energy_drift" else targets(prov)[0][1]
+            rows.append(_row(name, prov, quantity, target, r, value, **extra))
+    return rows
+
+
+def _task_of(r):
+    return Task(r["case"], r["method"], r["k"], r["h"], r["duration"])
+
+
+_FAILS = (ImportError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+
+
+def frequency_rows(name, case, prov, ks, plan_params=None) -> list:
+    """Rows of the clamped-link frequency problems: every method with forward dynamics, each k."""
+    rows, n = [], len(prov["values"])
+    for m in _methods(plan_params or {}, "frequencies"):
+        fine = _fine_frequencies(case, m, n)
+        for k in ks:
+            r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
+            try:
+                f = frequencies(case, k, m, n=n)
+            except _FAILS as exc:  # reported, not dropped
+                r.update(status="failed", reason=f"{type(exc).__name__}: {exc}")
+                f = [math.nan] * n
+            for (quantity, target), value, ref in zip(targets(prov), f, fine):
+                diff = abs(value - ref)
+                # below the finite-difference noise the difference is not a discretisation error
+                diff = diff if diff > FD_NOISE * abs(ref) else math.nan
+                rows.append(_row(name, prov, quantity, target, r, float(value), order_error=diff))
+    return rows
+
+
+FD_NOISE = 1e-6  # relative differences below this are finite-difference noise (measured <= 1e-7 at k = 32)
+K_FINE = 32  # elements per link of the converged frequencies the observed order is fitted against
+
+
+def _fine_frequencies(case, method, n):
+    try:
+        return frequencies(case, K_FINE, method, n=n)
+    except _FAILS:
+        return [math.nan] * n
+
+
+def analyse(ctx, table):
+    """Tables: ``benchmarks`` (one row per problem, quantity, method, k: value, target, error,
+    pass/fail), ``benchmarks_orders`` (observed order in k of the error) and
+    ``benchmarks_problems`` (each problem's source, compared quantity, target and tolerance)."""
+    if not _active(ctx):
+        return {}
+    p = ctx.plan.studies[NAME]
+    rows, info = [], []
+    for name, (case, prov) in problems(p.get("problems")).items():
+        info.append(_problem_info(name, prov))
+        if prov["quantity"] == "frequencies":
+            rows += frequency_rows(name, case, prov, p["ks"], p)
+            continue
+        runs = table[table.case == name] if len(table) else table
+        rows += _run_rows(ctx, name, ctx.cases.get(name, case), prov, runs)
+    res = pd.DataFrame(rows)
+    out = {NAME: res, f"{NAME}_orders": _orders(res), f"{NAME}_problems": pd.DataFrame(info)}
+    out[f"{NAME}_series"] = _series(ctx, table)
+    return out
+
+
+MAX_POINTS = 800  # time samples kept per curve in the stored series
+
+
+def _series(ctx, table) -> pd.DataFrame:
+    """Tip-deflection histories of the spin-up problems: DT-TMM (linear strain) at every k, and
+    the second-order element and Exudyn ANCF at the largest k."""
+    cols = ["problem", "method", "k", "t", "tip_deflection"]
+    if table is None or table.empty:
+        return pd.DataFrame(columns=cols)
+    parts = []
+    for name, g in table[table.status == "ok"].groupby("case", sort=True):
+        if not str(name).startswith("spin_up"):
+            continue
+        kmax = g.k.max()
+        keep = g[(g.method == "dttmm") | (g.method.isin(["dttmm-2nd", "exudyn-ancf"]) & (g.k == kmax))]
+        for _, r in keep.iterrows():
+            res = ctx.store.history(_task_of(r))
+            step = max(1, len(res.t) // MAX_POINTS)
+            parts.append(
+                pd.DataFrame(
+                    {
+                        "problem": name,
+                        "method": r["method"],
+                        "k": int(r["k"]),
+                        "t": res.t[::step],
+                        "tip_deflection": res.tip_deflection[::step, -1],
+                    }
+                )
+            )
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=cols)
+
+
+def _orders(res: pd.DataFrame) -> pd.DataFrame:
+    """Observed order in k of each (problem, quantity, method)'s ``order_error`` (the error
+    against the target; for the frequencies, quoted to 0.01 Hz, the difference to k = K_FINE),
+    the rigid baseline left out."""
+    cols = ["problem", "quantity", "method", "order", "n_points", "k_min", "k_max"]
+    if res.empty:
+        return pd.DataFrame(columns=cols)
+    flex = res[res.method != "pinocchio-rigid"].rename(columns={"quantity": "compared"})
+    o = fit_orders(flex, "k", "order_error", ["problem", "compared", "method"], refine_descending=False)
+    o = o.drop(columns="quantity").rename(
+        columns={"compared": "quantity", "x_min": "k_min", "x_max": "k_max"}
+    )
+    return o[cols]
+
+
+def _problem_info(name, prov) -> dict:
+    return {
+        "problem": name,
+        "source": prov.get("source", ""),
+        "compared": prov.get("compared", ""),
+        "target": ", ".join(f"{q} = {v:.6g}" for q, v in targets(prov)),
+        "value_kind": prov.get("value_kind", ""),
+        "units": prov.get("units", ""),
+        "tolerance": f"{prov.get('tolerance')} ({prov.get('tolerance_kind')})",
+    }
+
+
+if __name__ == "__main__":  # python -m experiments.studies.benchmarks [--quick|--full] ...
+    from experiments.study import study_main
+
+    raise SystemExit(study_main(NAME))

@@ -1,0 +1,78 @@
+"""The report's case descriptions: one parameter table per case (links, drives) and a sentence
+with gravity, duration and output grid, from the case data stored in the report's metadata."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from .render import Section
+
+__all__ = ["case_section", "drive_text", "link_table"]
+
+_NONE = "–"
+
+
+def _g(v) -> str:
+    return _NONE if v is None else f"{float(v):.4g}"
+
+
+def link_table(case: dict) -> pd.DataFrame:
+    """One row per link (base first) with its beam data, hub, payload and drive, SI units."""
+    rows = []
+    drives = case["scenario"]["drives"]
+    for i, link in enumerate(case["model"]["links"]):
+        hub, pay = link.get("hub") or {}, link.get("payload") or {}
+        rows.append(
+            {
+                "link": i + 1,
+                "L (m)": _g(link["length"]),
+                "EI (N·m²)": _g(link["EI"]),
+                "ρA (kg/m)": _g(link["rhoA"]),
+                "EA (N)": _g(link.get("EA")) if link.get("EA") is not None else "inextensible",
+                "damping (s)": _g(link.get("damping", 0.0)),
+                "hub m (kg), J (kg·m²)": f"{_g(hub['mass'])}, {_g(hub['inertia'])}" if hub else _NONE,
+                "payload m (kg), J (kg·m²)": f"{_g(pay['mass'])}, {_g(pay['inertia'])}" if pay else _NONE,
+                "drive of joint": drive_text(drives[i]) if i < len(drives) else _NONE,
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def drive_text(d: dict) -> str:
+    """``torque, sine (amplitude = 1, frequency = 1, until = 1)``; initial values if non-zero."""
+    skip = {"kind", "law", "initial_angle", "initial_rate"}
+    params = ", ".join(f"{k} = {_value(v)}" for k, v in d.items() if k not in skip)
+    init = [f"{k} = {_value(d[k])}" for k in ("initial_angle", "initial_rate") if d.get(k)]
+    unit = "N·m" if d["kind"] == "torque" else "rad"
+    text = f"{d['kind']} ({unit}), {d['law']}" + (f" ({params})" if params else "")
+    return text + (f"; {', '.join(init)}" if init else "")
+
+
+def _value(v) -> str:
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def case_section(meta: dict) -> Section | None:
+    """Section "Cases": the parameters of every case of the report (None if not recorded)."""
+    cases = meta.get("cases") or {}
+    if not cases:
+        return None
+    text, tables = [], []
+    files = meta.get("case_files") or {}
+    for name, c in cases.items():
+        s, g = c["scenario"], c["model"]["gravity"]
+        grav = "none" if not any(g) else f"({_value(float(g[0]))}, {_value(float(g[1]))}) m/s²"
+        src = f" from {files[name]}" if name in files else ""
+        text.append(
+            f"{name}{src}: {len(c['model']['links'])} link(s), gravity {grav}, simulated for "
+            f"{_value(float(s['duration']))} s with output every {_value(float(s['output_step']) * 1e3)} ms."
+        )
+        tables.append((f"case_{name}", link_table(c), f"Parameters of {name} (SI units), one row per link"))
+    text.append(
+        "Torque-driven joints follow the torque law given; motion-driven joints follow the angle law and "
+        "their torque is an output. Every method solves the same case: the same links, drives and output "
+        "grid; only the discretisation (elements per link k, step h) differs."
+    )
+    return Section("Cases", [], text, tables, "cases")

@@ -1,0 +1,296 @@
+"""Report parts about the fairness of the comparison: the peer configuration, CPU-time figures
+built from repeated timings, and like-for-like equal-accuracy ratios (2 significant digits)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .render import Section
+
+__all__ = [
+    "PEER_SETTINGS",
+    "configuration_section",
+    "cost_figure",
+    "cost_text",
+    "equal_accuracy_text",
+    "sig2",
+    "work_precision_figure",
+    "work_precision_text",
+]
+
+_DOC = "Exudyn 1.13 reference manual (exudyn.readthedocs.io)"
+#: (peer, setting, value used, why — measured on three_link unless said, documentation source)
+PEER_SETTINGS = (
+    (
+        "ANCF",
+        "element",
+        "ObjectANCFCable2D, k per link, slope nodes clamped to hub/tip bodies",
+        "Euler-Bernoulli cable with nonlinear strain",
+        f"{_DOC}: ObjectANCFCable2D",
+    ),
+    (
+        "GE beam",
+        "element",
+        "ObjectBeamGeometricallyExact2D, hub/tip bodies on the end nodes",
+        "Reissner beam; Exudyn has no 2D Euler-Bernoulli beam",
+        f"{_DOC}: ObjectBeamGeometricallyExact2D",
+    ),
+    (
+        "GE beam",
+        "shearStiffness",
+        "κGA = 0.32·EA (κ = 5/6, ν = 0.3)",
+        "physical value; 1e3·EA made Newton fail",
+        f"{_DOC}: ObjectBeamGeometricallyExact2D.shearStiffness",
+    ),
+    (
+        "GE beam",
+        "crossSectionInertia",
+        "physical ρI = ρA·EI/EA (9e-8 kg·m for the strips) in the studies; adapter default 1e-5",
+        (
+            "physical runs on single_link and three_link for k = 1…64, h = 5e-4…4e-3; on a two-link arm "
+            "with a step torque it fails Newton at h = 1e-3 (1e-5 runs), so 1e-5 stays the safe default"
+        ),
+        f"{_DOC}: ObjectBeamGeometricallyExact2D.crossSectionInertia",
+    ),
+    (
+        "both",
+        "drive torques",
+        "plain LoadTorqueVector values set once per step in a PreStepUserFunction",
+        (
+            "the load user function was called ~35 times per step (5-15 % of the time at k ≤ 16); "
+            "results equal to 5e-13 m"
+        ),
+        (
+            "MainSystem.SetPreStepUserFunction docstring: 'recommended e.g. for prescribing forces or set "
+            "values of actuators'; the time argument is the step end"
+        ),
+    ),
+    (
+        "both",
+        "prescribed joint angles",
+        "ObjectConnectorCoordinate offset set once per step (PreStep)",
+        "same mechanism as the torques",
+        f"{_DOC}: ObjectConnectorCoordinate.offset",
+    ),
+    (
+        "both",
+        "integrator",
+        "generalized-α, spectralRadius 0.8, fixed step (adaptiveStep False)",
+        "the suite's common integrator setting; a Newton failure must be visible, not a silent step halving",
+        f"{_DOC}: SimulationSettings.timeIntegration.generalizedAlpha / adaptiveStep",
+    ),
+    (
+        "both",
+        "Newton",
+        "modified Newton with modifiedNewtonJacUpdatePerStep = True",
+        (
+            "default reuse across steps thrashes at h ≥ 2e-3 (7.4 iterations, 1.2 Jacobians per step "
+            "at k = 4, h = 2e-3); per step 4.5 and 1.0"
+        ),
+        (
+            f"{_DOC}: TimeIntegrationSettings.newton.modifiedNewtonJacUpdatePerStep ('compute Jacobian at "
+            "every time step, but not in every Newton iteration')"
+        ),
+    ),
+    (
+        "both",
+        "Newton tolerances",
+        "relative 1e-8; absolute 1e3·eps·max(EA·k/L)·(chain length), ≥ 1e-8",
+        (
+            "the absolute test is on the residual (force units) and cannot go below its round-off floor; "
+            "a relaxed relative 1e-5 is part of the work-precision grid and wins only where its error "
+            "is as small (rule: cheapest run at equal accuracy)"
+        ),
+        f"{_DOC}: NewtonSettings.relativeTolerance / absoluteTolerance",
+    ),
+    (
+        "both",
+        "linear solver",
+        "EigenSparse",
+        "EigenDense is 3.5× slower at k = 16, 22× at k = 64",
+        f"{_DOC}: SimulationSettings.linearSolverType",
+    ),
+    (
+        "both",
+        "threads, output",
+        "parallel.numberOfThreads = 1; no solution file; sensors stored in memory",
+        "same scope as DT-TMM (one thread, no file output)",
+        f"{_DOC}: SimulationSettings.parallel / solutionSettings.writeSolutionToFile",
+    ),
+    (
+        "both",
+        "timing scope",
+        (
+            "CPU time (time.process_time) of the whole simulate call, least of ≥ 3 "
+            "repeats; solve-only times kept beside it"
+        ),
+        "the same scope for every method",
+        "this suite",
+    ),
+)
+
+
+def configuration_section() -> Section:
+    """The "Peer configuration" section: every setting of the Exudyn peers, why, and its source."""
+    df = pd.DataFrame(PEER_SETTINGS, columns=["peer", "setting", "value", "why (measured)", "documentation"])
+    text = [
+        (
+            "The Exudyn models are run as Exudyn's documentation recommends for speed: drive values set "
+            "once per step, one Jacobian per step, sparse solver, no file output, one thread. Each "
+            "setting below names its documentation source; 'why' gives the measurement behind it."
+        ),
+        (
+            "Ratios between methods are formed only between runs of the same element strain: DT-TMM "
+            "with the linear element against the global solver with the linear element, and DT-TMM "
+            "with the second-order element against the global solver with it and the Exudyn elements."
+        ),
+    ]
+    return Section("Peer configuration", [], text, [("peer_configuration", df)], "peers")
+
+
+def sig2(x) -> str:
+    """A number with 2 significant digits, plainly written ("2800", "2.8", "0.028")."""
+    if x is None or not np.isfinite(x):
+        return "n/a"
+    return f"{float(f'{x:.2g}'):g}" if 1e-4 <= abs(x) < 1e6 else f"{x:.1e}"
+
+
+def _label(m):
+    from experiments.methods import label
+
+    return label(m)
+
+
+def _timed(t: pd.DataFrame) -> pd.DataFrame:
+    if "cpu_time" in t:
+        return t
+    from experiments.studies.cost import timing_columns
+
+    return timing_columns(t)
+
+
+def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
+    """CPU time (least of the repeats; bar to the median) against k, one line per method;
+    noisy points (machine loaded or wide spread) drawn hollow."""
+    fig = Figure(figsize=(6.0, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    t = _timed(table)
+    t = t[(t.status == "ok") & (t.k > 0)]
+    ex = dict(zip(exponents.method, exponents.exponent)) if len(exponents) else {}
+    for m, g in t.groupby("method", sort=False):
+        g = g.sort_values("k")
+        p = ex.get(m, np.nan)
+        (line,) = ax.loglog(
+            g.k, g.cpu_time, "-", label=f"{_label(m)}" + (f" (∝ k^{p:.2f})" if np.isfinite(p) else "")
+        )
+        c = line.get_color()
+        quiet, noisy = g[~g.noisy], g[g.noisy]
+        ax.loglog(quiet.k, quiet.cpu_time, "o", color=c)
+        ax.loglog(noisy.k, noisy.cpu_time, "o", mfc="none", color=c)
+        med = g.cpu_time_median.where(np.isfinite(g.cpu_time_median), g.cpu_time)
+        ax.vlines(g.k, g.cpu_time, med, color=c, lw=1)
+    ks = sorted({int(k) for k in t.k})
+    ax.set_xticks(ks, [str(k) for k in ks])
+    ax.minorticks_off()
+    case = t.case.iloc[0] if len(t) else ""
+    n = int(t.repeats.max()) if len(t) else 0
+    ax.set(
+        xlabel="elements per link k",
+        ylabel=f"CPU time (s), least of {n} runs",
+        title=f"{case}: CPU time against k (hollow: noisy)",
+    )
+    ax.legend(fontsize=8)
+    return fig
+
+
+def cost_text(table: pd.DataFrame, exponents: pd.DataFrame) -> list[str]:
+    """Sentences under the cost figure: exponents, noise, and the timing protocol."""
+    t = _timed(table)
+    ex = exponents[np.isfinite(exponents.exponent)] if len(exponents) else exponents
+    out = [
+        "Fitted exponents of CPU time ∝ k^p (k ≥ 2): "
+        + (", ".join(f"{_label(r.method)} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
+        + "."
+    ]
+    ok = t[t.status == "ok"]
+    n_noisy = int(ok.noisy.sum())
+    reps = sorted({int(x) for x in ok.repeats}) if len(ok) else []
+    out.append(
+        f"Each point is the least CPU time (time.process_time, whole simulate call, one BLAS thread) of "
+        f"{'/'.join(map(str, reps)) or '?'} runs; the bar reaches the median. {n_noisy} of {len(ok)} points "
+        "are noisy (hollow: load above the core count, or median more than 10 % above the least): "
+        "read their differences under about 20 % as noise."
+    )
+    return out
+
+
+def work_precision_figure(table: pd.DataFrame, case: str) -> Figure:
+    """Error against CPU time (least of the repeats), one curve per flexible method, hollow
+    markers for noisy timings, the rigid baseline as stars."""
+    from experiments.studies._common import MAIN_ERROR
+
+    fig = Figure(figsize=(6.0, 4.2), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    t = _timed(table)
+    g = t[(t.case == case) & np.isfinite(t[MAIN_ERROR].astype(float))]
+    for m, gm in g[g.k > 0].groupby("method", sort=False):
+        gm = gm.sort_values("cpu_time")
+        (line,) = ax.loglog(gm.cpu_time, gm[MAIN_ERROR], "-", label=_label(m))
+        c = line.get_color()
+        ax.loglog(gm.cpu_time[~gm.noisy], gm[MAIN_ERROR][~gm.noisy], "o", color=c, ms=4)
+        ax.loglog(gm.cpu_time[gm.noisy], gm[MAIN_ERROR][gm.noisy], "o", mfc="none", color=c, ms=4)
+    for m, r in g[g.k == 0].groupby("method"):
+        ax.loglog(r.cpu_time, r[MAIN_ERROR], "*", ms=12, color="k", label=f"{_label(m)} (rigid-model floor)")
+    ax.set(
+        xlabel="CPU time (s), least of the repeats",
+        ylabel="end-effector RMS error (m)",
+        title=f"{case}: work-precision (lower left is better)",
+    )
+    ax.legend(fontsize=7)
+    return fig
+
+
+def work_precision_text(summary: pd.DataFrame, eq: pd.DataFrame, case: str) -> list[str]:
+    """Sentences under a work-precision figure: CPU time of each method to reach the common error
+    (no ratio across physics), the rigid floor, and the like-for-like ratios."""
+    s = summary[summary.case == case] if len(summary) else summary
+    if not len(s):
+        return ["No run of this case produced an error value."]
+    out = []
+    col = "cpu_time_to_target" if "cpu_time_to_target" in s else "wall_time_to_target"
+    flex = s[s.method != "pinocchio-rigid"].dropna(subset=[col])
+    if len(flex):
+        fast = flex.sort_values(col)
+        parts = ", ".join(f"{_label(r.method)} {sig2(getattr(r, col))} s" for r in fast.itertuples())
+        out.append(
+            f"CPU time to reach the common error {flex.target_error.iloc[0]:.2g} m (least of the repeats): {parts}."
+        )
+    rigid = s[s.method == "pinocchio-rigid"]
+    if len(rigid) and np.isfinite(rigid.best_error.iloc[0]):
+        out.append(
+            f"The rigid baseline's error, {rigid.best_error.iloc[0]:.2g} m, is what ignoring the links' "
+            "flexibility costs; no step size removes it."
+        )
+    return out + equal_accuracy_text(eq, case)
+
+
+def equal_accuracy_text(eq: pd.DataFrame, case: str) -> list[str]:
+    """Like-for-like ratios at each target accuracy, 2 significant digits."""
+    e = eq[(eq.case == case) & np.isfinite(eq.ratio.astype(float))] if len(eq) else eq
+    if e is None or not len(e):
+        return [
+            f"{case}: no pair of the same element strain reached one of the target accuracies (1e-3, 1e-4, 1e-5 m) on this grid."
+        ]
+    parts = []
+    for tgt, g in e.groupby("target_error", sort=False):
+        bits = [f"{_label(r.method)} / {_label(r.against)} = {sig2(r.ratio)}" for r in g.itertuples()]
+        parts.append(f"at {tgt:.0e} m: " + ", ".join(bits))
+    return [
+        f"{case}, CPU time at equal end-effector accuracy (same element strain only, read off each "
+        "method's lower envelope; > 1 means DT-TMM is faster): " + "; ".join(parts) + "."
+    ]

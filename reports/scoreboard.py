@@ -1,0 +1,95 @@
+"""The front page's scoreboard: per case, each method's error at the comparison point, cost at
+equal accuracy, observed orders and status, gathered from the study tables."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .render import Section
+
+__all__ = ["case_board", "scoreboard"]
+
+RUN_TABLES = ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "cost")
+
+
+def _by_method(df, case, col, **where) -> dict:
+    if df is None or df.empty or col not in df:
+        return {}
+    g = df[df.case == case]
+    for k, v in where.items():
+        g = g[g[k] == v]
+    return dict(zip(g.method, g[col]))
+
+
+def _not_ok(tables, case) -> dict:
+    """method -> (runs not ok, runs) over every study of the case, each run counted once."""
+    frames = [
+        t[["case", "method", "key", "status"]]
+        for n in RUN_TABLES
+        if (t := tables.get(n)) is not None and len(t) and "key" in t
+    ]
+    if not frames:
+        return {}
+    runs = pd.concat(frames).drop_duplicates(["case", "key"])  # a key names a run within its case
+    runs = runs[runs.case == case]
+    return {m: (int((g.status != "ok").sum()), len(g)) for m, g in runs.groupby("method")}
+
+
+def case_board(tables: dict, case: str) -> pd.DataFrame:
+    """One row per method of ``case``: the scoreboard columns (NaN where a study did not run)."""
+    from experiments.methods import label
+
+    paper = tables.get("paper_summary")
+    err = _by_method(paper, case, "ee_l2")
+    status = _by_method(paper, case, "status")
+    k = _by_method(paper, case, "k")
+    h = _by_method(paper, case, "h")
+    wp = _by_method(tables.get("work_precision_summary"), case, "wall_time_to_target")
+    ok_ = _by_method(tables.get("convergence_k_orders"), case, "order", quantity="ee_l2")
+    oh = _by_method(tables.get("convergence_h_orders"), case, "order", quantity="selfdiff_ee_l2")
+    bad = _not_ok(tables, case)
+    methods = [m for m in dict.fromkeys([*err, *wp, *ok_, *bad]) if m != "reference"]
+    rows = []
+    for m in methods:
+        n_bad, n = bad.get(m, (0, 0))
+        kk, hh = k.get(m, np.nan), h.get(m, np.nan)
+        at = "–" if pd.isna(hh) else f"{int(kk) if pd.notna(kk) and kk else '–'}, {hh:g}"
+        rows.append(
+            {
+                "method": label(m),
+                "end-effector error (m)": err.get(m, np.nan),
+                "at k, h (s)": at,
+                "time to target (s)": wp.get(m, np.nan),
+                "order in k": ok_.get(m, np.nan),
+                "order in h": oh.get(m, np.nan),
+                "status": status.get(m, "not run"),
+                "runs not ok": f"{n_bad} of {n}" if n else "–",
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def scoreboard(tables: dict, meta: dict) -> Section:
+    """The scoreboard section: one table per case and a sentence on how to read it."""
+    cases = [c for c in dict.fromkeys(tables["paper_summary"].case)] if "paper_summary" in tables else []
+    tabs = [(f"scoreboard_{c}", case_board(tables, c), f"Scoreboard of {c}") for c in cases]
+    wp = tables.get("work_precision_summary")
+    targets = (
+        "; ".join(f"{c} {t:.2g} m" for c, t in dict(zip(wp.case, wp.target_error)).items() if np.isfinite(t))
+        if wp is not None and len(wp) and "target_error" in wp
+        else "n/a"
+    )
+    text = [
+        (
+            "Per case, one row per method: the end-effector position error (RMS over time, against the "
+            "case's reference) at the comparison point of the paper figures (at k, h); the wall time the "
+            "method needs to reach the target error, the common error of the work-precision study "
+            f"({targets}; NaN: not reached); the observed orders of convergence in k (against the reference) "
+            "and in h (against h/2); the status of the run at the comparison point, and how many of the "
+            "method's runs over all studies did not finish 'ok' (listed under Omissions)."
+        )
+    ]
+    if not tabs:
+        text = ["No paper-figure study in this report: nothing to score."]
+    return Section("Scoreboard", [], text, tabs, "scoreboard")
