@@ -80,8 +80,8 @@ def angles(md, q, qd, dt):
 @njit(nrt=False)
 def elastic_known(md, qt, qdt, dt):
     """K ê + D ê' of every element (constant during the frozen-coefficient iteration); for a
-    link with second-order strain D ê' only (D = μK), and ê, ê' themselves in ``dt.e_hat``,
-    ``dt.ed_hat`` (its elastic and damping forces are taken at each iterate inside the sweep,
+    link with second-order strain D ê' only (D = μK), and ê, ê' themselves in ``dt.e_hat``
+    (its elastic and damping forces are taken at each iterate inside the sweep,
     see :func:`second_order_terms` and :func:`second_order_damping`)."""
     k = md.k
     for i in range(md.n):
@@ -99,9 +99,9 @@ def elastic_known(md, qt, qdt, dt):
                 dt.e_hat[g, 0] = e0
                 dt.e_hat[g, 1] = e1
                 dt.e_hat[g, 2] = e2
-                dt.ed_hat[g, 0] = d0
-                dt.ed_hat[g, 1] = d1
-                dt.ed_hat[g, 2] = d2
+                dt.e_hat[g, 3] = d0
+                dt.e_hat[g, 4] = d1
+                dt.e_hat[g, 5] = d2
                 for r in range(3):
                     dt.f_known[g, r] = md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2
             else:
@@ -119,8 +119,8 @@ def effective_mass(md, cq, cv, dt):
             for c in range(3):
                 dt.Mt[i, r, c] = md.CSS[i, r, c] + cq * md.K[i, r, c] + cv * md.D[i, r, c]
         dt.Mt[i, 0, 0] += md.dummy[i]
-        dt.cq[i] = cq
-        dt.cv[i] = cv
+        dt.cq[i, 0] = cq
+        dt.cq[i, 1] = cv
 
 
 @njit(inline="always")

@@ -143,7 +143,7 @@ class Data(NamedTuple):
 
     Per element g = i·k + j (link i, element j): frame cos/sin and rate, padded e and ė, the
     known elastic force K ê + D ê' (linear strain; D ê' only for second-order strain, whose
-    predictors ê, ê' are kept in ``e_hat``, ``ed_hat``), the Riccati gains (ë = Ka a_I + k0), the articulated
+    predictors ê, ê' are kept in ``e_hat``), the Riccati gains (ë = Ka a_I + k0), the articulated
     inertia P (packed) and bias c_I at the element root, A s_O, γ̄_O and the root acceleration.
     Per joint i: P and c at the link tip and at the hub, the joint gains α̈ = ga·a + g0, the
     tip acceleration, the effective elastic mass M̃_ee, c_q and c_v. The plain sweep's arrays are
@@ -156,7 +156,7 @@ class Data(NamedTuple):
     e: np.ndarray          # (N, 3)
     ed: np.ndarray         # (N, 3)
     f_known: np.ndarray    # (N, 3)
-    e_hat: np.ndarray      # (N, 3)
+    e_hat: np.ndarray      # (N, 6) ê, ê' of second-order links
     Ka: np.ndarray         # (N, 3, 3)
     k0: np.ndarray         # (N, 3)
     P: np.ndarray          # (N, 6) packed symmetric
@@ -172,14 +172,12 @@ class Data(NamedTuple):
     g0: np.ndarray         # (n,)
     a_tip: np.ndarray      # (n, 3)
     Mt: np.ndarray         # (n, 3, 3)
-    cq: np.ndarray         # (n,)
+    cq: np.ndarray         # (n, 2) c_q, c_v
     cuts: np.ndarray       # plain: (n_cuts, 6, 4) the cut state z = B w at every cut
     E: np.ndarray          # plain: (N, 3, 7) ë = E (a_I, f_I, 1)
     subs: np.ndarray       # plain: (n, 4, 4) joint substitutions w_before = S w_after
     substituted: np.ndarray  # plain: (n,) bool
     slot: np.ndarray       # plain: (n,) int: entry of w holding α̈_i, or NO_SLOT
-    ed_hat: np.ndarray     # (N, 3) predictor ê' of second-order links (their damping)
-    cv: np.ndarray         # (n,)
 
 
 def make_data(md: Model, plain: bool = False) -> Data:
@@ -187,11 +185,10 @@ def make_data(md: Model, plain: bool = False) -> Data:
     n, N = md.n, md.n * md.k
     ncuts = n * (md.k + 1) if plain else 1
     return Data(c=np.zeros(N), s=np.zeros(N), td=np.zeros(N), e=np.zeros((N, 3)), ed=np.zeros((N, 3)),
-                f_known=np.zeros((N, 3)), e_hat=np.zeros((N, 3)), Ka=np.zeros((N, 3, 3)), k0=np.zeros((N, 3)),
+                f_known=np.zeros((N, 3)), e_hat=np.zeros((N, 6)), Ka=np.zeros((N, 3, 3)), k0=np.zeros((N, 3)),
                 P=np.zeros((N, 6)), c_I=np.zeros((N, 3)), rso=np.zeros((N, 2)), gbar=np.zeros((N, 2)),
                 a=np.zeros((N, 3)), P_tip=np.zeros((n, 6)), c_tip=np.zeros((n, 3)), P_hub=np.zeros((n, 6)),
                 c_hub=np.zeros((n, 3)), ga=np.zeros((n, 3)), g0=np.zeros(n), a_tip=np.zeros((n, 3)),
-                Mt=np.zeros((n, 3, 3)), cq=np.zeros(n), cuts=np.zeros((ncuts, 6, 4)),
+                Mt=np.zeros((n, 3, 3)), cq=np.zeros((n, 2)), cuts=np.zeros((ncuts, 6, 4)),
                 E=np.zeros((N if plain else 1, 3, 7)), subs=np.zeros((n, 4, 4)),
-                substituted=np.zeros(n, np.bool_), slot=np.zeros(n, np.int64), ed_hat=np.zeros((N, 3)),
-                cv=np.zeros(n))
+                substituted=np.zeros(n, np.bool_), slot=np.zeros(n, np.int64))

@@ -65,7 +65,7 @@ def _second_order_dense(md, dt, i, g, Mt, he):
     he[0] += fu0 + (K[0, 0] * de0 + T01 * de1 + T02 * de2)
     he[1] += fu1 + (T01 * de0 + (dT11 + K[1, 1]) * de1 + (dT12 + K[1, 2]) * de2)
     he[2] += fu2 + (T02 * de0 + (dT21 + K[2, 1]) * de1 + (dT22 + K[2, 2]) * de2)
-    cq = dt.cq[i]
+    cq = dt.cq[i, 0]
     Mt[0, 1] += cq * T01
     Mt[0, 2] += cq * T02
     Mt[1, 0] += cq * T01
@@ -78,11 +78,11 @@ def _second_order_dense(md, dt, i, g, Mt, he):
     if mu != 0.0:
         g0d, g1d, g2d, D01, D02, D11, D12, D22 = second_order_damping(
             mu, md.EA[i], md.EAl[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1], e1, e2,
-            dt.ed_hat[g, 0], dt.ed_hat[g, 1], dt.ed_hat[g, 2])
+            dt.e_hat[g, 3], dt.e_hat[g, 4], dt.e_hat[g, 5])
         he[0] += g0d
         he[1] += g1d
         he[2] += g2d
-        cv = dt.cv[i]
+        cv = dt.cq[i, 1]
         Mt[0, 1] += cv * D01
         Mt[0, 2] += cv * D02
         Mt[1, 0] += cv * D01
