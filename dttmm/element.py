@@ -69,6 +69,7 @@ class ElementType:
     EA: float = 0.0                 # axial stiffness (0: inextensible)
     G: np.ndarray | None = None     # (2, 2) = ∫₀¹ N'ᵀN' dξ, N = (N3, N4), ' = d/dx
     second_order: bool = False      # axial strain ε = u/l + ½ wᵀGw (see elastic_forces)
+    mu: float = 0.0                 # Kelvin-Voigt coefficient μ (s): D = μK (see damping_tangent)
 
 
 def element_type(length: float, EI: float, rhoA: float, EA: float | None, damping: float,
@@ -107,7 +108,7 @@ def element_type(length: float, EI: float, rhoA: float, EA: float | None, dampin
     return ElementType(l=l, ne=ne, m=rhoA * l, c_s0=c_s0, C_S=C_S, c_s0s0=c_s0s0, c_s0S=c_s0S, d1=d1,
                        D2=D2, C_SS=C_SS, C_SES=C_SES, K=K, D=damping * K, sO0=sO0[0], SO=SO[0],
                        iphi=ne - 1, iv=ne - 2, iu=0 if ext else -1, EA=float(EA or 0.0), G=G,
-                       second_order=ext and strain == "second-order")
+                       second_order=ext and strain == "second-order", mu=float(damping))
 
 
 def elastic_forces(et: ElementType, e: np.ndarray):
@@ -134,6 +135,28 @@ def elastic_forces(et: ElementType, e: np.ndarray):
     KT[:, 0, 1:] = KT[:, 1:, 0] = EA * Gw
     KT[:, 1:, 1:] = EA * l * Gw[:, :, None] * Gw[:, None, :] + (EA * l * eps)[:, None, None] * G + Kb
     return f, KT
+
+
+def damping_tangent(et: ElementType, e: np.ndarray) -> np.ndarray:
+    """Kelvin-Voigt damping matrices D(e) (k, ne, ne) of a batch of elements: f_d = D(e) ė.
+
+    The damping acts on the rate of the strain measure of :func:`elastic_forces`: dissipation
+    R = ½ μ [EA l ε̇² + ẇᵀK_b ẇ]. Linear strain: ε̇ = u̇/l, D = μK. Second order:
+    ε̇ = u̇/l + wᵀGẇ, so f_d,u = μ EA ε̇, f_d,w = μ (EA l ε̇ Gw + K_b ẇ), i.e.
+    D(e) = μ [[EA/l, EA (Gw)ᵀ], [EA Gw, EA l (Gw)(Gw)ᵀ + K_b]] (= μ K_T(e) without its ε G
+    term). f_d is linear in ė, so D(e) is also the exact rate tangent ∂f_d/∂ė; its dependence
+    on e is taken at the iterate (frozen), like the global model's iteration matrix.
+    """
+    k = e.shape[0]
+    if not et.second_order or et.mu == 0.0:
+        return np.broadcast_to(et.D, (k, et.ne, et.ne))
+    EA, l, mu = et.EA, et.l, et.mu
+    Gw = e[:, 1:] @ et.G.T
+    Dt = np.empty((k, 3, 3))
+    Dt[:, 0, 0] = mu * EA / l
+    Dt[:, 0, 1:] = Dt[:, 1:, 0] = mu * EA * Gw
+    Dt[:, 1:, 1:] = mu * (EA * l * Gw[:, :, None] * Gw[:, None, :] + et.K[1:, 1:])
+    return Dt
 
 
 def strain_energy(et: ElementType, e: np.ndarray) -> float:

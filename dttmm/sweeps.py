@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .element import elastic_forces
+from .element import damping_tangent, elastic_forces
 from .structure import Kinematics, Structure, kinematics
 
 __all__ = ["SWEEPS", "SweepOut", "accelerations", "plain", "riccati"]
@@ -44,9 +44,15 @@ class SweepOut:
 def _elastic_rhs(lk, lkn, cq, cv, e_hat, ed_hat):
     """Per element M̃_ee (k, ne, ne) and h̃_e (k, ne). The elastic forces are linearised at the
     iterate e_i (Newton): f(e) ≈ f(e_i) + K_T(e_i)(ẽ + c_q ë − e_i); for the linear element
-    this is exactly K ẽ + c_q K ë."""
+    this is exactly K ẽ + c_q K ë. The damping force D(e) ė is linear in ė; its matrix is
+    taken at the iterate: D(e_i)(ẽ' + c_v ë) (D = μK for the linear element)."""
     et = lk.et
     f, KT = elastic_forces(et, lkn.e)
+    if et.second_order and et.mu != 0.0:
+        Dt = damping_tangent(et, lkn.e)
+        Mt = et.C_SS + cq * KT + cv * Dt
+        ht = lkn.hbar_e + f + np.einsum("kij,kj->ki", KT, e_hat - lkn.e) + np.einsum("kij,kj->ki", Dt, ed_hat)
+        return Mt, ht
     Mt = et.C_SS + cq * KT + cv * et.D
     ht = lkn.hbar_e + f + np.einsum("kij,kj->ki", KT, e_hat - lkn.e) + ed_hat @ et.D.T
     return Mt, ht

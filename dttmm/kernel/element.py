@@ -80,8 +80,9 @@ def angles(md, q, qd, dt):
 @njit(nrt=False)
 def elastic_known(md, qt, qdt, dt):
     """K ê + D ê' of every element (constant during the frozen-coefficient iteration); for a
-    link with second-order strain D ê' only, and ê itself in ``dt.e_hat`` (its elastic forces
-    are linearised at each iterate inside the sweep, see :func:`second_order_terms`)."""
+    link with second-order strain D ê' only (D = μK), and ê, ê' themselves in ``dt.e_hat``
+    (its elastic and damping forces are taken at each iterate inside the sweep,
+    see :func:`second_order_terms` and :func:`second_order_damping`)."""
     k = md.k
     for i in range(md.n):
         off = md.pad[i]
@@ -98,6 +99,9 @@ def elastic_known(md, qt, qdt, dt):
                 dt.e_hat[g, 0] = e0
                 dt.e_hat[g, 1] = e1
                 dt.e_hat[g, 2] = e2
+                dt.e_hat[g, 3] = d0
+                dt.e_hat[g, 4] = d1
+                dt.e_hat[g, 5] = d2
                 for r in range(3):
                     dt.f_known[g, r] = md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2
             else:
@@ -109,13 +113,14 @@ def elastic_known(md, qt, qdt, dt):
 @njit(nrt=False)
 def effective_mass(md, cq, cv, dt):
     """M̃_ee = C_SS + c_q K + c_v D per link (+ the unit dummy mass of an inextensible link);
-    c_q is kept for the per-element tangent of second-order links."""
+    c_q and c_v are kept for the per-element tangents of second-order links."""
     for i in range(md.n):
         for r in range(3):
             for c in range(3):
                 dt.Mt[i, r, c] = md.CSS[i, r, c] + cq * md.K[i, r, c] + cv * md.D[i, r, c]
         dt.Mt[i, 0, 0] += md.dummy[i]
-        dt.cq[i] = cq
+        dt.cq[i, 0] = cq
+        dt.cq[i, 1] = cv
 
 
 @njit(inline="always")
@@ -144,6 +149,28 @@ def second_order_terms(sc, e0, e1, e2):
     f2 = Nl * Gw2 + (Kb10 * e1 + Kb11 * e2)
     return (f0, f1, f2, EA * Gw1, EA * Gw2, a1 * Gw1 + Nl * G00, a1 * Gw2 + Nl * G01, a2 * Gw1 + Nl * G10,
             a2 * Gw2 + Nl * G11)
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def second_order_damping(mu, EA, EAl, G00, G01, G10, G11, e1, e2, d0, d1, d2):
+    """Second-order part of the Kelvin-Voigt damping of one element (μ ≠ 0).
+
+    The damping acts on the rate of the strain measure of :func:`second_order_terms`:
+    dissipation R = ½ μ [EA l ε̇² + ẇᵀK_b ẇ], ε̇ = u̇/l + wᵀGẇ, so f_d = D(e) ė with
+    D(e) = μ [[EA/l, EA (Gw)ᵀ], [EA Gw, EA l (Gw)(Gw)ᵀ + K_b]] = μK + ΔD(e). The sweep takes
+    D at the iterate e and ė = ê' + c_v ë (exact in ė): the known part μK ê' is in
+    ``f_known`` and c_v μK in M̃_ee; this returns the rest, ΔD(e) ê' (3) and ΔD(e) as its
+    entries (0, 1), (0, 2), (1, 1), (1, 2), (2, 2) (symmetric; ΔD_00 = 0)."""
+    Gw1 = G00 * e1 + G01 * e2
+    Gw2 = G10 * e1 + G11 * e2
+    mEA = mu * EA
+    b1 = mEA * Gw1
+    b2 = mEA * Gw2
+    gwd = Gw1 * d1 + Gw2 * d2
+    s = mEA * d0 + (mu * EAl) * gwd
+    c1 = (mu * EAl) * Gw1
+    c2 = (mu * EAl) * Gw2
+    return mEA * gwd, Gw1 * s, Gw2 * s, b1, b2, c1 * Gw1, c1 * Gw2, c2 * Gw2
 
 
 @njit(inline="always")

@@ -64,6 +64,7 @@ class Model(NamedTuple):
     inv_l: np.ndarray
     EAl: np.ndarray
     G: np.ndarray
+    mu: np.ndarray         # (n,) Kelvin-Voigt μ (s) of a second-order link (0 otherwise)
     ne: np.ndarray         # (n,) int: elastic coordinates per element (2 or 3)
     i_alpha: np.ndarray    # (n,) int: index of α_i in q
     e_start: np.ndarray    # (n,) int: index of the link's first elastic coordinate in q
@@ -78,7 +79,7 @@ def build_model(st) -> Model:
     n = st.n_links
     z = lambda *shape: np.zeros((n, *shape))
     f = {name: z() for name in ("m", "cs0s0", "su", "m_hub", "J_hub", "m_pay", "J_pay", "dummy", "EA",
-                                "inv_l", "EAl")}
+                                "inv_l", "EAl", "mu")}
     f.update(cs0=z(2), CS=z(2, 3), cs0S=z(3), d1=z(3), D2=z(3, 3), CSS=z(3, 3), CSES=z(3, 3), K=z(3, 3),
              D=z(3, 3), sO0=z(2), G=z(2, 2))
     ne, pad = np.zeros(n, np.int64), np.zeros(n, np.int64)
@@ -107,6 +108,7 @@ def build_model(st) -> Model:
             second_order[i] = True
             f["EA"][i], f["inv_l"][i], f["EAl"][i] = et.EA, 1.0 / et.l, et.EA * et.l
             f["G"][i] = et.G
+            f["mu"][i] = et.mu
         el = np.full((lk.k, et.ne), RUNAWAY_LENGTHS * lk.length)
         el[:, et.iphi] = RUNAWAY_ANGLE
         lim[lk.e_slice] = el.ravel()
@@ -136,10 +138,10 @@ class Data(NamedTuple):
 
     Per element g = i·k + j (link i, element j): frame cos/sin and rate, padded e and ė, the
     known elastic force K ê + D ê' (linear strain; D ê' only for second-order strain, whose
-    predictor ê is kept in ``e_hat``), the Riccati gains (ë = Ka a_I + k0), the articulated
+    predictors ê, ê' are kept in ``e_hat``), the Riccati gains (ë = Ka a_I + k0), the articulated
     inertia P (packed) and bias c_I at the element root, A s_O, γ̄_O and the root acceleration.
     Per joint i: P and c at the link tip and at the hub, the joint gains α̈ = ga·a + g0, the
-    tip acceleration, the effective elastic mass M̃_ee and c_q. The plain sweep's arrays are
+    tip acceleration, the effective elastic mass M̃_ee, c_q and c_v. The plain sweep's arrays are
     allocated at full size only for that sweep.
     """
 
@@ -149,7 +151,7 @@ class Data(NamedTuple):
     e: np.ndarray          # (N, 3)
     ed: np.ndarray         # (N, 3)
     f_known: np.ndarray    # (N, 3)
-    e_hat: np.ndarray      # (N, 3)
+    e_hat: np.ndarray      # (N, 6) ê, ê' of second-order links
     Ka: np.ndarray         # (N, 3, 3)
     k0: np.ndarray         # (N, 3)
     P: np.ndarray          # (N, 6) packed symmetric
@@ -165,7 +167,7 @@ class Data(NamedTuple):
     g0: np.ndarray         # (n,)
     a_tip: np.ndarray      # (n, 3)
     Mt: np.ndarray         # (n, 3, 3)
-    cq: np.ndarray         # (n,)
+    cq: np.ndarray         # (n, 2) c_q, c_v
     cuts: np.ndarray       # plain: (n_cuts, 6, 4) the cut state z = B w at every cut
     E: np.ndarray          # plain: (N, 3, 7) ë = E (a_I, f_I, 1)
     subs: np.ndarray       # plain: (n, 4, 4) joint substitutions w_before = S w_after
@@ -178,10 +180,10 @@ def make_data(md: Model, plain: bool = False) -> Data:
     n, N = md.n, md.n * md.k
     ncuts = n * (md.k + 1) if plain else 1
     return Data(c=np.zeros(N), s=np.zeros(N), td=np.zeros(N), e=np.zeros((N, 3)), ed=np.zeros((N, 3)),
-                f_known=np.zeros((N, 3)), e_hat=np.zeros((N, 3)), Ka=np.zeros((N, 3, 3)), k0=np.zeros((N, 3)),
+                f_known=np.zeros((N, 3)), e_hat=np.zeros((N, 6)), Ka=np.zeros((N, 3, 3)), k0=np.zeros((N, 3)),
                 P=np.zeros((N, 6)), c_I=np.zeros((N, 3)), rso=np.zeros((N, 2)), gbar=np.zeros((N, 2)),
                 a=np.zeros((N, 3)), P_tip=np.zeros((n, 6)), c_tip=np.zeros((n, 3)), P_hub=np.zeros((n, 6)),
                 c_hub=np.zeros((n, 3)), ga=np.zeros((n, 3)), g0=np.zeros(n), a_tip=np.zeros((n, 3)),
-                Mt=np.zeros((n, 3, 3)), cq=np.zeros(n), cuts=np.zeros((ncuts, 6, 4)),
+                Mt=np.zeros((n, 3, 3)), cq=np.zeros((n, 2)), cuts=np.zeros((ncuts, 6, 4)),
                 E=np.zeros((N if plain else 1, 3, 7)), subs=np.zeros((n, 4, 4)),
                 substituted=np.zeros(n, np.bool_), slot=np.zeros(n, np.int64))

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ._jit import njit
-from .element import element_terms, link_constants, second_order_terms, strain_constants
+from .element import element_terms, link_constants, second_order_damping, second_order_terms, strain_constants
 from .layout import NO_SLOT
 
 
@@ -54,7 +54,8 @@ def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the
 
 @njit()
 def _second_order_dense(md, dt, i, g, Mt, he):
-    """Second-order strain of element g: h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)."""
+    """Second-order strain of element g: h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K);
+    with damping also h̃_e += ΔD(e) ê', M̃_ee += c_v ΔD(e) (:func:`second_order_damping`)."""
     e0, e1, e2 = dt.e[g, 0], dt.e[g, 1], dt.e[g, 2]
     fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(strain_constants(md, i), e0, e1, e2)
     K = md.K[i]
@@ -64,7 +65,7 @@ def _second_order_dense(md, dt, i, g, Mt, he):
     he[0] += fu0 + (K[0, 0] * de0 + T01 * de1 + T02 * de2)
     he[1] += fu1 + (T01 * de0 + (dT11 + K[1, 1]) * de1 + (dT12 + K[1, 2]) * de2)
     he[2] += fu2 + (T02 * de0 + (dT21 + K[2, 1]) * de1 + (dT22 + K[2, 2]) * de2)
-    cq = dt.cq[i]
+    cq = dt.cq[i, 0]
     Mt[0, 1] += cq * T01
     Mt[0, 2] += cq * T02
     Mt[1, 0] += cq * T01
@@ -73,6 +74,23 @@ def _second_order_dense(md, dt, i, g, Mt, he):
     Mt[1, 2] += cq * dT12
     Mt[2, 1] += cq * dT21
     Mt[2, 2] += cq * dT22
+    mu = md.mu[i]
+    if mu != 0.0:
+        g0d, g1d, g2d, D01, D02, D11, D12, D22 = second_order_damping(
+            mu, md.EA[i], md.EAl[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1], e1, e2,
+            dt.e_hat[g, 3], dt.e_hat[g, 4], dt.e_hat[g, 5])
+        he[0] += g0d
+        he[1] += g1d
+        he[2] += g2d
+        cv = dt.cq[i, 1]
+        Mt[0, 1] += cv * D01
+        Mt[0, 2] += cv * D02
+        Mt[1, 0] += cv * D01
+        Mt[2, 0] += cv * D02
+        Mt[1, 1] += cv * D11
+        Mt[1, 2] += cv * D12
+        Mt[2, 1] += cv * D12
+        Mt[2, 2] += cv * D22
 
 
 @njit()

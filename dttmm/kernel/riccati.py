@@ -14,7 +14,7 @@ and factoring the 3×3 SPD block H by LDLᵀ.
 from __future__ import annotations
 
 from ._jit import CONTRACT, njit
-from .element import coord_base, element_terms, second_order_terms
+from .element import coord_base, element_terms, second_order_damping, second_order_terms
 
 
 @njit(fastmath=CONTRACT, nrt=False)
@@ -65,18 +65,19 @@ def _ldl_solve(H00, H01, H02, H11, H12, H22, X, r0, r1, r2):
 
 
 @njit(fastmath=CONTRACT, inline="always")
-def _element_step(md, i, lc, Mt, so, kin, fk, Pc, g0, g1):
+def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
     """Carry (P, c) = ``Pc`` (packed P, then c) across one element from its outboard to its
     inboard cut. Pure arithmetic (the caller loads and stores: helpers inlined into a loop copy
     their tuple arguments, so the workspace is not passed here).
 
     lc: :func:`link_constants`; md, i: the model and link (second-order constants, read in
     their branch); Mt: the (0, 0), (1, 1), (1, 2),
-    (2, 2) entries of M̃_ee and c_q; so: second-order strain; kin = (cos θ, sin θ, θ̇, e, ė, ê);
+    (2, 2) entries of M̃_ee, c_q and c_v; so: second-order strain; kin = (cos θ, sin θ, θ̇, e, ė, ê);
+    dh: ê' (read only for a damped second-order link, zeros otherwise);
     fk: the known elastic force. Returns (K_a (9, row-major), k_0 (3), (P_I packed, c_I) (9),
     (r_x, r_y, γ̄_x, γ̄_y))."""
     p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
-    M00, M11, M12, M22, cq = Mt
+    M00, M11, M12, M22, cq, cv = Mt
     c, s, td, e0, e1, e2, f0, f1, f2, eh0, eh1, eh2 = kin
     (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
         lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1)
@@ -129,6 +130,19 @@ def _element_step(md, i, lc, Mt, so, kin, fk, Pc, g0, g1):
         H11 += cq * dT11
         H12 += cq * dT12
         H22 += cq * dT22
+        mu = md.mu[i]
+        if mu != 0.0:
+            # damping on the strain rate, D(e) at the iterate: h̃_e += ΔD(e) ê', M̃_ee += c_v ΔD(e)
+            g0d, g1d, g2d, D01, D02, D11, D12, D22 = second_order_damping(
+                mu, sc[0], sc[1], sc[3], sc[4], sc[5], sc[6], e1, e2, dh[0], dh[1], dh[2])
+            r0 -= g0d
+            r1 -= g1d
+            r2 -= g2d
+            H01 += cv * D01
+            H02 += cv * D02
+            H11 += cv * D11
+            H12 += cv * D12
+            H22 += cv * D22
     X = (X00, X01, X02, X10, X11, X12, X20, X21, X22)
     Ka, k0, k1, k2 = _ldl_solve(H00, H01, H02, H11, H12, H22, X, r0, r1, r2)
     K00, K01, K02, K10, K11, K12, K20, K21, K22 = Ka
@@ -199,14 +213,19 @@ def backward(md, dt, tau, acc):
               md.cs0S[i, 0], md.d1[i, 1], md.d1[i, 2], md.D2[i, 0, 1], md.D2[i, 0, 2], md.D2[i, 1, 0],
               md.D2[i, 2, 0], md.CSS[i, 0, 0], md.CSS[i, 1, 1], md.CSS[i, 1, 2], md.CSS[i, 2, 2], md.CSES[i, 0, 1],
               md.CSES[i, 0, 2], md.CSES[i, 1, 0], md.CSES[i, 2, 0], md.sO0[i, 0], md.sO0[i, 1], md.su[i])
-        Mt = (dt.Mt[i, 0, 0], dt.Mt[i, 1, 1], dt.Mt[i, 1, 2], dt.Mt[i, 2, 2], dt.cq[i])
+        Mt = (dt.Mt[i, 0, 0], dt.Mt[i, 1, 1], dt.Mt[i, 1, 2], dt.Mt[i, 2, 2], dt.cq[i, 0], dt.cq[i, 1])
         so = md.second_order[i]
+        damped = so and md.mu[i] != 0.0
         for j in range(k - 1, -1, -1):
             g = i * k + j
             kin = (dt.c[g], dt.s[g], dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1],
                    dt.ed[g, 2], dt.e_hat[g, 0], dt.e_hat[g, 1], dt.e_hat[g, 2])
+            if damped:  # ê' of a damped second-order link (its strain-rate damping)
+                dh = (dt.e_hat[g, 3], dt.e_hat[g, 4], dt.e_hat[g, 5])
+            else:
+                dh = (0.0, 0.0, 0.0)
             fk = (dt.f_known[g, 0], dt.f_known[g, 1], dt.f_known[g, 2])
-            Ka, k0, Pc, rg = _element_step(md, i, lc, Mt, so, kin, fk, Pc, g0, g1)
+            Ka, k0, Pc, rg = _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1)
             (dt.Ka[g, 0, 0], dt.Ka[g, 0, 1], dt.Ka[g, 0, 2], dt.Ka[g, 1, 0], dt.Ka[g, 1, 1], dt.Ka[g, 1, 2],
              dt.Ka[g, 2, 0], dt.Ka[g, 2, 1], dt.Ka[g, 2, 2]) = Ka
             dt.k0[g, 0], dt.k0[g, 1], dt.k0[g, 2] = k0
