@@ -64,6 +64,11 @@ def _modules(engine: str):
     return ploop, precorder
 
 
+#: fixed sweep counts and "auto": the residual check (one extra sweep, not applied) runs at
+#: the first step, every CHECK_EVERY-th step and the last step — ≤ 1/64 more sweeps
+CHECK_EVERY = 64
+
+
 @dataclass(frozen=True)
 class Settings:
     """Validated settings of one run (see :func:`dttmm.simulate`)."""
@@ -92,7 +97,7 @@ class Settings:
             beta, gamma, am, af = fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f
             lte = abs(beta - 1.0 / 6.0) / beta  # the Newmark truncation error (β − 1/6)h²Δq̈ over βh²
             if self.iterations is None:
-                mode, nfix = IT_TOL, 0
+                mode, nfix = IT_TOL, 0  # the tolerance is the check: no residual check
             elif self.iterations == "auto":
                 mode, nfix = IT_AUTO, 0
             else:
@@ -101,7 +106,7 @@ class Settings:
                             iteration=mode, n_fixed=nfix, tol=float(self.tol),
                             max_iterations=int(self.max_iterations), auto_fraction=float(self.auto_fraction),
                             beta=float(beta), gamma=float(gamma), alpha_m=float(am), alpha_f=float(af),
-                            lte=float(lte))
+                            lte=float(lte), check_every=CHECK_EVERY if mode in (IT_FIXED, IT_AUTO) and fam else 0)
 
 
 def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
@@ -266,7 +271,9 @@ def simulate_structure(st: Structure, s: Settings):
     if status:
         _raise_failure(st, status, stats, t_end, meta, lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]),
                                                                             m))
-    _add_stats(meta, stats, s, n_steps, wall)
+    _add_stats(meta, stats, s, n_steps, wall, t_end)
+    if rec.energy.size and not any(st.motion):
+        _energy_growth(meta, rec.t[:upto], rec.energy[:upto], rec.torque[:upto])
     status, warns = verdict(meta, s, n_steps)
     return to_result(rec, upto, wall, n_steps, meta, status, warns)
 
@@ -279,8 +286,8 @@ ILL_CONDITIONED = 1e8
 def verdict(meta: dict, s: Settings, n_steps: int):
     """(status, warnings) of a finished run: "ill-conditioned" when the plain sweep's largest
     final-system condition number exceeds :data:`ILL_CONDITIONED`; "unconverged" when a
-    tolerance-driven step used all ``max_iterations`` sweeps; else "ok" (fixed sweep counts,
-    ``iterations = m``, are not checked here)."""
+    tolerance-driven step used all ``max_iterations`` sweeps, or when the residual check of a
+    fixed sweep count or "auto" (``meta["residual_*"]``) flagged a step; else "ok"."""
     warns = []
     status = "ok"
     n_unconv = meta.get("unconverged_steps", 0)
@@ -288,12 +295,59 @@ def verdict(meta: dict, s: Settings, n_steps: int):
         status = "unconverged"
         warns.append(f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
                      f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}")
+    n_flag = meta.get("residual_flagged", 0)
+    if n_flag:
+        status = "unconverged"
+        warns.append(f"iterations={s.iterations!r}: the step equations are not solved to the time-discretisation "
+                     f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
+                     f"{meta['residual_first_t']:.6g} s; worst at t = {meta['residual_worst_t']:.6g} s: one more "
+                     f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
+                     f"{meta['residual_worst_ratio']:.3g} × the truncation error)")
+    growth = meta.get("energy_growth", 0.0)
+    if growth > ENERGY_GROWTH:
+        if s.iterations is not None:
+            status = "unconverged"
+        warns.append(f"the energy grew with no input: by {growth:.3g} × its range over the run (> {ENERGY_GROWTH:g}) "
+                     f"by t = {meta['energy_growth_t']:.6g} s" + (f"; iterations={s.iterations!r} does not solve "
+                                                                  "the step equations well enough"
+                                                                  if s.iterations is not None else ""))
     cond = meta.get("final_system_cond", 0.0)
     if cond > ILL_CONDITIONED:
         status = "ill-conditioned"
         warns.append(f"plain sweep: final-system condition number up to {cond:.3g} (> {ILL_CONDITIONED:g}); "
                      "use sweep='riccati'")
     return status, warns
+
+
+#: energy growth with no input, relative to the energy's range over the run, that fails the
+#: energy check (converged runs of the shipped cases stay below 1e-4)
+ENERGY_GROWTH = 1e-3
+
+
+def _energy_growth(meta: dict, t, energy, torque) -> None:
+    """Energy check of a torque-driven run: wherever every joint torque is zero on a stretch of
+    output samples, damping can only remove energy, so the total energy must not grow there.
+    Stores the largest growth relative to the energy's range over the run (and its time) in
+    ``meta["energy_growth"]``, ``meta["energy_growth_t"]``."""
+    free = np.all(torque == 0.0, axis=1)
+    scale = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
+    worst, when = 0.0, None
+    j = 0
+    while j < free.size:
+        if not free[j]:
+            j += 1
+            continue
+        e = j
+        while e < free.size and free[e]:
+            e += 1
+        seg = energy[j:e] - energy[j]
+        if seg.size > 1 and scale > 0.0:
+            i = int(np.argmax(seg))
+            if seg[i] / scale > worst:
+                worst, when = float(seg[i] / scale), float(t[j + i])
+        j = e
+    meta["energy_growth"] = worst
+    meta["energy_growth_t"] = when
 
 
 def _raise_failure(st, status, stats, t_end, meta, partial):
@@ -308,7 +362,7 @@ def _raise_failure(st, status, stats, t_end, meta, partial):
                                       partial=partial, message=f"simulation diverged ({why})")
 
 
-def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float) -> None:
+def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> None:
     if s.integrator == "rk4":
         meta.update({"iterations_mean": 4.0, "iterations_max": 4, "unconverged_steps": 0})
     else:
@@ -316,6 +370,13 @@ def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float) -> None:
                      "iterations_max": int(stats.max_sweeps[0]), "unconverged_steps": int(stats.unconverged[0])})
     if s.sweep == "plain":
         meta["final_system_cond"] = float(stats.cond_max[0])
+    if stats.checks[0]:
+        t_of = lambda j: float(t_end[j]) if j >= 0 else None
+        meta.update({"residual_checks": int(stats.checks[0]), "residual_flagged": int(stats.flagged[0]),
+                     "residual_first_t": t_of(int(stats.first_flag[0])),
+                     "residual_worst_t": t_of(int(stats.worst_step[0])),
+                     "residual_worst_ratio": float(stats.worst_ratio[0]),
+                     "residual_worst": float(stats.worst_resid[0])})
     meta["time_per_step"] = wall / n_steps
 
 

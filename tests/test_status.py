@@ -1,0 +1,67 @@
+"""Result.status of fixed sweep counts and "auto" (residual check, energy check), and
+divergence checks. References are the converged runs (tolerance 1e-10) of the same case."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dttmm
+
+pytest.importorskip("numba")
+
+CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
+SHIPPED = sorted(CASES.glob("*.toml"))
+RUN = {"elements_per_link": 8, "h": 1e-3, "cut_loads": False}
+
+
+@pytest.fixture(scope="module")
+def three_link():
+    c = dttmm.load_case(CASES / "three_link.toml")
+    return c, dttmm.simulate(c, **RUN)
+
+
+def test_one_shot_on_three_link_is_unconverged_and_far_from_the_converged_run(three_link):
+    """iterations=0 (the one-shot scheme) is unstable here: the energy grows after the torques
+    stop (t > 1 s) and the arm ends radians away from the converged run."""
+    c, ref = three_link
+    r = dttmm.simulate(c, iterations=0, **RUN)
+    assert r.status == "unconverged" and not r.success
+    assert np.max(np.abs(r.joint_angle - ref.joint_angle)) > 3.0
+    assert r.meta["energy_growth"] > 0.1 and 1.0 < r.meta["energy_growth_t"] <= 2.0
+    assert any("energy grew" in w for w in r.warnings)
+    assert ref.meta["energy_growth"] < 1e-4
+
+
+def test_two_sweeps_on_three_link_are_ok_and_close_to_the_converged_run(three_link):
+    c, ref = three_link
+    r = dttmm.simulate(c, iterations=1, **RUN)
+    assert r.status == "ok" and r.warnings == ()
+    assert np.max(np.abs(r.joint_angle - ref.joint_angle)) < 1e-5
+    assert 0.0 < r.meta["residual_worst_ratio"] < 0.01
+    assert r.meta["residual_checks"] == 33  # steps 0, 64, …, 1984 and the last
+
+
+def test_one_shot_on_spin_up_fails_the_residual_check():
+    """spin_up is smooth: its truncation error is tiny, and one sweep per step leaves an
+    iteration error several times larger; the warning names the first and worst times."""
+    r = dttmm.simulate(dttmm.load_case(CASES / "spin_up.toml"), iterations=0, **RUN)
+    assert r.status == "unconverged"
+    assert r.meta["residual_worst_ratio"] > 1.0 and r.meta["residual_flagged"] > 0
+    w = r.warnings[0]
+    assert f"first at t = {r.meta['residual_first_t']:.6g} s" in w and "worst at t = " in w
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_auto_is_ok_on_every_shipped_case(path):
+    r = dttmm.simulate(dttmm.load_case(path), iterations="auto", **RUN)
+    assert r.status == "ok" and r.warnings == (), r.warnings
+    assert r.meta["residual_checks"] > 0 and r.meta["residual_worst_ratio"] < 0.1
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_default_is_ok_with_energy_on_every_shipped_case(path):
+    r = dttmm.simulate(dttmm.load_case(path), **RUN)
+    assert r.status == "ok" and r.warnings == (), r.warnings
+    assert "residual_checks" not in r.meta  # the tolerance is the check
