@@ -29,7 +29,7 @@ def test_one_shot_on_three_link_is_unconverged_and_far_from_the_converged_run(th
     r = dttmm.simulate(c, iterations=0, **RUN)
     assert r.status == "unconverged" and not r.success
     assert np.max(np.abs(r.joint_angle - ref.joint_angle)) > 3.0
-    assert r.meta["energy_growth"] > 0.1 and 1.0 < r.meta["energy_growth_t"] <= 2.0
+    assert r.meta["energy_growth"] > 0.01 and 1.0 < r.meta["energy_growth_t"] <= 2.0
     assert any("energy grew" in w for w in r.warnings)
     assert ref.meta["energy_growth"] < 1e-4
 
@@ -65,3 +65,33 @@ def test_default_is_ok_with_energy_on_every_shipped_case(path):
     r = dttmm.simulate(dttmm.load_case(path), **RUN)
     assert r.status == "ok" and r.warnings == (), r.warnings
     assert "residual_checks" not in r.meta  # the tolerance is the check
+
+
+# ---------------------------------------------------------------------------------------------
+# divergence: the run stops at the first non-physical state and keeps what came before
+def _diverging(engine="numba"):
+    """iterations=0 on three_link at k = 4, h = 5e-4 blows up near t = 0.96 s."""
+    c = dttmm.load_case(CASES / "three_link.toml")
+    with pytest.raises(dttmm.SimulationError) as ei:
+        dttmm.simulate(c, elements_per_link=4, h=5e-4, iterations=0, engine=engine)
+    return c, ei.value
+
+
+def test_divergence_stops_at_the_element_length_bound_and_keeps_a_physical_partial():
+    c, err = _diverging()
+    msg = str(err)
+    assert "beyond 2 element lengths" in msg and "link 2, element 3, v" in msg, msg
+    assert 0.9 < err.t < 1.0 and f"at t = {err.t:.6g} s" in msg
+    p = err.partial
+    assert p.status == "failed" and p.t[-1] < err.t and p.t.size > 900
+    lengths = np.array([lk.beam.length for lk in c.model.links])
+    assert np.all(np.isfinite(p.tip_deflection))
+    assert np.all(np.abs(p.tip_deflection) < lengths), np.abs(p.tip_deflection).max(axis=0)
+
+
+def test_divergence_message_is_the_same_for_both_engines():
+    """(The partials agree in length only: round-off differences grow in the unstable run.)"""
+    _, a = _diverging("numba")
+    _, b = _diverging("python")
+    assert str(a) == str(b)
+    assert a.partial.t.size == b.partial.t.size

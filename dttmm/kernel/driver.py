@@ -269,11 +269,12 @@ def simulate_structure(st: Structure, s: Settings):
         bar.close()
     upto = int(stats.ptr[0])
     if status:
-        _raise_failure(st, status, stats, t_end, meta, lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]),
-                                                                            m))
+        _raise_failure(st, status, stats, t_end, meta,
+                       lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]), m),
+                       float(rec.t[upto - 1]) if upto else 0.0)
     _add_stats(meta, stats, s, n_steps, wall, t_end)
     if rec.energy.size and not any(st.motion):
-        _energy_growth(meta, rec.t[:upto], rec.energy[:upto], rec.torque[:upto])
+        _energy_growth(meta, st, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
     status, warns = verdict(meta, s, n_steps)
     return to_result(rec, upto, wall, n_steps, meta, status, warns)
 
@@ -307,7 +308,7 @@ def verdict(meta: dict, s: Settings, n_steps: int):
     if growth > ENERGY_GROWTH:
         if s.iterations is not None:
             status = "unconverged"
-        warns.append(f"the energy grew with no input: by {growth:.3g} × its range over the run (> {ENERGY_GROWTH:g}) "
+        warns.append(f"the energy grew with no input: by {growth:.3g} × the run's energy scale (> {ENERGY_GROWTH:g}) "
                      f"by t = {meta['energy_growth_t']:.6g} s" + (f"; iterations={s.iterations!r} does not solve "
                                                                   "the step equations well enough"
                                                                   if s.iterations is not None else ""))
@@ -319,18 +320,30 @@ def verdict(meta: dict, s: Settings, n_steps: int):
     return status, warns
 
 
-#: energy growth with no input, relative to the energy's range over the run, that fails the
-#: energy check (converged runs of the shipped cases stay below 1e-4)
+#: energy growth with no input, relative to the run's energy scale, that fails the energy check
+#: (converged runs of the shipped cases stay below 1e-5)
 ENERGY_GROWTH = 1e-3
 
 
-def _energy_growth(meta: dict, t, energy, torque) -> None:
+def energy_scale(st: Structure, t, energy, torque, rate) -> float:
+    """Energy scale (J) of a run: the largest of the energy's range, the work of the joint
+    torques ∫ Σ|τ α̇| dt (trapezoid on the output grid) and m |g| L (total mass, gravity,
+    summed link lengths)."""
+    mass = sum(lk.et.m * lk.k + lk.m_hub + lk.m_pay for lk in st.links)
+    mgl = mass * float(np.linalg.norm(st.gravity)) * sum(lk.length for lk in st.links)
+    p = np.sum(np.abs(torque * rate), axis=1)
+    work = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))) if t.size > 1 else 0.0
+    rng = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
+    return max(rng, work, mgl)
+
+
+def _energy_growth(meta: dict, st: Structure, t, energy, torque, rate) -> None:
     """Energy check of a torque-driven run: wherever every joint torque is zero on a stretch of
     output samples, damping can only remove energy, so the total energy must not grow there.
-    Stores the largest growth relative to the energy's range over the run (and its time) in
+    Stores the largest growth relative to :func:`energy_scale` (and its time) in
     ``meta["energy_growth"]``, ``meta["energy_growth_t"]``."""
     free = np.all(torque == 0.0, axis=1)
-    scale = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
+    scale = energy_scale(st, t, energy, torque, rate)
     worst, when = 0.0, None
     j = 0
     while j < free.size:
@@ -350,16 +363,30 @@ def _energy_growth(meta: dict, t, energy, torque) -> None:
     meta["energy_growth_t"] = when
 
 
-def _raise_failure(st, status, stats, t_end, meta, partial):
+def _raise_failure(st, status, stats, t_end, meta, partial, t_last):
     step = int(stats.steps_done[0])
     if status == ST_SINGULAR:
         raise plumbing.simulation_failure("Singular matrix", t=t_end[step], step=step, component="step system",
                                           meta=meta, partial=partial,
                                           message="linear solve failed (Singular matrix)")
-    why = "non-finite state" if status == ST_NONFINITE else "runaway elastic displacement"
-    raise plumbing.simulation_failure(why, t=t_end[step], step=step,
-                                      component=st.coordinate_names()[int(stats.bad_index[0])], meta=meta,
-                                      partial=partial, message=f"simulation diverged ({why})")
+    bad = int(stats.bad_index[0])
+    name = st.coordinate_names()[bad]
+    if status == ST_NONFINITE:
+        why, detail = "non-finite state", "non-finite value"
+    else:
+        why = "runaway elastic displacement"
+        value, bound = float(stats.bad_value[0]), md_lim(st, bad)
+        el = next(lk.length / lk.k for i, lk in enumerate(st.links) if name.startswith(f"link {i + 1},"))
+        detail = (f"elastic rotation {value:.4g} rad beyond ±{bound:.4g} rad" if name.endswith("phi") else
+                  f"elastic displacement {value:.4g} m beyond {bound / el:.3g} element lengths, {bound:.4g} m")
+    raise plumbing.simulation_failure(why, t=t_end[step], step=step, component=name, meta=meta, partial=partial,
+                                      message=f"simulation diverged ({why}: {detail}; the partial result "
+                                              f"ends at t = {t_last:.6g} s, before the failed step)")
+
+
+def md_lim(st: Structure, index: int) -> float:
+    """The runaway bound of coordinate ``index`` (see :func:`dttmm.kernel.layout.build_model`)."""
+    return float(build_model(st).lim[index])
 
 
 def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> None:

@@ -94,6 +94,7 @@ class Stats(NamedTuple):
     steps_done: np.ndarray
     status: np.ndarray        # ST_* code
     bad_index: np.ndarray     # coordinate that failed the state check
+    bad_value: np.ndarray     # its value
     ptr: np.ndarray           # next output sample
     checks: np.ndarray        # residual checks done (fixed sweep counts and "auto")
     flagged: np.ndarray       # checks whose iteration error exceeded the truncation error
@@ -106,8 +107,9 @@ class Stats(NamedTuple):
 def new_stats() -> Stats:
     i = lambda: np.zeros(1, np.int64)
     return Stats(sweeps=i(), max_sweeps=i(), unconverged=i(), cond_max=np.zeros(1), steps_done=i(),
-                 status=i(), bad_index=i(), ptr=i(), checks=i(), flagged=i(), first_flag=np.full(1, -1, np.int64),
-                 worst_step=np.full(1, -1, np.int64), worst_ratio=np.zeros(1), worst_resid=np.zeros(1))
+                 status=i(), bad_index=i(), bad_value=np.zeros(1), ptr=i(), checks=i(), flagged=i(),
+                 first_flag=np.full(1, -1, np.int64), worst_step=np.full(1, -1, np.int64), worst_ratio=np.zeros(1),
+                 worst_resid=np.zeros(1))
 
 
 class Work(NamedTuple):
@@ -428,6 +430,7 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
     bad = check_state(md, st.q, st.qd, st.qdd)
     if bad >= 0:
         stats.bad_index[0] = bad
+        stats.bad_value[0] = st.q[bad]
         finite = math.isfinite(st.q[bad] + st.qd[bad] + st.qdd[bad])
         return ST_RUNAWAY if finite else ST_NONFINITE
     if drv.restart[s]:  # a drive jumps at t1: restart with the right-hand limit; the
