@@ -95,3 +95,29 @@ def test_divergence_message_is_the_same_for_both_engines():
     _, b = _diverging("python")
     assert str(a) == str(b)
     assert a.partial.t.size == b.partial.t.size
+
+
+# ---------------------------------------------------------------------------------------------
+# progress bar: decided by the run time estimated after the first chunk
+def _short_run(**kw):
+    c = dttmm.load_case(CASES / "single_link.toml")
+    return dttmm.simulate(c, elements_per_link=2, h=1e-3, cut_loads=False, energy=False, **kw)
+
+
+def test_no_progress_bar_for_a_short_run(capsys):
+    _short_run()
+    assert "dttmm" not in capsys.readouterr().err
+
+
+def test_progress_bar_when_the_estimate_exceeds_the_threshold(monkeypatch, capsys):
+    from dttmm.kernel import driver
+
+    ref = _short_run()
+    monkeypatch.setattr(driver, "PROGRESS_AFTER", 0.0)
+    capsys.readouterr()
+    r = _short_run()
+    err = capsys.readouterr().err
+    assert "dttmm" in err and "step" in err, err
+    np.testing.assert_array_equal(r.joint_angle, ref.joint_angle)  # chunking changes nothing
+    _short_run(progress=False)
+    assert "dttmm" not in capsys.readouterr().err

@@ -206,6 +206,38 @@ def base_meta(st: Structure, s: Settings) -> dict:
     return meta
 
 
+#: a run whose time, estimated after its first chunk, exceeds this many seconds shows a
+#: progress bar (unless ``progress=False``)
+PROGRESS_AFTER = 2.0
+#: a run with a progress bar is split into this many calls of the kernel
+PROGRESS_CHUNKS = 200
+
+
+def _run_chunked(lp, args: tuple, n_steps: int, progress: bool | None):
+    """Run the time loop: a first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a
+    progress bar (``progress`` True, or None and the estimated run time above
+    :data:`PROGRESS_AFTER`) in chunks between bar updates, else the rest in one call.
+    ``args``: (md, dt, opts, drv, state, rec, stats, ws). Returns (status, bar or None)."""
+    stats = args[6]
+    chunk = max(1, n_steps // PROGRESS_CHUNKS)
+    t0 = time.perf_counter()
+    status = lp.run(*args, 0, min(chunk, n_steps))
+    done = int(stats.steps_done[0])
+    if status or done >= n_steps:
+        return status, None
+    estimate = (time.perf_counter() - t0) * n_steps / max(done, 1)
+    bar = _progress_bar(n_steps, progress if progress is not None else estimate > PROGRESS_AFTER)
+    if bar is None:
+        return lp.run(*args, done, n_steps), None
+    bar.update(done)
+    for a in range(done, n_steps, chunk):
+        status = lp.run(*args, a, min(n_steps, a + chunk))
+        bar.update(int(stats.steps_done[0]) - a)
+        if status:
+            break
+    return status, bar
+
+
 def _progress_bar(total: int, enabled: bool):
     if not enabled:
         return None
@@ -229,7 +261,6 @@ def simulate_structure(st: Structure, s: Settings):
         meta["compile_time"] = compile_time
     rec = new_record(st, scen.output_times, s.cut_loads, s.energy)
     n_steps = t_end.size
-    progress = s.progress if s.progress is not None else n_steps * max(st.n_elements, 1) > 2e8
     wall0 = time.perf_counter()
     ncuts = st.n_elements + st.n_links
     ws = lp.new_work(st.n_dof, st.n_links, ncuts)
@@ -254,16 +285,7 @@ def simulate_structure(st: Structure, s: Settings):
     drv = drive_tables(st, t_end, restart, load_plan(rec, t_end, int(stats.ptr[0])), s.integrator == "rk4")
     opts = s.options()
 
-    bar = _progress_bar(n_steps, progress)
-    chunk = n_steps if bar is None else max(1, n_steps // 200)
-    status = 0
-    for a in range(0, n_steps, chunk):
-        b = min(n_steps, a + chunk)
-        status = lp.run(md, dt, opts, drv, st0, rec, stats, ws, a, b)
-        if bar is not None:
-            bar.update(int(stats.steps_done[0]) - a)
-        if status:
-            break
+    status, bar = _run_chunked(lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps, s.progress)
     wall = time.perf_counter() - wall0
     if bar is not None:
         bar.close()
