@@ -114,6 +114,7 @@ def test_progress_bar_when_the_estimate_exceeds_the_threshold(monkeypatch, capsy
 
     ref = _short_run()
     monkeypatch.setattr(driver, "PROGRESS_AFTER", 0.0)
+    monkeypatch.setattr(driver, "SHORT_RUN", 0)
     capsys.readouterr()
     r = _short_run()
     err = capsys.readouterr().err

@@ -211,13 +211,18 @@ def base_meta(st: Structure, s: Settings) -> dict:
 PROGRESS_AFTER = 2.0
 #: a run with a progress bar is split into this many calls of the kernel
 PROGRESS_CHUNKS = 200
+#: compiled runs of at most this many element-steps take < 1 s (≤ 50 sweeps of ≤ 0.1 µs per
+#: element): one kernel call, no estimate (the second call costs ~5 % of a 200-step run at k = 8)
+SHORT_RUN = 2e5
 
 
 def _run_chunked(lp, args: tuple, n_steps: int, progress: bool | None):
-    """Run the time loop: a first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a
+    """Run the time loop: in one call if ``progress`` is False; else a first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a
     progress bar (``progress`` True, or None and the estimated run time above
     :data:`PROGRESS_AFTER`) in chunks between bar updates, else the rest in one call.
     ``args``: (md, dt, opts, drv, state, rec, stats, ws). Returns (status, bar or None)."""
+    if progress is False:
+        return lp.run(*args, 0, n_steps), None
     stats = args[6]
     chunk = max(1, n_steps // PROGRESS_CHUNKS)
     t0 = time.perf_counter()
@@ -285,7 +290,9 @@ def simulate_structure(st: Structure, s: Settings):
     drv = drive_tables(st, t_end, restart, load_plan(rec, t_end, int(stats.ptr[0])), s.integrator == "rk4")
     opts = s.options()
 
-    status, bar = _run_chunked(lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps, s.progress)
+    short = s.engine == "numba" and n_steps * max(st.n_elements, 1) <= SHORT_RUN and not s.progress
+    status, bar = _run_chunked(lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps,
+                               False if short else s.progress)
     wall = time.perf_counter() - wall0
     if bar is not None:
         bar.close()
