@@ -283,7 +283,7 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
     return True, used, converged
 
 
-@njit(nrt=False, inline="always")
+@njit(nrt=False)  # a real call: inlining a third sweep into `run` slowed every step (measured)
 def _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats):
     """Residual of the step equations at the accepted iterate x = ws.x of step s: one more
     sweep, not applied (its q̈ into ws.k2, torques and loads into the restart scratch), gives
