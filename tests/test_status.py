@@ -122,3 +122,21 @@ def test_progress_bar_when_the_estimate_exceeds_the_threshold(monkeypatch, capsy
     np.testing.assert_array_equal(r.joint_angle, ref.joint_angle)  # chunking changes nothing
     _short_run(progress=False)
     assert "dttmm" not in capsys.readouterr().err
+
+
+def test_energy_check_counts_growth_only_where_every_torque_is_zero():
+    """Synthetic series: the energy rises while a torque acts (not counted), and by 0.3 J
+    from the start of a torque-free stretch (counted); scale = the 2 J range (no gravity, no
+    torque work since α̇ = 0)."""
+    from dttmm.kernel import driver
+    from dttmm.structure import build_structure
+
+    st = build_structure(dttmm.load_case(CASES / "single_link.toml"), 1)
+    st = type("NoGravity", (), {"links": st.links, "gravity": np.zeros(2)})()  # m|g|L = 0
+    t = np.arange(8.0)
+    energy = np.array([0.0, 1.0, 1.0, 0.8, 1.3, 2.0, 1.9, 1.95])
+    torque = np.array([[1.0], [1.0], [0.0], [0.0], [0.0], [1.0], [0.0], [0.0]])
+    meta = {}
+    driver._energy_growth(meta, st, t, energy, torque, np.zeros_like(torque))
+    assert meta["energy_growth_t"] == 4.0
+    assert meta["energy_growth"] == pytest.approx(0.3 / 2.0)

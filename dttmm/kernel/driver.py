@@ -374,20 +374,16 @@ def _energy_growth(meta: dict, st: Structure, t, energy, torque, rate) -> None:
     free = np.all(torque == 0.0, axis=1)
     scale = energy_scale(st, t, energy, torque, rate)
     worst, when = 0.0, None
-    j = 0
-    while j < free.size:
-        if not free[j]:
-            j += 1
-            continue
-        e = j
-        while e < free.size and free[e]:
-            e += 1
-        seg = energy[j:e] - energy[j]
-        if seg.size > 1 and scale > 0.0:
-            i = int(np.argmax(seg))
-            if seg[i] / scale > worst:
-                worst, when = float(seg[i] / scale), float(t[j + i])
-        j = e
+    idx = np.flatnonzero(free)
+    if idx.size > 1 and scale > 0.0:
+        # stretches of consecutive free samples; growth from each stretch's first sample
+        starts = idx[np.concatenate(([True], np.diff(idx) > 1))]
+        first = starts[np.searchsorted(starts, idx, side="right") - 1]
+        growth = (energy[idx] - energy[first]) / scale
+        growth[~np.isfinite(growth)] = 0.0
+        i = int(np.argmax(growth))
+        if growth[i] > 0.0:
+            worst, when = float(growth[i]), float(t[idx[i]])
     meta["energy_growth"] = worst
     meta["energy_growth_t"] = when
 
