@@ -74,7 +74,8 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
         h = 4e-3 diverged at k = 2 and 8, h ≤ 2e-3 ran; use generalised-α for large steps).
         See docs/method.md. Inextensible links are unaffected.
     cut_loads, energy : record the loads at every cut and the total energy on the output grid.
-    progress : show a progress bar (default: on for runs of more than 2e8 element-steps).
+    progress : show a progress bar (tqdm, on stderr); default: on when the run time, estimated
+        after its first 0.5 %, exceeds 2 s.
 
     Returns
     -------

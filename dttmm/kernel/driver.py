@@ -64,6 +64,11 @@ def _modules(engine: str):
     return ploop, precorder
 
 
+#: fixed sweep counts and "auto": the residual check (one extra sweep, not applied) runs at
+#: the first step, every CHECK_EVERY-th step and the last step — ≤ 1/64 more sweeps
+CHECK_EVERY = 64
+
+
 @dataclass(frozen=True)
 class Settings:
     """Validated settings of one run (see :func:`dttmm.simulate`)."""
@@ -92,7 +97,7 @@ class Settings:
             beta, gamma, am, af = fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f
             lte = abs(beta - 1.0 / 6.0) / beta  # the Newmark truncation error (β − 1/6)h²Δq̈ over βh²
             if self.iterations is None:
-                mode, nfix = IT_TOL, 0
+                mode, nfix = IT_TOL, 0  # the tolerance is the check: no residual check
             elif self.iterations == "auto":
                 mode, nfix = IT_AUTO, 0
             else:
@@ -101,7 +106,7 @@ class Settings:
                             iteration=mode, n_fixed=nfix, tol=float(self.tol),
                             max_iterations=int(self.max_iterations), auto_fraction=float(self.auto_fraction),
                             beta=float(beta), gamma=float(gamma), alpha_m=float(am), alpha_f=float(af),
-                            lte=float(lte))
+                            lte=float(lte), check_every=CHECK_EVERY if mode in (IT_FIXED, IT_AUTO) and fam else 0)
 
 
 def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
@@ -201,6 +206,43 @@ def base_meta(st: Structure, s: Settings) -> dict:
     return meta
 
 
+#: a run whose time, estimated after its first chunk, exceeds this many seconds shows a
+#: progress bar (unless ``progress=False``)
+PROGRESS_AFTER = 2.0
+#: a run with a progress bar is split into this many calls of the kernel
+PROGRESS_CHUNKS = 200
+#: compiled runs of at most this many element-steps take < 1 s (≤ 50 sweeps of ≤ 0.1 µs per
+#: element): one kernel call, no estimate (the second call costs ~5 % of a 200-step run at k = 8)
+SHORT_RUN = 2e5
+
+
+def _run_chunked(lp, args: tuple, n_steps: int, progress: bool | None):
+    """Run the time loop: in one call if ``progress`` is False; else a first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a
+    progress bar (``progress`` True, or None and the estimated run time above
+    :data:`PROGRESS_AFTER`) in chunks between bar updates, else the rest in one call.
+    ``args``: (md, dt, opts, drv, state, rec, stats, ws). Returns (status, bar or None)."""
+    if progress is False:
+        return lp.run(*args, 0, n_steps), None
+    stats = args[6]
+    chunk = max(1, n_steps // PROGRESS_CHUNKS)
+    t0 = time.perf_counter()
+    status = lp.run(*args, 0, min(chunk, n_steps))
+    done = int(stats.steps_done[0])
+    if status or done >= n_steps:
+        return status, None
+    estimate = (time.perf_counter() - t0) * n_steps / max(done, 1)
+    bar = _progress_bar(n_steps, progress if progress is not None else estimate > PROGRESS_AFTER)
+    if bar is None:
+        return lp.run(*args, done, n_steps), None
+    bar.update(done)
+    for a in range(done, n_steps, chunk):
+        status = lp.run(*args, a, min(n_steps, a + chunk))
+        bar.update(int(stats.steps_done[0]) - a)
+        if status:
+            break
+    return status, bar
+
+
 def _progress_bar(total: int, enabled: bool):
     if not enabled:
         return None
@@ -224,7 +266,6 @@ def simulate_structure(st: Structure, s: Settings):
         meta["compile_time"] = compile_time
     rec = new_record(st, scen.output_times, s.cut_loads, s.energy)
     n_steps = t_end.size
-    progress = s.progress if s.progress is not None else n_steps * max(st.n_elements, 1) > 2e8
     wall0 = time.perf_counter()
     ncuts = st.n_elements + st.n_links
     ws = lp.new_work(st.n_dof, st.n_links, ncuts)
@@ -249,24 +290,20 @@ def simulate_structure(st: Structure, s: Settings):
     drv = drive_tables(st, t_end, restart, load_plan(rec, t_end, int(stats.ptr[0])), s.integrator == "rk4")
     opts = s.options()
 
-    bar = _progress_bar(n_steps, progress)
-    chunk = n_steps if bar is None else max(1, n_steps // 200)
-    status = 0
-    for a in range(0, n_steps, chunk):
-        b = min(n_steps, a + chunk)
-        status = lp.run(md, dt, opts, drv, st0, rec, stats, ws, a, b)
-        if bar is not None:
-            bar.update(int(stats.steps_done[0]) - a)
-        if status:
-            break
+    short = s.engine == "numba" and n_steps * max(st.n_elements, 1) <= SHORT_RUN and not s.progress
+    status, bar = _run_chunked(lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps,
+                               False if short else s.progress)
     wall = time.perf_counter() - wall0
     if bar is not None:
         bar.close()
     upto = int(stats.ptr[0])
     if status:
-        _raise_failure(st, status, stats, t_end, meta, lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]),
-                                                                            m))
-    _add_stats(meta, stats, s, n_steps, wall)
+        _raise_failure(st, status, stats, t_end, meta,
+                       lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]), m),
+                       float(rec.t[upto - 1]) if upto else 0.0)
+    _add_stats(meta, stats, s, n_steps, wall, t_end)
+    if rec.energy.size and not any(st.motion):
+        _energy_growth(meta, st, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
     status, warns = verdict(meta, s, n_steps)
     return to_result(rec, upto, wall, n_steps, meta, status, warns)
 
@@ -279,8 +316,8 @@ ILL_CONDITIONED = 1e8
 def verdict(meta: dict, s: Settings, n_steps: int):
     """(status, warnings) of a finished run: "ill-conditioned" when the plain sweep's largest
     final-system condition number exceeds :data:`ILL_CONDITIONED`; "unconverged" when a
-    tolerance-driven step used all ``max_iterations`` sweeps; else "ok" (fixed sweep counts,
-    ``iterations = m``, are not checked here)."""
+    tolerance-driven step used all ``max_iterations`` sweeps, or when the residual check of a
+    fixed sweep count or "auto" (``meta["residual_*"]``) flagged a step; else "ok"."""
     warns = []
     status = "ok"
     n_unconv = meta.get("unconverged_steps", 0)
@@ -288,6 +325,22 @@ def verdict(meta: dict, s: Settings, n_steps: int):
         status = "unconverged"
         warns.append(f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
                      f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}")
+    n_flag = meta.get("residual_flagged", 0)
+    if n_flag:
+        status = "unconverged"
+        warns.append(f"iterations={s.iterations!r}: the step equations are not solved to the time-discretisation "
+                     f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
+                     f"{meta['residual_first_t']:.6g} s; worst at t = {meta['residual_worst_t']:.6g} s: one more "
+                     f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
+                     f"{meta['residual_worst_ratio']:.3g} × the truncation error)")
+    growth = meta.get("energy_growth", 0.0)
+    if growth > ENERGY_GROWTH:
+        if s.iterations is not None:
+            status = "unconverged"
+        warns.append(f"the energy grew with no input: by {growth:.3g} × the run's energy scale (> {ENERGY_GROWTH:g}) "
+                     f"by t = {meta['energy_growth_t']:.6g} s" + (f"; iterations={s.iterations!r} does not solve "
+                                                                  "the step equations well enough"
+                                                                  if s.iterations is not None else ""))
     cond = meta.get("final_system_cond", 0.0)
     if cond > ILL_CONDITIONED:
         status = "ill-conditioned"
@@ -296,19 +349,72 @@ def verdict(meta: dict, s: Settings, n_steps: int):
     return status, warns
 
 
-def _raise_failure(st, status, stats, t_end, meta, partial):
+#: energy growth with no input, relative to the run's energy scale, that fails the energy check
+#: (converged runs of the shipped cases stay below 1e-5)
+ENERGY_GROWTH = 1e-3
+
+
+def energy_scale(st: Structure, t, energy, torque, rate) -> float:
+    """Energy scale (J) of a run: the largest of the energy's range, the work of the joint
+    torques ∫ Σ|τ α̇| dt (trapezoid on the output grid) and m |g| L (total mass, gravity,
+    summed link lengths)."""
+    mass = sum(lk.et.m * lk.k + lk.m_hub + lk.m_pay for lk in st.links)
+    mgl = mass * float(np.linalg.norm(st.gravity)) * sum(lk.length for lk in st.links)
+    p = np.sum(np.abs(torque * rate), axis=1)
+    work = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))) if t.size > 1 else 0.0
+    rng = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
+    return max(rng, work, mgl)
+
+
+def _energy_growth(meta: dict, st: Structure, t, energy, torque, rate) -> None:
+    """Energy check of a torque-driven run: wherever every joint torque is zero on a stretch of
+    output samples, damping can only remove energy, so the total energy must not grow there.
+    Stores the largest growth relative to :func:`energy_scale` (and its time) in
+    ``meta["energy_growth"]``, ``meta["energy_growth_t"]``."""
+    free = np.all(torque == 0.0, axis=1)
+    scale = energy_scale(st, t, energy, torque, rate)
+    worst, when = 0.0, None
+    idx = np.flatnonzero(free)
+    if idx.size > 1 and scale > 0.0:
+        # stretches of consecutive free samples; growth from each stretch's first sample
+        starts = idx[np.concatenate(([True], np.diff(idx) > 1))]
+        first = starts[np.searchsorted(starts, idx, side="right") - 1]
+        growth = (energy[idx] - energy[first]) / scale
+        growth[~np.isfinite(growth)] = 0.0
+        i = int(np.argmax(growth))
+        if growth[i] > 0.0:
+            worst, when = float(growth[i]), float(t[idx[i]])
+    meta["energy_growth"] = worst
+    meta["energy_growth_t"] = when
+
+
+def _raise_failure(st, status, stats, t_end, meta, partial, t_last):
     step = int(stats.steps_done[0])
     if status == ST_SINGULAR:
         raise plumbing.simulation_failure("Singular matrix", t=t_end[step], step=step, component="step system",
                                           meta=meta, partial=partial,
                                           message="linear solve failed (Singular matrix)")
-    why = "non-finite state" if status == ST_NONFINITE else "runaway elastic displacement"
-    raise plumbing.simulation_failure(why, t=t_end[step], step=step,
-                                      component=st.coordinate_names()[int(stats.bad_index[0])], meta=meta,
-                                      partial=partial, message=f"simulation diverged ({why})")
+    bad = int(stats.bad_index[0])
+    name = st.coordinate_names()[bad]
+    if status == ST_NONFINITE:
+        why, detail = "non-finite state", "non-finite value"
+    else:
+        why = "runaway elastic displacement"
+        value, bound = float(stats.bad_value[0]), md_lim(st, bad)
+        el = next(lk.length / lk.k for i, lk in enumerate(st.links) if name.startswith(f"link {i + 1},"))
+        detail = (f"elastic rotation {value:.4g} rad beyond ±{bound:.4g} rad" if name.endswith("phi") else
+                  f"elastic displacement {value:.4g} m beyond {bound / el:.3g} element lengths, {bound:.4g} m")
+    raise plumbing.simulation_failure(why, t=t_end[step], step=step, component=name, meta=meta, partial=partial,
+                                      message=f"simulation diverged ({why}: {detail}; the partial result "
+                                              f"ends at t = {t_last:.6g} s, before the failed step)")
 
 
-def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float) -> None:
+def md_lim(st: Structure, index: int) -> float:
+    """The runaway bound of coordinate ``index`` (see :func:`dttmm.kernel.layout.build_model`)."""
+    return float(build_model(st).lim[index])
+
+
+def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> None:
     if s.integrator == "rk4":
         meta.update({"iterations_mean": 4.0, "iterations_max": 4, "unconverged_steps": 0})
     else:
@@ -316,6 +422,13 @@ def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float) -> None:
                      "iterations_max": int(stats.max_sweeps[0]), "unconverged_steps": int(stats.unconverged[0])})
     if s.sweep == "plain":
         meta["final_system_cond"] = float(stats.cond_max[0])
+    if stats.checks[0]:
+        t_of = lambda j: float(t_end[j]) if j >= 0 else None
+        meta.update({"residual_checks": int(stats.checks[0]), "residual_flagged": int(stats.flagged[0]),
+                     "residual_first_t": t_of(int(stats.first_flag[0])),
+                     "residual_worst_t": t_of(int(stats.worst_step[0])),
+                     "residual_worst_ratio": float(stats.worst_ratio[0]),
+                     "residual_worst": float(stats.worst_resid[0])})
     meta["time_per_step"] = wall / n_steps
 
 

@@ -30,8 +30,11 @@ SYM = ((0, 1, 2), (1, 3, 4), (2, 4, 5))
 
 #: plain sweep: no pivot slot (the joint is motion-driven, its α̈ is known)
 NO_SLOT = -1
-#: elastic displacements beyond this many link lengths (rotations beyond this many rad) stop a run
-RUNAWAY_LENGTHS, RUNAWAY_ANGLE = 10.0, 100.0
+#: an element's elastic displacement u or v beyond this many element lengths, or its elastic
+#: rotation φ beyond this many rad, stops a run: no beam deforms like that, the state is diverging.
+#: The u of a second-order strain element also carries the bending foreshortening ½∫w'² dx,
+#: which reaches element lengths when an element bends by radians: its bound is looser.
+RUNAWAY_LENGTHS, RUNAWAY_ANGLE, RUNAWAY_LENGTHS_U2 = 2.0, 2.0 * np.pi, 10.0
 
 
 class Model(NamedTuple):
@@ -109,8 +112,10 @@ def build_model(st) -> Model:
             f["EA"][i], f["inv_l"][i], f["EAl"][i] = et.EA, 1.0 / et.l, et.EA * et.l
             f["G"][i] = et.G
             f["mu"][i] = et.mu
-        el = np.full((lk.k, et.ne), RUNAWAY_LENGTHS * lk.length)
+        el = np.full((lk.k, et.ne), RUNAWAY_LENGTHS * lk.length / lk.k)
         el[:, et.iphi] = RUNAWAY_ANGLE
+        if et.second_order and et.ne == 3:
+            el[:, 0] = RUNAWAY_LENGTHS_U2 * lk.length / lk.k
         lim[lk.e_slice] = el.ravel()
     ia = st.alpha_index.astype(np.int64)
     return Model(n=n, k=st.k, grav=np.ascontiguousarray(st.gravity, dtype=float), ne=ne, i_alpha=ia,

@@ -51,6 +51,7 @@ class Options(NamedTuple):
     alpha_m: float
     alpha_f: float
     lte: float
+    check_every: int       # fixed/"auto" sweeps: residual check every this many steps (0: never)
 
 
 class Drives(NamedTuple):
@@ -93,13 +94,22 @@ class Stats(NamedTuple):
     steps_done: np.ndarray
     status: np.ndarray        # ST_* code
     bad_index: np.ndarray     # coordinate that failed the state check
+    bad_value: np.ndarray     # its value
     ptr: np.ndarray           # next output sample
+    checks: np.ndarray        # residual checks done (fixed sweep counts and "auto")
+    flagged: np.ndarray       # checks whose iteration error exceeded the truncation error
+    first_flag: np.ndarray    # step of the first flagged check (-1: none)
+    worst_step: np.ndarray    # step of the largest ratio (-1: none)
+    worst_ratio: np.ndarray   # largest ratio iteration error / truncation error
+    worst_resid: np.ndarray   # max|Δq̈|/max(1, max|q̈|) of that check
 
 
 def new_stats() -> Stats:
     i = lambda: np.zeros(1, np.int64)
     return Stats(sweeps=i(), max_sweeps=i(), unconverged=i(), cond_max=np.zeros(1), steps_done=i(),
-                 status=i(), bad_index=i(), ptr=i())
+                 status=i(), bad_index=i(), bad_value=np.zeros(1), ptr=i(), checks=i(), flagged=i(),
+                 first_flag=np.full(1, -1, np.int64), worst_step=np.full(1, -1, np.int64), worst_ratio=np.zeros(1),
+                 worst_resid=np.zeros(1))
 
 
 class Work(NamedTuple):
@@ -273,9 +283,44 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
     return True, used, converged
 
 
+@njit(nrt=False)  # a real call: inlining a third sweep into `run` slowed every step (measured)
+def _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats):
+    """Residual of the step equations at the accepted iterate x = ws.x of step s: one more
+    sweep, not applied (its q̈ into ws.k2, torques and loads into the restart scratch), gives
+    the correction d = max|Δq̈| it would make. An error d in q̈ moves q by βh²·d and q̇ by
+    γh·d; the Newmark truncation errors are (β − 1/6)h²·Δq̈ in q and
+    h·(|γ − ½|·Δq̈ + Δ²q̈/12) in q̇ (dq = max|q̈_{n+1} − q̈_n|, d2q = max|q̈_{n+1} − 2q̈_n +
+    q̈_{n−1}|). The check's ratio is the larger of the two error ratios; it passes at ≤ 1 (a tol
+    term admits what a converged step leaves). Updates the counters of ``stats``."""
+    apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
+    ok, _cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.k2, ws.torque_r, ws.loads_r)
+    d = 0.0
+    xmax = 0.0
+    for r in range(ws.x.shape[0]):
+        d = max(d, abs(ws.k2[r] - ws.x[r]))
+        xmax = max(xmax, abs(ws.x[r]))
+    if not ok:
+        d = np.inf
+    floor = opts.tol * max(1.0, xmax)
+    ratio = max(d / (opts.lte * dq + floor),
+                opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor))
+    scale = max(1.0, xmax)
+    stats.checks[0] += 1
+    if not ratio <= 1.0:  # NaN counts as flagged
+        stats.flagged[0] += 1
+        if stats.first_flag[0] < 0:
+            stats.first_flag[0] = s
+    if stats.worst_step[0] < 0 or not ratio <= stats.worst_ratio[0]:
+        stats.worst_step[0] = s
+        stats.worst_ratio[0] = ratio
+        stats.worst_resid[0] = d / scale
+
+
 @njit(nrt=False, inline="always")
-def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
-    """One Newmark-family step of size h to the end values (tau, mot). Returns ok."""
+def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, keep, s):
+    """One Newmark-family step of size h to the end values (tau, mot); with ``check``, the
+    residual check of step s after it (:func:`_residual_check`); with ``keep``, q̈_n is kept
+    in ws.ka for the next step's check. Returns ok."""
     cq, cv = predict(opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt,
                      ws.qdt)
     copy(st.qdd, ws.x)
@@ -294,6 +339,14 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
     stats.max_sweeps[0] = max(stats.max_sweeps[0], used)
     if not converged:
         stats.unconverged[0] += 1
+    dq = 0.0
+    d2q = 0.0
+    if check:
+        for r in range(st.q.shape[0]):
+            dq = max(dq, abs(ws.x[r] - st.qdd[r]))
+            d2q = max(d2q, abs(ws.x[r] - 2.0 * st.qdd[r] + ws.ka[r]))
+    if keep:
+        copy(st.qdd, ws.ka)
     am, af = opts.alpha_m, opts.alpha_f
     i1m = 1.0 / (1.0 - am)
     for r in range(st.q.shape[0]):
@@ -312,6 +365,8 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats):
             ws.torque[i] = tau[i]
     if want_loads and opts.sweep == SW_RICCATI:
         riccati_loads(md, dt, ws.loads)
+    if check:  # after the loads: the extra sweep overwrites the workspace they are read from
+        _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats)
     return True
 
 
@@ -375,6 +430,7 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
     bad = check_state(md, st.q, st.qd, st.qdd)
     if bad >= 0:
         stats.bad_index[0] = bad
+        stats.bad_value[0] = st.q[bad]
         finite = math.isfinite(st.q[bad] + st.qd[bad] + st.qdd[bad])
         return ST_RUNAWAY if finite else ST_NONFINITE
     if drv.restart[s]:  # a drive jumps at t1: restart with the right-hand limit; the
@@ -407,11 +463,17 @@ def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
     t0 = 0.0 if s_begin == 0 else drv.t_end[s_begin - 1]
     status = ST_OK
     done = s_begin
+    last = drv.t_end.shape[0] - 1
+    every = opts.check_every
     for s in range(s_begin, s_end):
         t1 = drv.t_end[s]
         if opts.integrator == INT_NEWMARK:
+            check = every > 0 and (s % every == 0 or s == last)
+            keep = every > 0 and ((s + 1) % every == 0 or s + 1 == last)
+            if check and s == 0:  # no q̈_{−1}: the first check uses Δq̈ for Δ²q̈
+                copy(st.qdd, ws.ka)
             ok = newmark_step(md, dt, opts, st, ws, t1 - t0, drv.tau_left[s], drv.mot_left[s],
-                              drv.need_loads[s], stats)
+                              drv.need_loads[s], stats, check, keep, s)
         else:
             ok = rk4_step(md, dt, opts, st, ws, t1 - t0, drv, s, stats)
         status = _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats) if ok else ST_SINGULAR
