@@ -27,6 +27,7 @@ with the relative difference ``max/min - 1`` of the ratios and the loads).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import subprocess
@@ -40,7 +41,7 @@ import pandas as pd
 
 from .timing import load_average
 
-__all__ = ["compare", "headlines", "main", "reduced_plan", "run_once"]
+__all__ = ["compare", "headlines", "main", "reanalyse", "reduced_plan", "run_once"]
 
 CASE = "three_link"
 STUDIES = ("work_precision", "cost")
@@ -89,9 +90,27 @@ def run_once(ctx, folder: Path, *, burner: bool, scheduler=None, workers=None) -
         if proc is not None:
             proc.terminate()
             proc.wait()
-    info = {"wall_s": time.perf_counter() - t0, "load_start": load0, "load_end": load_average()}
+    info = {
+        "wall_s": time.perf_counter() - t0,
+        "load_start": load0,
+        "load_end": load_average(),
+        "burner": burner,
+    }
     save_tables(tables, folder / "data")
+    (folder / "info.json").write_text(json.dumps(info))
     return {"tables": tables, "info": info}
+
+
+def reanalyse(folder: Path) -> dict:
+    """Tables and loads of a stored run (``run_once``'s folder), the studies' analysis applied
+    again to the stored run rows with the current code."""
+    from .studies import cost, work_precision
+    from .study import load_tables
+
+    tables = load_tables(folder / "data")
+    tables.update(work_precision.analyse(None, tables["work_precision"]))
+    tables.update(cost.analyse(None, tables["cost"]))
+    return {"tables": tables, "info": json.loads((folder / "info.json").read_text())}
 
 
 def _ratio_rows(values: dict, kind: str, where: str) -> list[dict]:
@@ -218,15 +237,21 @@ def main(argv=None) -> int:
     ap.add_argument("--tag", default=None, help="file stem (default loaded_check or loaded_check_baseline)")
     ap.add_argument("--scheduler", default=None, help="as dttmm report (default: a LocalCluster)")
     ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument(
+        "--from-data",
+        action="store_true",
+        help="only redo the analysis and comparison of the runs under --work",
+    )
     a = ap.parse_args(argv)
     tag = a.tag or ("loaded_check" if a.burner else "loaded_check_baseline")
-    plan = reduced_plan()
-    ctx = prepare(plan, a.data)
+    ctx = None if a.from_data else prepare(reduced_plan(), a.data)
     heads, infos = [], []
     for i in range(1, a.runs + 1):
-        got = run_once(
-            ctx, Path(a.work) / tag / f"run{i}", burner=a.burner, scheduler=a.scheduler, workers=a.workers
-        )
+        folder = Path(a.work) / tag / f"run{i}"
+        if a.from_data:
+            got = reanalyse(folder)
+        else:
+            got = run_once(ctx, folder, burner=a.burner, scheduler=a.scheduler, workers=a.workers)
         info = {**got["info"], **noise_summary(got["tables"])}
         print(f"{tag} run {i}: {info}", flush=True)
         heads.append(headlines(got["tables"]))
