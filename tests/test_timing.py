@@ -52,6 +52,15 @@ def test_load_above_the_core_count_marks_noise(monkeypatch):
     assert not t.noisy and t.noise == "" and t.spread == 0.0
 
 
+def test_short_calls_are_repeated_until_their_cpu_time_adds_up():
+    _, t = timing.measure(lambda: _burn(0.004), 3, min_cpu=0.04)
+    assert 10 <= t.repeats <= 11 and t.cpu_min >= 0.004  # 10 calls of 4 ms reach 40 ms
+    _, t = timing.measure(lambda: _burn(0.004), 3, min_cpu=1e3)
+    assert t.repeats == timing.MAX_REPEATS
+    _, t = timing.measure(lambda: _burn(0.03), 3, min_cpu=0.04)
+    assert t.repeats == 3  # long calls: the repeats asked for, no more
+
+
 def test_repeats_must_be_a_positive_integer():
     for bad in (0, -1, 1.5, True):
         with pytest.raises(InputError, match="repeats"):
@@ -65,7 +74,8 @@ def test_one_blas_thread_inside_the_block():
 
 
 @pytest.fixture
-def _rotor():
+def _rotor(monkeypatch):
+    monkeypatch.setattr(timing, "MIN_CPU", 0.0)  # these tests count the calls a study asks for
     methods.register("rotor", rotor.simulate)
     rotor.CALLS["n"] = 0
     rotor.FAIL_AFTER["n"] = None
@@ -140,3 +150,13 @@ def test_work_precision_summary_quotes_the_least_times_of_the_repeats():
     assert s.loc["dttmm", "wall_time_to_target"] == pytest.approx(0.04)
     assert s.loc["global", "wall_time_at_best"] == pytest.approx(0.04)
     assert s.loc["dttmm", "cpu_time_to_target"] == pytest.approx(0.036)
+
+
+def test_execute_asks_for_min_cpu_only_where_cost_is_reported(_rotor, monkeypatch):
+    monkeypatch.setattr(timing, "MIN_CPU", 1e3)  # never reached: the cap decides
+    monkeypatch.setattr(timing, "MAX_REPEATS", 5)
+    c = shortened(case("single_link"), 0.1, 0.01)
+    task = Task("single_link", "rotor", 1, 1e-2, 0.1)
+    assert execute(methods.resolve("rotor"), c, task, repeats=3).timing["timing_repeats"] == 5
+    assert execute(methods.resolve("rotor"), c, task, repeats=1).timing["timing_repeats"] == 1
+    assert rotor.CALLS["n"] == 6
