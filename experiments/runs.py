@@ -99,7 +99,7 @@ def execute(simulate, case, task: Task, repeats: int = 1) -> Outcome:
     ``repeats`` ≥ 1 calls (one BLAS thread, CPU and wall time each, see
     :func:`experiments.timing.measure`); the first call's Result is kept. Studies that report
     cost ask for ≥ 3, accuracy-only studies for 1; with more than one, a short run is called
-    again until its calls add up to ``timing.MIN_CPU`` of CPU time. ``KeyboardInterrupt`` and
+    again until calls × least CPU time reach ``timing.MIN_CPU``. ``KeyboardInterrupt`` and
     ``SystemExit`` still propagate (they stop the sweep).
     """
     from . import timing as tm

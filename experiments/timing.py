@@ -11,7 +11,7 @@ the median CPU time lies more than ``SPREAD_MAX`` above the minimum.
 
 A run of a few milliseconds is disturbed alike in all of a few calls on a busy machine, so a
 measurement may also ask for ``min_cpu``: it then keeps calling (up to ``MAX_REPEATS`` calls)
-until its calls' CPU time adds up to that; the sweep asks for :data:`MIN_CPU` wherever it asks
+until the number of calls times the least CPU time of a call reaches that; the sweep asks for :data:`MIN_CPU` wherever it asks
 for more than one call.
 
 The first repeat's return value is the one kept (every repeat computes the same result), so
@@ -36,7 +36,7 @@ __all__ = ["COST_REPEATS", "MAX_REPEATS", "MIN_CPU", "SPREAD_MAX", "Timing", "co
 SPREAD_MAX = 0.10
 #: Repeats used by every cost figure (studies that report time); accuracy-only studies use 1.
 COST_REPEATS = 3
-#: Total CPU time (s) the calls of a cost measurement add up to at least. Measured on a loaded
+#: CPU time (s) that calls × least CPU time of a cost measurement reaches at least. Measured on a loaded
 #: 2-core machine (experiments/loaded_check.py): runs of 3-7 ms timed 3 times differed by up
 #: to 21 % between two sweeps, runs of 50 ms and more by about 10 %.
 MIN_CPU = 0.1
@@ -104,7 +104,7 @@ def _noise(load: float, n_cores: int, spread: float) -> str:
 
 def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS, min_cpu: float = 0.0) -> tuple[Any, Timing]:
     """Call ``fn()`` ``repeats`` times (≥ 1) under one BLAS thread, and more (at most
-    ``MAX_REPEATS`` in all) until the calls' CPU time adds up to ``min_cpu`` (s); return
+    ``MAX_REPEATS`` in all) until calls × least CPU time reaches ``min_cpu`` (s); return
     (first value, Timing).
 
     An exception in any repeat propagates (the run failed; nothing is timed).
@@ -117,7 +117,8 @@ def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS, min_cpu: float =
     first = None
     with one_blas_thread() as threads:
         i = 0
-        while i < repeats or (sum(cpu) < min_cpu and i < max(repeats, MAX_REPEATS)):
+        # calls × least CPU time, not the sum: a first call that compiles (JIT) must not end it
+        while i < repeats or (i * min(cpu) < min_cpu and i < max(repeats, MAX_REPEATS)):
             c0, w0 = time.process_time(), time.perf_counter()
             value = fn()
             wall.append(time.perf_counter() - w0)
