@@ -14,9 +14,9 @@ Headlines compared between the runs:
 
 - ``equal_accuracy``: the work-precision ratios at equal end-effector accuracy (CPU time of
   each method over the DT-TMM method of the same element strain, at 1e-3, 1e-4, 1e-5 m);
-- ``to_target_cpu`` / ``to_target_wall``: each method's CPU time and wall time (the
-  scoreboard's "time to target") to reach the common error of the work-precision study, as a
-  ratio to DT-TMM's (linear element);
+- ``to_target_cpu`` / ``to_target_wall``: each method's CPU time (the scoreboard's "CPU time
+  to target") and wall time to reach the common error of the work-precision study, as a ratio
+  to DT-TMM's (linear element);
 - ``cost_ratio``: CPU time over DT-TMM's at equal k and h (cost study, every common k);
 - ``cost_exponent``: the fitted exponent p of CPU time ∝ k^p.
 
