@@ -98,14 +98,18 @@ def execute(simulate, case, task: Task, repeats: int = 1) -> Outcome:
 
     ``repeats`` ≥ 1 calls (one BLAS thread, CPU and wall time each, see
     :func:`experiments.timing.measure`); the first call's Result is kept. Studies that report
-    cost ask for ≥ 3, accuracy-only studies for 1. ``KeyboardInterrupt`` and ``SystemExit``
-    still propagate (they stop the sweep).
+    cost ask for ≥ 3, accuracy-only studies for 1; with more than one, a short run is called
+    again until calls × least CPU time reach ``timing.MIN_CPU``. ``KeyboardInterrupt`` and
+    ``SystemExit`` still propagate (they stop the sweep).
     """
-    from .timing import measure
+    from . import timing as tm
 
     t0 = time.perf_counter()
+    min_cpu = tm.MIN_CPU if repeats > 1 else 0.0
     try:
-        res, timing = measure(lambda: simulate(case, task.k, task.h, **dict(task.options)), repeats)
+        res, timing = tm.measure(
+            lambda: simulate(case, task.k, task.h, **dict(task.options)), repeats, min_cpu=min_cpu
+        )
     except methods.MethodUnavailable as exc:
         return Outcome("unavailable", str(exc), run_time=time.perf_counter() - t0)
     except Exception as exc:  # recorded with its reason, never dropped

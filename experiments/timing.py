@@ -9,6 +9,11 @@ the median is kept beside it. The 1-minute load average is sampled before and af
 repeat; a measurement is marked *noisy* when that load exceeded the number of cores or when
 the median CPU time lies more than ``SPREAD_MAX`` above the minimum.
 
+A run of a few milliseconds is disturbed alike in all of a few calls on a busy machine, so a
+measurement may also ask for ``min_cpu``: it then keeps calling (up to ``MAX_REPEATS`` calls)
+until the number of calls times the least CPU time of a call reaches that; the sweep asks for :data:`MIN_CPU` wherever it asks
+for more than one call.
+
 The first repeat's return value is the one kept (every repeat computes the same result), so
 accuracy-only studies run with ``repeats=1`` and pay nothing extra.
 """
@@ -25,12 +30,18 @@ from typing import Any
 
 from dttmm.threads import one_blas_thread
 
-__all__ = ["COST_REPEATS", "SPREAD_MAX", "Timing", "cores", "load_average", "measure"]
+__all__ = ["COST_REPEATS", "MAX_REPEATS", "MIN_CPU", "SPREAD_MAX", "Timing", "cores", "load_average", "measure"]
 
 #: Largest accepted (median − min) / min of the CPU times before a point is marked noisy.
 SPREAD_MAX = 0.10
 #: Repeats used by every cost figure (studies that report time); accuracy-only studies use 1.
 COST_REPEATS = 3
+#: CPU time (s) that calls × least CPU time of a cost measurement reaches at least. Measured on a loaded
+#: 2-core machine (experiments/loaded_check.py): runs of 3-7 ms timed 3 times differed by up
+#: to 21 % between two sweeps, runs of 50 ms and more by about 10 %.
+MIN_CPU = 0.1
+#: Most calls of one measurement when ``min_cpu`` asks for more than ``repeats``.
+MAX_REPEATS = 50
 
 
 def cores() -> int:
@@ -91,8 +102,10 @@ def _noise(load: float, n_cores: int, spread: float) -> str:
     return "; ".join(why)
 
 
-def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS) -> tuple[Any, Timing]:
-    """Call ``fn()`` ``repeats`` times (≥ 1) under one BLAS thread; return (first value, Timing).
+def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS, min_cpu: float = 0.0) -> tuple[Any, Timing]:
+    """Call ``fn()`` ``repeats`` times (≥ 1) under one BLAS thread, and more (at most
+    ``MAX_REPEATS`` in all) until calls × least CPU time reaches ``min_cpu`` (s); return
+    (first value, Timing).
 
     An exception in any repeat propagates (the run failed; nothing is timed).
     """
@@ -103,7 +116,9 @@ def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS) -> tuple[Any, Ti
     cpu, wall, solve, loads = [], [], [], [load_average()]
     first = None
     with one_blas_thread() as threads:
-        for i in range(repeats):
+        i = 0
+        # calls × least CPU time, not the sum: a first call that compiles (JIT) must not end it
+        while i < repeats or (i * min(cpu) < min_cpu and i < max(repeats, MAX_REPEATS)):
             c0, w0 = time.process_time(), time.perf_counter()
             value = fn()
             wall.append(time.perf_counter() - w0)
@@ -112,10 +127,11 @@ def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS) -> tuple[Any, Ti
             loads.append(load_average())
             if i == 0:
                 first = value
+            i += 1
     n = cores()
     load = max((x for x in loads if math.isfinite(x)), default=math.nan)
     t = Timing(
-        repeats,
+        len(cpu),
         min(cpu),
         statistics.median(cpu),
         min(wall),

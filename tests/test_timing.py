@@ -52,6 +52,18 @@ def test_load_above_the_core_count_marks_noise(monkeypatch):
     assert not t.noisy and t.noise == "" and t.spread == 0.0
 
 
+def test_short_calls_are_repeated_until_their_cpu_time_adds_up():
+    _, t = timing.measure(lambda: _burn(0.004), 3, min_cpu=0.04)
+    assert 10 <= t.repeats <= 11 and t.cpu_min >= 0.004  # 10 calls of 4 ms reach 40 ms
+    _, t = timing.measure(lambda: _burn(0.004), 3, min_cpu=1e3)
+    assert t.repeats == timing.MAX_REPEATS
+    _, t = timing.measure(lambda: _burn(0.03), 3, min_cpu=0.04)
+    assert t.repeats == 3  # long calls: the repeats asked for, no more
+    first = iter([0.2])  # a first call that compiles does not stand for the short ones after it
+    _, t = timing.measure(lambda: _burn(next(first, 0.004)), 3, min_cpu=0.04)
+    assert 10 <= t.repeats <= 11
+
+
 def test_repeats_must_be_a_positive_integer():
     for bad in (0, -1, 1.5, True):
         with pytest.raises(InputError, match="repeats"):
@@ -65,7 +77,8 @@ def test_one_blas_thread_inside_the_block():
 
 
 @pytest.fixture
-def _rotor():
+def _rotor(monkeypatch):
+    monkeypatch.setattr(timing, "MIN_CPU", 0.0)  # these tests count the calls a study asks for
     methods.register("rotor", rotor.simulate)
     rotor.CALLS["n"] = 0
     rotor.FAIL_AFTER["n"] = None
@@ -123,3 +136,30 @@ def test_equal_accuracy_ratios_only_within_the_same_strain():
         3.0
     )
     assert np.isnan(r.loc["dttmm", "ratio"]) and np.isnan(r.loc["dttmm-2nd", "ratio"])
+
+
+def test_work_precision_summary_quotes_the_least_times_of_the_repeats():
+    # the first call's solve time (``wall_time``) carries one-off costs such as JIT compilation:
+    # the summary must quote the least wall and CPU times over the repeats instead
+    rows = []
+    for m, first_call in (("dttmm", 5.0), ("global", 0.2)):
+        for k, err in ((2, 1e-3), (4, 1e-4)):
+            rows.append(
+                {"case": "x", "method": m, "options": "", "k": k, "h": 1e-3, "status": "ok", "ee_l2": err,
+                 "wall_time": first_call, "timing_wall_min": 0.01 * k, "timing_cpu_min": 0.009 * k,
+                 "timing_cpu_median": 0.009 * k, "timing_repeats": 3, "timing_noisy": False, "timing_noise": ""}
+            )
+    s = wp.analyse(None, pd.DataFrame(rows))["work_precision_summary"].set_index("method")
+    assert s.loc["dttmm", "wall_time_to_target"] == pytest.approx(0.04)
+    assert s.loc["global", "wall_time_at_best"] == pytest.approx(0.04)
+    assert s.loc["dttmm", "cpu_time_to_target"] == pytest.approx(0.036)
+
+
+def test_execute_asks_for_min_cpu_only_where_cost_is_reported(_rotor, monkeypatch):
+    monkeypatch.setattr(timing, "MIN_CPU", 1e3)  # never reached: the cap decides
+    monkeypatch.setattr(timing, "MAX_REPEATS", 5)
+    c = shortened(case("single_link"), 0.1, 0.01)
+    task = Task("single_link", "rotor", 1, 1e-2, 0.1)
+    assert execute(methods.resolve("rotor"), c, task, repeats=3).timing["timing_repeats"] == 5
+    assert execute(methods.resolve("rotor"), c, task, repeats=1).timing["timing_repeats"] == 1
+    assert rotor.CALLS["n"] == 6
