@@ -9,13 +9,14 @@ so that timing and accuracy join in the report.
 ``DTTMM_BENCH_QUICK=1`` (CI) shrinks the parameter lists so the suites run once, untimed, in
 seconds: they are checked to work, not measured.
 """
+
 from __future__ import annotations
 
 import dataclasses as dc
 import math
 import os
 import time
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -39,14 +40,18 @@ def chain(n_links: int, n_steps: int = N_STEPS, h: float = H) -> dttmm.Case:
     """n equal links of the three_link strip (hubs, payload at the end, gravity, sine torques)."""
     base = dttmm.load_case(CASES / "three_link.toml")
     mid = base.model.links[1]
-    links = [base.model.links[0]] + [mid] * (n_links - 2) + [base.model.links[2]] if n_links > 1 else \
-        [dc.replace(base.model.links[0], payload=base.model.links[2].payload)]
+    links = (
+        [base.model.links[0]] + [mid] * (n_links - 2) + [base.model.links[2]]
+        if n_links > 1
+        else [dc.replace(base.model.links[0], payload=base.model.links[2].payload)]
+    )
     drives = tuple(dttmm.Drive("torque", dttmm.Sine(1.0 / (i + 1), 1.0, until=1.0)) for i in range(n_links))
-    return dttmm.Case(dc.replace(base.model, links=tuple(links)),
-                      dttmm.Scenario(n_steps * h, h, drives), f"chain{n_links}")
+    return dttmm.Case(
+        dc.replace(base.model, links=tuple(links)), dttmm.Scenario(n_steps * h, h, drives), f"chain{n_links}"
+    )
 
 
-@lru_cache(maxsize=None)
+@cache
 def reference(name: str, n_steps: int = N_STEPS) -> dttmm.Result:
     """DT-TMM at k = 64, h/4, converged: the benchmark window's reference (tip deflections)."""
     c = case(name, n_steps) if not name.startswith("chain") else chain(int(name[5:]), n_steps)
@@ -93,16 +98,27 @@ def run_benchmark(benchmark, method: str, c: dttmm.Case, k, h: float, ref_name: 
     load = max((x for x in holder["load"] if math.isfinite(x)), default=math.nan)
     spread = statistics.median(cpu) / min(cpu) - 1 if min(cpu) > 0 else 0.0
     info = benchmark.extra_info
-    info.update(method=method, case=c.name, elements_per_link=k, n_links=len(c.model.links), h=h,
-                n_steps=res.n_steps, n_dof=res.meta.get("n_dof"),
-                final_system_size=res.meta.get("final_system_size"),
-                iterations=res.meta.get("iterations_mean", res.meta.get("newton_iterations_per_step")),
-                solve_time=min(solve), time_per_step=min(solve) / res.n_steps,
-                time_per_step_median=statistics.median(solve) / res.n_steps,
-                time_per_element_step=min(solve) / res.n_steps / n_el if n_el else None,
-                cpu_per_step=min(cpu) / res.n_steps, cpu_per_step_median=statistics.median(cpu) / res.n_steps,
-                rounds=len(cpu), load_max=load, noisy=bool(load > cores() or spread > SPREAD_MAX),
-                options={k_: str(v) for k_, v in options.items()})
+    info.update(
+        method=method,
+        case=c.name,
+        elements_per_link=k,
+        n_links=len(c.model.links),
+        h=h,
+        n_steps=res.n_steps,
+        n_dof=res.meta.get("n_dof"),
+        final_system_size=res.meta.get("final_system_size"),
+        iterations=res.meta.get("iterations_mean", res.meta.get("newton_iterations_per_step")),
+        solve_time=min(solve),
+        time_per_step=min(solve) / res.n_steps,
+        time_per_step_median=statistics.median(solve) / res.n_steps,
+        time_per_element_step=min(solve) / res.n_steps / n_el if n_el else None,
+        cpu_per_step=min(cpu) / res.n_steps,
+        cpu_per_step_median=statistics.median(cpu) / res.n_steps,
+        rounds=len(cpu),
+        load_max=load,
+        noisy=bool(load > cores() or spread > SPREAD_MAX),
+        options={k_: str(v) for k_, v in options.items()},
+    )
     if ref_name is not None:
         info["tip_error_l2"] = tip_error(res, reference(ref_name, res.n_steps))
     return res

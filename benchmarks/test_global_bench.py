@@ -6,6 +6,7 @@ so the O(N³) global runs stay short; ``extra_info["time_per_step"]`` is the com
 figure. ``experiments/global_scaling.py`` turns the same runs into a table with fitted
 exponents and crossovers.
 """
+
 import pytest
 from conftest import QUICK, H, case, chain, run_benchmark
 
@@ -40,6 +41,13 @@ def test_global_vs_dttmm_links(benchmark, method, n):
 @pytest.mark.parametrize("engine", ["numba", "numpy"])
 def test_global_engines(benchmark, engine, k):
     benchmark.group = f"global-engine:{engine}"
-    res = run_benchmark(benchmark, "global", case("three_link", _steps(9 * k) // (5 if engine == "numpy" else 1)),
-                        k, H, None, engine=engine)
+    res = run_benchmark(
+        benchmark,
+        "global",
+        case("three_link", _steps(9 * k) // (5 if engine == "numpy" else 1)),
+        k,
+        H,
+        None,
+        engine=engine,
+    )
     assert res.meta.get("engine", "numpy") == engine

@@ -9,6 +9,7 @@ more than 20× faster than real time.
 
 Run: ``pytest benchmarks/test_kernel_bench.py --benchmark-enable``.
 """
+
 from __future__ import annotations
 
 import time
@@ -33,10 +34,16 @@ def _info(benchmark, res, k, n_links, walls):
     n_el = k * n_links
     wall = min(walls)
     benchmark.extra_info.update(
-        engine=res.meta["engine"], elements_per_link=k, n_elements=n_el, n_dof=res.meta["n_dof"],
-        n_steps=res.n_steps, sweeps_per_step=res.meta["iterations_mean"], solve_time=wall,
+        engine=res.meta["engine"],
+        elements_per_link=k,
+        n_elements=n_el,
+        n_dof=res.meta["n_dof"],
+        n_steps=res.n_steps,
+        sweeps_per_step=res.meta["iterations_mean"],
+        solve_time=wall,
         us_per_element_step=wall / res.n_steps / n_el * 1e6,
-        ns_per_element_sweep=wall / res.n_steps / n_el / res.meta["iterations_mean"] * 1e9)
+        ns_per_element_sweep=wall / res.n_steps / n_el / res.meta["iterations_mean"] * 1e9,
+    )
 
 
 @pytest.mark.parametrize("variant", sorted(VARIANTS))
@@ -51,12 +58,20 @@ def test_kernel_element_step(benchmark, k, variant):
         return (), {}
 
     def target():
-        holder["res"] = dttmm.simulate(holder["case"], elements_per_link=k, h=H, engine="numba",
-                                       cut_loads=False, energy=False, **VARIANTS[variant])
+        holder["res"] = dttmm.simulate(
+            holder["case"],
+            elements_per_link=k,
+            h=H,
+            engine="numba",
+            cut_loads=False,
+            energy=False,
+            **VARIANTS[variant],
+        )
         holder["walls"].append(holder["res"].wall_time)
 
-    benchmark.pedantic(target, setup=setup, rounds=1 if QUICK else 5, iterations=1,
-                       warmup_rounds=0 if QUICK else 1)
+    benchmark.pedantic(
+        target, setup=setup, rounds=1 if QUICK else 5, iterations=1, warmup_rounds=0 if QUICK else 1
+    )
     _info(benchmark, holder["res"], k, 3, holder["walls"])
 
 
@@ -67,6 +82,7 @@ def test_kernel_real_time_factor(benchmark):
     c = dttmm.load_case(CASES / "three_link.toml")
     if QUICK:
         import dataclasses as dc
+
         c = dc.replace(c, scenario=dc.replace(c.scenario, duration=0.02))
 
     def setup():
@@ -94,8 +110,9 @@ def test_kernel_cost_exponent(benchmark):
         for k in KS:
             best = np.inf
             for _ in range(1 if QUICK else 3):
-                r = dttmm.simulate(c, elements_per_link=k, h=H, engine="numba", cut_loads=False, energy=False,
-                                   iterations=1)  # a fixed sweep count isolates the per-sweep cost
+                r = dttmm.simulate(
+                    c, elements_per_link=k, h=H, engine="numba", cut_loads=False, energy=False, iterations=1
+                )  # a fixed sweep count isolates the per-sweep cost
                 best = min(best, r.wall_time)
             out[k] = best
 
@@ -104,6 +121,9 @@ def test_kernel_cost_exponent(benchmark):
     ks = np.array(sorted(out), float)
     t = np.array([out[k] for k in sorted(out)])
     p = np.polyfit(np.log(3 * ks), np.log(t), 1)[0]
-    benchmark.extra_info.update(exponent=float(p), ks=[int(k) for k in ks],
-                                us_per_element_step=[float(x) for x in t / N_STEPS / (3 * ks) * 1e6],
-                                wall=time.perf_counter() - t0)
+    benchmark.extra_info.update(
+        exponent=float(p),
+        ks=[int(k) for k in ks],
+        us_per_element_step=[float(x) for x in t / N_STEPS / (3 * ks) * 1e6],
+        wall=time.perf_counter() - t0,
+    )

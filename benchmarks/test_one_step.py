@@ -1,7 +1,7 @@
 """Cost of one step at equal model size: DT-TMM vs global vs Exudyn (three_link)."""
-import pytest
 
-from conftest import H, QUICK, case, run_benchmark
+import pytest
+from conftest import QUICK, H, case, run_benchmark
 
 KS = [4] if QUICK else [4, 16, 64]
 

@@ -1,7 +1,7 @@
 """Cost vs elements per link, every method, on three_link and single_link (fixed step count)."""
-import pytest
 
-from conftest import H, QUICK, case, run_benchmark
+import pytest
+from conftest import QUICK, H, case, run_benchmark
 
 KS = [1, 4] if QUICK else [1, 2, 4, 8, 16, 32, 64, 128, 256]
 KS_DTTMM = KS if QUICK else KS + [512, 1024]

@@ -7,8 +7,8 @@ Overview::
     res = dttmm.simulate(case, elements_per_link=16, h=1e-3)
     res.tip_deflection[-1], res.meta["iterations_mean"]
 """
-from ._version import __version__
 
+from ._version import __version__ as __version__
 from .case import Case, case_from_dict, case_to_dict, load_case, save_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
 from .errors import InputError, SimulationError
@@ -19,11 +19,29 @@ from .scenario import Scenario
 from .solver import accelerations, simulate
 
 __all__ = [
-    "Case", "load_case", "save_case", "case_from_dict", "case_to_dict",
-    "Section", "Hub", "Payload", "Link", "Manipulator", "Scenario",
-    "Drive", "Constant", "BangBang", "Sine", "SpinUp", "Table",
-    "Result", "make_result", "tip_deflection",
-    "InputError", "SimulationError",
-    "simulate", "accelerations",
+    "Case",
+    "load_case",
+    "save_case",
+    "case_from_dict",
+    "case_to_dict",
+    "Section",
+    "Hub",
+    "Payload",
+    "Link",
+    "Manipulator",
+    "Scenario",
+    "Drive",
+    "Constant",
+    "BangBang",
+    "Sine",
+    "SpinUp",
+    "Table",
+    "Result",
+    "make_result",
+    "tip_deflection",
+    "InputError",
+    "SimulationError",
+    "simulate",
+    "accelerations",
     "check_run_size",
 ]

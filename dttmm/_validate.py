@@ -3,6 +3,7 @@
 The constructors validate whole field sets with :func:`dttmm.schema.check_fields`; these are for
 single values outside a model (solver settings) and share the same rules.
 """
+
 from __future__ import annotations
 
 import numbers
@@ -14,8 +15,10 @@ from .schema import Finite, NonNegative, Positive, _plain, input_error
 
 __all__ = ["elements_per_link", "finite", "non_negative", "positive", "step_size"]
 
-_ADAPTERS = {name: TypeAdapter(tp) for name, tp in
-             (("finite", Finite), ("positive", Positive), ("non_negative", NonNegative))}
+_ADAPTERS = {
+    name: TypeAdapter(tp)
+    for name, tp in (("finite", Finite), ("positive", Positive), ("non_negative", NonNegative))
+}
 
 
 def _check(kind: str, field: str, value) -> float:

@@ -1,4 +1,5 @@
 """A case = model + scenario, and its TOML file format (reference: docs/cases.md)."""
+
 from __future__ import annotations
 
 import datetime
@@ -41,12 +42,15 @@ class Case:
             raise InputError("case.name", self.name, "must be a string")
         if self.provenance is not None:
             if not isinstance(self.provenance, dict) or not all(isinstance(k, str) for k in self.provenance):
-                raise InputError("case.provenance", self.provenance, "must be a dict with string keys or None")
+                raise InputError(
+                    "case.provenance", self.provenance, "must be a dict with string keys or None"
+                )
             object.__setattr__(self, "provenance", dict(self.provenance))
         n, m = self.model.n_links, len(self.scenario.drives)
         if n != m:
-            raise InputError("scenario.drives", f"{m} drives",
-                             f"needs exactly one drive per joint ({n} joints)")
+            raise InputError(
+                "scenario.drives", f"{m} drives", f"needs exactly one drive per joint ({n} joints)"
+            )
 
     @property
     def n_joints(self) -> int:
@@ -57,14 +61,19 @@ def _link(spec: LinkFile, i: int) -> Link:
     w = f"model.links[{i}]"
     if spec.E is not None:
         ea = None if spec.inextensible else (spec.EA if spec.EA is not None else True)
-        beam = Section.from_material(spec.length, spec.E, spec.rho, spec.width, spec.thickness,
-                                     EA=ea, damping=spec.damping, where=w)
+        beam = Section.from_material(
+            spec.length, spec.E, spec.rho, spec.width, spec.thickness, EA=ea, damping=spec.damping, where=w
+        )
     else:
-        beam = Section(spec.length, spec.EI, spec.rhoA, None if spec.inextensible else spec.EA,
-                       spec.damping, _where=w)
+        beam = Section(
+            spec.length, spec.EI, spec.rhoA, None if spec.inextensible else spec.EA, spec.damping, _where=w
+        )
     hub = None if spec.hub is None else Hub(spec.hub.mass, spec.hub.inertia, _where=f"{w}.hub")
-    pay = None if spec.payload is None else Payload(spec.payload.mass, spec.payload.inertia,
-                                                    _where=f"{w}.payload")
+    pay = (
+        None
+        if spec.payload is None
+        else Payload(spec.payload.mass, spec.payload.inertia, _where=f"{w}.payload")
+    )
     return Link(beam, hub, pay)
 
 
@@ -102,7 +111,9 @@ def read_case_text(path) -> str:
             raise InputError(where, "<directory>", "is a directory, not a case file")
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
-            raise InputError(where, f"<{size} bytes>", f"is too large for a case file (limit {MAX_FILE_BYTES})")
+            raise InputError(
+                where, f"<{size} bytes>", f"is too large for a case file (limit {MAX_FILE_BYTES})"
+            )
         raw = path.read_bytes()
     except FileNotFoundError:
         raise InputError(where, "<file>", "does not exist") from None
@@ -115,8 +126,9 @@ def read_case_text(path) -> str:
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise InputError(where, "<file>", f"is not UTF-8 text (byte {raw[exc.start]:#04x} at offset "
-                         f"{exc.start})") from None
+        raise InputError(
+            where, "<file>", f"is not UTF-8 text (byte {raw[exc.start]:#04x} at offset {exc.start})"
+        ) from None
 
 
 def load_case(path) -> Case:
@@ -159,9 +171,11 @@ def case_to_dict(case: Case) -> dict:
             d["initial_angle"], d["initial_rate"] = dr.initial_angle, dr.initial_rate
         drives.append(d)
     s = case.scenario
-    out = {"name": case.name,
-           "model": {"gravity": list(case.model.gravity), "links": links},
-           "scenario": {"duration": s.duration, "output_step": s.output_step, "drives": drives}}
+    out = {
+        "name": case.name,
+        "model": {"gravity": list(case.model.gravity), "links": links},
+        "scenario": {"duration": s.duration, "output_step": s.output_step, "drives": drives},
+    }
     if case.provenance is not None:
         out["provenance"] = dict(case.provenance)
     return out
@@ -201,7 +215,12 @@ def save_case(case: Case, path) -> Path:
     for link in d["model"]["links"]:
         lines += ["", "[[model.links]]"] + [f"{k} = {_fmt(v)}" for k, v in link.items()]
     s = d["scenario"]
-    lines += ["", "[scenario]", f"duration = {_fmt(s['duration'])}", f"output_step = {_fmt(s['output_step'])}"]
+    lines += [
+        "",
+        "[scenario]",
+        f"duration = {_fmt(s['duration'])}",
+        f"output_step = {_fmt(s['output_step'])}",
+    ]
     for dr in s["drives"]:
         lines += ["", "[[scenario.drives]]"] + [f"{k} = {_fmt(v)}" for k, v in dr.items()]
     if "provenance" in d:

@@ -4,6 +4,7 @@ Exit codes: 0 — done, status "ok"; 1 — the simulation failed (the partial re
 2 — bad input (one line on stderr naming the field or option); 3 — the run finished but its
 status is not "ok" ("unconverged" or "ill-conditioned"; the result is written, the warnings printed).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,27 +41,46 @@ def _float(text: str) -> float:
 
 
 def simulate_parser() -> argparse.ArgumentParser:
-    p = OneLineParser(prog="dttmm simulate", description="Simulate a case with DT-TMM and write "
-                      "its table, a plot and meta.json.", epilog=__doc__.split("\n", 2)[2])
+    p = OneLineParser(
+        prog="dttmm simulate",
+        description="Simulate a case with DT-TMM and write its table, a plot and meta.json.",
+        epilog=__doc__.split("\n", 2)[2],
+    )
     p.add_argument("case", help="case TOML file (format: docs/cases.md)")
     p.add_argument("--elements", "-k", type=int, required=True, help="elements per link")
     p.add_argument("--h", type=_float, required=True, help="time step (s)")
     p.add_argument("--integrator", default="newmark", help="newmark | generalized-alpha | rk4")
     p.add_argument("--sweep", default="riccati", help="riccati | plain")
-    p.add_argument("--iterations", type=_iterations, default=None,
-                   help="corrections per step: an integer m (m + 1 sweeps), 'auto', or omit to converge")
+    p.add_argument(
+        "--iterations",
+        type=_iterations,
+        default=None,
+        help="corrections per step: an integer m (m + 1 sweeps), 'auto', or omit to converge",
+    )
     p.add_argument("--tol", type=_float, default=1e-10, help="iteration tolerance (default 1e-10)")
-    p.add_argument("--rho-inf", type=_float, default=None,
-                   help="spectral radius at infinity of generalized-alpha (default 0.9)")
-    p.add_argument("--strain", default="linear", choices=["linear", "second-order"],
-                   help="axial strain of the elements (default linear)")
-    p.add_argument("--engine", default=None, choices=["numba", "python"], help="default: numba when installed")
+    p.add_argument(
+        "--rho-inf",
+        type=_float,
+        default=None,
+        help="spectral radius at infinity of generalized-alpha (default 0.9)",
+    )
+    p.add_argument(
+        "--strain",
+        default="linear",
+        choices=["linear", "second-order"],
+        help="axial strain of the elements (default linear)",
+    )
+    p.add_argument(
+        "--engine", default=None, choices=["numba", "python"], help="default: numba when installed"
+    )
     p.add_argument("--format", default="csv", choices=["csv", "parquet"])
     p.add_argument("--out", default="out/simulate", help="output folder (created before the run)")
     return p
 
 
-_ADDRESS = re.compile(r"^(?:(?P<proto>[a-z]+)://)?(?P<host>\[[0-9a-fA-F:]+\]|[^\s:/\[\]]+):(?P<port>\d{1,5})/?$")
+_ADDRESS = re.compile(
+    r"^(?:(?P<proto>[a-z]+)://)?(?P<host>\[[0-9a-fA-F:]+\]|[^\s:/\[\]]+):(?P<port>\d{1,5})/?$"
+)
 
 
 def check_scheduler(value: str | None) -> str | None:
@@ -72,8 +92,9 @@ def check_scheduler(value: str | None) -> str | None:
         return None
     m = _ADDRESS.match(value)
     if not m or not 0 < int(m["port"]) < 65536:
-        return (f"--scheduler = {value!r}: must be 'serial' or a dask scheduler address "
-                "such as tcp://HOST:PORT")
+        return (
+            f"--scheduler = {value!r}: must be 'serial' or a dask scheduler address such as tcp://HOST:PORT"
+        )
     if (m["proto"] or "tcp") != "tcp":
         return None  # tls:// etc.: dask checks them itself
     try:
@@ -103,8 +124,11 @@ def _report(argv: list[str]) -> int:
         report_cli = importlib.import_module("reports.cli")
     except ModuleNotFoundError as exc:
         if exc.name and exc.name.split(".")[0] in ("reports", "experiments"):
-            print("dttmm report: the report harness is not installed (packages 'reports' and "
-                  "'experiments' of the source tree); run it from a checkout", file=sys.stderr)
+            print(
+                "dttmm report: the report harness is not installed (packages 'reports' and "
+                "'experiments' of the source tree); run it from a checkout",
+                file=sys.stderr,
+            )
             return EXIT_INPUT
         raise
     return report_cli.main(argv)
@@ -150,8 +174,10 @@ def main(argv=None) -> int:
         if os.environ.get("DTTMM_DEBUG"):
             raise
         msg = " ".join(str(exc).split())
-        print(f"dttmm: internal error: {type(exc).__name__}: {msg} (DTTMM_DEBUG=1 shows the traceback)",
-              file=sys.stderr)
+        print(
+            f"dttmm: internal error: {type(exc).__name__}: {msg} (DTTMM_DEBUG=1 shows the traceback)",
+            file=sys.stderr,
+        )
         return EXIT_FAILED
 
 

@@ -13,6 +13,7 @@ Every law lists its ``breakpoints``: instants where its value (torque) or accele
 of accuracy; at a breakpoint the step that ends there sees the left limit (``left=True``)
 and the step that starts there the right limit.
 """
+
 from __future__ import annotations
 
 import bisect
@@ -52,8 +53,9 @@ def _set(obj, values: dict):
 
 def _check_kind(law, kind: str, where: str):
     if kind not in law.kinds:
-        raise InputError(f"{where}.law", law.name,
-                         f"cannot drive a {kind!r} joint (allowed for: {', '.join(law.kinds)})")
+        raise InputError(
+            f"{where}.law", law.name, f"cannot drive a {kind!r} joint (allowed for: {', '.join(law.kinds)})"
+        )
 
 
 @dataclass(frozen=True)
@@ -94,8 +96,7 @@ class BangBang:
         ok = check_fields(LAW_FIELDS["bang_bang"], "law", levels=self.levels, switch_times=self.switch_times)
         lv, st = ok["levels"], ok["switch_times"]
         if len(lv) != len(st) + 1:
-            raise InputError("law.levels", list(lv),
-                             f"needs len(switch_times) + 1 = {len(st) + 1} entries")
+            raise InputError("law.levels", list(lv), f"needs len(switch_times) + 1 = {len(st) + 1} entries")
         if any(b <= a for a, b in itertools.pairwise(st)):
             raise InputError("law.switch_times", list(st), "must be strictly increasing")
         object.__setattr__(self, "levels", lv)
@@ -126,9 +127,18 @@ class Sine:
     kinds = ("torque", "motion")
 
     def __post_init__(self):
-        _set(self, check_fields(LAW_FIELDS["sine"], "law", amplitude=self.amplitude,
-                                frequency=self.frequency, phase=self.phase, offset=self.offset,
-                                until=self.until))
+        _set(
+            self,
+            check_fields(
+                LAW_FIELDS["sine"],
+                "law",
+                amplitude=self.amplitude,
+                frequency=self.frequency,
+                phase=self.phase,
+                offset=self.offset,
+                until=self.until,
+            ),
+        )
 
     def _on(self, t, left):
         return t < self.until or (left and t <= self.until)
@@ -312,19 +322,29 @@ def _sub_law(value, where: str, kind: str):
         if kind == "torque" and value.get("law") == "computed_torque":
             extra = sorted(k for k in value if k != "law")
             if extra:
-                raise InputError(f"{where}.{extra[0]}", value[extra[0]],
-                                 "unknown key (computed_torque takes no parameters)")
+                raise InputError(
+                    f"{where}.{extra[0]}",
+                    value[extra[0]],
+                    "unknown key (computed_torque takes no parameters)",
+                )
             return ComputedTorque()
         value = law_from_dict(value, where)
     if isinstance(value, ComputedTorque) and kind == "torque":
         return value
     if getattr(value, "closed_loop", False) or getattr(value, "name", None) not in LAWS:
-        raise InputError(where, value, "must be an open-loop drive law (constant, bang_bang, sine, "
-                                       "spin_up, table) or a table with a 'law' key")
+        raise InputError(
+            where,
+            value,
+            "must be an open-loop drive law (constant, bang_bang, sine, "
+            "spin_up, table) or a table with a 'law' key",
+        )
     _check_kind(value, kind, where)
     if kind == "motion" and value.name == "sine" and math.isfinite(value.until):
-        raise InputError(f"{where}.until", value.until,
-                         "a reference motion cannot stop a sine abruptly (the rate would jump)")
+        raise InputError(
+            f"{where}.until",
+            value.until,
+            "a reference motion cannot stop a sine abruptly (the rate would jump)",
+        )
     return value
 
 
@@ -375,8 +395,11 @@ class PD:
             return 0.0
         if isinstance(ff, ComputedTorque):
             if state.computed_torque is None:
-                raise InputError("law.feedforward", "computed_torque",
-                                 "needs an engine that computes the rigid inverse dynamics")
+                raise InputError(
+                    "law.feedforward",
+                    "computed_torque",
+                    "needs an engine that computes the rigid inverse dynamics",
+                )
             return float(state.computed_torque)
         return float(ff(t, left))
 
@@ -387,8 +410,12 @@ class PD:
     def evaluate(self, t: float, state: ControlState, left: bool = False):
         """(τ, ∂τ/∂α, ∂τ/∂α̇, ∂τ/∂M_root) at t (``left``: left limit of the laws of time)."""
         a_ref, r_ref, _ = self.reference.motion(t, left)
-        tau = (self.feedforward_torque(t, state, left) + self.kp * (a_ref - state.angle)
-               + self.kd * (r_ref - state.rate) + self.gain_integral * state.integral)
+        tau = (
+            self.feedforward_torque(t, state, left)
+            + self.kp * (a_ref - state.angle)
+            + self.kd * (r_ref - state.rate)
+            + self.gain_integral * state.integral
+        )
         if self.moment_gain:  # an engine without bending moments passes nan
             tau -= self.moment_gain * state.moment
         return _saturate(tau, self.limit, (0.0 - self.kp, 0.0 - self.kd, 0.0 - self.moment_gain))
@@ -451,10 +478,13 @@ class UserLaw:
 
     def __post_init__(self):
         if not callable(self.fn):
-            raise InputError("law.fn", self.fn, "must be a callable fn(t, state) -> (tau, dtau_dalpha, "
-                                                "dtau_dalphadot)")
+            raise InputError(
+                "law.fn", self.fn, "must be a callable fn(t, state) -> (tau, dtau_dalpha, dtau_dalphadot)"
+            )
         bp = tuple(float(b) for b in self.breakpoints)
-        if any(not (math.isfinite(b) and b > 0) for b in bp) or any(b <= a for a, b in itertools.pairwise(bp)):
+        if any(not (math.isfinite(b) and b > 0) for b in bp) or any(
+            b <= a for a, b in itertools.pairwise(bp)
+        ):
             raise InputError("law.breakpoints", self.breakpoints, "must be positive, finite and increasing")
         _set(self, {"breakpoints": bp})
 
@@ -467,12 +497,17 @@ class UserLaw:
         try:
             tau, da, dr = (float(x) for x in out)
         except (TypeError, ValueError):
-            raise InputError(f"law {self.label!r}", _short(out),
-                             f"at t = {t:g} s must return three numbers (tau, dtau_dalpha, "
-                             "dtau_dalphadot)") from None
+            raise InputError(
+                f"law {self.label!r}",
+                _short(out),
+                f"at t = {t:g} s must return three numbers (tau, dtau_dalpha, dtau_dalphadot)",
+            ) from None
         if not all(map(math.isfinite, (tau, da, dr))):
-            raise InputError(f"law {self.label!r}", out, f"returned a non-finite value at t = {t:g} s "
-                                                         f"(joint {state.joint + 1})")
+            raise InputError(
+                f"law {self.label!r}",
+                out,
+                f"returned a non-finite value at t = {t:g} s (joint {state.joint + 1})",
+            )
         return tau, da, dr, 0.0
 
     def params(self) -> dict:
@@ -523,22 +558,40 @@ class Drive:
 
     def __post_init__(self):
         w = self._where
-        _set(self, check_fields(DriveFields, w, kind=self.kind, initial_angle=self.initial_angle,
-                                initial_rate=self.initial_rate))
+        _set(
+            self,
+            check_fields(
+                DriveFields,
+                w,
+                kind=self.kind,
+                initial_angle=self.initial_angle,
+                initial_rate=self.initial_rate,
+            ),
+        )
         if getattr(self.law, "name", None) not in LAWS and not isinstance(self.law, UserLaw):
-            raise InputError(f"{w}.law", self.law, "must be a drive law (constant, bang_bang, sine, spin_up, "
-                                                   "table, pd, pid or a dttmm.drives.UserLaw)")
+            raise InputError(
+                f"{w}.law",
+                self.law,
+                "must be a drive law (constant, bang_bang, sine, spin_up, "
+                "table, pd, pid or a dttmm.drives.UserLaw)",
+            )
         _check_kind(self.law, self.kind, w)
         if self.kind == "motion" and self.law.name == "sine" and math.isfinite(self.law.until):
-            raise InputError(f"{w}.until", self.law.until,
-                             "a motion drive cannot stop a sine abruptly (the angle or rate would jump)")
+            raise InputError(
+                f"{w}.until",
+                self.law.until,
+                "a motion drive cannot stop a sine abruptly (the angle or rate would jump)",
+            )
         if self.kind == "motion":
             a0, r0, _ = self.law.motion(0.0)
-            for nm, given, lawv in (("initial_angle", self.initial_angle, a0),
-                                    ("initial_rate", self.initial_rate, r0)):
+            for nm, given, lawv in (
+                ("initial_angle", self.initial_angle, a0),
+                ("initial_rate", self.initial_rate, r0),
+            ):
                 if given != 0.0 and abs(given - lawv) > 1e-12 * max(1.0, abs(lawv)):
-                    raise InputError(f"{w}.{nm}", given,
-                                     f"contradicts the motion law, which gives {lawv!r} at t = 0")
+                    raise InputError(
+                        f"{w}.{nm}", given, f"contradicts the motion law, which gives {lawv!r} at t = 0"
+                    )
             object.__setattr__(self, "initial_angle", float(a0))
             object.__setattr__(self, "initial_rate", float(r0))
 
@@ -554,16 +607,21 @@ class Drive:
     def torque(self, t: float, left: bool = False) -> float:
         """Motor torque of an open-loop torque drive at t (left limit when ``left``)."""
         if self.closed_loop:
-            raise InputError(f"{self._where}.law", self.law.name,
-                             "is a closed-loop law: its torque depends on the state; "
-                             "use drive.evaluate(t, state)")
+            raise InputError(
+                f"{self._where}.law",
+                self.law.name,
+                "is a closed-loop law: its torque depends on the state; use drive.evaluate(t, state)",
+            )
         return self.law(t, left)
 
     def evaluate(self, t: float, state: ControlState, left: bool = False):
         """(τ, ∂τ/∂α, ∂τ/∂α̇, ∂τ/∂M_root) of a closed-loop drive at t (see :class:`PD`)."""
         if not self.closed_loop:
-            raise InputError(f"{self._where}.law", self.law.name,
-                             "is an open-loop law: use drive.torque(t) or drive.motion(t)")
+            raise InputError(
+                f"{self._where}.law",
+                self.law.name,
+                "is an open-loop law: use drive.torque(t) or drive.motion(t)",
+            )
         return self.law.evaluate(t, state, left)
 
     def motion(self, t: float, left: bool = False) -> tuple[float, float, float]:
@@ -590,15 +648,20 @@ def require_open_loop(case, method: str) -> None:
     """
     for i, d in enumerate(case.scenario.drives):
         if d.closed_loop:
-            raise InputError(f"scenario.drives[{i}].law", d.law.name,
-                             f"closed-loop drive law {d.law.name!r} on joint {i + 1} is not "
-                             f"supported by {method} yet")
+            raise InputError(
+                f"scenario.drives[{i}].law",
+                d.law.name,
+                f"closed-loop drive law {d.law.name!r} on joint {i + 1} is not supported by {method} yet",
+            )
 
 
 def require_no_computed_torque(case, method: str) -> None:
     """Refuse a ``computed_torque`` feedforward for an engine without a rigid model."""
     for i, d in enumerate(case.scenario.drives):
         if isinstance(getattr(d.law, "feedforward", None), ComputedTorque):
-            raise InputError(f"scenario.drives[{i}].feedforward", "computed_torque",
-                             f"the computed_torque feedforward on joint {i + 1} is not supported by "
-                             f"{method} (only pinocchio-rigid computes it)")
+            raise InputError(
+                f"scenario.drives[{i}].feedforward",
+                "computed_torque",
+                f"the computed_torque feedforward on joint {i + 1} is not supported by "
+                f"{method} (only pinocchio-rigid computes it)",
+            )

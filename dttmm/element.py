@@ -12,6 +12,7 @@ and globally at r = r_I + A(θ) s. Every mass and velocity term is a polynomial 
 s0 and S over the element; they are integrated once, exactly, by 4-point Gauss quadrature
 (degree ≤ 6 integrands) and kept as constants of the element type.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -66,14 +67,15 @@ class ElementType:
     iphi: int
     iv: int
     iu: int
-    EA: float = 0.0                 # axial stiffness (0: inextensible)
-    G: np.ndarray | None = None     # (2, 2) = ∫₀¹ N'ᵀN' dξ, N = (N3, N4), ' = d/dx
-    second_order: bool = False      # axial strain ε = u/l + ½ wᵀGw (see elastic_forces)
-    mu: float = 0.0                 # Kelvin-Voigt coefficient μ (s): D = μK (see damping_tangent)
+    EA: float = 0.0  # axial stiffness (0: inextensible)
+    G: np.ndarray | None = None  # (2, 2) = ∫₀¹ N'ᵀN' dξ, N = (N3, N4), ' = d/dx
+    second_order: bool = False  # axial strain ε = u/l + ½ wᵀGw (see elastic_forces)
+    mu: float = 0.0  # Kelvin-Voigt coefficient μ (s): D = μK (see damping_tangent)
 
 
-def element_type(length: float, EI: float, rhoA: float, EA: float | None, damping: float,
-                 strain: str = "linear") -> ElementType:
+def element_type(
+    length: float, EI: float, rhoA: float, EA: float | None, damping: float, strain: str = "linear"
+) -> ElementType:
     """Moments, stiffness and damping of a uniform element of the given length.
 
     ``strain``: "linear" (axial strain u/l) or "second-order" (u/l + ½ wᵀGw, w = (v, φ): the
@@ -105,10 +107,30 @@ def element_type(length: float, EI: float, rhoA: float, EA: float | None, dampin
     ne = 3 if ext else 2
     dN = np.stack([(6 * xi - 6 * xi**2) / l, 3 * xi**2 - 2 * xi], axis=-1)  # (N3', N4') at the points
     G = np.einsum("m,mi,mj->ij", 0.5 * wg, dN, dN)
-    return ElementType(l=l, ne=ne, m=rhoA * l, c_s0=c_s0, C_S=C_S, c_s0s0=c_s0s0, c_s0S=c_s0S, d1=d1,
-                       D2=D2, C_SS=C_SS, C_SES=C_SES, K=K, D=damping * K, sO0=sO0[0], SO=SO[0],
-                       iphi=ne - 1, iv=ne - 2, iu=0 if ext else -1, EA=float(EA or 0.0), G=G,
-                       second_order=ext and strain == "second-order", mu=float(damping))
+    return ElementType(
+        l=l,
+        ne=ne,
+        m=rhoA * l,
+        c_s0=c_s0,
+        C_S=C_S,
+        c_s0s0=c_s0s0,
+        c_s0S=c_s0S,
+        d1=d1,
+        D2=D2,
+        C_SS=C_SS,
+        C_SES=C_SES,
+        K=K,
+        D=damping * K,
+        sO0=sO0[0],
+        SO=SO[0],
+        iphi=ne - 1,
+        iv=ne - 2,
+        iu=0 if ext else -1,
+        EA=float(EA or 0.0),
+        G=G,
+        second_order=ext and strain == "second-order",
+        mu=float(damping),
+    )
 
 
 def elastic_forces(et: ElementType, e: np.ndarray):
@@ -203,12 +225,12 @@ def element_terms(et: ElementType, theta, thetad, e, ed, gravity):
     M_ae[:, 2, :] = et.d1 + e @ et.D2
     # velocity terms ∫ Jᵀ γ, γ = −θ̇² A s + 2θ̇ A E S ė
     td = thetad[:, None]
-    hr_loc = -td**2 * ms + 2 * td * ((ed @ et.C_S.T) @ E2.T)
+    hr_loc = -(td**2) * ms + 2 * td * ((ed @ et.C_S.T) @ E2.T)
     hbar_a = np.empty((k, 3))
     hbar_a[:, :2] = np.einsum("kij,kj->ki", R, hr_loc) - et.m * g
     hbar_a[:, 2] = 2 * thetad * np.einsum("ki,ki->k", et.c_s0S + e @ et.C_SS, ed) - REms @ g
     Rtg = np.einsum("kji,j->ki", R, g)  # Aᵀ g
-    hbar_e = -td**2 * (et.c_s0S + e @ et.C_SS) + 2 * td * (ed @ et.C_SES.T) - Rtg @ et.C_S
+    hbar_e = -(td**2) * (et.c_s0S + e @ et.C_SS) + 2 * td * (ed @ et.C_SES.T) - Rtg @ et.C_S
     return M_aa, M_ae, hbar_a, hbar_e, R
 
 
@@ -229,5 +251,5 @@ def outboard_maps(et: ElementType, R, thetad, e, ed):
     B_e[:, 2, et.iphi] = 1.0
     td = thetad[:, None]
     gbar = np.zeros((k, 3))
-    gbar[:, :2] = -td**2 * rso + 2 * td * np.einsum("kij,kj->ki", R, (ed @ et.SO.T) @ E2.T)
+    gbar[:, :2] = -(td**2) * rso + 2 * td * np.einsum("kij,kj->ki", R, (ed @ et.SO.T) @ E2.T)
     return B_a, B_e, gbar, rso

@@ -1,4 +1,5 @@
 """Errors raised by dttmm: bad input and failed simulations."""
+
 from __future__ import annotations
 
 from typing import Any

@@ -10,6 +10,7 @@ accelerations q̈_{n+1}, and an auxiliary acceleration a drives the update
 so q_{n+1} = q̃ + c_q q̈_{n+1}, q̇_{n+1} = q̃' + c_v q̈_{n+1}: the same structure as Newmark
 (α_m = α_f = 0), only with other predictors and coefficients. ρ∞ = 1 is the trapezoidal rule.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

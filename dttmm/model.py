@@ -3,6 +3,7 @@
 All classes are frozen dataclasses validated on construction; make variants with
 :func:`dataclasses.replace`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -39,14 +40,22 @@ class Section:
     _where: str = field(default="section", repr=False, compare=False)
 
     def __post_init__(self):
-        ok = check_fields(SectionFields, self._where, length=self.length, EI=self.EI, rhoA=self.rhoA,
-                          EA=self.EA, damping=self.damping)
+        ok = check_fields(
+            SectionFields,
+            self._where,
+            length=self.length,
+            EI=self.EI,
+            rhoA=self.rhoA,
+            EA=self.EA,
+            damping=self.damping,
+        )
         for k, v in ok.items():
             object.__setattr__(self, k, v)
 
     @classmethod
-    def from_material(cls, length, E, rho, width, thickness, *, EA=True, damping=0.0,
-                      where="section") -> Section:
+    def from_material(
+        cls, length, E, rho, width, thickness, *, EA=True, damping=0.0, where="section"
+    ) -> Section:
         """Rectangular section from Young's modulus E (Pa), density ρ (kg/m³), width and
         thickness (m). ``EA=True`` derives E·A; ``EA=None`` makes the link inextensible."""
         m = check_fields(MaterialFields, where, E=E, rho=rho, width=width, thickness=thickness)
@@ -145,7 +154,9 @@ class Manipulator:
             if not isinstance(link, Link):
                 raise InputError(f"model.links[{i}]", link, "must be a dttmm.Link")
         object.__setattr__(self, "links", links)
-        object.__setattr__(self, "gravity", check_fields(ModelFields, "model", gravity=self.gravity)["gravity"])
+        object.__setattr__(
+            self, "gravity", check_fields(ModelFields, "model", gravity=self.gravity)["gravity"]
+        )
 
     @property
     def n_links(self) -> int:

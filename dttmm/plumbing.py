@@ -1,6 +1,7 @@
 """Plumbing shared by the solvers of the suite: option validation, the Newmark-family
 coefficients and predictor, cubic Hermite sampling, failures with a partial result, and
 provenance. Public names, so that other solvers can use the same definitions."""
+
 from __future__ import annotations
 
 import platform
@@ -8,8 +9,8 @@ import platform
 import numpy as np
 import scipy
 
-from ._version import __version__
 from . import _validate
+from ._version import __version__
 from .errors import InputError, SimulationError
 from .integrators import NewmarkFamily, newmark_family
 from .kernel.loop import predict
@@ -67,7 +68,7 @@ def iterations_setting(value):
     if value is None or value == "auto":
         return value
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-        raise InputError("iterations", value, "must be None, \"auto\" or an integer ≥ 0")
+        raise InputError("iterations", value, 'must be None, "auto" or an integer ≥ 0')
     return int(value)
 
 
@@ -86,20 +87,26 @@ def hermite_sample(t, t0: float, t1: float, y0, yd0, y1, yd1):
     return (y[0], yd[0]) if np.ndim(t) == 0 else (y, yd)
 
 
-def simulation_failure(reason: str, *, t: float, step: int, component: str, meta: dict, partial,
-                       message: str | None = None) -> SimulationError:
+def simulation_failure(
+    reason: str, *, t: float, step: int, component: str, meta: dict, partial, message: str | None = None
+) -> SimulationError:
     """The SimulationError of a run that stopped: ``meta`` gets success False and
     ``failure = reason``; ``partial(meta)`` builds the Result of what was computed. Returns the
     error (the caller raises it)."""
     meta.update(success=False, failure=reason, status="failed")
-    return SimulationError(message or reason, t=float(t), step=int(step), component=component,
-                           partial=partial(meta))
+    return SimulationError(
+        message or reason, t=float(t), step=int(step), component=component, partial=partial(meta)
+    )
 
 
 def versions() -> dict:
     """Versions of the interpreter and numeric packages, for Result.meta."""
-    out = {"dttmm": __version__, "python": platform.python_version(), "numpy": np.__version__,
-           "scipy": scipy.__version__}
+    out = {
+        "dttmm": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+    }
     try:
         import numba
 

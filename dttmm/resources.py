@@ -7,6 +7,7 @@ rates, torques, link roots and tips, energy, then copied into the result: about
 2·10⁶ cut samples (≤ 48 MB). :func:`check_run_size` adds these up and refuses a run above half
 of the memory available now (read from ``/proc/meminfo`` or ``os.sysconf``).
 """
+
 from __future__ import annotations
 
 import math
@@ -38,8 +39,9 @@ def available_memory() -> int:
         return _FALLBACK_BYTES
 
 
-def estimate_run_bytes(case, elements_per_link: int, h: float, *, cut_loads: bool = True,
-                       energy: bool = True) -> tuple[float, float, float]:
+def estimate_run_bytes(
+    case, elements_per_link: int, h: float, *, cut_loads: bool = True, energy: bool = True
+) -> tuple[float, float, float]:
     """(total bytes, number of steps, number of output samples) of a fixed-step run.
 
     Floats, not ints: an absurd input (h = 1e-300) must give a number, not an overflow.
@@ -60,8 +62,15 @@ def _gib(x: float) -> str:
     return f"{x / 2**30:.3g} GiB"
 
 
-def check_run_size(case, elements_per_link: int, h: float, *, cut_loads: bool = True,
-                   energy: bool = True, limit_bytes: float | None = None) -> float:
+def check_run_size(
+    case,
+    elements_per_link: int,
+    h: float,
+    *,
+    cut_loads: bool = True,
+    energy: bool = True,
+    limit_bytes: float | None = None,
+) -> float:
     """Refuse a run whose arrays would exceed ``limit_bytes`` (default: half the available memory).
 
     Parameters
@@ -93,8 +102,15 @@ def check_run_size(case, elements_per_link: int, h: float, *, cut_loads: bool = 
     step_part = n_steps * (_STEP_BYTES + _STEP_BYTES_PER_JOINT * n)
     dur = case.scenario.duration
     if step_part >= total / 2:
-        raise InputError("h", h, f"gives {n_steps:.3g} steps over {dur:g} s, about {_gib(total)} of "
-                         f"arrays (limit {_gib(limit)}): raise h or shorten scenario.duration")
-    raise InputError("scenario.output_step", case.scenario.output_step,
-                     f"gives {n_out:.3g} output samples over {dur:g} s, about {_gib(total)} of arrays "
-                     f"(limit {_gib(limit)}): raise output_step or shorten scenario.duration")
+        raise InputError(
+            "h",
+            h,
+            f"gives {n_steps:.3g} steps over {dur:g} s, about {_gib(total)} of "
+            f"arrays (limit {_gib(limit)}): raise h or shorten scenario.duration",
+        )
+    raise InputError(
+        "scenario.output_step",
+        case.scenario.output_step,
+        f"gives {n_out:.3g} output samples over {dur:g} s, about {_gib(total)} of arrays "
+        f"(limit {_gib(limit)}): raise output_step or shorten scenario.duration",
+    )

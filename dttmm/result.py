@@ -1,4 +1,5 @@
 """The common output of every method."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -113,7 +114,9 @@ class Result:
         if self.energy is not None:
             cols["energy"] = self.energy
         df = pd.DataFrame(cols)
-        df.attrs.update({k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))})
+        df.attrs.update(
+            {k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))}
+        )
         df.attrs["wall_time"] = self.wall_time
         df.attrs["n_steps"] = self.n_steps
         df.attrs["status"] = self.status
@@ -121,7 +124,7 @@ class Result:
         return df
 
     @classmethod
-    def from_frame(cls, df, meta: dict | None = None) -> "Result":
+    def from_frame(cls, df, meta: dict | None = None) -> Result:
         """Rebuild a Result (without cut loads) from :meth:`to_frame`'s table."""
         n = sum(1 for c in df.columns if c.startswith("joint_angle_"))
         get = lambda p: np.column_stack([df[f"{p}_{j}"].to_numpy() for j in range(1, n + 1)])
@@ -131,18 +134,42 @@ class Result:
         status = m.pop("status", "ok" if m.get("success", True) else "failed")
         warns = m.pop("warnings", ())
         warns = tuple(w for w in warns.split("\n") if w) if isinstance(warns, str) else tuple(warns)
-        return cls(t=df["t"].to_numpy(), joint_angle=get("joint_angle"), joint_rate=get("joint_rate"),
-                   joint_torque=get("joint_torque"), link_root=xy("link_root"), link_tip=xy("link_tip"),
-                   tip_deflection=get("tip_deflection"),
-                   end_effector=df[["end_effector_x", "end_effector_y"]].to_numpy(),
-                   wall_time=float(m.pop("wall_time", np.nan)), n_steps=int(m.pop("n_steps", 0)), meta=m,
-                   energy=df["energy"].to_numpy() if "energy" in df else None,
-                   status=status, warnings=warns)
+        return cls(
+            t=df["t"].to_numpy(),
+            joint_angle=get("joint_angle"),
+            joint_rate=get("joint_rate"),
+            joint_torque=get("joint_torque"),
+            link_root=xy("link_root"),
+            link_tip=xy("link_tip"),
+            tip_deflection=get("tip_deflection"),
+            end_effector=df[["end_effector_x", "end_effector_y"]].to_numpy(),
+            wall_time=float(m.pop("wall_time", np.nan)),
+            n_steps=int(m.pop("n_steps", 0)),
+            meta=m,
+            energy=df["energy"].to_numpy() if "energy" in df else None,
+            status=status,
+            warnings=warns,
+        )
 
 
-def make_result(*, t, joint_angle, joint_rate, joint_torque, link_root, link_root_angle, link_tip,
-                wall_time, n_steps, meta, cut_loads=None, cut_load_t=None, energy=None,
-                status=None, warnings=()) -> Result:
+def make_result(
+    *,
+    t,
+    joint_angle,
+    joint_rate,
+    joint_torque,
+    link_root,
+    link_root_angle,
+    link_tip,
+    wall_time,
+    n_steps,
+    meta,
+    cut_loads=None,
+    cut_load_t=None,
+    energy=None,
+    status=None,
+    warnings=(),
+) -> Result:
     """Assemble a Result, deriving tip deflections and the end-effector from the link frames
     so every method uses the same definitions. ``link_root_angle`` (nt, n): absolute angle
     of each link's root cross-section (rad). ``status`` defaults to "ok", or "failed" when
@@ -151,10 +178,21 @@ def make_result(*, t, joint_angle, joint_rate, joint_torque, link_root, link_roo
         status = meta.get("status") or ("ok" if meta.get("success", True) is not False else "failed")
     link_root = np.asarray(link_root, float)
     link_tip = np.asarray(link_tip, float)
-    return Result(t=np.asarray(t, float), joint_angle=np.asarray(joint_angle, float),
-                  joint_rate=np.asarray(joint_rate, float), joint_torque=np.asarray(joint_torque, float),
-                  link_root=link_root, link_tip=link_tip,
-                  tip_deflection=tip_deflection(link_root, link_root_angle, link_tip),
-                  end_effector=link_tip[:, -1, :].copy(), wall_time=float(wall_time), n_steps=int(n_steps),
-                  meta=dict(meta), cut_loads=cut_loads, cut_load_t=cut_load_t, energy=energy,
-                  status=status, warnings=tuple(warnings))
+    return Result(
+        t=np.asarray(t, float),
+        joint_angle=np.asarray(joint_angle, float),
+        joint_rate=np.asarray(joint_rate, float),
+        joint_torque=np.asarray(joint_torque, float),
+        link_root=link_root,
+        link_tip=link_tip,
+        tip_deflection=tip_deflection(link_root, link_root_angle, link_tip),
+        end_effector=link_tip[:, -1, :].copy(),
+        wall_time=float(wall_time),
+        n_steps=int(n_steps),
+        meta=dict(meta),
+        cut_loads=cut_loads,
+        cut_load_t=cut_load_t,
+        energy=energy,
+        status=status,
+        warnings=tuple(warnings),
+    )

@@ -1,4 +1,5 @@
 """What happens to the arm: duration, output grid and one drive per joint."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -25,8 +26,9 @@ class Scenario:
         for k, v in ok.items():
             object.__setattr__(self, k, v)
         if self.output_step > self.duration:
-            raise InputError("scenario.output_step", self.output_step,
-                             f"must not exceed the duration {self.duration}")
+            raise InputError(
+                "scenario.output_step", self.output_step, f"must not exceed the duration {self.duration}"
+            )
         if not isinstance(self.drives, (tuple, list)):
             raise InputError("scenario.drives", self.drives, "must be a tuple of dttmm.Drive")
         drives = tuple(self.drives)

@@ -12,6 +12,7 @@ Cross-field rules (bang-bang levels vs switch times, a motion drive's initial st
 output step vs duration, one drive per joint) live in the constructors, which the loader calls,
 so they also hold for both. The reference for users is docs/cases.md.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -143,17 +144,24 @@ class TableFields(_Strict):
 
 
 #: open-loop law name -> the model of its parameters
-OPEN_LAW_FIELDS: dict[str, type[_Strict]] = {"constant": ConstantFields, "bang_bang": BangBangFields,
-                                             "sine": SineFields, "spin_up": SpinUpFields,
-                                             "table": TableFields}
+OPEN_LAW_FIELDS: dict[str, type[_Strict]] = {
+    "constant": ConstantFields,
+    "bang_bang": BangBangFields,
+    "sine": SineFields,
+    "spin_up": SpinUpFields,
+    "table": TableFields,
+}
 MOTION_LAWS = ("constant", "sine", "spin_up", "table")  # laws that can give an angle α(t)
 TORQUE_LAWS = ("constant", "bang_bang", "sine", "table")  # laws that can give a torque τ(t)
 
 
 def _tagged(name: str, fields: type[_Strict]) -> type[_Strict]:
     """``fields`` plus the tag ``law = name``: one member of a nested law table's union."""
-    return type(f"{fields.__name__[:-6]}Table", (fields,),
-                {"__annotations__": {"law": Literal[name]}, "__module__": __name__})
+    return type(
+        f"{fields.__name__[:-6]}Table",
+        (fields,),
+        {"__annotations__": {"law": Literal[name]}, "__module__": __name__},
+    )
 
 
 class ComputedTorqueTable(_Strict):
@@ -162,10 +170,14 @@ class ComputedTorqueTable(_Strict):
     law: Literal["computed_torque"]
 
 
-ReferenceLaw = Annotated[Union[tuple(_tagged(n, OPEN_LAW_FIELDS[n]) for n in MOTION_LAWS)],  # noqa: UP007
-                         Field(discriminator="law")]
-FeedforwardLaw = Annotated[Union[(*(_tagged(n, OPEN_LAW_FIELDS[n]) for n in TORQUE_LAWS),
-                                  ComputedTorqueTable)], Field(discriminator="law")]
+ReferenceLaw = Annotated[
+    Union[tuple(_tagged(n, OPEN_LAW_FIELDS[n]) for n in MOTION_LAWS)],  # noqa: UP007
+    Field(discriminator="law"),
+]
+FeedforwardLaw = Annotated[
+    Union[(*(_tagged(n, OPEN_LAW_FIELDS[n]) for n in TORQUE_LAWS), ComputedTorqueTable)],
+    Field(discriminator="law"),
+]
 Limit = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf (no saturation) allowed
 
 
@@ -220,8 +232,11 @@ class LinkFile(_Strict):
         mat = [k for k in ("E", "rho", "width", "thickness") if getattr(self, k) is not None]
         sec = [k for k in ("EI", "rhoA") if getattr(self, k) is not None]
         if mat and sec:
-            raise InputError(sec[0], getattr(self, sec[0]),
-                             "give either EI and rhoA or E, rho, width and thickness, not both")
+            raise InputError(
+                sec[0],
+                getattr(self, sec[0]),
+                "give either EI and rhoA or E, rho, width and thickness, not both",
+            )
         if mat and len(mat) < 4:
             miss = [k for k in ("E", "rho", "width", "thickness") if k not in mat]
             raise InputError(miss[0], None, f"is required with {', '.join(mat)} (material form)")
@@ -239,8 +254,11 @@ class ModelFile(ModelFields):
 
 
 def _drive_file(name: str, fields: type[_Strict]) -> type[_Strict]:
-    cls = type(f"{fields.__name__[:-6]}Drive", (DriveFields, fields),
-               {"__annotations__": {"law": Literal[name]}, "__module__": __name__})
+    cls = type(
+        f"{fields.__name__[:-6]}Drive",
+        (DriveFields, fields),
+        {"__annotations__": {"law": Literal[name]}, "__module__": __name__},
+    )
     return cls
 
 
@@ -294,9 +312,18 @@ def _walk(root, loc) -> tuple[str, object]:
             cur = u[1]
             continue
         if isinstance(u, tuple) and u[0] == "union":  # tag of a drive law: not part of the path
-            cur = next((m for m in u[1] if isinstance(item, str)
-                        and get_args(m.model_fields.get("law").annotation) == (item,)), None) \
-                if all(isinstance(m, type) and "law" in m.model_fields for m in u[1]) else None
+            cur = (
+                next(
+                    (
+                        m
+                        for m in u[1]
+                        if isinstance(item, str) and get_args(m.model_fields.get("law").annotation) == (item,)
+                    ),
+                    None,
+                )
+                if all(isinstance(m, type) and "law" in m.model_fields for m in u[1])
+                else None
+            )
             continue
         path += f"[{item}]" if isinstance(item, int) else (f".{item}" if path else str(item))
         if isinstance(u, type) and issubclass(u, BaseModel) and item in u.model_fields:
@@ -336,8 +363,11 @@ def _reason(err: dict, keys) -> str:
         if ctx.get("ge") == 0:
             return "must be non-negative"
         if ctx.get("ge") == SMALL:
-            return f"must be positive (and >= {SMALL:g})" if isinstance(inp, (int, float)) and inp > 0 \
+            return (
+                f"must be positive (and >= {SMALL:g})"
+                if isinstance(inp, (int, float)) and inp > 0
                 else "must be positive"
+            )
         return f"must be >= {ctx.get('ge'):g}"
     if t == "less_than_equal":
         return f"must be <= {ctx.get('le'):g} (numbers lie within ±{BIG:g} in SI units)"
@@ -373,8 +403,11 @@ def _tags(u) -> list[str] | None:
     """The law names a discriminated union of law tables accepts (None: not such a union)."""
     if not (isinstance(u, tuple) and u[0] == "union"):
         return None
-    tags = [get_args(m.model_fields["law"].annotation) for m in u[1]
-            if isinstance(m, type) and issubclass(m, BaseModel) and "law" in m.model_fields]
+    tags = [
+        get_args(m.model_fields["law"].annotation)
+        for m in u[1]
+        if isinstance(m, type) and issubclass(m, BaseModel) and "law" in m.model_fields
+    ]
     return [a[0] for a in tags if a] or None
 
 

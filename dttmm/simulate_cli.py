@@ -2,6 +2,7 @@
 
 Exit codes are those of :mod:`dttmm.cli`.
 """
+
 from __future__ import annotations
 
 import json
@@ -10,11 +11,10 @@ import tempfile
 from pathlib import Path
 
 from .case import load_case
+from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK  # noqa: F401
 from .errors import InputError, SimulationError
 from .resources import check_run_size
 from .solver import simulate
-
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK  # noqa: F401
 
 
 def plot_result(res, path: Path, title: str = "") -> Path:
@@ -52,7 +52,9 @@ def prepare_out(out) -> Path:
         with tempfile.NamedTemporaryFile(dir=out, prefix=".dttmm-write-test-"):
             pass
     except OSError as exc:
-        raise InputError("--out", str(out), f"cannot create or write the folder ({exc.strerror or exc})") from None
+        raise InputError(
+            "--out", str(out), f"cannot create or write the folder ({exc.strerror or exc})"
+        ) from None
     return out
 
 
@@ -86,8 +88,9 @@ def _write(res, case, a, out: Path) -> None:
     (out / "meta.json").write_text(json.dumps(meta, indent=2, default=str))
     written = [str(table), str(out / "meta.json")]
     if res.t.size >= 2:
-        png = plot_result(res, out / f"{name}.png",
-                          f"{case.name}: DT-TMM k = {a.elements}, h = {a.h:g} s ({a.integrator})")
+        png = plot_result(
+            res, out / f"{name}.png", f"{case.name}: DT-TMM k = {a.elements}, h = {a.h:g} s ({a.integrator})"
+        )
         written.insert(1, str(png))
     print(f"wrote {', '.join(written)}  (solve {res.wall_time:.3g} s, {res.n_steps} steps)")
 
@@ -98,9 +101,19 @@ def run_simulate(a) -> int:
         out = prepare_out(a.out)
         case = load_case(a.case)
         check_run_size(case, a.elements, a.h)
-        res = simulate(case, elements_per_link=a.elements, h=a.h, integrator=a.integrator, sweep=a.sweep,
-                       iterations=a.iterations, tol=a.tol, rho_inf=a.rho_inf, strain=a.strain,
-                       engine=a.engine, progress=True)
+        res = simulate(
+            case,
+            elements_per_link=a.elements,
+            h=a.h,
+            integrator=a.integrator,
+            sweep=a.sweep,
+            iterations=a.iterations,
+            tol=a.tol,
+            rho_inf=a.rho_inf,
+            strain=a.strain,
+            engine=a.engine,
+            progress=True,
+        )
     except InputError as exc:
         _close_progress_bars()
         print(f"dttmm: bad input: {exc}", file=sys.stderr)

@@ -4,6 +4,7 @@
 Both validate their settings here and hand the discretised case to the kernel
 (:mod:`dttmm.kernel`), compiled by numba or run uncompiled (engine "python").
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -22,8 +23,17 @@ __all__ = ["INTEGRATORS", "accelerations", "simulate"]
 INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
 
 
-def accelerations(case: Case, elements_per_link: int, q, qd, t: float = 0.0, *, sweep: str = "riccati",
-                  engine: str | None = None, strain: str = "linear") -> np.ndarray:
+def accelerations(
+    case: Case,
+    elements_per_link: int,
+    q,
+    qd,
+    t: float = 0.0,
+    *,
+    sweep: str = "riccati",
+    engine: str | None = None,
+    strain: str = "linear",
+) -> np.ndarray:
     """Forward dynamics of the discretised arm: q̈ (n_dof,) from (q, q̇) (n_dof,) at time t (s).
 
     Coordinates as in :mod:`dttmm.structure` (``[α_1, e_11, …, α_2, …]``). Motion-driven joints
@@ -44,12 +54,26 @@ def accelerations(case: Case, elements_per_link: int, q, qd, t: float = 0.0, *, 
     return driver.accelerations_at(st, q, qd, t, sweep, engine)
 
 
-def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = "newmark",
-             sweep: str = "riccati", iterations: int | str | None = None, tol: float = 1e-10,
-             max_iterations: int = 50, beta: float | None = None, gamma: float | None = None,
-             rho_inf: float | None = None, cut_loads: bool = True, energy: bool = True,
-             progress: bool | None = None, engine: str | None = None, auto_fraction: float = 0.1,
-             strain: str = "linear"):
+def simulate(
+    case: Case,
+    *,
+    elements_per_link: int,
+    h: float,
+    integrator: str = "newmark",
+    sweep: str = "riccati",
+    iterations: int | str | None = None,
+    tol: float = 1e-10,
+    max_iterations: int = 50,
+    beta: float | None = None,
+    gamma: float | None = None,
+    rho_inf: float | None = None,
+    cut_loads: bool = True,
+    energy: bool = True,
+    progress: bool | None = None,
+    engine: str | None = None,
+    auto_fraction: float = 0.1,
+    strain: str = "linear",
+):
     """Simulate ``case`` by DT-TMM with k = ``elements_per_link`` elements per link and step ``h``.
 
     Parameters
@@ -93,11 +117,20 @@ def simulate(case: Case, *, elements_per_link: int, h: float, integrator: str = 
     require_open_loop(case, "dttmm")
     check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy)
     s = driver.Settings(
-        h=plumbing.positive_number("h", h), integrator=integrator, sweep=sweep,
-        iterations=plumbing.iterations_setting(iterations), tol=plumbing.open_fraction("tol", tol),
+        h=plumbing.positive_number("h", h),
+        integrator=integrator,
+        sweep=sweep,
+        iterations=plumbing.iterations_setting(iterations),
+        tol=plumbing.open_fraction("tol", tol),
         max_iterations=plumbing.positive_integer("max_iterations", max_iterations),
-        family=None if integrator == "rk4" else plumbing.newmark_family(integrator, beta=beta, gamma=gamma,
-                                                                         rho_inf=rho_inf),
-        auto_fraction=plumbing.positive_number("auto_fraction", auto_fraction), cut_loads=bool(cut_loads),
-        energy=bool(energy), progress=progress, engine=driver.resolve_engine(engine), strain=strain)
+        family=None
+        if integrator == "rk4"
+        else plumbing.newmark_family(integrator, beta=beta, gamma=gamma, rho_inf=rho_inf),
+        auto_fraction=plumbing.positive_number("auto_fraction", auto_fraction),
+        cut_loads=bool(cut_loads),
+        energy=bool(energy),
+        progress=progress,
+        engine=driver.resolve_engine(engine),
+        strain=strain,
+    )
     return driver.simulate_structure(build_structure(case, elements_per_link, strain), s)

@@ -3,6 +3,7 @@
 Minimal coordinates, link by link: q = [α_1, e_{1,1}, …, e_{1,k}, α_2, e_{2,1}, …] with α_i
 the joint angle and e_{i,j} the elastic coordinates of element j of link i.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -20,10 +21,10 @@ __all__ = ["Kinematics", "Structure", "build_structure"]
 class LinkLayout:
     et: ElementType
     k: int
-    i_alpha: int          # index of α in q
-    e_slice: slice        # elastic coordinates of the link in q (k·ne entries)
-    M_hub: np.ndarray     # diag(m, m, J) of the hub
-    M_pay: np.ndarray     # diag(m, m, J) of the payload
+    i_alpha: int  # index of α in q
+    e_slice: slice  # elastic coordinates of the link in q (k·ne entries)
+    M_hub: np.ndarray  # diag(m, m, J) of the hub
+    M_pay: np.ndarray  # diag(m, m, J) of the payload
     m_hub: float
     m_pay: float
     length: float
@@ -38,7 +39,7 @@ class Structure:
     links: list
     n_dof: int
     gravity: np.ndarray
-    motion: np.ndarray    # (n,) bool: joint is motion-driven
+    motion: np.ndarray  # (n,) bool: joint is motion-driven
     n_elements: int
 
     @property
@@ -76,28 +77,43 @@ def build_structure(case: Case, elements_per_link, strain: str = "linear") -> St
     for link in case.model.links:
         b = link.beam
         et = element_type(b.length / k, b.EI, b.rhoA, b.EA, b.damping, strain)
-        links.append(LinkLayout(
-            et=et, k=k, i_alpha=off, e_slice=slice(off + 1, off + 1 + k * et.ne),
-            M_hub=np.diag([link.hub_mass, link.hub_mass, link.hub_inertia]),
-            M_pay=np.diag([link.payload_mass, link.payload_mass, link.payload_inertia]),
-            m_hub=link.hub_mass, m_pay=link.payload_mass, length=b.length))
+        links.append(
+            LinkLayout(
+                et=et,
+                k=k,
+                i_alpha=off,
+                e_slice=slice(off + 1, off + 1 + k * et.ne),
+                M_hub=np.diag([link.hub_mass, link.hub_mass, link.hub_inertia]),
+                M_pay=np.diag([link.payload_mass, link.payload_mass, link.payload_inertia]),
+                m_hub=link.hub_mass,
+                m_pay=link.payload_mass,
+                length=b.length,
+            )
+        )
         off += 1 + k * et.ne
     motion = np.array([d.kind == "motion" for d in case.scenario.drives])
-    return Structure(case=case, k=k, links=links, n_dof=off, gravity=np.asarray(case.model.gravity, float),
-                     motion=motion, n_elements=k * len(links))
+    return Structure(
+        case=case,
+        k=k,
+        links=links,
+        n_dof=off,
+        gravity=np.asarray(case.model.gravity, float),
+        motion=motion,
+        n_elements=k * len(links),
+    )
 
 
 @dataclass
 class LinkKin:
     """Kinematics and element terms of one link's elements at one (q, q̇)."""
 
-    theta: np.ndarray      # (k,) frame angles
+    theta: np.ndarray  # (k,) frame angles
     thetad: np.ndarray
-    r: np.ndarray          # (k, 2) inboard node positions
+    r: np.ndarray  # (k, 2) inboard node positions
     rd: np.ndarray
-    e: np.ndarray          # (k, ne)
+    e: np.ndarray  # (k, ne)
     ed: np.ndarray
-    R: np.ndarray          # (k, 2, 2)
+    R: np.ndarray  # (k, 2, 2)
     B_a: np.ndarray
     B_e: np.ndarray
     gbar: np.ndarray
@@ -105,9 +121,9 @@ class LinkKin:
     M_ae: np.ndarray
     hbar_a: np.ndarray
     hbar_e: np.ndarray
-    tip: np.ndarray        # (2,) tip position
+    tip: np.ndarray  # (2,) tip position
     tip_theta: float
-    tip_v: np.ndarray      # (3,) tip velocity (ẋ, ẏ, θ̇)
+    tip_v: np.ndarray  # (3,) tip velocity (ẋ, ẏ, θ̇)
 
 
 @dataclass
@@ -139,7 +155,9 @@ def kinematics(st: Structure, q: np.ndarray, qd: np.ndarray, with_terms: bool = 
         rso = np.einsum("kij,kj->ki", R, sO)
         r = p + np.concatenate((np.zeros((1, 2)), np.cumsum(rso[:-1], axis=0)))
         # ṙ_O − ṙ_I = θ̇ E A s_O + A S_O ė
-        dv = thetad[:, None] * (rso @ np.array([[0.0, 1.0], [-1.0, 0.0]])) + np.einsum("kij,kj->ki", R, ed @ et.SO.T)
+        dv = thetad[:, None] * (rso @ np.array([[0.0, 1.0], [-1.0, 0.0]])) + np.einsum(
+            "kij,kj->ki", R, ed @ et.SO.T
+        )
         rd = pv + np.concatenate((np.zeros((1, 2)), np.cumsum(dv[:-1], axis=0)))
         tip = r[-1] + rso[-1]
         tip_theta = theta[-1] + phi[-1]
@@ -149,8 +167,27 @@ def kinematics(st: Structure, q: np.ndarray, qd: np.ndarray, with_terms: bool = 
             B_a, B_e, gbar, _ = outboard_maps(et, R, thetad, e, ed)
         else:
             M_aa = M_ae = hbar_a = hbar_e = B_a = B_e = gbar = None
-        out.append(LinkKin(theta, thetad, r, rd, e, ed, R, B_a, B_e, gbar, M_aa, M_ae, hbar_a, hbar_e,
-                           tip, tip_theta, tip_v))
+        out.append(
+            LinkKin(
+                theta,
+                thetad,
+                r,
+                rd,
+                e,
+                ed,
+                R,
+                B_a,
+                B_e,
+                gbar,
+                M_aa,
+                M_ae,
+                hbar_a,
+                hbar_e,
+                tip,
+                tip_theta,
+                tip_v,
+            )
+        )
         p, th0, pv, thd0 = tip, tip_theta, tip_v[:2], tip_v[2]
     return Kinematics(out)
 
@@ -163,8 +200,11 @@ def energy(st: Structure, kin: Kinematics) -> float:
         et = lk.et
         # element generalised velocities p' = (ṙ_I, θ̇, ė); T = ½ p'ᵀ M p'
         pd = np.concatenate([lkn.rd, lkn.thetad[:, None]], axis=1)
-        T = 0.5 * (np.einsum("ki,kij,kj->", pd, lkn.M_aa, pd) + 2 * np.einsum("ki,kij,kj->", pd, lkn.M_ae, lkn.ed)
-                   + np.einsum("ki,ij,kj->", lkn.ed, et.C_SS, lkn.ed))
+        T = 0.5 * (
+            np.einsum("ki,kij,kj->", pd, lkn.M_aa, pd)
+            + 2 * np.einsum("ki,kij,kj->", pd, lkn.M_ae, lkn.ed)
+            + np.einsum("ki,ij,kj->", lkn.ed, et.C_SS, lkn.ed)
+        )
         V = strain_energy(et, lkn.e)
         ms = et.c_s0 + lkn.e @ et.C_S.T
         com = et.m * lkn.r + np.einsum("kij,kj->ki", lkn.R, ms)  # ∫ r dm

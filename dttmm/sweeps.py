@@ -18,6 +18,7 @@ predictors and c_q = βh², c_v = γh; acceleration solver: ê = e, ê' = ė, c_
 Both return the same :class:`SweepOut`. :func:`accelerations` is the forward dynamics at one
 state built on them: the reference that the kernel (:mod:`dttmm.kernel`) is checked against.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -34,10 +35,10 @@ E3 = np.array([0.0, 0.0, 1.0])
 
 @dataclass
 class SweepOut:
-    qdd: np.ndarray        # (n_dof,)
-    loads: np.ndarray      # (n_cuts, 3): (Qx, Qy, M) at each element root and each link tip
-    torque: np.ndarray     # (n,) joint torques (law value or computed for motion joints)
-    cond: float = np.nan   # condition number of the final 3×3 system (plain sweep)
+    qdd: np.ndarray  # (n_dof,)
+    loads: np.ndarray  # (n_cuts, 3): (Qx, Qy, M) at each element root and each link tip
+    torque: np.ndarray  # (n,) joint torques (law value or computed for motion joints)
+    cond: float = np.nan  # condition number of the final 3×3 system (plain sweep)
     final_system: np.ndarray | None = None  # the plain sweep's final matrix (always 3×3)
 
 
@@ -147,19 +148,19 @@ def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, t
     Q_g = lambda m: np.array([m * st.gravity[0], m * st.gravity[1], 0.0])
     # z = B w, B (6, 4): rows (a, f), columns (u1, u2, u3, 1)
     B = np.zeros((6, 4))
-    subs = []            # per joint: (substitution S or None, slot of α̈ or None)
-    cuts = []            # per cut: (stage, B)
-    elem = []            # per link: (Ea, Ef, E0) arrays
+    subs = []  # per joint: (substitution S or None, slot of α̈ or None)
+    cuts = []  # per cut: (stage, B)
+    elem = []  # per link: (Ea, Ef, E0) arrays
     for i in range(n):
         lk, lkn = st.links[i], kin.links[i]
         et = lk.et
         if i == 0:
             B[:] = 0.0
-            if st.motion[0]:      # u = (Fx, Fy, τ1), α̈ known
+            if st.motion[0]:  # u = (Fx, Fy, τ1), α̈ known
                 B[3, 0] = B[4, 1] = B[5, 2] = 1.0
                 B[2, 3] = acc_presc[0]
                 subs.append((None, None))
-            else:                 # u = (Fx, Fy, α̈1), τ1 known
+            else:  # u = (Fx, Fy, α̈1), τ1 known
                 B[3, 0] = B[4, 1] = 1.0
                 B[5, 3] = tau[0]
                 B[2, 2] = 1.0
@@ -208,7 +209,7 @@ def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, t
             Bn = U[:, :6] @ B
             Bn[:, 3] += U[:, 6]
             B = Bn
-        cuts.append((i, B.copy()))    # link tip cut
+        cuts.append((i, B.copy()))  # link tip cut
         elem.append((Ea, Ef, E0))
         # payload: f beyond = f_tip − M_p a + Q_p
         B[3:] -= lk.M_pay @ B[:3]
@@ -250,8 +251,9 @@ def plain(st: Structure, kin: Kinematics, cq: float, cv: float, e_hat, ed_hat, t
 SWEEPS = {"riccati": riccati, "plain": plain}
 
 
-def accelerations(st: Structure, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, mot: np.ndarray,
-                  sweep: str = "riccati") -> SweepOut:
+def accelerations(
+    st: Structure, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, mot: np.ndarray, sweep: str = "riccati"
+) -> SweepOut:
     """Forward dynamics at one state: q̈ (n_dof,), cut loads and joint torques at (q, q̇).
 
     ``tau`` (n,) torques of the torque-driven joints (N·m); ``mot`` (n, 3) (α, α̇, α̈) of the

@@ -4,6 +4,7 @@ Steps of size h from t = 0; a drive breakpoint inside a step splits it so that a
 exactly at the jump (the integrator then restarts with the right-hand limit); the last step
 ends exactly at the duration.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -16,6 +16,7 @@ loading tool must set it (for Pinocchio: ``model.gravity.linear = [gx, gy, 0]``;
 is −z, which does nothing to a planar arm). The flexibility of the links (EI, EA, damping)
 has no URDF form and is dropped.
 """
+
 from __future__ import annotations
 
 import sys
@@ -46,8 +47,7 @@ def _link(robot, name, mass=None, com_x=0.0, iyy=0.0, izz=0.0):
         inertial = ET.SubElement(link, "inertial")
         _origin(inertial, com_x)
         ET.SubElement(inertial, "mass", value=_num(mass))
-        ET.SubElement(inertial, "inertia", ixx="0", ixy="0", ixz="0",
-                      iyy=_num(iyy), iyz="0", izz=_num(izz))
+        ET.SubElement(inertial, "inertia", ixx="0", ixy="0", ixz="0", iyy=_num(iyy), iyz="0", izz=_num(izz))
     return link
 
 
@@ -66,8 +66,11 @@ def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
     name = name or (case.name if isinstance(case, Case) and case.name else "arm")
     robot = ET.Element("robot", name=name)
     gx, gy = model.gravity
-    robot.append(ET.Comment(f" gravity (m/s^2, not part of URDF; set it in the loading tool): "
-                            f"[{_num(gx)}, {_num(gy)}, 0.0] "))
+    robot.append(
+        ET.Comment(
+            f" gravity (m/s^2, not part of URDF; set it in the loading tool): [{_num(gx)}, {_num(gy)}, 0.0] "
+        )
+    )
     _link(robot, "base")
     parent, x = "base", 0.0
     for i, link in enumerate(model.links, start=1):
@@ -97,8 +100,11 @@ def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
 def main(argv=None) -> int:
     """``dttmm urdf CASE [--out FILE]``: print (or write) the rigid arm of a case as URDF."""
 
-    p = OneLineParser(prog="dttmm urdf", description="Print the rigid arm of a case as URDF "
-                                "(gravity is noted in a comment: URDF has no field for it).")
+    p = OneLineParser(
+        prog="dttmm urdf",
+        description="Print the rigid arm of a case as URDF "
+        "(gravity is noted in a comment: URDF has no field for it).",
+    )
     p.add_argument("case", help="case TOML file")
     p.add_argument("--out", metavar="FILE", help="write to FILE instead of standard output")
     a = p.parse_args(argv)

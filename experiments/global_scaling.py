@@ -12,6 +12,7 @@ set-up, compilation and output recording cancel. Run with one BLAS thread:
 
     OPENBLAS_NUM_THREADS=1 python -m experiments.global_scaling [--quick] [--out data/bench]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,8 +51,11 @@ def chain(n_links: int, n_steps: int) -> dttmm.Case:
     else:
         links = [first] + [mid] * (n_links - 2) + [last]
     drives = tuple(dttmm.Drive("torque", dttmm.Sine(1.0 / (i + 1), 1.0, until=1.0)) for i in range(n_links))
-    return dttmm.Case(dc.replace(base.model, links=tuple(links)),
-                      dttmm.Scenario(n_steps * H, n_steps * H, drives), f"chain{n_links}")
+    return dttmm.Case(
+        dc.replace(base.model, links=tuple(links)),
+        dttmm.Scenario(n_steps * H, n_steps * H, drives),
+        f"chain{n_links}",
+    )
 
 
 def _run(method: str, case: dttmm.Case, k: int) -> dttmm.Result:
@@ -71,16 +75,20 @@ def _cpu(method, case, k, repeats) -> tuple[float, dttmm.Result]:
 
 def cost_per_step(method: str, make, k: int, repeats: int, budget: float) -> dict:
     """CPU seconds per step by differencing runs of s and 3s steps (s from a probe run)."""
-    _run(method, make(2), k)                        # compile / warm the caches
+    _run(method, make(2), k)  # compile / warm the caches
     t_probe, _ = _cpu(method, make(4), k, 1)
     s = int(min(200, max(2, budget / max(t_probe / 4, 1e-7) / 4)))
     t1, _ = _cpu(method, make(s), k, repeats)
     t3, res = _cpu(method, make(3 * s), k, repeats)
     per = (t3 - t1) / (2 * s)
-    if per <= 0:                                    # timer resolution: fall back to the long run
+    if per <= 0:  # timer resolution: fall back to the long run
         per = t3 / (3 * s)
-    return {"cost": per, "steps": s, "n_dof": res.meta.get("n_dof"),
-            "iterations": res.meta.get("iterations_mean")}
+    return {
+        "cost": per,
+        "steps": s,
+        "n_dof": res.meta.get("n_dof"),
+        "iterations": res.meta.get("iterations_mean"),
+    }
 
 
 def crossover(x, a, b) -> float:
@@ -101,14 +109,22 @@ def scaling(sizes, make_for, k_for, repeats, budget, label) -> list[dict]:
         row = {"study": label, "size": size}
         for method in ("dttmm", "global"):
             m = cost_per_step(method, make_for(size), k_for(size), repeats, budget)
-            row.update({f"{method}_cost": m["cost"], f"{method}_steps": m["steps"],
-                        f"{method}_iterations": m["iterations"]})
+            row.update(
+                {
+                    f"{method}_cost": m["cost"],
+                    f"{method}_steps": m["steps"],
+                    f"{method}_iterations": m["iterations"],
+                }
+            )
             if method == "global":
                 row["n_dof"] = m["n_dof"]
         row["ratio_global_over_dttmm"] = row["global_cost"] / row["dttmm_cost"]
-        print(f"{label:6s} {size:4d}  N={row['n_dof']:5d}  DT-TMM {row['dttmm_cost'] * 1e6:10.1f} us/step"
-              f"  global {row['global_cost'] * 1e6:12.1f} us/step  ratio {row['ratio_global_over_dttmm']:9.1f}"
-              f"  iters {row['dttmm_iterations']:.2f}/{row['global_iterations']:.2f}", flush=True)
+        print(
+            f"{label:6s} {size:4d}  N={row['n_dof']:5d}  DT-TMM {row['dttmm_cost'] * 1e6:10.1f} us/step"
+            f"  global {row['global_cost'] * 1e6:12.1f} us/step  ratio {row['ratio_global_over_dttmm']:9.1f}"
+            f"  iters {row['dttmm_iterations']:.2f}/{row['global_iterations']:.2f}",
+            flush=True,
+        )
         rows.append(row)
     return rows
 
@@ -119,13 +135,19 @@ def summarise(rows, label, x_key="size") -> dict:
     a = np.array([r["dttmm_cost"] for r in rows])
     b = np.array([r["global_cost"] for r in rows])
     tail = slice(max(0, len(rows) - 4), None)
-    out = {"study": label,
-           "dttmm_exponent_all": slope(N, a)[0], "global_exponent_all": slope(N, b)[0],
-           "dttmm_exponent_top4": slope(N[tail], a[tail])[0], "global_exponent_top4": slope(N[tail], b[tail])[0],
-           "crossover": crossover(x, a, b)}
-    print(f"{label}: cost ~ N^p  DT-TMM p = {out['dttmm_exponent_all']:.2f} (largest 4: "
-          f"{out['dttmm_exponent_top4']:.2f}); global p = {out['global_exponent_all']:.2f} (largest 4: "
-          f"{out['global_exponent_top4']:.2f}); DT-TMM cheaper from {label} = {out['crossover']:.3g}")
+    out = {
+        "study": label,
+        "dttmm_exponent_all": slope(N, a)[0],
+        "global_exponent_all": slope(N, b)[0],
+        "dttmm_exponent_top4": slope(N[tail], a[tail])[0],
+        "global_exponent_top4": slope(N[tail], b[tail])[0],
+        "crossover": crossover(x, a, b),
+    }
+    print(
+        f"{label}: cost ~ N^p  DT-TMM p = {out['dttmm_exponent_all']:.2f} (largest 4: "
+        f"{out['dttmm_exponent_top4']:.2f}); global p = {out['global_exponent_all']:.2f} (largest 4: "
+        f"{out['global_exponent_top4']:.2f}); DT-TMM cheaper from {label} = {out['crossover']:.3g}"
+    )
     return out
 
 
@@ -136,14 +158,25 @@ def engines(ks, repeats) -> list[dict]:
         case = three_link(20)
         a = gn.simulate(case, elements_per_link=k, h=H, engine="numpy")
         b = gn.simulate(case, elements_per_link=k, h=H, engine="numba")
-        diff = max(np.abs(a.end_effector - b.end_effector).max(), np.abs(a.tip_deflection - b.tip_deflection).max())
+        diff = max(
+            np.abs(a.end_effector - b.end_effector).max(), np.abs(a.tip_deflection - b.tip_deflection).max()
+        )
         c_np = cost_per_step("global-numpy", lambda n: three_link(n), k, repeats, 1.0)
         c_nb = cost_per_step("global", lambda n: three_link(n), k, repeats, 0.3)
-        row = {"k": k, "n_dof": b.meta["n_dof"], "max_diff_m": float(diff), "numpy_cost": c_np["cost"],
-               "numba_cost": c_nb["cost"], "speedup": c_np["cost"] / c_nb["cost"]}
-        print(f"engines k={k:3d} N={row['n_dof']:4d}  |numpy - numba| = {diff:.2e} m  numpy "
-              f"{row['numpy_cost'] * 1e3:8.3f} ms/step  numba {row['numba_cost'] * 1e3:8.3f} ms/step  "
-              f"speed-up {row['speedup']:.1f}", flush=True)
+        row = {
+            "k": k,
+            "n_dof": b.meta["n_dof"],
+            "max_diff_m": float(diff),
+            "numpy_cost": c_np["cost"],
+            "numba_cost": c_nb["cost"],
+            "speedup": c_np["cost"] / c_nb["cost"],
+        }
+        print(
+            f"engines k={k:3d} N={row['n_dof']:4d}  |numpy - numba| = {diff:.2e} m  numpy "
+            f"{row['numpy_cost'] * 1e3:8.3f} ms/step  numba {row['numba_cost'] * 1e3:8.3f} ms/step  "
+            f"speed-up {row['speedup']:.1f}",
+            flush=True,
+        )
         rows.append(row)
     return rows
 
@@ -168,8 +201,8 @@ def main(argv=None):
     ks, ns, ke = (KS[:4], NS[:3], K_ENGINES[:1]) if args.quick else (KS, NS, K_ENGINES)
     rep = 1 if args.quick else args.repeats
     budget = 0.05 if args.quick else 0.4
-    rows_k = scaling(ks, lambda k: (lambda n: three_link(n)), lambda k: k, rep, budget, "k")
-    rows_n = scaling(ns, lambda n: (lambda s, n=n: chain(n, s)), lambda n: K_LINKS, rep, budget, "n")
+    rows_k = scaling(ks, lambda k: lambda n: three_link(n), lambda k: k, rep, budget, "k")
+    rows_n = scaling(ns, lambda n: lambda s, n=n: chain(n, s), lambda n: K_LINKS, rep, budget, "n")
     summary = [summarise(rows_k, "k"), summarise(rows_n, "n")]
     tag = "-quick" if args.quick else ""
     _write(args.out / f"global_scaling{tag}.csv", rows_k + rows_n)

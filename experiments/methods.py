@@ -68,28 +68,68 @@ class Method:
 # DT-TMM and the global solver often agree to round-off: their markers differ in shape and size
 # (DT-TMM large and hollow) so both stay visible.
 _BUILTIN = (
-    Method("dttmm", "dttmm", (("integrator", "newmark"),), label="DT-TMM (Newmark)",
-           style=Style("C0", "o", "-", 7, hollow=True)),
-    Method("dttmm-rk4", "dttmm", (("integrator", "rk4"),), label="DT-TMM (RK4)",
-           style=Style("C4", "v", "-", 5)),
-    Method("dttmm-2nd", "dttmm",
-           (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
-           label="DT-TMM (2nd-order strain, gen-α 0.8)", style=Style("C9", "P", "-", 6)),
-    Method("global", "reference_models.global_newmark", (("integrator", "newmark"), ("engine", "numba")),
-           label="global equations (Newmark, compiled)", style=Style("C3", "^", "--", 4)),
-    Method("exudyn-ancf", "reference_models.exudyn_ancf", label="Exudyn ANCF",
-           style=Style("C1", "s", "-", 5)),
-    Method("global-2nd", "reference_models.global_newmark",
-           (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8), ("engine", "numba")),
-           label="global equations (2nd-order strain, gen-α 0.8, compiled)", style=Style("C6", "<", "--", 5)),
+    Method(
+        "dttmm",
+        "dttmm",
+        (("integrator", "newmark"),),
+        label="DT-TMM (Newmark)",
+        style=Style("C0", "o", "-", 7, hollow=True),
+    ),
+    Method(
+        "dttmm-rk4", "dttmm", (("integrator", "rk4"),), label="DT-TMM (RK4)", style=Style("C4", "v", "-", 5)
+    ),
+    Method(
+        "dttmm-2nd",
+        "dttmm",
+        (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
+        label="DT-TMM (2nd-order strain, gen-α 0.8)",
+        style=Style("C9", "P", "-", 6),
+    ),
+    Method(
+        "global",
+        "reference_models.global_newmark",
+        (("integrator", "newmark"), ("engine", "numba")),
+        label="global equations (Newmark, compiled)",
+        style=Style("C3", "^", "--", 4),
+    ),
+    Method(
+        "exudyn-ancf", "reference_models.exudyn_ancf", label="Exudyn ANCF", style=Style("C1", "s", "-", 5)
+    ),
+    Method(
+        "global-2nd",
+        "reference_models.global_newmark",
+        (
+            ("strain", "second-order"),
+            ("integrator", "generalized-alpha"),
+            ("rho_inf", 0.8),
+            ("engine", "numba"),
+        ),
+        label="global equations (2nd-order strain, gen-α 0.8, compiled)",
+        style=Style("C6", "<", "--", 5),
+    ),
     # physical rotary inertia: measured to run on the suite's cases (see docs/peers.md)
-    Method("exudyn-beam", "reference_models.exudyn_beam", (("cross_section_inertia", "physical"),),
-           label="Exudyn GE beam",
-           style=Style("C2", "D", "-", 5)),
-    Method("mujoco-chain", "reference_models.mujoco_chain", (("integrator", "implicitfast"),),
-           label="MuJoCo hinge chain", style=Style("C5", "X", "-.", 6)),
-    Method("pinocchio-rigid", "reference_models.pinocchio_rigid", (("integrator", "rk4"),), uses_k=False,
-           label="Pinocchio rigid", style=Style("k", "*", ":", 9)),
+    Method(
+        "exudyn-beam",
+        "reference_models.exudyn_beam",
+        (("cross_section_inertia", "physical"),),
+        label="Exudyn GE beam",
+        style=Style("C2", "D", "-", 5),
+    ),
+    Method(
+        "mujoco-chain",
+        "reference_models.mujoco_chain",
+        (("integrator", "implicitfast"),),
+        label="MuJoCo hinge chain",
+        style=Style("C5", "X", "-.", 6),
+    ),
+    Method(
+        "pinocchio-rigid",
+        "reference_models.pinocchio_rigid",
+        (("integrator", "rk4"),),
+        uses_k=False,
+        label="Pinocchio rigid",
+        style=Style("k", "*", ":", 9),
+    ),
 )
 
 # Shown in figures and text but not run by the studies.
@@ -107,8 +147,9 @@ _FALLBACK_MARKERS = "osD^v<>ph*"
 _EXTRA: dict[str, tuple[Callable, bool]] = {}
 
 
-def register(name: str, simulate: Callable, *, uses_k: bool = True, label: str = "",
-             style: Style | None = None) -> None:
+def register(
+    name: str, simulate: Callable, *, uses_k: bool = True, label: str = "", style: Style | None = None
+) -> None:
     """Add a method ``simulate(case, *, elements_per_link, h, **options) -> Result`` under ``name``."""
     _EXTRA[name] = (simulate, uses_k)
     if label or style:

@@ -239,7 +239,8 @@ PLANS = {
         rk4_h=[1e-4, 2e-5, 1e-5, 5e-6],
         cost_ks=[1, 2, 4, 8, 16, 32],
         scheme_ks=[1, 2, 4, 8, 16],
-        note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; " + _GRID_NOTE["quick"],
+        note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; "
+        + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
         cost_cap={"global": 16},
     ),
@@ -262,9 +263,14 @@ PLANS = {
 
 # Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak (8 s),
 # no global solver (it repeats DT-TMM's discretisation to round-off and costs ~90 % of the runs).
-_BENCH = {"quick": {"ks": [2, 4, 8, 16, 32], "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
-                    "methods": ["dttmm", "dttmm-2nd", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"]},
-          "full": {"ks": [2, 4, 8, 16, 32]}}
+_BENCH = {
+    "quick": {
+        "ks": [2, 4, 8, 16, 32],
+        "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
+        "methods": ["dttmm", "dttmm-2nd", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"],
+    },
+    "full": {"ks": [2, 4, 8, 16, 32]},
+}
 for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured: 2nd-order element)
     _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
 PLANS = {n: replace(p, studies={**p.studies, "benchmarks": _BENCH[n]}) for n, p in PLANS.items()}

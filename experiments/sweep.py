@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Iterable
 from contextlib import contextmanager
-from typing import Iterable
 
 from . import methods
 from .runs import Outcome, RunStore, Task, execute

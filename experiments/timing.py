@@ -30,7 +30,16 @@ from typing import Any
 
 from dttmm.threads import one_blas_thread
 
-__all__ = ["COST_REPEATS", "MAX_REPEATS", "MIN_CPU", "SPREAD_MAX", "Timing", "cores", "load_average", "measure"]
+__all__ = [
+    "COST_REPEATS",
+    "MAX_REPEATS",
+    "MIN_CPU",
+    "SPREAD_MAX",
+    "Timing",
+    "cores",
+    "load_average",
+    "measure",
+]
 
 #: Largest accepted (median − min) / min of the CPU times before a point is marked noisy.
 SPREAD_MAX = 0.10

@@ -59,6 +59,7 @@ Newton: absolute tolerance scaled to the residual's round-off floor (see ``_defa
 relative 1e-8, at most 25 iterations; a Newton failure, a short run, a sensor grid mismatch or a
 non-finite output raises :class:`dttmm.SimulationError` (with a partial Result when possible).
 """
+
 from __future__ import annotations
 
 import math
@@ -70,8 +71,13 @@ from dttmm import InputError, SimulationError, make_result
 from dttmm.case import Case
 from dttmm.drives import require_open_loop
 
-__all__ = ["simulate_exudyn", "check_discretisation", "stiff_axial_stiffness",
-           "INEXTENSIBLE_AXIAL_RATIO", "DRIVE_INPUTS"]
+__all__ = [
+    "simulate_exudyn",
+    "check_discretisation",
+    "stiff_axial_stiffness",
+    "INEXTENSIBLE_AXIAL_RATIO",
+    "DRIVE_INPUTS",
+]
 
 #: How drive values reach Exudyn: set once per step by a PreStepUserFunction (default), or by
 #: load/offset user functions evaluated at every residual evaluation (the slower, older way).
@@ -119,8 +125,12 @@ def check_discretisation(case, elements_per_link, h) -> tuple[int, float, int, i
     ratio = sc.output_step / h
     per_out = int(round(ratio))
     if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
-        raise InputError("h", h, f"must divide the output step {sc.output_step} "
-                                 "(the Exudyn models sample on the step grid, no interpolation)")
+        raise InputError(
+            "h",
+            h,
+            f"must divide the output step {sc.output_step} "
+            "(the Exudyn models sample on the step grid, no interpolation)",
+        )
     n_out = len(sc.output_times) - 1
     return k, h, n_out * per_out, per_out
 
@@ -178,10 +188,22 @@ def _default_abs_tol(case, k, axial) -> float:
     return max(1e3 * _EPS * kmax * max(extent, 1.0), 1e-8)
 
 
-def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_rel_tol=1e-8,
-                    newton_abs_tol=None, newton_max_iterations=25, modified_newton=True,
-                    jacobian_per_step=True, drive_input="pre-step",
-                    inextensible_axial_ratio=INEXTENSIBLE_AXIAL_RATIO, element_options=None):
+def simulate_exudyn(
+    case,
+    *,
+    element,
+    elements_per_link,
+    h,
+    rho_inf=0.8,
+    newton_rel_tol=1e-8,
+    newton_abs_tol=None,
+    newton_max_iterations=25,
+    modified_newton=True,
+    jacobian_per_step=True,
+    drive_input="pre-step",
+    inextensible_axial_ratio=INEXTENSIBLE_AXIAL_RATIO,
+    element_options=None,
+):
     """Build the Exudyn model of ``case`` with ``element`` meshing each link, solve, return a Result.
 
     ``element`` is an object with ``method`` (name), ``meta(case, k, axial)`` (dict) and
@@ -201,11 +223,15 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
     if not 0.0 <= rho_inf <= 1.0:
         raise InputError("rho_inf", rho_inf, "must be in [0, 1]")
     for name, val in (("newton_rel_tol", newton_rel_tol),) + (
-            (("newton_abs_tol", newton_abs_tol),) if newton_abs_tol is not None else ()):
+        (("newton_abs_tol", newton_abs_tol),) if newton_abs_tol is not None else ()
+    ):
         if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
             raise InputError(name, val, "must be a positive number")
-    if isinstance(newton_max_iterations, bool) or not isinstance(newton_max_iterations, int) \
-            or newton_max_iterations < 1:
+    if (
+        isinstance(newton_max_iterations, bool)
+        or not isinstance(newton_max_iterations, int)
+        or newton_max_iterations < 1
+    ):
         raise InputError("newton_max_iterations", newton_max_iterations, "must be an integer >= 1")
     if drive_input not in DRIVE_INPUTS:
         raise InputError("drive_input", drive_input, f"must be one of {', '.join(DRIVE_INPUTS)}")
@@ -218,8 +244,9 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
         import exudyn as exu
         import exudyn.itemInterface as ii
     except ImportError as exc:
-        raise ImportError(f"{element.method} needs the exudyn package (pip install 'dttmm[exudyn]'): "
-                          f"{exc}") from exc
+        raise ImportError(
+            f"{element.method} needs the exudyn package (pip install 'dttmm[exudyn]'): {exc}"
+        ) from exc
 
     model, sc = case.model, case.scenario
     n = model.n_links
@@ -241,14 +268,18 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
     def add_body(node, mass, inertia):
         body = mbs.AddObject(ii.ObjectRigidBody2D(nodeNumber=node, mass=float(mass), inertia=float(inertia)))
         if has_gravity and mass > 0:
-            mbs.AddLoad(ii.LoadMassProportional(markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)),
-                                                loadVector=g))
+            mbs.AddLoad(
+                ii.LoadMassProportional(
+                    markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=g
+                )
+            )
         return body
 
     hub_nodes, tip_nodes, hub_bodies, tip_bodies = [], [], [], []
     for i, link in enumerate(model.links):
-        hub_node, tip_node, elements, clamps = element.add_link(mbs, exu, ii, link, layout, i, k, axial[i],
-                                                                **(element_options or {}))
+        hub_node, tip_node, elements, clamps = element.add_link(
+            mbs, exu, ii, link, layout, i, k, axial[i], **(element_options or {})
+        )
         hub_nodes.append(hub_node)
         tip_nodes.append(tip_node)
         hub_bodies.append(add_body(hub_node, link.hub_mass, link.hub_inertia))
@@ -257,11 +288,16 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
             for body, beam_node in zip((hub_bodies[-1], tip_bodies[-1]), clamps):
                 m0 = mbs.AddMarker(ii.MarkerBodyRigid(bodyNumber=body))
                 m1 = mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=beam_node))
-                mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 0, 0, 0, 1]))
+                mbs.AddObject(
+                    ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 0, 0, 0, 1])
+                )
         if has_gravity:
             for e in elements:
-                mbs.AddLoad(ii.LoadMassProportional(markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)),
-                                                    loadVector=g))
+                mbs.AddLoad(
+                    ii.LoadMassProportional(
+                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=g
+                    )
+                )
 
     # Integration segments: a drive breakpoint on the step grid ends a segment; the next segment
     # restarts the integrator there (initial accelerations recomputed with the right limit).
@@ -281,8 +317,11 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
     constraints = [None] * n
     inputs = []  # (kind, item, law, sign, a0): what the pre-step function sets
     for i, drive in enumerate(sc.drives):
-        m_in = m_ground_pos if i == 0 else mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=tip_bodies[i - 1],
-                                                                                localPosition=[0, 0, 0]))
+        m_in = (
+            m_ground_pos
+            if i == 0
+            else mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=tip_bodies[i - 1], localPosition=[0, 0, 0]))
+        )
         m_out = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=hub_bodies[i], localPosition=[0, 0, 0]))
         mbs.AddObject(ii.ObjectJointRevolute2D(markerNumbers=[m_in, m_out]))
         if drive.kind == "torque":
@@ -297,21 +336,31 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
                     def tau_user(mbs_, t, load, tau=drive.torque, sign=sign):
                         return [0.0, 0.0, sign * tau(t, t > seg_start[0])]
 
-                    mbs.AddLoad(ii.LoadTorqueVector(markerNumber=marker, loadVector=[0, 0, 0],
-                                                    loadVectorUserFunction=tau_user))
+                    mbs.AddLoad(
+                        ii.LoadTorqueVector(
+                            markerNumber=marker, loadVector=[0, 0, 0], loadVectorUserFunction=tau_user
+                        )
+                    )
         else:
-            c_in = m_ground_coord if i == 0 else mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=tip_nodes[i - 1],
-                                                                                       coordinate=2))
+            c_in = (
+                m_ground_coord
+                if i == 0
+                else mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=tip_nodes[i - 1], coordinate=2))
+            )
             c_out = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=hub_nodes[i], coordinate=2))
             if drive_input == "pre-step":
-                constraints[i] = mbs.AddObject(ii.ObjectConnectorCoordinate(markerNumbers=[c_in, c_out], offset=0.0))
+                constraints[i] = mbs.AddObject(
+                    ii.ObjectConnectorCoordinate(markerNumbers=[c_in, c_out], offset=0.0)
+                )
                 inputs.append(("offset", constraints[i], drive.motion, 1.0, layout.alpha0[i]))
             else:
+
                 def offset(mbs_, t, item, off, motion=drive.motion, a0=layout.alpha0[i]):
                     return motion(t, t > seg_start[0])[0] - a0
 
-                constraints[i] = mbs.AddObject(ii.ObjectConnectorCoordinate(markerNumbers=[c_in, c_out],
-                                                                            offsetUserFunction=offset))
+                constraints[i] = mbs.AddObject(
+                    ii.ObjectConnectorCoordinate(markerNumbers=[c_in, c_out], offsetUserFunction=offset)
+                )
 
     def set_inputs(t, left):
         """Set every drive input to its law's value at t (left or right limit)."""
@@ -322,6 +371,7 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
                 mbs.SetObjectParameter(item, "offset", law(t, left)[0] - a0)
 
     if inputs:
+
         def pre_step(mbs_, t):
             # t is the end of the step about to be solved: the left limit of the law there
             set_inputs(t, t > seg_start[0])
@@ -330,14 +380,21 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
         mbs.SetPreStepUserFunction(pre_step)
 
     OV = exu.OutputVariableType
-    sens = lambda node, var: mbs.AddSensor(ii.SensorNode(nodeNumber=node, outputVariableType=var,
-                                                         storeInternal=True, writeToFile=False))
+    sens = lambda node, var: mbs.AddSensor(
+        ii.SensorNode(nodeNumber=node, outputVariableType=var, storeInternal=True, writeToFile=False)
+    )
     s_hub = [(sens(nd, OV.Position), sens(nd, OV.Rotation), sens(nd, OV.AngularVelocity)) for nd in hub_nodes]
     s_tip = [(sens(nd, OV.Position), sens(nd, OV.Rotation), sens(nd, OV.AngularVelocity)) for nd in tip_nodes]
-    s_force = [None if c is None else
-               mbs.AddSensor(ii.SensorObject(objectNumber=c, outputVariableType=OV.Force,
-                                             storeInternal=True, writeToFile=False))
-               for c in constraints]
+    s_force = [
+        None
+        if c is None
+        else mbs.AddSensor(
+            ii.SensorObject(
+                objectNumber=c, outputVariableType=OV.Force, storeInternal=True, writeToFile=False
+            )
+        )
+        for c in constraints
+    ]
     all_sensors = [x for tr in s_hub + s_tip for x in tr] + [x for x in s_force if x is not None]
 
     mbs.Assemble()
@@ -367,17 +424,32 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
 
     ode2 = int(mbs.systemData.ODE2Size())
     ae = int(mbs.systemData.AEsize())
-    meta = dict(method=element.method, elements_per_link=k, h=h, integrator="generalized-alpha",
-                rho_inf=rho_inf, adaptive_step=False, linear_solver="EigenSparse",
-                newton_rel_tol=float(newton_rel_tol), newton_abs_tol=abs_tol,
-                newton_max_iterations=int(newton_max_iterations), modified_newton=bool(modified_newton),
-                jacobian_per_step=bool(jacobian_per_step), drive_input=drive_input,
-                ode2_size=ode2, ae_size=ae, exudyn=exu.__version__,
-                restarts=[float(b) for b in t_bp_grid], breakpoints_off_grid=[float(b) for b in t_bp_off],
-                axial_stiffness=axial, inextensible_axial_ratio=float(inextensible_axial_ratio))
+    meta = dict(
+        method=element.method,
+        elements_per_link=k,
+        h=h,
+        integrator="generalized-alpha",
+        rho_inf=rho_inf,
+        adaptive_step=False,
+        linear_solver="EigenSparse",
+        newton_rel_tol=float(newton_rel_tol),
+        newton_abs_tol=abs_tol,
+        newton_max_iterations=int(newton_max_iterations),
+        modified_newton=bool(modified_newton),
+        jacobian_per_step=bool(jacobian_per_step),
+        drive_input=drive_input,
+        ode2_size=ode2,
+        ae_size=ae,
+        exudyn=exu.__version__,
+        restarts=[float(b) for b in t_bp_grid],
+        breakpoints_off_grid=[float(b) for b in t_bp_off],
+        axial_stiffness=axial,
+        inextensible_axial_ratio=float(inextensible_axial_ratio),
+    )
     meta.update(element.meta(case, k, axial, **(element_options or {})))
     try:
         from dttmm.timegrid import versions
+
         meta["versions"] = {**versions(), "exudyn": exu.__version__}
     except Exception:  # versions() is informational only
         meta["versions"] = {"exudyn": exu.__version__}
@@ -411,18 +483,32 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
             d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
             rows[sn].append(d if not rows[sn] else d[1:])  # a segment's first row repeats the last one
         if err is not None or not ok:
-            failure = (f"SolveDynamic raised {type(err).__name__}: {err}" if err is not None
-                       else "SolveDynamic returned False (Newton did not converge)", "newton")
+            failure = (
+                f"SolveDynamic raised {type(err).__name__}: {err}"
+                if err is not None
+                else "SolveDynamic returned False (Newton did not converge)",
+                "newton",
+            )
             break
         if done != b - a or not abs(t_reached - tb) <= 1e-9 * max(1.0, tb):
-            failure = (f"segment [{ta}, {tb}] stopped after {done} of {b - a} steps at t = {t_reached}",
-                       "time integration")
+            failure = (
+                f"segment [{ta}, {tb}] stopped after {done} of {b - a} steps at t = {t_reached}",
+                "time integration",
+            )
             break
-        mbs.systemData.SetSystemState(mbs.systemData.GetSystemState(exu.ConfigurationType.Current),
-                                      exu.ConfigurationType.Initial)
-    meta.update(steps=n_steps, steps_taken=steps_done, newton_iterations=newton_total,
-                newton_iterations_per_step=(newton_total / steps_done if steps_done > 0 else float("nan")),
-                jacobians=jac_total, t_reached=t_reached, wall_time_solve=wall, cpu_time_solve=cpu)
+        mbs.systemData.SetSystemState(
+            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
+        )
+    meta.update(
+        steps=n_steps,
+        steps_taken=steps_done,
+        newton_iterations=newton_total,
+        newton_iterations_per_step=(newton_total / steps_done if steps_done > 0 else float("nan")),
+        jacobians=jac_total,
+        t_reached=t_reached,
+        wall_time_solve=wall,
+        cpu_time_solve=cpu,
+    )
 
     # --- outputs ------------------------------------------------------------------------------
     def stored(sensor):
@@ -434,9 +520,12 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
     def series():
         ts = stored(s_hub[0][0])[:, 0]
         m = min(len(ts), len(t_out))
-        root = np.empty((m, n, 2)); tip = np.empty((m, n, 2))
-        th_root = np.empty((m, n)); th_tip = np.empty((m, n))
-        w_root = np.empty((m, n)); w_tip = np.empty((m, n))
+        root = np.empty((m, n, 2))
+        tip = np.empty((m, n, 2))
+        th_root = np.empty((m, n))
+        th_tip = np.empty((m, n))
+        w_root = np.empty((m, n))
+        w_tip = np.empty((m, n))
         tq = np.empty((m, n))
         for i in range(n):
             root[:, i] = stored(s_hub[i][0])[:m, 1:3]
@@ -451,15 +540,27 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
                 tq[:, i] = [d.torque(float(tt), tt > 0) for tt in t_out[:m]]
             else:
                 tq[:, i] = -stored(s_force[i])[:m, -1]
-        ja = th_root.copy(); jr = w_root.copy()
+        ja = th_root.copy()
+        jr = w_root.copy()
         ja[:, 1:] -= th_tip[:, :-1]
         jr[:, 1:] -= w_tip[:, :-1]
-        return ts[:m], dict(joint_angle=ja, joint_rate=jr, joint_torque=tq, link_root=root,
-                            link_root_angle=th_root, link_tip=tip)
+        return ts[:m], dict(
+            joint_angle=ja,
+            joint_rate=jr,
+            joint_torque=tq,
+            link_root=root,
+            link_root_angle=th_root,
+            link_tip=tip,
+        )
 
     def build(ts, fields, success):
-        return make_result(t=t_out[: len(ts)], **fields, wall_time=wall, n_steps=steps_done,
-                           meta={**meta, "success": success})
+        return make_result(
+            t=t_out[: len(ts)],
+            **fields,
+            wall_time=wall,
+            n_steps=steps_done,
+            meta={**meta, "success": success},
+        )
 
     def fail(reason, t_fail, component):
         partial = None
@@ -472,16 +573,20 @@ def simulate_exudyn(case, *, element, elements_per_link, h, rho_inf=0.8, newton_
             partial = None
         # Exudyn's currentTime is the end of the step it attempted last
         step = max(int(round(t_fail / h)) - 1, 0) if math.isfinite(t_fail) else steps_done
-        raise SimulationError(f"Exudyn {element.method}: {reason}", t=t_fail, step=step,
-                              component=component, partial=partial)
+        raise SimulationError(
+            f"Exudyn {element.method}: {reason}", t=t_fail, step=step, component=component, partial=partial
+        )
 
     if failure is not None:
         fail(failure[0], t_reached, failure[1])
 
     ts, fields = series()
     if len(ts) != len(t_out) or np.max(np.abs(ts - t_out)) > 1e-6 * sc.output_step:
-        fail(f"sensor rows ({len(ts)}) do not match the output grid ({len(t_out)} samples)",
-             float(ts[-1]) if len(ts) else 0.0, "sensors")
+        fail(
+            f"sensor rows ({len(ts)}) do not match the output grid ({len(t_out)} samples)",
+            float(ts[-1]) if len(ts) else 0.0,
+            "sensors",
+        )
     for name, arr in fields.items():
         bad = ~np.isfinite(arr)
         if bad.any():

@@ -4,6 +4,7 @@ Tabulates the drive values on the step schedule and at the output times, runs th
 time loop of :mod:`reference_models._global_numba`, and turns the recorded (q, q̇, τ) into a
 :class:`dttmm.Result` with the same recorder as the numpy engine.
 """
+
 from __future__ import annotations
 
 import time
@@ -80,15 +81,63 @@ def run(case, lay, k, h, integrator, opt):
 
     # compile (or load from the cache) outside the timed loop: the same call with no steps
     t0 = time.perf_counter()
-    G.run(P, coef, itmode, nfix, 1e-10, 1, t_end[:0], restart[:0].astype(np.bool_), tq_l[:0], mo_l[:0],
-          tq_r[:0], mo_r[:0], q.copy(), qd.copy(), qdd.copy(), qdd.copy(), tau.copy(), rec.t[:0], tq_o[:0],
-          mo_o[:0], rec.q[:0], rec.qd[:0], rec.tau[:0], uncon[:0], np.zeros(6))
+    G.run(
+        P,
+        coef,
+        itmode,
+        nfix,
+        1e-10,
+        1,
+        t_end[:0],
+        restart[:0].astype(np.bool_),
+        tq_l[:0],
+        mo_l[:0],
+        tq_r[:0],
+        mo_r[:0],
+        q.copy(),
+        qd.copy(),
+        qdd.copy(),
+        qdd.copy(),
+        tau.copy(),
+        rec.t[:0],
+        tq_o[:0],
+        mo_o[:0],
+        rec.q[:0],
+        rec.qd[:0],
+        rec.tau[:0],
+        uncon[:0],
+        np.zeros(6),
+    )
     meta["warmup_time"] = time.perf_counter() - t0
     wall0 = time.perf_counter()
     try:
-        status = G.run(P, coef, itmode, nfix, float(opt["tol"]), int(opt["max_iterations"]), t_end,
-                       restart.astype(np.bool_), tq_l, mo_l, tq_r, mo_r, q, qd, qdd, qdd.copy(), tau,
-                       rec.t, tq_o, mo_o, rec.q, rec.qd, rec.tau, uncon, stats)
+        status = G.run(
+            P,
+            coef,
+            itmode,
+            nfix,
+            float(opt["tol"]),
+            int(opt["max_iterations"]),
+            t_end,
+            restart.astype(np.bool_),
+            tq_l,
+            mo_l,
+            tq_r,
+            mo_r,
+            q,
+            qd,
+            qdd,
+            qdd.copy(),
+            tau,
+            rec.t,
+            tq_o,
+            mo_o,
+            rec.q,
+            rec.qd,
+            rec.tau,
+            uncon,
+            stats,
+        )
         why = "non-finite state"
     except np.linalg.LinAlgError as exc:
         status, why = G.NONFINITE, f"linear solve failed ({exc})"
@@ -97,10 +146,16 @@ def run(case, lay, k, h, integrator, opt):
     rec.count = int(stats[4])
     if status != G.OK:
         partial = rec.result(lay, wall, step, {**meta, "success": False}, kinetic=kinetic)
-        raise SimulationError(why, t=float(t_end[step]), step=step, component=_component(lay, int(stats[5])),
-                              partial=partial)
+        raise SimulationError(
+            why, t=float(t_end[step]), step=step, component=_component(lay, int(stats[5])), partial=partial
+        )
     n_steps = t_end.size
-    meta.update({"iterations_mean": stats[0] / n_steps, "iterations_max": int(stats[1]),
-                 "time_per_step": wall / n_steps})
+    meta.update(
+        {
+            "iterations_mean": stats[0] / n_steps,
+            "iterations_max": int(stats[1]),
+            "time_per_step": wall / n_steps,
+        }
+    )
     status, warn = gn._convergence(meta, [int(i) for i in np.flatnonzero(uncon)], t_end, opt)
     return rec.result(lay, wall, n_steps, meta, status=status, warnings=warn, kinetic=kinetic)

@@ -20,6 +20,7 @@ of M costs O(N) and the assembly O(N²); the solve is a Cholesky factorisation (
 The element data (moments, frames, velocity terms) are the same formulas as the numpy
 engine in :mod:`reference_models.global_newmark`; only the summation differs.
 """
+
 from __future__ import annotations
 
 from collections import namedtuple
@@ -30,11 +31,43 @@ from numba import njit
 # status codes of the time loop
 OK, NONFINITE = 0, 1
 
-Pack = namedtuple("Pack", [
-    "kind", "owner", "fpos", "alpha_idx", "first_el", "e_idx", "length",
-    "sigma0", "Sbar", "c0", "b0", "c1", "SS", "H", "mass", "hub_m", "hub_J", "gravity",
-    "body_pos", "body_el", "body_pay", "pay_m", "pay_J", "EA", "EI", "mu", "second",
-    "free", "presc", "tq_idx", "tq_drive", "mo_drive"])
+Pack = namedtuple(
+    "Pack",
+    [
+        "kind",
+        "owner",
+        "fpos",
+        "alpha_idx",
+        "first_el",
+        "e_idx",
+        "length",
+        "sigma0",
+        "Sbar",
+        "c0",
+        "b0",
+        "c1",
+        "SS",
+        "H",
+        "mass",
+        "hub_m",
+        "hub_J",
+        "gravity",
+        "body_pos",
+        "body_el",
+        "body_pay",
+        "pay_m",
+        "pay_J",
+        "EA",
+        "EI",
+        "mu",
+        "second",
+        "free",
+        "presc",
+        "tq_idx",
+        "tq_drive",
+        "mo_drive",
+    ],
+)
 
 
 def pack(lay, case) -> Pack:
@@ -56,25 +89,45 @@ def pack(lay, case) -> Pack:
     tq = [i for i, d in enumerate(drives) if d.kind == "torque"]
     f8 = np.float64
     return Pack(
-        kind=lay.kind.astype(np.int64), owner=lay.owner.astype(np.int64), fpos=lay.f_pos.astype(f8),
-        alpha_idx=lay.alpha_idx.astype(np.int64), first_el=lay.first_el.astype(np.int64),
-        e_idx=lay.e_idx.astype(np.int64), length=lay.length.astype(f8),
-        sigma0=lay.sigma0, Sbar=lay.Sbar, c0=lay.c0, b0=lay.b0, c1=lay.c1, SS=lay.SS, H=lay.H,
-        mass=lay.mass.astype(f8), hub_m=lay.hub_m.astype(f8), hub_J=lay.hub_J.astype(f8),
-        gravity=lay.gravity.astype(f8), body_pos=np.array(pos, f8), body_el=np.array(el, np.int64),
+        kind=lay.kind.astype(np.int64),
+        owner=lay.owner.astype(np.int64),
+        fpos=lay.f_pos.astype(f8),
+        alpha_idx=lay.alpha_idx.astype(np.int64),
+        first_el=lay.first_el.astype(np.int64),
+        e_idx=lay.e_idx.astype(np.int64),
+        length=lay.length.astype(f8),
+        sigma0=lay.sigma0,
+        Sbar=lay.Sbar,
+        c0=lay.c0,
+        b0=lay.b0,
+        c1=lay.c1,
+        SS=lay.SS,
+        H=lay.H,
+        mass=lay.mass.astype(f8),
+        hub_m=lay.hub_m.astype(f8),
+        hub_J=lay.hub_J.astype(f8),
+        gravity=lay.gravity.astype(f8),
+        body_pos=np.array(pos, f8),
+        body_el=np.array(el, np.int64),
         body_pay=np.array(pay, np.int64),
         pay_m=np.array([m for _, m, _ in lay.payloads] + [0.0], f8),
         pay_J=np.array([J for _, _, J in lay.payloads] + [0.0], f8),
-        EA=lay.EA.astype(f8), EI=lay.EI.astype(f8), mu=lay.mu.astype(f8),
-        second=lay.second.astype(np.int64), free=lay.free.astype(np.int64),
-        presc=lay.presc.astype(np.int64), tq_idx=lay.alpha_idx[tq].astype(np.int64),
+        EA=lay.EA.astype(f8),
+        EI=lay.EI.astype(f8),
+        mu=lay.mu.astype(f8),
+        second=lay.second.astype(np.int64),
+        free=lay.free.astype(np.int64),
+        presc=lay.presc.astype(np.int64),
+        tq_idx=lay.alpha_idx[tq].astype(np.int64),
         tq_drive=np.array(tq, np.int64),
-        mo_drive=np.array([i for i, d in enumerate(drives) if d.kind == "motion"], np.int64))
+        mo_drive=np.array([i for i, d in enumerate(drives) if d.kind == "motion"], np.int64),
+    )
 
 
 # ----------------------------------------------------------------------------------------------
 # Kinematics
 # ----------------------------------------------------------------------------------------------
+
 
 @njit(cache=True)
 def _elastic(P, q, e):
@@ -169,6 +222,7 @@ def _bias(P, Wk, qd):
 # Element terms and recursive assembly
 # ----------------------------------------------------------------------------------------------
 
+
 @njit(cache=True)
 def _element(P, el, e, c, s, thd, ed, bI, Mel, fel):
     """Mass matrix Mel (6, 6) and force fel (6,) = gravity − velocity terms − Mel·(bias of p)
@@ -179,7 +233,7 @@ def _element(P, el, e, c, s, thd, ed, bI, Mel, fel):
     ee, eed = e[el], ed[el]
     sig0 = P.sigma0[el, 0] + Sb[0, 0] * ee[0] + Sb[0, 1] * ee[1] + Sb[0, 2] * ee[2]
     sig1 = P.sigma0[el, 1] + Sb[1, 0] * ee[0] + Sb[1, 1] * ee[1] + Sb[1, 2] * ee[2]
-    ap0 = -(sa * sig0 + ca * sig1)          # E A σ
+    ap0 = -(sa * sig0 + ca * sig1)  # E A σ
     ap1 = ca * sig0 - sa * sig1
     m = P.mass[el] + P.hub_m[el]
     Mel[0, 0] = m
@@ -188,7 +242,7 @@ def _element(P, el, e, c, s, thd, ed, bI, Mel, fel):
     Mel[0, 2], Mel[1, 2] = ap0, ap1
     w = thd[el]
     g0, g1 = P.gravity[0], P.gravity[1]
-    atg0, atg1 = ca * g0 + sa * g1, -sa * g0 + ca * g1    # Aᵀ g
+    atg0, atg1 = ca * g0 + sa * g1, -sa * g0 + ca * g1  # Aᵀ g
     J = P.c0[el] + P.hub_J[el]
     hb = 0.0
     for a in range(3):
@@ -223,7 +277,7 @@ def _to_twist(r, M6, f6, Iout, wout, Cout):
     rows, Cout = Xᵀ M_re (3, 3); M6 and f6 are on (r_x, r_y, θ, [u, v, φ]). The columns of
     X are x_ω = (−r_y, r_x, 1), x_vx = (1, 0, 0), x_vy = (0, 1, 0)."""
     rx, ry = r[0], r[1]
-    for col in range(3):   # Xᵀ (M x_ω), Xᵀ (M x_vx), Xᵀ (M x_vy) as columns of Iout
+    for col in range(3):  # Xᵀ (M x_ω), Xᵀ (M x_vx), Xᵀ (M x_vy) as columns of Iout
         if col == 0:
             u0 = -ry * M6[0, 0] + rx * M6[0, 1] + M6[0, 2]
             u1 = -ry * M6[1, 0] + rx * M6[1, 1] + M6[1, 2]
@@ -244,8 +298,34 @@ def _to_twist(r, M6, f6, Iout, wout, Cout):
     wout[2] = f6[1]
 
 
-Work = namedtuple("Work", ["e", "th", "c", "s", "rI", "rO", "S", "ed", "thd", "bI", "bO", "Ib", "wb",
-                           "Cel", "Fel", "Mel", "fel", "M3", "f3", "G", "F", "Ic", "W"])
+Work = namedtuple(
+    "Work",
+    [
+        "e",
+        "th",
+        "c",
+        "s",
+        "rI",
+        "rO",
+        "S",
+        "ed",
+        "thd",
+        "bI",
+        "bO",
+        "Ib",
+        "wb",
+        "Cel",
+        "Fel",
+        "Mel",
+        "fel",
+        "M3",
+        "f3",
+        "G",
+        "F",
+        "Ic",
+        "W",
+    ],
+)
 
 
 @njit(cache=True)
@@ -253,11 +333,31 @@ def workspace(P):
     """Work arrays of :func:`assemble_ws`, allocated once per run (at small N the
     allocations would cost more than the arithmetic)."""
     nel, N, nb = P.e_idx.shape[0], P.kind.size, P.body_pos.size
-    return Work(np.zeros((nel, 3)), np.zeros(nel), np.zeros(nel), np.zeros(nel), np.zeros((nel, 2)),
-                np.zeros((nel, 2)), np.zeros((N, 3)), np.zeros((nel, 3)), np.zeros(nel), np.zeros((nel, 2)),
-                np.zeros((nel, 2)), np.zeros((nb, 3, 3)), np.zeros((nb, 3)), np.zeros((nel, 3, 3)),
-                np.zeros((nel, 6)), np.zeros((6, 6)), np.zeros(6), np.zeros((3, 3)), np.zeros(3),
-                np.zeros((N, 3)), np.zeros((N, 3)), np.zeros((3, 3)), np.zeros(3))
+    return Work(
+        np.zeros((nel, 3)),
+        np.zeros(nel),
+        np.zeros(nel),
+        np.zeros(nel),
+        np.zeros((nel, 2)),
+        np.zeros((nel, 2)),
+        np.zeros((N, 3)),
+        np.zeros((nel, 3)),
+        np.zeros(nel),
+        np.zeros((nel, 2)),
+        np.zeros((nel, 2)),
+        np.zeros((nb, 3, 3)),
+        np.zeros((nb, 3)),
+        np.zeros((nel, 3, 3)),
+        np.zeros((nel, 6)),
+        np.zeros((6, 6)),
+        np.zeros(6),
+        np.zeros((3, 3)),
+        np.zeros(3),
+        np.zeros((N, 3)),
+        np.zeros((N, 3)),
+        np.zeros((3, 3)),
+        np.zeros(3),
+    )
 
 
 @njit(cache=True)
@@ -305,7 +405,7 @@ def assemble_ws(P, Wk, q, qd, M, f):
                 for t in range(3):
                     Ic[r, t] += Ib[b, r, t]
             b -= 1
-        s0, s1, s2 = S[j, 0], S[j, 1], S[j, 2]   # explicit 3-vectors: BLAS calls cost more here
+        s0, s1, s2 = S[j, 0], S[j, 1], S[j, 2]  # explicit 3-vectors: BLAS calls cost more here
         f[j] = s0 * W[0] + s1 * W[1] + s2 * W[2]
         for r in range(3):
             F[j, r] = Ic[r, 0] * s0 + Ic[r, 1] * s1 + Ic[r, 2] * s2
@@ -331,6 +431,7 @@ def assemble_ws(P, Wk, q, qd, M, f):
 # Elastic and damping forces (block diagonal per element)
 # ----------------------------------------------------------------------------------------------
 
+
 @njit(cache=True)
 def element_forces(P, el, e3, ed3, fi, KT, fd, Dt):
     """Internal force fi (3,), its tangent KT (3, 3), damping force fd (3,) and its rate
@@ -343,7 +444,7 @@ def element_forces(P, el, e3, ed3, fi, KT, fd, Dt):
     """
     l, EA, mu = P.length[el], P.EA[el], P.mu[el]
     cb = P.EI[el] / l**3
-    k00, k01, k11 = 12.0 * cb, -6.0 * cb * l, 4.0 * cb * l * l          # K_b
+    k00, k01, k11 = 12.0 * cb, -6.0 * cb * l, 4.0 * cb * l * l  # K_b
     g00, g01, g11 = 6.0 / (5.0 * l * l), -1.0 / (10.0 * l), 2.0 / 15.0  # G
     v, ph, vd, phd = e3[1], e3[2], ed3[1], ed3[2]
     sec = P.second[el] == 1
@@ -408,6 +509,7 @@ def add_elastic(P, q, qd, cq, cv, A, rhs, x):
 # ----------------------------------------------------------------------------------------------
 # Linear solve with prescribed coordinates
 # ----------------------------------------------------------------------------------------------
+
 
 @njit(cache=True)
 def _chol_solve(A, b):
@@ -597,8 +699,33 @@ def _first_nonfinite(q, qd, qdd):
 
 
 @njit(cache=True)
-def run(P, coef, itmode, nfix, tol, maxit, t_end, restart, tq_l, mo_l, tq_r, mo_r,
-        q, qd, qdd, a, tau, outt, out_tq, out_mo, rq, rqd, rtau, uncon, stats):
+def run(
+    P,
+    coef,
+    itmode,
+    nfix,
+    tol,
+    maxit,
+    t_end,
+    restart,
+    tq_l,
+    mo_l,
+    tq_r,
+    mo_r,
+    q,
+    qd,
+    qdd,
+    a,
+    tau,
+    outt,
+    out_tq,
+    out_mo,
+    rq,
+    rqd,
+    rtau,
+    uncon,
+    stats,
+):
     """Step the schedule t_end from the state (q, q̇, q̈, a, τ) at t = 0, recording outputs.
 
     stats: [0] solves, [1] max solves per step, [2] unconverged steps, [3] steps done,

@@ -1,4 +1,5 @@
 """Numpy engine and the mechanics of the global-equation solver (see :mod:`reference_models.global_newmark`)."""
+
 from __future__ import annotations
 
 import math
@@ -15,8 +16,20 @@ from dttmm.model import Link, Manipulator, Section
 from dttmm.scenario import Scenario
 from dttmm.timegrid import step_schedule, versions
 
-__all__ = ["accelerations", "mass_matrix", "stiffness_matrix", "elastic_forces", "energy",
-           "kinematics", "coordinate_names", "element_mass", "damping_forces", "INTEGRATORS", "STRAINS", "ENGINES"]
+__all__ = [
+    "accelerations",
+    "mass_matrix",
+    "stiffness_matrix",
+    "elastic_forces",
+    "energy",
+    "kinematics",
+    "coordinate_names",
+    "element_mass",
+    "damping_forces",
+    "INTEGRATORS",
+    "STRAINS",
+    "ENGINES",
+]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "radau", "dop853")
 STRAINS = ("linear", "second-order")
@@ -34,6 +47,7 @@ _WG = 0.5 * _WG
 # Layout: coordinates, elements, constant matrices
 # ----------------------------------------------------------------------------------------------
 
+
 @dataclass
 class _Layout:
     """Index tables and constant data of one (case, k) discretisation."""
@@ -42,40 +56,40 @@ class _Layout:
     k: int
     n_dof: int
     names: list
-    alpha_idx: np.ndarray      # (n,) index of α_i in q
-    first_el: np.ndarray       # (n,) first element of each link
-    last_el: np.ndarray        # (n,) last element of each link
-    link_of: np.ndarray        # (Nel,) link of each element
-    length: np.ndarray         # (Nel,) element length l
-    rhoA: np.ndarray           # (Nel,)
-    e_idx: np.ndarray          # (Nel, 3) q index of (u, v, φ); −1 where absent
-    is_rot: np.ndarray         # (N,) angle-type coordinate (α or φ)
-    f_pos: np.ndarray          # (N,) first chain position the coordinate moves
-    owner: np.ndarray          # (N,) element whose frame gives pivot/direction (−1 for α)
-    kind: np.ndarray           # (N,) 0 = α, 1 = u, 2 = v, 3 = φ
-    K: np.ndarray              # (N, N)
-    D: np.ndarray              # (N, N)
-    sigma0: np.ndarray         # (Nel, 2) ∫ρA s0 dx (first moment of the undeformed element)
-    Sbar: np.ndarray           # (Nel, 2, 3) ∫ρA S dx
-    c0: np.ndarray             # (Nel,) ∫ρA s0·s0 dx
-    b0: np.ndarray             # (Nel, 3) ∫ρA Sᵀ s0 dx
-    c1: np.ndarray             # (Nel, 3) ∫ρA s0ᵀ E S dx
-    SS: np.ndarray             # (Nel, 3, 3) ∫ρA SᵀS dx
-    H: np.ndarray              # (Nel, 3, 3) ∫ρA Sᵀ E S dx (antisymmetric)
-    mass: np.ndarray           # (Nel,) element beam mass
-    hub_m: np.ndarray          # (Nel,) hub mass on the element's inboard frame
-    hub_J: np.ndarray          # (Nel,) hub inertia on the element's inboard frame
-    payloads: list             # [(link, mass, inertia)]
-    gravity: np.ndarray        # (2,)
-    motion: np.ndarray         # (n,) bool, motion-driven joints
-    free: np.ndarray           # indices of free coordinates
-    presc: np.ndarray          # indices of prescribed coordinates (α of motion joints)
-    strain: str = "linear"     # "linear" | "second-order"
-    nonlinear: bool = False    # some element has a second-order axial strain
-    EA: np.ndarray | None = None      # (Nel,) axial stiffness, 0 for an inextensible link
-    EI: np.ndarray | None = None      # (Nel,)
+    alpha_idx: np.ndarray  # (n,) index of α_i in q
+    first_el: np.ndarray  # (n,) first element of each link
+    last_el: np.ndarray  # (n,) last element of each link
+    link_of: np.ndarray  # (Nel,) link of each element
+    length: np.ndarray  # (Nel,) element length l
+    rhoA: np.ndarray  # (Nel,)
+    e_idx: np.ndarray  # (Nel, 3) q index of (u, v, φ); −1 where absent
+    is_rot: np.ndarray  # (N,) angle-type coordinate (α or φ)
+    f_pos: np.ndarray  # (N,) first chain position the coordinate moves
+    owner: np.ndarray  # (N,) element whose frame gives pivot/direction (−1 for α)
+    kind: np.ndarray  # (N,) 0 = α, 1 = u, 2 = v, 3 = φ
+    K: np.ndarray  # (N, N)
+    D: np.ndarray  # (N, N)
+    sigma0: np.ndarray  # (Nel, 2) ∫ρA s0 dx (first moment of the undeformed element)
+    Sbar: np.ndarray  # (Nel, 2, 3) ∫ρA S dx
+    c0: np.ndarray  # (Nel,) ∫ρA s0·s0 dx
+    b0: np.ndarray  # (Nel, 3) ∫ρA Sᵀ s0 dx
+    c1: np.ndarray  # (Nel, 3) ∫ρA s0ᵀ E S dx
+    SS: np.ndarray  # (Nel, 3, 3) ∫ρA SᵀS dx
+    H: np.ndarray  # (Nel, 3, 3) ∫ρA Sᵀ E S dx (antisymmetric)
+    mass: np.ndarray  # (Nel,) element beam mass
+    hub_m: np.ndarray  # (Nel,) hub mass on the element's inboard frame
+    hub_J: np.ndarray  # (Nel,) hub inertia on the element's inboard frame
+    payloads: list  # [(link, mass, inertia)]
+    gravity: np.ndarray  # (2,)
+    motion: np.ndarray  # (n,) bool, motion-driven joints
+    free: np.ndarray  # indices of free coordinates
+    presc: np.ndarray  # indices of prescribed coordinates (α of motion joints)
+    strain: str = "linear"  # "linear" | "second-order"
+    nonlinear: bool = False  # some element has a second-order axial strain
+    EA: np.ndarray | None = None  # (Nel,) axial stiffness, 0 for an inextensible link
+    EI: np.ndarray | None = None  # (Nel,)
     second: np.ndarray | None = None  # (Nel,) bool: element uses the second-order strain
-    mu: np.ndarray | None = None      # (Nel,) Kelvin-Voigt damping coefficient μ (s)
+    mu: np.ndarray | None = None  # (Nel,) Kelvin-Voigt damping coefficient μ (s)
 
 
 def _shape_matrices(length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -161,9 +175,15 @@ def _coordinates(links, k) -> dict:
                 owner.append(el)
                 f_pos.append(el + 0.5)
     kind = np.array(kind, int)
-    return {"names": names, "kind": kind, "is_rot": (kind == 0) | (kind == 3),
-            "owner": np.array(owner, int), "f_pos": np.array(f_pos, float),
-            "alpha_idx": np.array(alpha_idx, int), "e_idx": e_idx}
+    return {
+        "names": names,
+        "kind": kind,
+        "is_rot": (kind == 0) | (kind == 3),
+        "owner": np.array(owner, int),
+        "f_pos": np.array(f_pos, float),
+        "alpha_idx": np.array(alpha_idx, int),
+        "e_idx": e_idx,
+    }
 
 
 def _stiffness(links, k, e_idx, n_dof) -> tuple[np.ndarray, np.ndarray]:
@@ -202,26 +222,48 @@ def _layout(case, k, strain="linear") -> _Layout:
     hub_m, hub_J = np.zeros(nel), np.zeros(nel)
     hub_m[::k] = [lk.hub_mass for lk in links]
     hub_J[::k] = [lk.hub_inertia for lk in links]
-    payloads = [(i, lk.payload_mass, lk.payload_inertia) for i, lk in enumerate(links)
-                if lk.payload is not None]
+    payloads = [
+        (i, lk.payload_mass, lk.payload_inertia) for i, lk in enumerate(links) if lk.payload is not None
+    ]
     motion = np.array([d.kind == "motion" for d in case.scenario.drives], bool)
     presc = co["alpha_idx"][motion]
     EA = np.repeat([0.0 if lk.beam.EA is None else float(lk.beam.EA) for lk in links], k)
     EI = np.repeat([float(lk.beam.EI) for lk in links], k)
     second = np.repeat([strain == "second-order" and lk.beam.EA is not None for lk in links], k)
     return _Layout(
-        n_links=n, k=k, n_dof=N, **co, first_el=np.arange(n) * k, last_el=np.arange(n) * k + k - 1,
-        link_of=np.repeat(np.arange(n), k), length=length, rhoA=rhoA, K=K, D=D,
-        **_moments(length, rhoA), mass=rhoA * length, hub_m=hub_m, hub_J=hub_J, payloads=payloads,
-        gravity=np.array(case.model.gravity, float), motion=motion,
-        free=np.setdiff1d(np.arange(N), presc), presc=presc, strain=strain,
-        nonlinear=bool(second.any()), EA=EA, EI=EI, second=second,
-        mu=np.repeat([float(lk.beam.damping) for lk in links], k))
+        n_links=n,
+        k=k,
+        n_dof=N,
+        **co,
+        first_el=np.arange(n) * k,
+        last_el=np.arange(n) * k + k - 1,
+        link_of=np.repeat(np.arange(n), k),
+        length=length,
+        rhoA=rhoA,
+        K=K,
+        D=D,
+        **_moments(length, rhoA),
+        mass=rhoA * length,
+        hub_m=hub_m,
+        hub_J=hub_J,
+        payloads=payloads,
+        gravity=np.array(case.model.gravity, float),
+        motion=motion,
+        free=np.setdiff1d(np.arange(N), presc),
+        presc=presc,
+        strain=strain,
+        nonlinear=bool(second.any()),
+        EA=EA,
+        EI=EI,
+        second=second,
+        mu=np.repeat([float(lk.beam.damping) for lk in links], k),
+    )
 
 
 # ----------------------------------------------------------------------------------------------
 # Elastic forces (linear or second-order axial strain)
 # ----------------------------------------------------------------------------------------------
+
 
 def _chord_matrix(length: np.ndarray) -> np.ndarray:
     """G = ∫₀¹ N'ᵀN' dξ (Nel, 2, 2) on w = (v, φ), N' = (dN3/dx, dN4/dx), in closed form:
@@ -253,7 +295,7 @@ def _element_elastic(lay: _Layout, e: np.ndarray):
     Kb[:, 1, 1] = 4.0 * c * l * l
     w = e[:, 1:]
     G = _chord_matrix(l)
-    Gw = _matvec(G, w) * lay.second[:, None]          # zero for linear elements
+    Gw = _matvec(G, w) * lay.second[:, None]  # zero for linear elements
     eps = e[:, 0] / l + 0.5 * np.sum(w * Gw, axis=1)
     Kbw = _matvec(Kb, w)
     U = 0.5 * EA * l * eps**2 + 0.5 * np.sum(w * Kbw, axis=1)
@@ -264,7 +306,9 @@ def _element_elastic(lay: _Layout, e: np.ndarray):
     KT[:, 0, 0] = EA / l
     KT[:, 0, 1:] = KT[:, 1:, 0] = EA[:, None] * Gw
     epsG = (EA * l * eps * lay.second)[:, None, None] * G
-    KT[:, 1:, 1:] = (EA * l)[:, None, None] * (Gw[:, :, None] * Gw[:, None, :]) + epsG + Kb  # exactly symmetric
+    KT[:, 1:, 1:] = (
+        (EA * l)[:, None, None] * (Gw[:, :, None] * Gw[:, None, :]) + epsG + Kb
+    )  # exactly symmetric
     return U, f, KT
 
 
@@ -339,6 +383,7 @@ def _strain_energy(lay: _Layout, q: np.ndarray) -> float:
 # Kinematics
 # ----------------------------------------------------------------------------------------------
 
+
 def _rot(theta: np.ndarray) -> np.ndarray:
     """Rotation matrices A(θ) (..., 2, 2)."""
     c, s = np.cos(theta), np.sin(theta)
@@ -382,12 +427,12 @@ def _angles(lay: _Layout, q: np.ndarray, e: np.ndarray) -> np.ndarray:
 class _Frames:
     """Positions and angles of the chain: element inboard frames and link tips."""
 
-    e: np.ndarray       # (Nel, 3)
-    theta: np.ndarray   # (Nel,)
-    A: np.ndarray       # (Nel, 2, 2)
-    d: np.ndarray       # (Nel, 2) local outboard offset (l + u, v)
-    rI: np.ndarray      # (Nel, 2)
-    rO: np.ndarray      # (Nel, 2)
+    e: np.ndarray  # (Nel, 3)
+    theta: np.ndarray  # (Nel,)
+    A: np.ndarray  # (Nel, 2, 2)
+    d: np.ndarray  # (Nel, 2) local outboard offset (l + u, v)
+    rI: np.ndarray  # (Nel, 2)
+    rO: np.ndarray  # (Nel, 2)
 
 
 def _frames(lay: _Layout, q: np.ndarray) -> _Frames:
@@ -435,7 +480,7 @@ def _bias(lay: _Layout, fr: _Frames, qd: np.ndarray):
     """
     ed = _elastic(lay, qd)
     thd = _angles(lay, qd, ed)
-    local = -thd[:, None] ** 2 * fr.d + 2 * thd[:, None] * _perp(ed[:, :2])
+    local = -(thd[:, None] ** 2) * fr.d + 2 * thd[:, None] * _perp(ed[:, :2])
     beta = _matvec(fr.A, local)
     bO = np.cumsum(beta, axis=0)
     bI = np.zeros_like(bO)
@@ -447,6 +492,7 @@ def _bias(lay: _Layout, fr: _Frames, qd: np.ndarray):
 # Element terms and assembly
 # ----------------------------------------------------------------------------------------------
 
+
 def _element_terms(lay: _Layout, fr: _Frames, thd: np.ndarray, ed: np.ndarray):
     """Element mass matrices (Nel, 6, 6), velocity terms and gravity forces (Nel, 6)
     in the element coordinates p = (r_I, θ, u, v, φ), hubs included.
@@ -455,9 +501,9 @@ def _element_terms(lay: _Layout, fr: _Frames, thd: np.ndarray, ed: np.ndarray):
     w = −θ̇² s + 2θ̇ E S ė; gravity ∫ρA J_pᵀ g dx — all from the element moments.
     """
     A, g, e = fr.A, lay.gravity, fr.e
-    sigma = lay.sigma0 + _matvec(lay.Sbar, e)               # ∫ρA s dx
-    Asig_perp = _perp(_matvec(A, sigma))                     # E A ∫ρA s dx
-    be = lay.b0 + _matvec(lay.SS, e)                         # ∫ρA Sᵀ s dx
+    sigma = lay.sigma0 + _matvec(lay.Sbar, e)  # ∫ρA s dx
+    Asig_perp = _perp(_matvec(A, sigma))  # E A ∫ρA s dx
+    be = lay.b0 + _matvec(lay.SS, e)  # ∫ρA Sᵀ s dx
     nel = e.shape[0]
     m = lay.mass + lay.hub_m
     Mel = np.zeros((nel, 6, 6))
@@ -494,12 +540,12 @@ def _element_selector(lay: _Layout) -> np.ndarray:
 class _Bodies:
     """Jacobians and inertia data of every body at one state."""
 
-    J: np.ndarray        # (Nel, 6, N) element coordinates p = (r_I, θ, u, v, φ) w.r.t. q
-    Mel: np.ndarray      # (Nel, 6, 6) element mass matrices (hubs included)
-    fel: np.ndarray      # (Nel, 6) gravity − velocity terms − M_el·(bias accel. of p)
-    Jpay: list           # [(3, N)] payload frames (r_tip, θ_tip)
-    Mpay: list           # [(3,)] payload inertia diagonals
-    fpay: list           # [(3,)] payload gravity − inertia of the bias acceleration
+    J: np.ndarray  # (Nel, 6, N) element coordinates p = (r_I, θ, u, v, φ) w.r.t. q
+    Mel: np.ndarray  # (Nel, 6, 6) element mass matrices (hubs included)
+    fel: np.ndarray  # (Nel, 6) gravity − velocity terms − M_el·(bias accel. of p)
+    Jpay: list  # [(3, N)] payload frames (r_tip, θ_tip)
+    Mpay: list  # [(3,)] payload inertia diagonals
+    fpay: list  # [(3,)] payload gravity − inertia of the bias acceleration
 
 
 def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None = None) -> _Bodies:
@@ -554,6 +600,7 @@ def _kinetic(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> float:
 # Drives
 # ----------------------------------------------------------------------------------------------
 
+
 def _torques(case, lay: _Layout, t: float, left: bool) -> np.ndarray:
     """Generalized joint torques (N,): τ_i on α_i of torque-driven joints."""
     Q = np.zeros(lay.n_dof)
@@ -581,6 +628,7 @@ def _initial_state(case, lay: _Layout):
 # ----------------------------------------------------------------------------------------------
 # Forward dynamics
 # ----------------------------------------------------------------------------------------------
+
 
 def _linear_solve(A: np.ndarray, b: np.ndarray, how: str) -> np.ndarray:
     if how == "sparse":
@@ -612,6 +660,7 @@ def _forward(case, lay, q, qd, t, left, how="dense", sel=None):
 # ----------------------------------------------------------------------------------------------
 # Public helpers
 # ----------------------------------------------------------------------------------------------
+
 
 def coordinate_names(case, k) -> list[str]:
     """Names of the minimal coordinates, in the order of q.
@@ -779,8 +828,12 @@ def kinematics(case, elements_per_link, q) -> dict:
 def _link_frames(lay: _Layout, q: np.ndarray) -> dict:
     fr = _frames(lay, q)
     last = lay.last_el
-    return {"root": fr.rI[lay.first_el], "root_angle": fr.theta[lay.first_el],
-            "tip": fr.rO[last], "tip_angle": fr.theta[last] + fr.e[last, 2]}
+    return {
+        "root": fr.rI[lay.first_el],
+        "root_angle": fr.theta[lay.first_el],
+        "tip": fr.rO[last],
+        "tip_angle": fr.theta[last] + fr.e[last, 2],
+    }
 
 
 def energy(case, elements_per_link, q, qd, strain="linear") -> dict:
@@ -814,8 +867,7 @@ def _energy(lay: _Layout, q: np.ndarray, qd: np.ndarray, kinetic=None) -> dict:
     for i, mp, _ in lay.payloads:
         moment = moment + mp * fr.rO[lay.last_el[i]]
     T = _kinetic(lay, q, qd) if kinetic is None else kinetic(q, qd)
-    return {"kinetic": T, "elastic": _strain_energy(lay, q),
-            "gravity": -float(lay.gravity @ moment)}
+    return {"kinetic": T, "elastic": _strain_energy(lay, q), "gravity": -float(lay.gravity @ moment)}
 
 
 def element_mass(rhoA, length, theta=0.0, e=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -851,10 +903,21 @@ def element_mass(rhoA, length, theta=0.0, e=(0.0, 0.0, 0.0)) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 
 _OPTIONS = {
-    "newmark": {"beta": 0.25, "gamma": 0.5, "iterations": None, "tol": 1e-10, "max_iterations": _MAX_SOLVES,
-                "linear_solver": "dense"},
-    "generalized-alpha": {"rho_inf": 0.9, "iterations": None, "tol": 1e-10, "max_iterations": _MAX_SOLVES,
-                          "linear_solver": "dense"},
+    "newmark": {
+        "beta": 0.25,
+        "gamma": 0.5,
+        "iterations": None,
+        "tol": 1e-10,
+        "max_iterations": _MAX_SOLVES,
+        "linear_solver": "dense",
+    },
+    "generalized-alpha": {
+        "rho_inf": 0.9,
+        "iterations": None,
+        "tol": 1e-10,
+        "max_iterations": _MAX_SOLVES,
+        "linear_solver": "dense",
+    },
     "radau": {"rtol": 1e-10, "atol": 1e-12},
     "dop853": {"rtol": 1e-10, "atol": 1e-12},
 }
@@ -877,8 +940,11 @@ def _check_options(integrator, options: dict) -> dict:
     allowed = _OPTIONS[integrator]
     for key in options:
         if key not in allowed:
-            raise InputError(key, options[key],
-                             f"unknown option for integrator {integrator!r} (allowed: {', '.join(allowed)})")
+            raise InputError(
+                key,
+                options[key],
+                f"unknown option for integrator {integrator!r} (allowed: {', '.join(allowed)})",
+            )
     opt = {**allowed, **options}
     for key in ("beta", "gamma", "tol", "rtol", "atol"):
         if key in opt:
@@ -927,6 +993,7 @@ def _check_h(case, h) -> float:
 # Output recording
 # ----------------------------------------------------------------------------------------------
 
+
 class _Recorder:
     """Stores (q, q̇, joint torques) at the output times; derived quantities come later."""
 
@@ -960,10 +1027,21 @@ class _Recorder:
             e = _energy(lay, self.q[i], self.qd[i], kinetic)
             en[i] = e["kinetic"] + e["elastic"] + e["gravity"]
         a = lay.alpha_idx
-        return make_result(t=self.t[:n], joint_angle=self.q[:n, a], joint_rate=self.qd[:n, a],
-                           joint_torque=self.tau[:n], link_root=root, link_root_angle=root_ang,
-                           link_tip=tip, wall_time=wall, n_steps=n_steps, meta=meta, energy=en,
-                           status=status, warnings=warnings)
+        return make_result(
+            t=self.t[:n],
+            joint_angle=self.q[:n, a],
+            joint_rate=self.qd[:n, a],
+            joint_torque=self.tau[:n],
+            link_root=root,
+            link_root_angle=root_ang,
+            link_tip=tip,
+            wall_time=wall,
+            n_steps=n_steps,
+            meta=meta,
+            energy=en,
+            status=status,
+            warnings=warnings,
+        )
 
 
 def _joint_torques(case, lay, t, left, tau_p) -> np.ndarray:
@@ -989,8 +1067,16 @@ def _hermite(t, t0, t1, y0, v0, y1, v1):
 
 
 def _base_meta(lay, k, h, integrator, opt) -> dict:
-    meta = {"method": "global", "elements_per_link": k, "h": h, "integrator": integrator,
-            "n_dof": lay.n_dof, "strain": lay.strain, "success": True, "versions": versions()}
+    meta = {
+        "method": "global",
+        "elements_per_link": k,
+        "h": h,
+        "integrator": integrator,
+        "n_dof": lay.n_dof,
+        "strain": lay.strain,
+        "success": True,
+        "versions": versions(),
+    }
     meta.update({key: val for key, val in opt.items()})
     return meta
 
@@ -1005,6 +1091,7 @@ def _fail(rec, lay, wall, n_steps, meta, q, t, step, names):
 # ----------------------------------------------------------------------------------------------
 # Fixed-step integration (Newmark / generalized-α) with the frozen-coefficient iteration
 # ----------------------------------------------------------------------------------------------
+
 
 def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
     """Frozen-coefficient iteration of one step ending at t1 (left-limit drive values).
@@ -1128,8 +1215,7 @@ def _check_finite(rec, lay, st: _State, n: int, wall0: float, meta: dict):
     x = np.concatenate([st.q, st.qd, st.qdd])
     if np.all(np.isfinite(x)):
         return
-    names = (lay.names + [f"rate of {c}" for c in lay.names]
-             + [f"acceleration of {c}" for c in lay.names])
+    names = lay.names + [f"rate of {c}" for c in lay.names] + [f"acceleration of {c}" for c in lay.names]
     _fail(rec, lay, time.perf_counter() - wall0, n, meta, x, st.t, n, names)
 
 
@@ -1137,8 +1223,13 @@ def _newmark_run(case, lay, k, h, integrator, opt):
     coef = _coefficients(integrator, opt)
     t_end, restart = step_schedule(case.scenario.duration, h, case.scenario.breakpoints)
     rec = _Recorder(lay, case.scenario.output_times)
-    ctx = {"iterations": opt["iterations"], "tol": opt["tol"], "linear_solver": opt["linear_solver"],
-           "max_iterations": opt["max_iterations"], "sel": _element_selector(lay)}
+    ctx = {
+        "iterations": opt["iterations"],
+        "tol": opt["tol"],
+        "linear_solver": opt["linear_solver"],
+        "max_iterations": opt["max_iterations"],
+        "sel": _element_selector(lay),
+    }
     meta = _base_meta(lay, k, h, integrator, opt)
     meta.update(dict(zip(("beta", "gamma", "alpha_m", "alpha_f"), coef)))
     tol_t = 1e-9 * h
@@ -1156,8 +1247,13 @@ def _newmark_run(case, lay, k, h, integrator, opt):
         _emit_outputs(case, lay, rec, st, new, tol_t)
         st = _restart(case, lay, ctx, new) if restart[n] else new
     wall = time.perf_counter() - wall0
-    meta.update({"iterations_mean": float(np.mean(solves)), "iterations_max": int(np.max(solves)),
-                 "time_per_step": wall / len(t_end)})
+    meta.update(
+        {
+            "iterations_mean": float(np.mean(solves)),
+            "iterations_max": int(np.max(solves)),
+            "time_per_step": wall / len(t_end),
+        }
+    )
     status, warn = _convergence(meta, unconverged, t_end, opt)
     return rec.result(lay, wall, len(t_end), meta, status=status, warnings=warn)
 
@@ -1168,8 +1264,10 @@ def _convergence(meta: dict, unconverged, t_end, opt):
     if not unconverged:
         return "ok", ()
     first = float(t_end[unconverged[0]])
-    msg = (f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
-           f"{len(unconverged)} step(s), first at t = {first:.6g} s")
+    msg = (
+        f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
+        f"{len(unconverged)} step(s), first at t = {first:.6g} s"
+    )
     return "unconverged", (msg,)
 
 
@@ -1197,12 +1295,13 @@ def _emit_outputs(case, lay, rec, start: _State, end: _State, tol_t):
 # Adaptive reference (scipy solve_ivp), restarted at every drive breakpoint
 # ----------------------------------------------------------------------------------------------
 
+
 def _full_state(case, lay, y, t, left):
     """(q, q̇) from the free part y = [q_F, q̇_F] and the motion laws at t."""
     F, P = lay.free, lay.presc
     q = np.zeros(lay.n_dof)
     qd = np.zeros(lay.n_dof)
-    q[F], qd[F] = y[:F.size], y[F.size:]
+    q[F], qd[F] = y[: F.size], y[F.size :]
     if P.size:
         pres = _prescribed(case, lay, t, left)
         q[P], qd[P] = pres[:, 0], pres[:, 1]
@@ -1227,13 +1326,13 @@ def _ivp_run(case, lay, k, h, integrator, opt):
     j = 0
     wall0 = time.perf_counter()
     for a, b in zip(bounds[:-1], bounds[1:]):
+
         def fun(t, yy, b=b):
             qq, qqd = _full_state(case, lay, yy, t, t >= b)
             qdd, _ = _forward(case, lay, qq, qqd, t, t >= b, "dense", sel)
             return np.concatenate([qqd[F], qdd[F]])
 
-        sol = solve_ivp(fun, (a, b), y, method=method, rtol=opt["rtol"], atol=opt["atol"],
-                        dense_output=True)
+        sol = solve_ivp(fun, (a, b), y, method=method, rtol=opt["rtol"], atol=opt["atol"], dense_output=True)
         n_steps += sol.t.size - 1
         nfev += sol.nfev
         ok = sol.success and np.all(np.isfinite(sol.y[:, -1]))
@@ -1245,13 +1344,25 @@ def _ivp_run(case, lay, k, h, integrator, opt):
             wall = time.perf_counter() - wall0
             _record_samples(case, lay, rec, samples, sel)
             partial = rec.result(lay, wall, n_steps, {**meta, "success": False})
-            raise SimulationError(f"solve_ivp ({method}) failed: {sol.message}", t=float(sol.t[-1]),
-                                  step=n_steps, component="state", partial=partial)
+            raise SimulationError(
+                f"solve_ivp ({method}) failed: {sol.message}",
+                t=float(sol.t[-1]),
+                step=n_steps,
+                component="state",
+                partial=partial,
+            )
         y = sol.y[:, -1]
     wall = time.perf_counter() - wall0
     _record_samples(case, lay, rec, samples, sel)
-    meta.update({"iterations_mean": None, "iterations_max": None, "nfev": int(nfev),
-                 "time_per_step": wall / max(n_steps, 1), "unconverged_steps": 0})
+    meta.update(
+        {
+            "iterations_mean": None,
+            "iterations_max": None,
+            "nfev": int(nfev),
+            "time_per_step": wall / max(n_steps, 1),
+            "unconverged_steps": 0,
+        }
+    )
     return rec.result(lay, wall, n_steps, meta)
 
 
@@ -1266,8 +1377,9 @@ def _record_samples(case, lay, rec, samples, sel):
 # Entry point
 # ----------------------------------------------------------------------------------------------
 
+
 def _check_engine(engine, integrator, opt) -> str:
-    """"numba" or "numpy"; None → "numba" when numba imports."""
+    """ "numba" or "numpy"; None → "numba" when numba imports."""
     if engine is None:
         try:
             import numba  # noqa: F401
@@ -1284,5 +1396,3 @@ def _check_engine(engine, integrator, opt) -> str:
     if engine == "numba" and opt.get("linear_solver", "dense") == "sparse":
         raise InputError("linear_solver", "sparse", "is an option of engine='numpy' only")
     return engine
-
-

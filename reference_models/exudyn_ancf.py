@@ -9,6 +9,7 @@ gravity, solver, outputs): :mod:`reference_models._exudyn_common`.
 Options beyond the common ones: ``reduced_integration`` (bool, default False) switches the
 element's ``useReducedOrderIntegration``.
 """
+
 from __future__ import annotations
 
 import math
@@ -36,20 +37,36 @@ class _ANCF:
         for j in range(k + 1):
             p = layout.point(i, L * j / k)
             v = layout.velocity(i, L * j / k)
-            nodes.append(mbs.AddNode(ii.NodePoint2DSlope1(
-                referenceCoordinates=[p[0], p[1], c, s],
-                initialVelocities=[v[0], v[1], -om * s, om * c])))
-        elements = [mbs.AddObject(ii.ObjectANCFCable2D(
-            nodeNumbers=[nodes[j], nodes[j + 1]], length=L / k, massPerLength=b.rhoA,
-            bendingStiffness=b.EI, axialStiffness=EA, bendingDamping=b.damping * b.EI,
-            axialDamping=b.damping * EA, useReducedOrderIntegration=int(bool(reduced_integration))))
-            for j in range(k)]
+            nodes.append(
+                mbs.AddNode(
+                    ii.NodePoint2DSlope1(
+                        referenceCoordinates=[p[0], p[1], c, s],
+                        initialVelocities=[v[0], v[1], -om * s, om * c],
+                    )
+                )
+            )
+        elements = [
+            mbs.AddObject(
+                ii.ObjectANCFCable2D(
+                    nodeNumbers=[nodes[j], nodes[j + 1]],
+                    length=L / k,
+                    massPerLength=b.rhoA,
+                    bendingStiffness=b.EI,
+                    axialStiffness=EA,
+                    bendingDamping=b.damping * b.EI,
+                    axialDamping=b.damping * EA,
+                    useReducedOrderIntegration=int(bool(reduced_integration)),
+                )
+            )
+            for j in range(k)
+        ]
         ends = []
-        for s_, bn in ((0.0, nodes[0]), (L, nodes[-1])):
+        for s_ in (0.0, L):
             p = layout.point(i, s_)
             v = layout.velocity(i, s_)
-            rn = mbs.AddNode(ii.NodeRigidBody2D(referenceCoordinates=[p[0], p[1], th],
-                                                initialVelocities=[v[0], v[1], om]))
+            rn = mbs.AddNode(
+                ii.NodeRigidBody2D(referenceCoordinates=[p[0], p[1], th], initialVelocities=[v[0], v[1], om])
+            )
             ends.append(rn)
         return ends[0], ends[1], elements, (nodes[0], nodes[-1])
 
@@ -65,6 +82,12 @@ def simulate(case, *, elements_per_link, h, rho_inf=0.8, reduced_integration=Fal
     Returns a :class:`dttmm.Result` (meta["method"] = "exudyn-ancf"); raises
     :class:`dttmm.InputError` on bad input and :class:`dttmm.SimulationError` on any failure.
     """
-    return simulate_exudyn(case, element=_ANCF, elements_per_link=elements_per_link, h=h,
-                           rho_inf=rho_inf, element_options={"reduced_integration": reduced_integration},
-                           **options)
+    return simulate_exudyn(
+        case,
+        element=_ANCF,
+        elements_per_link=elements_per_link,
+        h=h,
+        rho_inf=rho_inf,
+        element_options={"reduced_integration": reduced_integration},
+        **options,
+    )

@@ -16,6 +16,7 @@ For inextensible links EA is the stiff value of
 Damping D = μK on all three strains: μ·EI, μ·EA, μ·κGA.
 Everything else: :mod:`reference_models._exudyn_common`.
 """
+
 from __future__ import annotations
 
 import math
@@ -45,15 +46,29 @@ class _GE:
 
     @staticmethod
     def meta(case, k, axial, shear_ratio=SHEAR_RATIO, cross_section_inertia=CROSS_SECTION_INERTIA):
-        return {"element": "ObjectBeamGeometricallyExact2D", "shear_ratio": shear_ratio,
-                "shear_stiffness": [shear_ratio * ea for ea in axial],
-                "cross_section_inertia_rule": str(cross_section_inertia),
-                "cross_section_inertia": [rotary_inertia(link, ea, cross_section_inertia)
-                                          for link, ea in zip(case.model.links, axial)]}
+        return {
+            "element": "ObjectBeamGeometricallyExact2D",
+            "shear_ratio": shear_ratio,
+            "shear_stiffness": [shear_ratio * ea for ea in axial],
+            "cross_section_inertia_rule": str(cross_section_inertia),
+            "cross_section_inertia": [
+                rotary_inertia(link, ea, cross_section_inertia) for link, ea in zip(case.model.links, axial)
+            ],
+        }
 
     @staticmethod
-    def add_link(mbs, exu, ii, link, layout, i, k, EA, shear_ratio=SHEAR_RATIO,
-                 cross_section_inertia=CROSS_SECTION_INERTIA):
+    def add_link(
+        mbs,
+        exu,
+        ii,
+        link,
+        layout,
+        i,
+        k,
+        EA,
+        shear_ratio=SHEAR_RATIO,
+        cross_section_inertia=CROSS_SECTION_INERTIA,
+    ):
         b = link.beam
         L, th, om = b.length, layout.theta[i], layout.omega[i]
         GA = shear_ratio * EA
@@ -61,19 +76,43 @@ class _GE:
         for j in range(k + 1):
             p = layout.point(i, L * j / k)
             v = layout.velocity(i, L * j / k)
-            nodes.append(mbs.AddNode(ii.NodeRigidBody2D(referenceCoordinates=[p[0], p[1], th],
-                                                        initialVelocities=[v[0], v[1], om])))
-        elements = [mbs.AddObject(ii.ObjectBeamGeometricallyExact2D(
-            nodeNumbers=[nodes[j], nodes[j + 1]], length=L / k, massPerLength=b.rhoA,
-            crossSectionInertia=rotary_inertia(link, EA, cross_section_inertia),
-            bendingStiffness=b.EI, axialStiffness=EA,
-            shearStiffness=GA, bendingDamping=b.damping * b.EI, axialDamping=b.damping * EA,
-            shearDamping=b.damping * GA)) for j in range(k)]
+            nodes.append(
+                mbs.AddNode(
+                    ii.NodeRigidBody2D(
+                        referenceCoordinates=[p[0], p[1], th], initialVelocities=[v[0], v[1], om]
+                    )
+                )
+            )
+        elements = [
+            mbs.AddObject(
+                ii.ObjectBeamGeometricallyExact2D(
+                    nodeNumbers=[nodes[j], nodes[j + 1]],
+                    length=L / k,
+                    massPerLength=b.rhoA,
+                    crossSectionInertia=rotary_inertia(link, EA, cross_section_inertia),
+                    bendingStiffness=b.EI,
+                    axialStiffness=EA,
+                    shearStiffness=GA,
+                    bendingDamping=b.damping * b.EI,
+                    axialDamping=b.damping * EA,
+                    shearDamping=b.damping * GA,
+                )
+            )
+            for j in range(k)
+        ]
         return nodes[0], nodes[-1], elements, None
 
 
-def simulate(case, *, elements_per_link, h, rho_inf=0.8, shear_ratio=SHEAR_RATIO,
-             cross_section_inertia=CROSS_SECTION_INERTIA, **options):
+def simulate(
+    case,
+    *,
+    elements_per_link,
+    h,
+    rho_inf=0.8,
+    shear_ratio=SHEAR_RATIO,
+    cross_section_inertia=CROSS_SECTION_INERTIA,
+    **options,
+):
     """Simulate ``case`` with k = ``elements_per_link`` geometrically exact beam elements per link.
 
     Options: ``rho_inf`` (generalized-α spectral radius, 0.8), ``shear_ratio`` (κGA/EA, 0.32),
@@ -86,13 +125,22 @@ def simulate(case, *, elements_per_link, h, rho_inf=0.8, shear_ratio=SHEAR_RATIO
     :class:`dttmm.InputError` on bad input and :class:`dttmm.SimulationError` on any failure.
     """
     checks = (("shear_ratio", shear_ratio),) + (
-        (("cross_section_inertia", cross_section_inertia),) if cross_section_inertia != "physical" else ())
+        (("cross_section_inertia", cross_section_inertia),) if cross_section_inertia != "physical" else ()
+    )
     for name, val in checks:
         if isinstance(val, bool) or not isinstance(val, (int, float)) or not (math.isfinite(val) and val > 0):
             raise InputError(name, val, "must be a positive number")
-    return simulate_exudyn(case, element=_GE, elements_per_link=elements_per_link, h=h, rho_inf=rho_inf,
-                           element_options={"shear_ratio": float(shear_ratio),
-                                            "cross_section_inertia": (cross_section_inertia
-                                                                      if cross_section_inertia == "physical"
-                                                                      else float(cross_section_inertia))},
-                           **options)
+    return simulate_exudyn(
+        case,
+        element=_GE,
+        elements_per_link=elements_per_link,
+        h=h,
+        rho_inf=rho_inf,
+        element_options={
+            "shear_ratio": float(shear_ratio),
+            "cross_section_inertia": (
+                cross_section_inertia if cross_section_inertia == "physical" else float(cross_section_inertia)
+            ),
+        },
+        **options,
+    )

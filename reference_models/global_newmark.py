@@ -65,8 +65,21 @@ from ._global_numpy import (
     stiffness_matrix,
 )
 
-__all__ = ["simulate", "accelerations", "mass_matrix", "stiffness_matrix", "elastic_forces", "energy",
-           "kinematics", "coordinate_names", "element_mass", "damping_forces", "INTEGRATORS", "STRAINS", "ENGINES"]
+__all__ = [
+    "simulate",
+    "accelerations",
+    "mass_matrix",
+    "stiffness_matrix",
+    "elastic_forces",
+    "energy",
+    "kinematics",
+    "coordinate_names",
+    "element_mass",
+    "damping_forces",
+    "INTEGRATORS",
+    "STRAINS",
+    "ENGINES",
+]
 
 
 def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear", engine=None, **options):

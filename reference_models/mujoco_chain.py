@@ -159,13 +159,23 @@ class _Stepper:
     def control_states(self, x):
         """ControlState of every closed-loop joint from a state row x (time, qpos, qvel)."""
         lay, nq = self.lay, self.m.nq
-        qpos, qvel = x[1:1 + nq], x[1 + nq:1 + 2 * self.m.nv]
+        qpos, qvel = x[1 : 1 + nq], x[1 + nq : 1 + 2 * self.m.nv]
         flex, flexv = qpos[lay.flex_qpos], qvel[lay.flex_qpos]  # (n, k)
         moment = -self.hinge_k * flex[:, 0] - self.hinge_c * flexv[:, 0]
         tipdef = tuple((self.seg * np.sin(np.cumsum(flex, axis=1))).sum(axis=1).tolist())
         angles, rates = tuple(qpos[lay.arm_qpos].tolist()), tuple(qvel[lay.arm_qpos].tolist())
-        return [ControlState(joint=int(i), angle=angles[i], rate=rates[i], moment=float(moment[i]),
-                             angles=angles, rates=rates, tip_deflections=tipdef) for i in self.closed]
+        return [
+            ControlState(
+                joint=int(i),
+                angle=angles[i],
+                rate=rates[i],
+                moment=float(moment[i]),
+                angles=angles,
+                rates=rates,
+                tip_deflections=tipdef,
+            )
+            for i in self.closed
+        ]
 
     def feedback(self, t, x, z):
         """The closed-loop laws at t from the state row x and the integral states z: torques,

@@ -23,6 +23,7 @@ sees the left limit), and ``"dop853"`` (scipy's adaptive solver, restarted at ev
 
 Pinocchio is imported here only; ``dttmm`` itself never needs it.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -106,17 +107,23 @@ class _Arm:
             if not d.closed_loop:
                 continue
             if getattr(d.law, "moment_gain", 0.0):
-                raise InputError(f"scenario.drives[{i}].moment_gain", d.law.moment_gain,
-                                 "is not supported by pinocchio-rigid: a rigid link has no root bending "
-                                 "moment to feed back (set it to 0)")
+                raise InputError(
+                    f"scenario.drives[{i}].moment_gain",
+                    d.law.moment_gain,
+                    "is not supported by pinocchio-rigid: a rigid link has no root bending "
+                    "moment to feed back (set it to 0)",
+                )
             self.ct |= isinstance(d.law.feedforward, ComputedTorque)
         if self.ct:
             self.refs = [reference_of(d) for d in self.drives]
             for i, r in enumerate(self.refs):
                 if r is None:
-                    raise InputError(f"scenario.drives[{i}].law", self.drives[i].law.name,
-                                     "the computed_torque feedforward needs a reference motion on "
-                                     "every joint (a motion drive or a pd/pid drive)")
+                    raise InputError(
+                        f"scenario.drives[{i}].law",
+                        self.drives[i].law.name,
+                        "the computed_torque feedforward needs a reference motion on "
+                        "every joint (a motion drive or a pd/pid drive)",
+                    )
 
     def computed_torque(self, t, left=False):
         """RNEA of the rigid model along the references at t, (n,) N·m."""
@@ -126,10 +133,17 @@ class _Arm:
     def _state(self, j, q, v, z, tct):
         i = int(self.f[j])
         c = self.closed.index(j)
-        return ControlState(joint=i, angle=float(q[i]), rate=float(v[i]), moment=math.nan,
-                            integral=float(z[c]), angles=tuple(q), rates=tuple(v),
-                            tip_deflections=(0.0,) * self.n,
-                            computed_torque=None if tct is None else float(tct[i]))
+        return ControlState(
+            joint=i,
+            angle=float(q[i]),
+            rate=float(v[i]),
+            moment=math.nan,
+            integral=float(z[c]),
+            angles=tuple(q),
+            rates=tuple(v),
+            tip_deflections=(0.0,) * self.n,
+            computed_torque=None if tct is None else float(tct[i]),
+        )
 
     def _sym(self, M):
         return np.triu(M) + np.triu(M, 1).T if self.mirror else M
@@ -140,17 +154,26 @@ class _Arm:
         if not self.nz:
             return np.array([d.torque(t, left) for d in self.free_drives])
         tct = self.computed_torque(t, left) if self.ct else None
-        return np.array([d.evaluate(t, self._state(j, q, v, z, tct), left)[0] if d.closed_loop
-                         else d.torque(t, left) for j, d in enumerate(self.free_drives)])
+        return np.array(
+            [
+                d.evaluate(t, self._state(j, q, v, z, tct), left)[0] if d.closed_loop else d.torque(t, left)
+                for j, d in enumerate(self.free_drives)
+            ]
+        )
 
     def z_rate(self, t, left, qf, vf):
         """d/dt of the integral states: α_ref − α of each closed-loop joint (nz,)."""
         if not self.nz:
             return self.z0
         q, v, _ = self.full(t, left, qf, vf)
-        return np.array([self.free_drives[j].law.error_rate(t, ControlState(int(self.f[j]), q[self.f[j]],
-                                                                             v[self.f[j]]), left)
-                         for j in self.closed])
+        return np.array(
+            [
+                self.free_drives[j].law.error_rate(
+                    t, ControlState(int(self.f[j]), q[self.f[j]], v[self.f[j]]), left
+                )
+                for j in self.closed
+            ]
+        )
 
     def prescribed(self, t, left=False):
         """(α, α̇, α̈) of the motion joints at t, each (n_p,)."""
@@ -199,8 +222,11 @@ def _check_options(integrator, options):
     known = INTEGRATORS[integrator]
     for key in options:
         if key not in known:
-            raise InputError(key, options[key], f"is not an option of integrator {integrator!r} "
-                                                f"(options: {', '.join(known) or 'none'})")
+            raise InputError(
+                key,
+                options[key],
+                f"is not an option of integrator {integrator!r} (options: {', '.join(known) or 'none'})",
+            )
     opts = {**known, **options}
     for key, val in opts.items():
         try:
@@ -223,6 +249,7 @@ def _nonfinite(step, t, qf, vf, arm):
 
 
 # -- fixed-step integrators: each returns node arrays (T, Q, V, A_right, A_left) -------------
+
 
 def _rk4(arm, q, v, T, restart, opts, stats):
     N = T.size - 1
@@ -256,7 +283,7 @@ def _rk4(arm, q, v, T, restart, opts, stats):
     if "fail" not in stats:
         Ar[N] = Al[N]  # no step starts at the last node
     Al[~jump] = Ar[~jump]
-    return T[:N + 1], Q[:N + 1], V[:N + 1], Ar[:N + 1], Al[:N + 1]
+    return T[: N + 1], Q[: N + 1], V[: N + 1], Ar[: N + 1], Al[: N + 1]
 
 
 def _rk4_closed(arm, q, v, T, restart, opts, stats):
@@ -297,8 +324,8 @@ def _rk4_closed(arm, q, v, T, restart, opts, stats):
         Ar[N] = Al[N]  # no step starts at the last node
         E[N] = zr(T[N], True, q, v)
     Al[~jump] = Ar[~jump]
-    stats["z_nodes"] = (Z[:N + 1], E[:N + 1])
-    return T[:N + 1], Q[:N + 1], V[:N + 1], Ar[:N + 1], Al[:N + 1]
+    stats["z_nodes"] = (Z[: N + 1], E[: N + 1])
+    return T[: N + 1], Q[: N + 1], V[: N + 1], Ar[: N + 1], Al[: N + 1]
 
 
 def _newmark(arm, q, v, T, restart, opts, stats):
@@ -319,7 +346,7 @@ def _newmark(arm, q, v, T, restart, opts, stats):
         cq, cv = beta * dt * dt, gamma * dt
         an = a.copy()
         tau1 = arm.tau_f(t1, True)
-        for it in range(1, max_iter + 1):
+        for it in range(1, max_iter + 1):  # noqa: B007 (the count is read after the loop)
             r, J = arm.newmark_residual(t1, tau1, qp + cq * an, vp + cv * an, an, cq, cv)
             da = np.linalg.solve(J, -r)
             an = an + da
@@ -328,9 +355,15 @@ def _newmark(arm, q, v, T, restart, opts, stats):
             if np.abs(da).max() <= tol * (1.0 + np.abs(an).max()):
                 break
         else:
-            stats["fail"] = ((f"Newmark Newton iteration did not converge in {max_iter} iterations "
-                             f"(last correction {np.abs(da).max():.3g} rad/s²)"), k, t1,
-                             "joint accelerations")
+            stats["fail"] = (
+                (
+                    f"Newmark Newton iteration did not converge in {max_iter} iterations "
+                    f"(last correction {np.abs(da).max():.3g} rad/s²)"
+                ),
+                k,
+                t1,
+                "joint accelerations",
+            )
         iters += it
         q, v = qp + cq * an, vp + cv * an
         Q[k + 1], V[k + 1], Al[k + 1] = q, v, an
@@ -338,7 +371,7 @@ def _newmark(arm, q, v, T, restart, opts, stats):
             stats["fail"] = _nonfinite(k, t1, q, v, arm)
         if "fail" in stats:
             stats["iterations_mean"] = iters / (k + 1)
-            return T[:k + 1], Q[:k + 1], V[:k + 1], Ar[:k + 1], Al[:k + 1]
+            return T[: k + 1], Q[: k + 1], V[: k + 1], Ar[: k + 1], Al[: k + 1]
         # after a drive jump restart from the right-limit acceleration
         a = arm.acc(t1, False, q, v) if restart[k] else an
     Ar[N] = a
@@ -382,11 +415,21 @@ def _dop853(arm, q, v, T_out, duration, h, breakpoints, opts, stats):
     steps = nfev = 0
     done = np.zeros(T_out.size, bool)
     for a, b in itertools.pairwise(edges):
+
         def fun(t, y, b=b):
             return np.concatenate([y[nf:], arm.acc(t, t >= b, y[:nf], y[nf:])])
 
-        sol = solve_ivp(fun, (a, b), y, method="DOP853", rtol=opts["rtol"], atol=opts["atol"],
-                        max_step=opts["max_step"], first_step=min(h, b - a), dense_output=True)
+        sol = solve_ivp(
+            fun,
+            (a, b),
+            y,
+            method="DOP853",
+            rtol=opts["rtol"],
+            atol=opts["atol"],
+            max_step=opts["max_step"],
+            first_step=min(h, b - a),
+            dense_output=True,
+        )
         steps += sol.t.size - 1
         nfev += sol.nfev
         ok = sol.status == 0 and np.all(np.isfinite(sol.y[:, -1]))
@@ -443,8 +486,7 @@ def _integrate(arm, scen, h, T_end, restart, integrator, opts, stats):
             stats["steps"] = stats["nfev"] = 0
             z = np.zeros((t_out.size, 0))
             return t_out, z, z, z, 0, time.perf_counter() - t0
-        qf, vf, good = _dop853(arm, qf0, vf0, t_out, scen.duration, float(h), scen.breakpoints,
-                               opts, stats)
+        qf, vf, good = _dop853(arm, qf0, vf0, t_out, scen.duration, float(h), scen.breakpoints, opts, stats)
         wall = time.perf_counter() - t0
         return t_out[good], qf[good], vf[good], np.zeros((int(good.sum()), 0)), stats["steps"], wall
     T = np.concatenate([[0.0], T_end])
@@ -498,12 +540,20 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     arm = _Arm(case)
     if arm.nz and integrator != "rk4":
-        raise InputError("integrator", integrator, "closed-loop drives are supported by pinocchio-rigid "
-                                                   "with integrator 'rk4' only")
+        raise InputError(
+            "integrator",
+            integrator,
+            "closed-loop drives are supported by pinocchio-rigid with integrator 'rk4' only",
+        )
     stats = {}
-    meta = {"method": "pinocchio-rigid", "h": float(h), "integrator": integrator,
-            "elements_per_link": None, "versions": {**versions(), "pinocchio": pin.__version__},
-            **opts}
+    meta = {
+        "method": "pinocchio-rigid",
+        "h": float(h),
+        "integrator": integrator,
+        "elements_per_link": None,
+        "versions": {**versions(), "pinocchio": pin.__version__},
+        **opts,
+    }
 
     with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
         tg, qf, vf, zf, n_steps, wall = _integrate(arm, scen, h, T_end, restart, integrator, opts, stats)
@@ -513,9 +563,19 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     meta["success"] = "fail" not in stats
     meta["n_steps"] = int(n_steps)
     q, v, tau, root, tip, energy = _outputs(arm, tg, qf, vf, zf)
-    res = make_result(t=tg, joint_angle=q, joint_rate=v, joint_torque=tau, link_root=root,
-                      link_root_angle=np.cumsum(q, axis=1), link_tip=tip, wall_time=wall,
-                      n_steps=n_steps, meta=meta, energy=energy)
+    res = make_result(
+        t=tg,
+        joint_angle=q,
+        joint_rate=v,
+        joint_torque=tau,
+        link_root=root,
+        link_root_angle=np.cumsum(q, axis=1),
+        link_tip=tip,
+        wall_time=wall,
+        n_steps=n_steps,
+        meta=meta,
+        energy=energy,
+    )
     if "fail" in stats:
         msg, k, tf, comp = stats["fail"]
         raise SimulationError(msg, t=tf, step=k, component=comp, partial=res)

@@ -286,18 +286,25 @@ def ratios(records: pd.DataFrame, equal_accuracy=None, ks=(4, 16, 64)) -> pd.Dat
             if len(d):
                 rows.append(
                     _ratio_row(
-                        "equal size: time per step (elements scan)", case, k, dict(zip(d.method, d.time_per_step))
+                        "equal size: time per step (elements scan)",
+                        case,
+                        k,
+                        dict(zip(d.method, d.time_per_step)),
                     )
                 )
     one = records[records.kind == "one-step"]
     for (case, k), d in one.groupby(["case", "k"], sort=True):
         rows.append(
-            _ratio_row("equal size: time per step (one-step)", case, int(k), dict(zip(d.method, d.time_per_step)))
+            _ratio_row(
+                "equal size: time per step (one-step)", case, int(k), dict(zip(d.method, d.time_per_step))
+            )
         )
     if equal_accuracy is not None and len(equal_accuracy):
         for (case, tgt), d in equal_accuracy.groupby(["case", "target_error"], sort=False):
             times = dict(zip(d.method, d.cpu_time.astype(float)))
-            rows.append(_ratio_row("equal accuracy: CPU time to target (work-precision)", case, np.nan, times, tgt))
+            rows.append(
+                _ratio_row("equal accuracy: CPU time to target (work-precision)", case, np.nan, times, tgt)
+            )
     cols = ["basis", "case", "k", "target_error_m", *RATIO_COLUMNS]
     return pd.DataFrame(rows, columns=cols)
 
@@ -322,7 +329,10 @@ def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case
             + ", ".join(f"{r.method} {r.exponent:.2f}" for r in el.itertuples())
         )
     if len(ln):
-        parts.append(f"over n ≥ {n_min} links at k = 8: " + ", ".join(f"{r.method} {r.exponent:.2f}" for r in ln.itertuples()))
+        parts.append(
+            f"over n ≥ {n_min} links at k = 8: "
+            + ", ".join(f"{r.method} {r.exponent:.2f}" for r in ln.itertuples())
+        )
     if parts:
         out.append("Fitted exponents p of time per step ∝ N^p: " + "; ".join(parts) + ".")
     if len(per_element) and len(per_element.columns) > 1:
@@ -331,7 +341,9 @@ def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case
             v = per_element[["k", m]].dropna()
             if len(v):
                 bits.append(f"{m} {_sig2(v[m].iloc[-1])} µs (k = {v.k.iloc[-1]})")
-        out.append(f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + ".")
+        out.append(
+            f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + "."
+        )
     pairs = " ; ".join(RATIO_COLUMNS)
     size = ratios[ratios.basis.str.startswith("equal size") & (ratios.case == case) & ratios.k.notna()]
     if len(size):
@@ -340,7 +352,9 @@ def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case
             shown = [f"{c} = {_sig2(r[c])}" for c in RATIO_COLUMNS if np.isfinite(r[c])]
             out.append(
                 f"At equal model size ({case}, k = {int(kmax)}, time per step, {r.basis.split('(')[-1].rstrip(')')}; "
-                f"same element strain only): " + (", ".join(shown) or "no like-for-like pair in this file") + "."
+                f"same element strain only): "
+                + (", ".join(shown) or "no like-for-like pair in this file")
+                + "."
             )
     acc = ratios[ratios.basis.str.startswith("equal accuracy")]
     if len(acc):
@@ -348,7 +362,9 @@ def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case
         for _, r in acc.iterrows():
             shown = [f"{c} = {_sig2(r[c])}" for c in RATIO_COLUMNS if np.isfinite(r[c])]
             parts.append(f"{r['case']} at {r['target_error_m']:.0e} m: " + (", ".join(shown) or "n/a"))
-        out.append("At equal accuracy (work-precision study, CPU time to reach the error): " + "; ".join(parts) + ".")
+        out.append(
+            "At equal accuracy (work-precision study, CPU time to reach the error): " + "; ".join(parts) + "."
+        )
     else:
         out.append(
             "No equal-accuracy ratio: the work-precision equal-accuracy table is absent from the report data."
@@ -363,7 +379,9 @@ def code_commit(root=None) -> str:
 
     root = Path(root) if root else Path(__file__).resolve().parents[1]
     try:
-        r = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=False)
+        r = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=False
+        )
     except OSError:
         return ""
     return r.stdout.strip() if r.returncode == 0 else ""
@@ -377,10 +395,12 @@ def provenance(info, commit: str | None = None) -> list[str]:
     dirty = " (uncommitted changes)" if info.get("dirty") else ""
     date, name = str(info["date"])[:19].replace("T", " "), Path(info["file"]).name
     out = [
-        (f"Benchmark run {date} ({name}) on {info['machine'] or info['node']}"
-        f"{f', {cores} cores' if cores else ''}, Python {info['python']}, commit {info['commit'][:10]}{dirty}. "
-        f"Times per step are the least solve-only time of the rounds (CPU time beside it where recorded) "
-        f"on a shared {f'{cores}-core ' if cores else ''}machine: read differences under about 20 % as noise.")
+        (
+            f"Benchmark run {date} ({name}) on {info['machine'] or info['node']}"
+            f"{f', {cores} cores' if cores else ''}, Python {info['python']}, commit {info['commit'][:10]}{dirty}. "
+            f"Times per step are the least solve-only time of the rounds (CPU time beside it where recorded) "
+            f"on a shared {f'{cores}-core ' if cores else ''}machine: read differences under about 20 % as noise."
+        )
     ]
     bc = str(info.get("commit") or "")
     if commit and bc and not (commit.startswith(bc) or bc.startswith(commit)):

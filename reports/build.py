@@ -24,9 +24,9 @@ __all__ = ["SECTION_BUILDERS", "Inputs", "build", "omissions"]
 
 TITLE = "dttmm: accuracy and cost of DT-TMM against reference methods"
 CITATION = (
-    "X. Zhang, R. Sørensen, M. R. Iversen, H. Li, \"Computationally efficient dynamic modeling of robot "
+    'X. Zhang, R. Sørensen, M. R. Iversen, H. Li, "Computationally efficient dynamic modeling of robot '
     "manipulators with multiple flexible-links using acceleration-based discrete time transfer matrix "
-    "method\", Robotics and Computer-Integrated Manufacturing 49 (2018) 181–193"
+    'method", Robotics and Computer-Integrated Manufacturing 49 (2018) 181–193'
 )
 PAPER_CASES = ("single_link", "three_link")  # the shipped cases that model the paper's arms
 
@@ -138,11 +138,17 @@ def _h(table) -> str:
 def _convergence_k(inp):
     t, o = inp.tables.get("convergence_k"), inp.tables.get("convergence_k_orders")
     return _per_case(
-        inp, t, "convergence_k", "Convergence in elements per link", "convergence-k",
+        inp,
+        t,
+        "convergence_k",
+        "Convergence in elements per link",
+        "convergence-k",
         lambda c: figures.convergence_k(t, c, floor=_floor(inp.meta, c)),
-        lambda c: f"end-effector position error (RMS over time, against the reference) against the number "
-        f"of elements per link k at h = {_h(t[t.case == c])}; dotted: the difference between the reference "
-        "and its independent cross-check.",
+        lambda c: (
+            f"end-effector position error (RMS over time, against the reference) against the number "
+            f"of elements per link k at h = {_h(t[t.case == c])}; dotted: the difference between the reference "
+            "and its independent cross-check."
+        ),
         lambda c: interpret.convergence_k(t, o, c, _floor(inp.meta, c)),
         ["convergence_k_orders"],
         lambda cs: f"Convergence in k ({cs[0]}): " + interpret.convergence_k(t, o, cs[0])[0],
@@ -152,10 +158,16 @@ def _convergence_k(inp):
 def _convergence_h(inp):
     t, o = inp.tables.get("convergence_h"), inp.tables.get("convergence_h_orders")
     return _per_case(
-        inp, t, "convergence_h", "Convergence in the time step", "convergence-h",
+        inp,
+        t,
+        "convergence_h",
+        "Convergence in the time step",
+        "convergence-h",
         lambda c: figures.convergence_h(t, c),
-        lambda c: "end-effector position error against the step h at fixed k; solid: against the reference, "
-        "dashed: against the same method at h/2 (the time error alone).",
+        lambda c: (
+            "end-effector position error against the step h at fixed k; solid: against the reference, "
+            "dashed: against the same method at h/2 (the time error alone)."
+        ),
         lambda c: interpret.convergence_h(t, o, c),
         ["convergence_h_orders"],
         lambda cs: f"Convergence in h ({cs[0]}): " + interpret.convergence_h(t, o, cs[0])[0],
@@ -166,11 +178,17 @@ def _work_precision(inp):
     t, s = inp.tables.get("work_precision"), inp.tables.get("work_precision_summary")
     eq = inp.tables.get("work_precision_equal_accuracy", pd.DataFrame())
     return _per_case(
-        inp, t, "work_precision", "Work-precision", "work-precision",
+        inp,
+        t,
+        "work_precision",
+        "Work-precision",
+        "work-precision",
         lambda c: peers.work_precision_figure(t, c),
-        lambda c: "end-effector error against the CPU time of the solve (minimum of repeats), each method "
-        "refined along the same (k, h) path; lower left is better; hollow markers: timings taken on a "
-        "loaded machine; the star is the rigid-link model.",
+        lambda c: (
+            "end-effector error against the CPU time of the solve (minimum of repeats), each method "
+            "refined along the same (k, h) path; lower left is better; hollow markers: timings taken on a "
+            "loaded machine; the star is the rigid-link model."
+        ),
         lambda c: peers.work_precision_text(s, eq, c),
         ["work_precision_summary", "work_precision_equal_accuracy"],
         lambda cs: "Work-precision: " + peers.equal_accuracy_text(eq, cs[-1])[0],
@@ -180,10 +198,16 @@ def _work_precision(inp):
 def _scheme(inp):
     t, s = inp.tables.get("scheme"), inp.tables.get("scheme_summary")
     return _per_case(
-        inp, t, "scheme", "The paper's scheme under test", "scheme",
+        inp,
+        t,
+        "scheme",
+        "The paper's scheme under test",
+        "scheme",
         lambda c: figures.scheme(t, c),
-        lambda c: "DT-TMM with the paper's plain transfer sweep or the Riccati sweep, and 0, 1 or converged "
-        "corrections per step: error against k (left) and against h (right).",
+        lambda c: (
+            "DT-TMM with the paper's plain transfer sweep or the Riccati sweep, and 0, 1 or converged "
+            "corrections per step: error against k (left) and against h (right)."
+        ),
         lambda c: interpret.scheme(s, c),
         ["scheme_summary"],
         lambda cs: f"Paper's scheme ({cs[-1]}): " + interpret.scheme(s, cs[-1])[0],
@@ -193,11 +217,17 @@ def _scheme(inp):
 def _paper(inp):
     t, s = inp.tables.get("paper_series"), inp.tables.get("paper_summary")
     return _per_case(
-        inp, t, "paper", "Paper figures: time histories", "paper",
+        inp,
+        t,
+        "paper",
+        "Paper figures: time histories",
+        "paper",
         lambda c: figures.time_histories(t, c),
-        lambda c: "joint angles and tip deflections of every method with the reference (wide grey), and "
-        "below them Δ = method minus reference; the rigid model's Δ, far larger, is left out of the lower "
-        "panels (its RMS is in the table).",
+        lambda c: (
+            "joint angles and tip deflections of every method with the reference (wide grey), and "
+            "below them Δ = method minus reference; the rigid model's Δ, far larger, is left out of the lower "
+            "panels (its RMS is in the table)."
+        ),
         lambda c: interpret.paper(s, c),
         ["paper_summary"],
     )
@@ -208,12 +238,18 @@ def _loads(inp):
     if s is None:
         return None
     return _per_case(
-        inp, t, "loads", "Loads and energy", "loads",
+        inp,
+        t,
+        "loads",
+        "Loads and energy",
+        "loads",
         lambda c: figures.loads(t, c),
-        lambda c: "bending moment at the root of link 1 (from the hub balance M = τ₁ − J₁θ̈₁), torques of "
-        "motion-driven joints and total energy of every method with its reference (wide grey; for the "
-        "energy, the energy reference named below), and below them Δ = method minus reference (rigid "
-        "model left out of the lower panels).",
+        lambda c: (
+            "bending moment at the root of link 1 (from the hub balance M = τ₁ − J₁θ̈₁), torques of "
+            "motion-driven joints and total energy of every method with its reference (wide grey; for the "
+            "energy, the energy reference named below), and below them Δ = method minus reference (rigid "
+            "model left out of the lower panels)."
+        ),
         lambda c: interpret.loads(s, c),
         ["paper_loads"],
     )
@@ -225,10 +261,13 @@ def _cost(inp):
         return None
     text = peers.cost_text(t, e)
     fig = inp.figure("cost.png", peers.cost_figure(t, e))
-    caption = (f"{_cases(t)[0]}: CPU time of the solve (minimum of repeats) against elements per link k "
-               f"at h = {_h(t)}; hollow markers: noisy points")
-    return Section("CPU time against elements per link", [(fig, caption)], text, [("cost_exponents", e)], "cost",
-                   text[0])
+    caption = (
+        f"{_cases(t)[0]}: CPU time of the solve (minimum of repeats) against elements per link k "
+        f"at h = {_h(t)}; hollow markers: noisy points"
+    )
+    return Section(
+        "CPU time against elements per link", [(fig, caption)], text, [("cost_exponents", e)], "cost", text[0]
+    )
 
 
 def _peer_configuration(inp):

@@ -54,7 +54,9 @@ def _style(name: str, index: int = 0):
 def _legend(ax, ncol: int = 2, fontsize: float = 8) -> None:
     """Legend below the axes, outside the plotting area, so it never hides a curve."""
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=fontsize, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=ncol, frameon=False)
+        ax.legend(
+            fontsize=fontsize, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=ncol, frameon=False
+        )
 
 
 def _fig_legend(fig, axes, ncol: int = 4) -> None:
@@ -64,7 +66,9 @@ def _fig_legend(fig, axes, ncol: int = 4) -> None:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             seen.setdefault(lab, h)
     if seen:
-        fig.legend(list(seen.values()), list(seen), loc="outside lower center", ncol=ncol, fontsize=8, frameon=False)
+        fig.legend(
+            list(seen.values()), list(seen), loc="outside lower center", ncol=ncol, fontsize=8, frameon=False
+        )
 
 
 def _integer_ticks(ax, values):
@@ -221,7 +225,9 @@ def _mark_round_off(ax, tiny: float = 1e-12) -> None:
     """Say so on a difference panel whose every curve is at round-off (a prescribed motion)."""
     ys = [np.nanmax(np.abs(ln.get_ydata())) for ln in ax.get_lines() if len(ln.get_ydata())]
     if ys and max(ys) < tiny:
-        ax.text(0.5, 0.85, "Δ at round-off (prescribed motion)", transform=ax.transAxes, ha="center", fontsize=8)
+        ax.text(
+            0.5, 0.85, "Δ at round-off (prescribed motion)", transform=ax.transAxes, ha="center", fontsize=8
+        )
 
 
 def time_histories(series: pd.DataFrame, case: str) -> Figure:
@@ -269,7 +275,15 @@ def save(fig: Figure, path) -> None:
 
 # --- Benchmark scaling (pytest-benchmark groups "elements:<case>:<method>", "links:<method>") ---
 
-_BENCH_ORDER = ("dttmm-converged", "dttmm-one-shot", "dttmm", "global", "exudyn-ancf", "exudyn-beam", "dttmm-rk4")
+_BENCH_ORDER = (
+    "dttmm-converged",
+    "dttmm-one-shot",
+    "dttmm",
+    "global",
+    "exudyn-ancf",
+    "exudyn-beam",
+    "dttmm-rk4",
+)
 
 
 def _bench_curves(ax, d, x, exps, fit_note):

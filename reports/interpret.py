@@ -164,9 +164,12 @@ def loads(table, case) -> list[str]:
         if ok.empty:
             continue
         parts = ", ".join(
-            f"{_l(r.method)} {_e(getattr(r, f'{q}_l2'))} ({_pct(getattr(r, f'{q}_rel'))})" for r in ok.itertuples()
+            f"{_l(r.method)} {_e(getattr(r, f'{q}_l2'))} ({_pct(getattr(r, f'{q}_rel'))})"
+            for r in ok.itertuples()
         )
-        out.append(f"{load_label(q).split(' (')[0]}, RMS of method − reference (relative to the peak): {parts}.")
+        out.append(
+            f"{load_label(q).split(' (')[0]}, RMS of method − reference (relative to the peak): {parts}."
+        )
     missing = g[~np.isfinite(g["energy_l2"])].method.tolist() if "energy_l2" in g else g.method.tolist()
     eref = g.energy_reference.iloc[0] if "energy_reference" in g else "none"
     out.append(
@@ -182,5 +185,3 @@ def _pct(x) -> str:
 
 def _x(v) -> str:
     return "n/a" if v is None or not np.isfinite(v) else (f"{v:.0f}" if v >= 100 else f"{v:.3g}")
-
-

@@ -28,7 +28,9 @@ PACKAGES = (
 
 def _git(*args) -> str:
     try:
-        return subprocess.run(["git", *args], capture_output=True, text=True, timeout=10, check=False).stdout.strip()
+        return subprocess.run(
+            ["git", *args], capture_output=True, text=True, timeout=10, check=False
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return ""
 

@@ -1,4 +1,5 @@
 """Shared fixtures: the case files and small helpers to shorten or modify cases."""
+
 from __future__ import annotations
 
 import dataclasses as dc
@@ -22,9 +23,15 @@ def shortened(c: dttmm.Case, duration: float, output_step: float | None = None) 
 
 def with_links(c: dttmm.Case, **beam_changes) -> dttmm.Case:
     """Replace beam fields of every link (e.g. EI=...)."""
-    links = tuple(dc.replace(l, beam=dc.replace(l.beam, **{k: (v(l.beam) if callable(v) else v)
-                                                          for k, v in beam_changes.items()}))
-                  for l in c.model.links)
+    links = tuple(
+        dc.replace(
+            l,
+            beam=dc.replace(
+                l.beam, **{k: (v(l.beam) if callable(v) else v) for k, v in beam_changes.items()}
+            ),
+        )
+        for l in c.model.links
+    )
     return dc.replace(c, model=dc.replace(c.model, links=links))
 
 

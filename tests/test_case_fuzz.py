@@ -12,6 +12,7 @@ magnitude (1e±12, 1e±300) is physically absurd but valid; its run may end in a
 :class:`dttmm.SimulationError` (divergence is then the honest outcome) or a non-"ok" status.
 No other exception and no hang is accepted for any file.
 """
+
 from __future__ import annotations
 
 import copy
@@ -50,10 +51,44 @@ BASES.append(tomllib.loads(MOTION_TABLE))
 EXTREME = [1e300, -1e300, 1e-300, 1e12, 1e-12]
 NONFINITE = [math.inf, -math.inf, math.nan]
 MILD = [0, 1, -1, 0.0, 2.5, -0.5, 0.01]
-KEYS = ["gravity", "gravty", "length", "EI", "rhoA", "EA", "E", "rho", "width", "thickness", "hub",
-        "payload", "mass", "inertia", "damping", "inextensible", "kind", "law", "value", "levels",
-        "switch_times", "amplitude", "frequency", "until", "rate", "ramp_time", "times", "values",
-        "duration", "output_step", "drives", "links", "_spline", "_where", "name", "provenance"]
+KEYS = [
+    "gravity",
+    "gravty",
+    "length",
+    "EI",
+    "rhoA",
+    "EA",
+    "E",
+    "rho",
+    "width",
+    "thickness",
+    "hub",
+    "payload",
+    "mass",
+    "inertia",
+    "damping",
+    "inextensible",
+    "kind",
+    "law",
+    "value",
+    "levels",
+    "switch_times",
+    "amplitude",
+    "frequency",
+    "until",
+    "rate",
+    "ramp_time",
+    "times",
+    "values",
+    "duration",
+    "output_step",
+    "drives",
+    "links",
+    "_spline",
+    "_where",
+    "name",
+    "provenance",
+]
 
 
 def _paths(doc, prefix=()):
@@ -96,8 +131,11 @@ def mutated(draw):
         if op == "delete":
             del parent[key]
         elif op == "rename" and isinstance(parent, dict):
-            new = draw(st.one_of(st.sampled_from(KEYS), st.text("abcdefghijklmnopqrstuvwxyz_", min_size=1,
-                                                                max_size=12)))
+            new = draw(
+                st.one_of(
+                    st.sampled_from(KEYS), st.text("abcdefghijklmnopqrstuvwxyz_", min_size=1, max_size=12)
+                )
+            )
             parent[new] = parent.pop(key)
         elif op == "retype":
             v = draw(values)
@@ -153,8 +191,13 @@ def _count(what: str):
     OUTCOMES[what] = OUTCOMES.get(what, 0) + 1
 
 
-@settings(max_examples=520, deadline=None, derandomize=True, database=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+@settings(
+    max_examples=520,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 @given(mutated())
 def test_mutated_case_files_load_and_run_or_raise_input_error(tmp_path_factory, sample):
     data, extreme = sample
@@ -190,4 +233,3 @@ def test_fuzz_outcomes_were_varied():
         pytest.skip("the fuzz test did not run in this session")
     assert sum(OUTCOMES.values()) >= 500, OUTCOMES
     assert OUTCOMES.get("input error", 0) >= 100 and OUTCOMES.get("ran ok", 0) >= 50, OUTCOMES
-

@@ -2,6 +2,7 @@
 
 Each regression below was accepted silently or raised a traceback before the schema existed.
 """
+
 from __future__ import annotations
 
 import dataclasses as dc
@@ -18,8 +19,11 @@ from dttmm.resources import check_run_size, estimate_run_bytes
 THREE = (CASES / "three_link.toml").read_text()
 SINGLE = (CASES / "single_link.toml").read_text()
 TABLE_LAW = 'law = "table"\ntimes = [0.0, 1.0]\nvalues = [0.0, 1.0]\n'
-SINGLE_TABLE = SINGLE.replace('law = "bang_bang"', TABLE_LAW).replace(
-    "levels = [1.0, -1.0, 0.0]     # N·m\n", "").replace("switch_times = [0.5, 1.0]     # s\n", "")
+SINGLE_TABLE = (
+    SINGLE.replace('law = "bang_bang"', TABLE_LAW)
+    .replace("levels = [1.0, -1.0, 0.0]     # N·m\n", "")
+    .replace("switch_times = [0.5, 1.0]     # s\n", "")
+)
 
 
 def _load_text(tmp_path, text: str) -> Case:
@@ -40,49 +44,119 @@ def _refused(tmp_path, text: str) -> InputError:
 REGRESSIONS = [
     ("misspelt gravity", THREE.replace("gravity =", "gravty ="), "model.gravty", "did you mean 'gravity'"),
     ("misspelt name", THREE.replace("name =", "nmae ="), "nmae", "did you mean 'name'"),
-    ("misspelt output_step", THREE.replace("output_step =", "output_stepp ="), "scenario.output_stepp",
-     "did you mean 'output_step'"),
+    (
+        "misspelt output_step",
+        THREE.replace("output_step =", "output_stepp ="),
+        "scenario.output_stepp",
+        "did you mean 'output_step'",
+    ),
     ("unknown table", THREE + "\n[solver]\nh = 1e-3\n", "solver", "unknown key"),
-    ("misspelt law parameter", THREE.replace("amplitude = 1.0", "amplitud = 1.0", 1),
-     "scenario.drives[0].amplitud", "did you mean 'amplitude'"),
-    ("misspelt hub key", THREE.replace("hub = { mass = 0.0,", "hub = { mas = 0.0,", 1),
-     "model.links[0].hub.mas", "did you mean 'mass'"),
+    (
+        "misspelt law parameter",
+        THREE.replace("amplitude = 1.0", "amplitud = 1.0", 1),
+        "scenario.drives[0].amplitud",
+        "did you mean 'amplitude'",
+    ),
+    (
+        "misspelt hub key",
+        THREE.replace("hub = { mass = 0.0,", "hub = { mas = 0.0,", 1),
+        "model.links[0].hub.mas",
+        "did you mean 'mass'",
+    ),
     ("EA = true", THREE.replace("EA = 7.0e6", "EA = true", 1), "model.links[0].EA", "must be a number"),
-    ("length string", THREE.replace("length = 0.5", 'length = "1.0"', 1), "model.links[0].length",
-     "must be a number"),
-    ("duration string", THREE.replace("duration = 2.0", 'duration = "0.05"'), "scenario.duration",
-     "must be a number"),
-    ("inextensible string", SINGLE.replace("hub =", 'inextensible = "no"\nhub ='),
-     "model.links[0].inextensible", "true or false"),
-    ("gravity scalar", THREE.replace("gravity = [0.0, -9.81]", "gravity = -9.81"), "model.gravity",
-     "must be a list"),
-    ("gravity 3 entries", THREE.replace("gravity = [0.0, -9.81]", "gravity = [0.0, -9.81, 0.0]"),
-     "model.gravity", "at most 2"),
-    ("model = 3", 'model = 3\n[scenario]\nduration = 1.0\noutput_step = 0.1\n', "model", "must be a table"),
-    ("links = 5", THREE.split("[[model.links]]")[0].replace("[model]", "[model]\nlinks = 5")
-     + "[scenario]\nduration = 1.0\noutput_step = 0.1\n", "model.links", "must be a list"),
-    ("drives = [1]", THREE.split("[[scenario.drives]]")[0] + "drives = [1]\n", "scenario.drives[0]",
-     "must be a table"),
-    ("until string", THREE.replace("until = 1.0", 'until = "abc"', 1), "scenario.drives[0].until",
-     "must be a number"),
-    ("private field", SINGLE_TABLE.replace(TABLE_LAW, TABLE_LAW + "_spline = 1\n"),
-     "scenario.drives[0]._spline", "unknown key"),
-    ("unknown law", THREE.replace('law = "sine"', 'law = "sin"', 1), "scenario.drives[0].law",
-     "unknown drive law"),
+    (
+        "length string",
+        THREE.replace("length = 0.5", 'length = "1.0"', 1),
+        "model.links[0].length",
+        "must be a number",
+    ),
+    (
+        "duration string",
+        THREE.replace("duration = 2.0", 'duration = "0.05"'),
+        "scenario.duration",
+        "must be a number",
+    ),
+    (
+        "inextensible string",
+        SINGLE.replace("hub =", 'inextensible = "no"\nhub ='),
+        "model.links[0].inextensible",
+        "true or false",
+    ),
+    (
+        "gravity scalar",
+        THREE.replace("gravity = [0.0, -9.81]", "gravity = -9.81"),
+        "model.gravity",
+        "must be a list",
+    ),
+    (
+        "gravity 3 entries",
+        THREE.replace("gravity = [0.0, -9.81]", "gravity = [0.0, -9.81, 0.0]"),
+        "model.gravity",
+        "at most 2",
+    ),
+    ("model = 3", "model = 3\n[scenario]\nduration = 1.0\noutput_step = 0.1\n", "model", "must be a table"),
+    (
+        "links = 5",
+        THREE.split("[[model.links]]")[0].replace("[model]", "[model]\nlinks = 5")
+        + "[scenario]\nduration = 1.0\noutput_step = 0.1\n",
+        "model.links",
+        "must be a list",
+    ),
+    (
+        "drives = [1]",
+        THREE.split("[[scenario.drives]]")[0] + "drives = [1]\n",
+        "scenario.drives[0]",
+        "must be a table",
+    ),
+    (
+        "until string",
+        THREE.replace("until = 1.0", 'until = "abc"', 1),
+        "scenario.drives[0].until",
+        "must be a number",
+    ),
+    (
+        "private field",
+        SINGLE_TABLE.replace(TABLE_LAW, TABLE_LAW + "_spline = 1\n"),
+        "scenario.drives[0]._spline",
+        "unknown key",
+    ),
+    (
+        "unknown law",
+        THREE.replace('law = "sine"', 'law = "sin"', 1),
+        "scenario.drives[0].law",
+        "unknown drive law",
+    ),
     ("law missing", THREE.replace('law = "sine"', "", 1), "scenario.drives[0].law", "is required"),
     ("EI nan", THREE.replace("EI = 2.3333333333333335", "EI = nan", 1), "model.links[0].EI", "finite"),
     ("EI inf", THREE.replace("EI = 2.3333333333333335", "EI = inf", 1), "model.links[0].EI", "finite"),
     ("half a material", SINGLE.replace("rho = 2700.0", ""), "model.links[0].rho", "material form"),
     ("both forms", SINGLE.replace("E = 70.0e9", "E = 70.0e9\nEI = 1.0"), "model.links[0].EI", "either"),
-    ("EA and inextensible", THREE.replace("EA = 7.0e6", "EA = 7.0e6\ninextensible = true", 1),
-     "model.links[0].EA", "contradicts"),
+    (
+        "EA and inextensible",
+        THREE.replace("EA = 7.0e6", "EA = 7.0e6\ninextensible = true", 1),
+        "model.links[0].EA",
+        "contradicts",
+    ),
     ("name number", THREE.replace('name = "three_link"', "name = 3"), "name", "must be a string"),
-    ("table lengths", SINGLE_TABLE.replace("values = [0.0, 1.0]", "values = [0.0, 1.0, 2.0]"),
-     "scenario.drives[0].values", "one value per time"),
-    ("kind misspelt", THREE.replace('kind = "torque"', 'kind = "torqe"', 1), "scenario.drives[0].kind",
-     "one of"),
+    (
+        "table lengths",
+        SINGLE_TABLE.replace("values = [0.0, 1.0]", "values = [0.0, 1.0, 2.0]"),
+        "scenario.drives[0].values",
+        "one value per time",
+    ),
+    (
+        "kind misspelt",
+        THREE.replace('kind = "torque"', 'kind = "torqe"', 1),
+        "scenario.drives[0].kind",
+        "one of",
+    ),
     ("missing scenario", THREE.split("[scenario]")[0], "scenario", "is required"),
-    ("one drive too few", THREE.rsplit("[[scenario.drives]]", 1)[0], "scenario.drives", "one drive per joint"),
+    (
+        "one drive too few",
+        THREE.rsplit("[[scenario.drives]]", 1)[0],
+        "scenario.drives",
+        "one drive per joint",
+    ),
 ]
 
 
@@ -94,18 +168,23 @@ def test_bad_case_file_is_one_line_input_error(tmp_path, name, text, field, reas
 
 
 def test_int_for_float_is_fine_and_stays_float(tmp_path):
-    c = _load_text(tmp_path, THREE.replace("duration = 2.0", "duration = 2").replace("length = 0.5", "length = 1", 1))
+    c = _load_text(
+        tmp_path, THREE.replace("duration = 2.0", "duration = 2").replace("length = 0.5", "length = 1", 1)
+    )
     assert c.scenario.duration == 2.0 and isinstance(c.scenario.duration, float)
     assert c.model.links[0].beam.length == 1.0
 
 
-@pytest.mark.parametrize("make, where", [
-    (lambda p: p.joinpath("missing.toml"), "does not exist"),
-    (lambda p: p, "is a directory"),
-    (lambda p: _write_bytes(p / "bin.toml", b"\x7fELF\x02\x01\x00\x00binary"), "binary"),
-    (lambda p: _write_bytes(p / "latin1.toml", "name = 'é'\n".encode("latin-1")), "not UTF-8"),
-    (lambda p: _write_bytes(p / "bad.toml", b"[model\n"), "not valid TOML"),
-])
+@pytest.mark.parametrize(
+    "make, where",
+    [
+        (lambda p: p.joinpath("missing.toml"), "does not exist"),
+        (lambda p: p, "is a directory"),
+        (lambda p: _write_bytes(p / "bin.toml", b"\x7fELF\x02\x01\x00\x00binary"), "binary"),
+        (lambda p: _write_bytes(p / "latin1.toml", "name = 'é'\n".encode("latin-1")), "not UTF-8"),
+        (lambda p: _write_bytes(p / "bad.toml", b"[model\n"), "not valid TOML"),
+    ],
+)
 def test_file_errors_name_the_path(tmp_path, make, where):
     path = make(tmp_path)
     with pytest.raises(InputError) as exc:
@@ -120,31 +199,43 @@ def _write_bytes(path, data: bytes):
 
 
 def test_provenance_is_kept_and_round_trips(tmp_path):
-    text = THREE + ('\n[provenance]\nsource = "a paper, Table 2"\ntolerance = 0.02\n'
-                    'published = { tip_deflection_mm = [1.5, 2.0] }\n')
+    text = THREE + (
+        '\n[provenance]\nsource = "a paper, Table 2"\ntolerance = 0.02\n'
+        "published = { tip_deflection_mm = [1.5, 2.0] }\n"
+    )
     c = _load_text(tmp_path, text)
-    assert c.provenance == {"source": "a paper, Table 2", "tolerance": 0.02,
-                            "published": {"tip_deflection_mm": [1.5, 2.0]}}
+    assert c.provenance == {
+        "source": "a paper, Table 2",
+        "tolerance": 0.02,
+        "published": {"tip_deflection_mm": [1.5, 2.0]},
+    }
     back = dttmm.load_case(dttmm.save_case(c, tmp_path / "again.toml"))
     assert back.provenance == c.provenance and back == c
 
 
 # --- the Python constructors follow the same rules ---------------------------------------------------
-@pytest.mark.parametrize("make, field", [
-    (lambda: Section(True, 1.0, 1.0), "section.length"),
-    (lambda: Section(1.0, "2.0", 1.0), "section.EI"),
-    (lambda: Section(1.0, 1.0, 1.0, EA=True), "section.EA"),
-    (lambda: Hub("1"), "hub.mass"),
-    (lambda: Manipulator((Link(Section(1, 1, 1)),), -9.81), "model.gravity"),
-    (lambda: Manipulator(5), "model.links"),
-    (lambda: Scenario("1", 0.1, ()), "scenario.duration"),
-    (lambda: Scenario(1.0, 0.1, 5), "scenario.drives"),
-    (lambda: Sine(1.0, 1.0, until="abc"), "law.until"),
-    (lambda: Sine(1.0, 1.0, until=float("nan")), "law.until"),
-    (lambda: Drive("torque", Sine(1.0, 1.0), initial_rate=False), "drive.initial_rate"),
-    (lambda: dttmm.drives.law_from_dict({"law": "table", "times": [0, 1], "values": [0, 1], "_spline": 1},
-                                        "d"), "d._spline"),
-])
+@pytest.mark.parametrize(
+    "make, field",
+    [
+        (lambda: Section(True, 1.0, 1.0), "section.length"),
+        (lambda: Section(1.0, "2.0", 1.0), "section.EI"),
+        (lambda: Section(1.0, 1.0, 1.0, EA=True), "section.EA"),
+        (lambda: Hub("1"), "hub.mass"),
+        (lambda: Manipulator((Link(Section(1, 1, 1)),), -9.81), "model.gravity"),
+        (lambda: Manipulator(5), "model.links"),
+        (lambda: Scenario("1", 0.1, ()), "scenario.duration"),
+        (lambda: Scenario(1.0, 0.1, 5), "scenario.drives"),
+        (lambda: Sine(1.0, 1.0, until="abc"), "law.until"),
+        (lambda: Sine(1.0, 1.0, until=float("nan")), "law.until"),
+        (lambda: Drive("torque", Sine(1.0, 1.0), initial_rate=False), "drive.initial_rate"),
+        (
+            lambda: dttmm.drives.law_from_dict(
+                {"law": "table", "times": [0, 1], "values": [0, 1], "_spline": 1}, "d"
+            ),
+            "d._spline",
+        ),
+    ],
+)
 def test_constructors_refuse_bools_strings_and_wrong_shapes(make, field):
     with pytest.raises(InputError) as exc:
         make()
@@ -164,8 +255,9 @@ def test_private_spline_is_not_a_constructor_argument():
 
 
 # --- resource guard -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("h, output_step, field", [(1e-12, 1e-3, "h"), (1e-3, 1e-12, "scenario.output_step"),
-                                                    (1e-25, 1e-3, "h")])
+@pytest.mark.parametrize(
+    "h, output_step, field", [(1e-12, 1e-3, "h"), (1e-3, 1e-12, "scenario.output_step"), (1e-25, 1e-3, "h")]
+)
 def test_run_size_guard_names_the_knob(three_link, h, output_step, field):
     c = dc.replace(three_link, scenario=dc.replace(three_link.scenario, output_step=output_step))
     with pytest.raises(InputError) as exc:
@@ -248,12 +340,15 @@ def test_nan_in_python_api_reported_as_nan():
     assert math.isnan(exc.value.value)
 
 
-@pytest.mark.parametrize("old, new, field", [
-    ("length = 0.5", "length = 1e300", "model.links[0].length"),
-    ("EI = 2.3333333333333335", "EI = 1e-300", "model.links[0].EI"),
-    ("gravity = [0.0, -9.81]", "gravity = [0.0, -1e31]", "model.gravity[1]"),
-    ("frequency = 1.0", "frequency = 1e31", "scenario.drives[0].frequency"),
-])
+@pytest.mark.parametrize(
+    "old, new, field",
+    [
+        ("length = 0.5", "length = 1e300", "model.links[0].length"),
+        ("EI = 2.3333333333333335", "EI = 1e-300", "model.links[0].EI"),
+        ("gravity = [0.0, -9.81]", "gravity = [0.0, -1e31]", "model.gravity[1]"),
+        ("frequency = 1.0", "frequency = 1e31", "scenario.drives[0].frequency"),
+    ],
+)
 def test_magnitudes_outside_the_window_are_refused(tmp_path, old, new, field):
     # 1e300 m once overflowed inside the element matrices (OverflowError, found by the fuzz test)
     err = _refused(tmp_path, THREE.replace(old, new, 1))

@@ -1,4 +1,5 @@
 """The ``dttmm simulate`` command line."""
+
 import json
 import subprocess
 import sys
@@ -32,7 +33,12 @@ def test_simulate_writes_table_plot_and_meta(short_case, tmp_path):
 
 def test_simulate_parquet(short_case, tmp_path):
     out = tmp_path / "pq"
-    assert main(["simulate", str(short_case), "-k", "1", "--h", "1e-3", "--format", "parquet", "--out", str(out)]) == 0
+    assert (
+        main(
+            ["simulate", str(short_case), "-k", "1", "--h", "1e-3", "--format", "parquet", "--out", str(out)]
+        )
+        == 0
+    )
     res = dttmm.Result.from_frame(pd.read_parquet(out / "three_link.parquet"))
     assert res.joint_angle.shape == (51, 3)
 
@@ -44,8 +50,13 @@ def test_bad_input_exit_code_and_message(short_case, tmp_path, capsys):
 
 def test_console_script_runs(short_case, tmp_path):
     exe = Path(sys.executable).with_name("dttmm")
-    r = subprocess.run([str(exe), "simulate", str(short_case), "-k", "1", "--h", "1e-3", "--out", str(tmp_path)],
-                       capture_output=True, text=True, timeout=300, check=False)
+    r = subprocess.run(
+        [str(exe), "simulate", str(short_case), "-k", "1", "--h", "1e-3", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert r.returncode == 0, r.stderr
     assert "wrote" in r.stdout
 
@@ -75,8 +86,12 @@ def _one_line(err: str) -> str:
 
 @pytest.mark.parametrize("what", ["missing", "directory", "binary", "misspelt key"])
 def test_bad_case_file_is_one_line_exit_2(tmp_path, capsys, what):
-    path = {"missing": tmp_path / "nope.toml", "directory": tmp_path, "binary": tmp_path / "b.toml",
-            "misspelt key": tmp_path / "k.toml"}[what]
+    path = {
+        "missing": tmp_path / "nope.toml",
+        "directory": tmp_path,
+        "binary": tmp_path / "b.toml",
+        "misspelt key": tmp_path / "k.toml",
+    }[what]
     if what == "binary":
         path.write_bytes(b"\x00\x01\x02\xff")
     if what == "misspelt key":
@@ -95,10 +110,16 @@ def test_unwritable_out_is_refused_before_the_run(short_case, tmp_path, capsys, 
     assert "--out" in _one_line(capsys.readouterr().err)
 
 
-@pytest.mark.parametrize("args, fragment", [
-    (["--h", "abc"], "--h"), (["--h", "1e-12"], "h = 1e-12"), (["--h", "nan"], "h = nan"),
-    (["--h", "1e-3", "--strain", "cubic"], "--strain"), (["--h", "1e-3", "--tol", "2"], "tol"),
-])
+@pytest.mark.parametrize(
+    "args, fragment",
+    [
+        (["--h", "abc"], "--h"),
+        (["--h", "1e-12"], "h = 1e-12"),
+        (["--h", "nan"], "h = nan"),
+        (["--h", "1e-3", "--strain", "cubic"], "--strain"),
+        (["--h", "1e-3", "--tol", "2"], "tol"),
+    ],
+)
 def test_bad_options_are_one_line_exit_2(short_case, tmp_path, capsys, args, fragment):
     assert main(["simulate", str(short_case), "-k", "1", *args, "--out", str(tmp_path / "o")]) == 2
     assert fragment in _one_line(capsys.readouterr().err)
@@ -124,8 +145,13 @@ def test_not_ok_status_is_printed_and_exits_3(short_case, tmp_path, capsys, monk
     import dttmm.simulate_cli as sc
 
     real = sc.simulate
-    monkeypatch.setattr(sc, "simulate", lambda *a, **k: dc.replace(
-        real(*a, **k), status="unconverged", warnings=("3 steps hit max_iterations",)))
+    monkeypatch.setattr(
+        sc,
+        "simulate",
+        lambda *a, **k: dc.replace(
+            real(*a, **k), status="unconverged", warnings=("3 steps hit max_iterations",)
+        ),
+    )
     assert main(["simulate", str(short_case), "-k", "1", "--h", "1e-3", "--out", str(tmp_path / "o")]) == 3
     out = capsys.readouterr().out
     assert "status: unconverged" in out and "warning: 3 steps hit max_iterations" in out
@@ -137,22 +163,54 @@ def test_solver_options_pass_through(short_case, tmp_path, monkeypatch):
     seen, real = {}, sc.simulate
     monkeypatch.setattr(sc, "simulate", lambda *a, **k: seen.update(k) or real(*a, **k))
     out = tmp_path / "o"
-    assert main(["simulate", str(short_case), "-k", "1", "--h", "1e-3", "--integrator", "generalized-alpha",
-                 "--rho-inf", "0.7", "--tol", "1e-8", "--strain", "linear", "--engine", "python",
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                str(short_case),
+                "-k",
+                "1",
+                "--h",
+                "1e-3",
+                "--integrator",
+                "generalized-alpha",
+                "--rho-inf",
+                "0.7",
+                "--tol",
+                "1e-8",
+                "--strain",
+                "linear",
+                "--engine",
+                "python",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     meta = json.loads((out / "meta.json").read_text())
     assert meta["tol"] == 1e-8 and meta["strain"] == "linear" and meta["engine"] == "python"
     assert meta["integrator"] == "generalized-alpha" and seen["rho_inf"] == 0.7
 
 
-@pytest.mark.parametrize("value, fragment", [("foo", "must be 'serial'"), ("tcp://127.0.0.1:1", "cannot reach")])
+@pytest.mark.parametrize(
+    "value, fragment", [("foo", "must be 'serial'"), ("tcp://127.0.0.1:1", "cannot reach")]
+)
 def test_report_bad_scheduler_one_line_exit_2(capsys, value, fragment):
     assert main(["report", "--scheduler", value]) == 2
     assert fragment in _one_line(capsys.readouterr().err)
 
 
 def test_core_cli_does_not_import_the_report_harness():
-    code = "import sys, dttmm.cli; print(any(m == 'reports' or m.startswith('reports.') for m in sys.modules))"
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False,
-                       cwd=Path(__file__).resolve().parents[1])
+    code = (
+        "import sys, dttmm.cli; print(any(m == 'reports' or m.startswith('reports.') for m in sys.modules))"
+    )
+    r = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        cwd=Path(__file__).resolve().parents[1],
+    )
     assert r.stdout.strip() == "False", r.stderr

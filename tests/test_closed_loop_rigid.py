@@ -5,6 +5,7 @@ inertia J = J_h + ρA·L³/3 about the joint. Under τ = kp (α_ref − α) + kd
 J α̈ + kd α̇ + kp α = kp α_ref + kd α̇_ref: a linear second-order system whose step and sine
 responses are written out below in closed form (no code under test involved).
 """
+
 from __future__ import annotations
 
 import itertools
@@ -115,8 +116,10 @@ def test_saturation_holds_the_limit_and_the_saturated_closed_form():
 
 
 def two_link(feedforward, h=2e-3):
-    links = tuple(dttmm.Link(dttmm.Section(0.6, 10.0, 1.2), dttmm.Hub(0.5, 0.02), dttmm.Payload(0.3, 0.0))
-                  for _ in range(2))
+    links = tuple(
+        dttmm.Link(dttmm.Section(0.6, 10.0, 1.2), dttmm.Hub(0.5, 0.02), dttmm.Payload(0.3, 0.0))
+        for _ in range(2)
+    )
     refs = (Sine(0.6, 0.5), Sine(-0.8, 0.7, phase=0.3, offset=0.2))
     drives = tuple(Drive("torque", PD(30.0, 4.0, r, feedforward), *r.motion(0.0)[:2]) for r in refs)
     case = dttmm.Case(dttmm.Manipulator(links, (0.0, -9.81)), dttmm.Scenario(2.0, 0.01, drives))
@@ -137,8 +140,10 @@ def test_rigid_refusals():
         pin_rigid.simulate(rotor(PD(KP, KD, Constant(0.0))), h=1e-2, integrator="newmark")
     link = rotor(Constant(0.0)).model.links[0]
     ct = PD(1.0, 1.0, Constant(0.0), {"law": "computed_torque"})
-    case = dttmm.Case(dttmm.Manipulator((link, link)),
-                      dttmm.Scenario(1.0, 0.01, (Drive("torque", ct), Drive("torque", Constant(0.0)))))
+    case = dttmm.Case(
+        dttmm.Manipulator((link, link)),
+        dttmm.Scenario(1.0, 0.01, (Drive("torque", ct), Drive("torque", Constant(0.0)))),
+    )
     with pytest.raises(InputError, match=r"drives\[1\].*reference motion on every joint"):
         pin_rigid.simulate(case, h=1e-2)
 
@@ -186,15 +191,18 @@ def test_mujoco_saturation_and_root_moment_sign():
     out = [(at[round(ti, 9)], wi) for ti, wi in zip(res.t, res.tip_deflection[:, 0]) if round(ti, 9) in at]
     assert len(out) >= 4
     np.testing.assert_allclose(*np.array(out).T, rtol=1e-9, atol=1e-15)
-    lim = mc.simulate(rotor(PD(200.0, KD, Constant(0.5), limit=1.0), duration=0.5, EI=1e4),
-                      elements_per_link=2, h=5e-4)
+    lim = mc.simulate(
+        rotor(PD(200.0, KD, Constant(0.5), limit=1.0), duration=0.5, EI=1e4), elements_per_link=2, h=5e-4
+    )
     assert np.abs(lim.joint_torque[:, 0]).max() <= 1.0
 
 
 def mixed(second_law, EI=10.0):
     """Joint 1 prescribed (rest-to-rest table move), joint 2 closed-loop."""
-    links = tuple(dttmm.Link(dttmm.Section(0.6, EI, 1.2), dttmm.Hub(0.5, 0.02), dttmm.Payload(0.3, 0.0))
-                  for _ in range(2))
+    links = tuple(
+        dttmm.Link(dttmm.Section(0.6, EI, 1.2), dttmm.Hub(0.5, 0.02), dttmm.Payload(0.3, 0.0))
+        for _ in range(2)
+    )
     move = Table((0.0, 0.8), (0.0, 0.7))
     drives = (Drive("motion", move), Drive("torque", second_law))
     return dttmm.Case(dttmm.Manipulator(links, (0.0, -9.81)), dttmm.Scenario(1.2, 0.01, drives))
@@ -204,8 +212,10 @@ def test_computed_torque_with_a_prescribed_joint():
     ref = Sine(0.3, 0.8, phase=0.5)
     law = PD(30.0, 4.0, ref, {"law": "computed_torque"})
     case = mixed(law)
-    case = dttmm.Case(case.model, dttmm.Scenario(1.2, 0.01, (case.scenario.drives[0],
-                                                           Drive("torque", law, *ref.motion(0.0)[:2]))))
+    case = dttmm.Case(
+        case.model,
+        dttmm.Scenario(1.2, 0.01, (case.scenario.drives[0], Drive("torque", law, *ref.motion(0.0)[:2]))),
+    )
     res = pin_rigid.simulate(case, h=2e-3)
     assert np.abs(res.joint_angle[:, 1] - [ref.motion(t)[0] for t in res.t]).max() <= 1e-8
 

@@ -1,4 +1,5 @@
 """Closed-loop drive laws: definitions, slopes, saturation, the case format and the guard."""
+
 from __future__ import annotations
 
 import math
@@ -72,8 +73,12 @@ def test_saturation_clips_and_has_zero_slope_beyond_the_limit(angle):
 
 
 def test_breakpoints_are_the_reference_and_feedforward_ones():
-    law = PD(1.0, 1.0, Table((0.1, 0.5), (0.0, 1.0)), {"law": "bang_bang", "levels": [0.0, 1.0],
-                                                       "switch_times": [0.3]})
+    law = PD(
+        1.0,
+        1.0,
+        Table((0.1, 0.5), (0.0, 1.0)),
+        {"law": "bang_bang", "levels": [0.0, 1.0], "switch_times": [0.3]},
+    )
     assert Drive("torque", law).breakpoints == (0.1, 0.3, 0.5)
 
 
@@ -109,20 +114,32 @@ def test_computed_torque_needs_an_engine_value():
         law.evaluate(0.0, ControlState(0, 0.0, 0.0))
 
 
-@pytest.mark.parametrize("make, field, reason", [
-    (lambda: PID(1.0, 1.0, Constant(0.0)), "law.ki", "must be a number"),
-    (lambda: PD(-1.0, 1.0, Constant(0.0)), "law.kp", "non-negative"),
-    (lambda: PD(1.0, 1.0, Constant(0.0), limit=0.0), "law.limit", "positive"),
-    (lambda: PD(1.0, 1.0, Constant(0.0), moment_gain="1"), "law.moment_gain", "number"),
-    (lambda: PD(1.0, 1.0, {"law": "bang_bang", "levels": [1.0], "switch_times": []}), "law.reference.law",
-     "motion"),
-    (lambda: PD(1.0, 1.0, {"law": "sine", "amplitude": 1.0, "frequency": 1.0, "until": 2.0}),
-     "law.reference.until", "abruptly"),
-    (lambda: PD(1.0, 1.0, Constant(0.0), {"law": "spin_up", "rate": 1.0, "ramp_time": 1.0}),
-     "law.feedforward.law", "torque"),
-    (lambda: PD(1.0, 1.0, PD(1.0, 1.0, Constant(0.0))), "law.reference", "open-loop"),
-    (lambda: PD(1.0, 1.0, 3.0), "law.reference", "open-loop"),
-])
+@pytest.mark.parametrize(
+    "make, field, reason",
+    [
+        (lambda: PID(1.0, 1.0, Constant(0.0)), "law.ki", "must be a number"),
+        (lambda: PD(-1.0, 1.0, Constant(0.0)), "law.kp", "non-negative"),
+        (lambda: PD(1.0, 1.0, Constant(0.0), limit=0.0), "law.limit", "positive"),
+        (lambda: PD(1.0, 1.0, Constant(0.0), moment_gain="1"), "law.moment_gain", "number"),
+        (
+            lambda: PD(1.0, 1.0, {"law": "bang_bang", "levels": [1.0], "switch_times": []}),
+            "law.reference.law",
+            "motion",
+        ),
+        (
+            lambda: PD(1.0, 1.0, {"law": "sine", "amplitude": 1.0, "frequency": 1.0, "until": 2.0}),
+            "law.reference.until",
+            "abruptly",
+        ),
+        (
+            lambda: PD(1.0, 1.0, Constant(0.0), {"law": "spin_up", "rate": 1.0, "ramp_time": 1.0}),
+            "law.feedforward.law",
+            "torque",
+        ),
+        (lambda: PD(1.0, 1.0, PD(1.0, 1.0, Constant(0.0))), "law.reference", "open-loop"),
+        (lambda: PD(1.0, 1.0, 3.0), "law.reference", "open-loop"),
+    ],
+)
 def test_python_constructor_errors(make, field, reason):
     with pytest.raises(InputError, match=reason) as e:
         make()
@@ -145,31 +162,68 @@ limit = 10.0
 
 
 def test_case_file_pid_with_computed_torque():
-    law = load('law = "pid"\nkp = 1.0\nkd = 2.0\nki = 3.0\nreference = { law = "constant", value = 0.1 }\n'
-               'feedforward = { law = "computed_torque" }\n').scenario.drives[0].law
+    law = (
+        load(
+            'law = "pid"\nkp = 1.0\nkd = 2.0\nki = 3.0\nreference = { law = "constant", value = 0.1 }\n'
+            'feedforward = { law = "computed_torque" }\n'
+        )
+        .scenario.drives[0]
+        .law
+    )
     assert law == PID(1.0, 2.0, Constant(0.1), ComputedTorque(), ki=3.0)
 
 
-@pytest.mark.parametrize("body, field, reason", [
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\n', "scenario.drives[0].reference", "is required"),
-    ('law = "pid"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant" }\n', "scenario.drives[0].ki",
-     "is required"),
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\nki = 1.0\nreference = { law = "constant" }\n',
-     "scenario.drives[0].ki", "unknown key"),
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant", vlaue = 1.0 }\n',
-     "scenario.drives[0].reference.vlaue", "did you mean 'value'"),
-    ('law = "pd"\nkp = true\nkd = 1.0\nreference = { law = "constant" }\n', "scenario.drives[0].kp",
-     "must be a number"),
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "bang_bang", levels = [1.0], switch_times = [] }\n',
-     "scenario.drives[0].reference.law", "'constant', 'sine', 'spin_up', 'table'"),
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { value = 1.0 }\n', "scenario.drives[0].reference.law",
-     "is required (one of: constant, sine, spin_up, table)"),
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\nreference = 0.5\n', "scenario.drives[0].reference", "must be a table"),
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant" }\nfeedforward = { law = "pd" }\n',
-     "scenario.drives[0].feedforward.law", "unknown drive law"),
-    ('law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant" }\nlimit = -1.0\n',
-     "scenario.drives[0].limit", "must be positive"),
-])
+@pytest.mark.parametrize(
+    "body, field, reason",
+    [
+        ('law = "pd"\nkp = 1.0\nkd = 1.0\n', "scenario.drives[0].reference", "is required"),
+        (
+            'law = "pid"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant" }\n',
+            "scenario.drives[0].ki",
+            "is required",
+        ),
+        (
+            'law = "pd"\nkp = 1.0\nkd = 1.0\nki = 1.0\nreference = { law = "constant" }\n',
+            "scenario.drives[0].ki",
+            "unknown key",
+        ),
+        (
+            'law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant", vlaue = 1.0 }\n',
+            "scenario.drives[0].reference.vlaue",
+            "did you mean 'value'",
+        ),
+        (
+            'law = "pd"\nkp = true\nkd = 1.0\nreference = { law = "constant" }\n',
+            "scenario.drives[0].kp",
+            "must be a number",
+        ),
+        (
+            'law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "bang_bang", levels = [1.0], switch_times = [] }\n',
+            "scenario.drives[0].reference.law",
+            "'constant', 'sine', 'spin_up', 'table'",
+        ),
+        (
+            'law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { value = 1.0 }\n',
+            "scenario.drives[0].reference.law",
+            "is required (one of: constant, sine, spin_up, table)",
+        ),
+        (
+            'law = "pd"\nkp = 1.0\nkd = 1.0\nreference = 0.5\n',
+            "scenario.drives[0].reference",
+            "must be a table",
+        ),
+        (
+            'law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant" }\nfeedforward = { law = "pd" }\n',
+            "scenario.drives[0].feedforward.law",
+            "unknown drive law",
+        ),
+        (
+            'law = "pd"\nkp = 1.0\nkd = 1.0\nreference = { law = "constant" }\nlimit = -1.0\n',
+            "scenario.drives[0].limit",
+            "must be positive",
+        ),
+    ],
+)
 def test_case_file_errors_name_the_key(body, field, reason):
     with pytest.raises(InputError) as e:
         load(body)
@@ -179,8 +233,12 @@ def test_case_file_errors_name_the_key(body, field, reason):
 
 def test_case_file_pd_on_a_motion_drive_is_refused():
     with pytest.raises(InputError, match="cannot drive a 'motion' joint"):
-        dttmm.case_from_dict(tomllib.loads(HEAD.replace('"torque"', '"motion"') + 'law = "pd"\nkp = 1.0\n'
-                                           'kd = 1.0\nreference = { law = "constant" }\n'))
+        dttmm.case_from_dict(
+            tomllib.loads(
+                HEAD.replace('"torque"', '"motion"') + 'law = "pd"\nkp = 1.0\n'
+                'kd = 1.0\nreference = { law = "constant" }\n'
+            )
+        )
 
 
 def test_require_open_loop_names_law_joint_and_method():
@@ -191,8 +249,10 @@ def test_require_open_loop_names_law_joint_and_method():
     case = dttmm.Case(dttmm.Manipulator((link, link)), dttmm.Scenario(1.0, 0.1, drives))
     with pytest.raises(InputError) as e:
         require_open_loop(case, "exudyn-ancf")
-    assert str(e.value) == ("scenario.drives[1].law = 'pd': closed-loop drive law 'pd' on joint 2 is not "
-                            "supported by exudyn-ancf yet")
+    assert str(e.value) == (
+        "scenario.drives[1].law = 'pd': closed-loop drive law 'pd' on joint 2 is not "
+        "supported by exudyn-ancf yet"
+    )
     require_no_computed_torque(case, "mujoco-chain")
     ct = (drives[0], Drive("torque", PD(1.0, 1.0, Constant(0.0), ComputedTorque())))
     with pytest.raises(InputError, match=r"drives\[1\].feedforward.*joint 2.*mujoco-chain"):
@@ -202,7 +262,13 @@ def test_require_open_loop_names_law_joint_and_method():
 def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "experiments" / "cases" / "control" / "closed_loop_three_link.toml"
+    path = (
+        Path(__file__).resolve().parents[1]
+        / "experiments"
+        / "cases"
+        / "control"
+        / "closed_loop_three_link.toml"
+    )
     case = dttmm.load_case(path)
     assert [d.law.name for d in case.scenario.drives] == ["pd"] * 3
     assert all(d.closed_loop and d.law.moment_gain == 0.5 for d in case.scenario.drives)
@@ -214,6 +280,8 @@ def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
 @pytest.mark.parametrize("module", ["reference_models.global_newmark", "reference_models.exudyn_ancf"])
 def test_engines_without_closed_loop_refuse_it_by_name(module):
     mod = pytest.importorskip(module)
-    case = dttmm.load_case(Path(__file__).parents[1] / "experiments" / "cases" / "control" / "closed_loop_three_link.toml")
+    case = dttmm.load_case(
+        Path(__file__).parents[1] / "experiments" / "cases" / "control" / "closed_loop_three_link.toml"
+    )
     with pytest.raises(InputError, match=r"drives\[0\].*'pd'.*not supported by"):
         mod.simulate(case, elements_per_link=2, h=1e-3)

@@ -1,12 +1,12 @@
 """DT-TMM against the independent engines: Exudyn ANCF (flexible) and Pinocchio (rigid limit)."""
+
 import dataclasses as dc
 
 import numpy as np
 import pytest
+from conftest import case, shortened, with_links
 
 import dttmm
-
-from conftest import case, shortened, with_links
 
 
 def l2(a, b):
@@ -56,15 +56,22 @@ def test_rigid_limit_mixed_drives_equal_pinocchio():
         c = rigid(shortened(case("three_link"), 1.0), factor)
         drives = list(c.scenario.drives)
         drives[1] = dttmm.Drive("motion", dttmm.SpinUp(1.5, 0.8))
-        c = dc.replace(c, model=dc.replace(c.model, gravity=(0.0, 0.0)),
-                       scenario=dc.replace(c.scenario, drives=tuple(drives)))
+        c = dc.replace(
+            c,
+            model=dc.replace(c.model, gravity=(0.0, 0.0)),
+            scenario=dc.replace(c.scenario, drives=tuple(drives)),
+        )
         a = dttmm.simulate(c, elements_per_link=2, h=1e-3, cut_loads=False, energy=False)
         b = pr.simulate(c, h=1e-3, integrator="newmark")
         scale = np.max(np.abs(b.joint_torque[:, 1]))
-        diffs.append((np.max(np.abs(a.joint_angle - b.joint_angle)),
-                      np.max(np.abs(a.joint_torque[:, 1] - b.joint_torque[:, 1])) / scale))
+        diffs.append(
+            (
+                np.max(np.abs(a.joint_angle - b.joint_angle)),
+                np.max(np.abs(a.joint_torque[:, 1] - b.joint_torque[:, 1])) / scale,
+            )
+        )
     assert diffs[0][0] < 1e-6
-    assert 50 < diffs[0][0] / diffs[1][0] < 200     # ∝ 1/EI: the rigid limit, not a coincidence
+    assert 50 < diffs[0][0] / diffs[1][0] < 200  # ∝ 1/EI: the rigid limit, not a coincidence
     assert diffs[0][1] < 2e-3 and diffs[1][1] < 0.2 * diffs[0][1]
 
 

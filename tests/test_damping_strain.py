@@ -7,6 +7,7 @@ the element damping matrix against the global solver's, DT-TMM (compiled, uncomp
 sweeps, the numpy one-step reference) against the global solver step by step, and the damped
 heavy cantilever coming to rest at the static elastica (scipy's BVP solver).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -116,14 +117,18 @@ def test_one_step_reference_step_system_equals_global_iteration(k):
     ref = np.linalg.solve(M + B, f + gnp._torques(c, lay, 0.3, True) - fi - fd + B @ qdd_i)
     split = lambda x: [x[lk.e_slice].reshape(lk.k, lk.et.ne) for lk in st.links]
     for sw in ("riccati", "plain") if k == 1 else ("riccati",):
-        out = sweeps.SWEEPS[sw](st, kinematics(st, q, qd), cq, cv, split(q - cq * qdd_i), split(qd - cv * qdd_i),
-                                tau, mot[:, 2])
+        out = sweeps.SWEEPS[sw](
+            st, kinematics(st, q, qd), cq, cv, split(q - cq * qdd_i), split(qd - cv * qdd_i), tau, mot[:, 2]
+        )
         assert np.abs(out.qdd - ref).max() <= 1e-9 * np.abs(ref).max(), sw
 
 
 def _max_diff(a, b):
-    return max(np.abs(a.end_effector - b.end_effector).max(), np.abs(a.tip_deflection - b.tip_deflection).max(),
-               np.abs(a.joint_angle - b.joint_angle).max())
+    return max(
+        np.abs(a.end_effector - b.end_effector).max(),
+        np.abs(a.tip_deflection - b.tip_deflection).max(),
+        np.abs(a.joint_angle - b.joint_angle).max(),
+    )
 
 
 @pytest.mark.parametrize("k", [4, 8])
@@ -134,8 +139,16 @@ def test_damped_second_order_trajectories_equal_global(k, integrator, iterations
     matrix as in the global solver: trajectories agree to ≤ 1e-9 m / rad, converged and with
     exactly two sweeps (identical iterates)."""
     c = _damped_three_link(duration=0.1)
-    a = dttmm.simulate(c, elements_per_link=k, h=1e-3, integrator=integrator, iterations=iterations, strain=SO,
-                       cut_loads=False, energy=False)
+    a = dttmm.simulate(
+        c,
+        elements_per_link=k,
+        h=1e-3,
+        integrator=integrator,
+        iterations=iterations,
+        strain=SO,
+        cut_loads=False,
+        energy=False,
+    )
     b = gm.simulate(c, elements_per_link=k, h=1e-3, integrator=integrator, iterations=iterations, strain=SO)
     assert a.status == "ok" and b.status == "ok"
     assert _max_diff(a, b) <= 1e-9
@@ -143,7 +156,9 @@ def test_damped_second_order_trajectories_equal_global(k, integrator, iterations
 
 def test_damped_second_order_plain_sweep_equals_global():
     c = _damped_three_link(duration=0.05)
-    a = dttmm.simulate(c, elements_per_link=2, h=1e-3, sweep="plain", strain=SO, cut_loads=False, energy=False)
+    a = dttmm.simulate(
+        c, elements_per_link=2, h=1e-3, sweep="plain", strain=SO, cut_loads=False, energy=False
+    )
     b = gm.simulate(c, elements_per_link=2, h=1e-3, strain=SO)
     assert _max_diff(a, b) <= 1e-9
 
@@ -177,8 +192,9 @@ def _elastica_tip(length, bending, w):
     s = np.linspace(0.0, length, 201)
     y0 = np.zeros((4, s.size))
     y0[2] = s
-    sol = scipy.integrate.solve_bvp(f, lambda a, b: np.array([a[0], b[1], a[2], a[3]]), s, y0, tol=1e-10,
-                                    max_nodes=100000)
+    sol = scipy.integrate.solve_bvp(
+        f, lambda a, b: np.array([a[0], b[1], a[2], a[3]]), s, y0, tol=1e-10, max_nodes=100000
+    )
     assert sol.status == 0
     return np.array([sol.y[2, -1], sol.y[3, -1]])
 
@@ -187,8 +203,9 @@ def _cantilever(duration):
     """L = 2 m, ρA = 78 kg/m, EI = 833.3 N·m², EA = 1e9 N, μ = 0.35 s, held at angle 0 by a
     motion drive, dropped from straight under gravity."""
     beam = Section(L, EI, RHOA, 1.0e9, 0.35)
-    return Case(Manipulator((Link(beam),), (0.0, -9.81)),
-                Scenario(duration, 0.5, (Drive("motion", Constant(0.0)),)))
+    return Case(
+        Manipulator((Link(beam),), (0.0, -9.81)), Scenario(duration, 0.5, (Drive("motion", Constant(0.0)),))
+    )
 
 
 _CANTILEVER = {"h": 5e-3, "integrator": "generalized-alpha", "rho_inf": 0.8, "strain": SO}

@@ -1,4 +1,5 @@
 """docs/cases.md cannot drift from the schema: every key, every default, every example."""
+
 from __future__ import annotations
 
 import math
@@ -15,9 +16,15 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC = (ROOT / "docs" / "cases.md").read_text()
 
 # the models documented, each by a "<!-- schema: Name -->" marker before its table
-DOCUMENTED = {"CaseFile": schema.CaseFile, "ModelFile": schema.ModelFile, "LinkFile": schema.LinkFile,
-              "BodyFields": schema.BodyFields, "ScenarioFile": schema.ScenarioFile,
-              "DriveFields": schema.DriveFields, **{m.__name__: m for m in schema.LAW_FIELDS.values()}}
+DOCUMENTED = {
+    "CaseFile": schema.CaseFile,
+    "ModelFile": schema.ModelFile,
+    "LinkFile": schema.LinkFile,
+    "BodyFields": schema.BodyFields,
+    "ScenarioFile": schema.ScenarioFile,
+    "DriveFields": schema.DriveFields,
+    **{m.__name__: m for m in schema.LAW_FIELDS.values()},
+}
 
 
 def _tables() -> dict[str, list[list[str]]]:
@@ -89,9 +96,19 @@ def test_shipped_examples_match_the_shipped_files(tmp_path):
             assert dttmm.load_case(p) == dttmm.load_case(shipped)
 
 
-OWNED = ["docs/cases.md", "dttmm/case.py", "dttmm/schema.py", "dttmm/resources.py", "dttmm/cli.py",
-         "dttmm/simulate_cli.py", "dttmm/drives.py", "dttmm/model.py", "dttmm/scenario.py",
-         "dttmm/_validate.py", "dttmm/urdf.py"]
+OWNED = [
+    "docs/cases.md",
+    "dttmm/case.py",
+    "dttmm/schema.py",
+    "dttmm/resources.py",
+    "dttmm/cli.py",
+    "dttmm/simulate_cli.py",
+    "dttmm/drives.py",
+    "dttmm/model.py",
+    "dttmm/scenario.py",
+    "dttmm/_validate.py",
+    "dttmm/urdf.py",
+]
 
 
 @pytest.mark.parametrize("rel", OWNED)

@@ -1,4 +1,5 @@
 """Model, scenario and case files: loading, saving, and refusal of bad input."""
+
 import math
 
 import numpy as np
@@ -75,22 +76,29 @@ def _valid_parts():
     return sec, man, scen
 
 
-@pytest.mark.parametrize("make, field, value", [
-    (lambda: Section(-1.0, 2.0, 0.3), "section.length", -1.0),
-    (lambda: Section(1.0, 0.0, 0.3), "section.EI", 0.0),
-    (lambda: Section(1.0, 2.0, float("nan")), "section.rhoA", float("nan")),
-    (lambda: Section(1.0, 2.0, 0.3, EA=float("inf")), "section.EA", float("inf")),
-    (lambda: Section(1.0, 2.0, 0.3, damping=-0.1), "section.damping", -0.1),
-    (lambda: Hub(-1.0), "hub.mass", -1.0),
-    (lambda: Manipulator((), (0.0, 0.0)), "model.links", ()),
-    (lambda: Manipulator((Link(Section(1, 1, 1)),), (0.0, float("nan"))), "model.gravity[1]", float("nan")),
-    (lambda: Scenario(0.0, 0.01, ()), "scenario.duration", 0.0),
-    (lambda: Scenario(1.0, 2.0, ()), "scenario.output_step", 2.0),
-    (lambda: Drive("force", Constant(1.0)), "drive.kind", "force"),
-    (lambda: Drive("motion", BangBang((0.0, 1.0), (0.5,))), "drive.law", "bang_bang"),
-    (lambda: BangBang((1.0,), (0.5,)), "law.levels", [1.0]),
-    (lambda: Table((0.0, 0.0), (1.0, 2.0)), "law.times", [0.0, 0.0]),
-])
+@pytest.mark.parametrize(
+    "make, field, value",
+    [
+        (lambda: Section(-1.0, 2.0, 0.3), "section.length", -1.0),
+        (lambda: Section(1.0, 0.0, 0.3), "section.EI", 0.0),
+        (lambda: Section(1.0, 2.0, float("nan")), "section.rhoA", float("nan")),
+        (lambda: Section(1.0, 2.0, 0.3, EA=float("inf")), "section.EA", float("inf")),
+        (lambda: Section(1.0, 2.0, 0.3, damping=-0.1), "section.damping", -0.1),
+        (lambda: Hub(-1.0), "hub.mass", -1.0),
+        (lambda: Manipulator((), (0.0, 0.0)), "model.links", ()),
+        (
+            lambda: Manipulator((Link(Section(1, 1, 1)),), (0.0, float("nan"))),
+            "model.gravity[1]",
+            float("nan"),
+        ),
+        (lambda: Scenario(0.0, 0.01, ()), "scenario.duration", 0.0),
+        (lambda: Scenario(1.0, 2.0, ()), "scenario.output_step", 2.0),
+        (lambda: Drive("force", Constant(1.0)), "drive.kind", "force"),
+        (lambda: Drive("motion", BangBang((0.0, 1.0), (0.5,))), "drive.law", "bang_bang"),
+        (lambda: BangBang((1.0,), (0.5,)), "law.levels", [1.0]),
+        (lambda: Table((0.0, 0.0), (1.0, 2.0)), "law.times", [0.0, 0.0]),
+    ],
+)
 def test_bad_fields_are_named(make, field, value):
     with pytest.raises(InputError) as exc:
         make()
@@ -123,16 +131,19 @@ def test_negative_stiffness_in_file(tmp_path):
         dttmm.load_case(p)
 
 
-@pytest.mark.parametrize("kw, field", [
-    ({"elements_per_link": 0, "h": 1e-3}, "elements_per_link"),
-    ({"elements_per_link": 2.5, "h": 1e-3}, "elements_per_link"),
-    ({"elements_per_link": 2, "h": 0.0}, "h"),
-    ({"elements_per_link": 2, "h": -1e-3}, "h"),
-    ({"elements_per_link": 2, "h": 5.0}, "h"),
-    ({"elements_per_link": 2, "h": 1e-3, "integrator": "euler"}, "integrator"),
-    ({"elements_per_link": 2, "h": 1e-3, "sweep": "lu"}, "sweep"),
-    ({"elements_per_link": 2, "h": 1e-3, "iterations": -1}, "iterations"),
-])
+@pytest.mark.parametrize(
+    "kw, field",
+    [
+        ({"elements_per_link": 0, "h": 1e-3}, "elements_per_link"),
+        ({"elements_per_link": 2.5, "h": 1e-3}, "elements_per_link"),
+        ({"elements_per_link": 2, "h": 0.0}, "h"),
+        ({"elements_per_link": 2, "h": -1e-3}, "h"),
+        ({"elements_per_link": 2, "h": 5.0}, "h"),
+        ({"elements_per_link": 2, "h": 1e-3, "integrator": "euler"}, "integrator"),
+        ({"elements_per_link": 2, "h": 1e-3, "sweep": "lu"}, "sweep"),
+        ({"elements_per_link": 2, "h": 1e-3, "iterations": -1}, "iterations"),
+    ],
+)
 def test_bad_solver_settings(single_link, kw, field):
     with pytest.raises(InputError) as exc:
         dttmm.simulate(single_link, **kw)

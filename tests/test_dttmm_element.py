@@ -1,4 +1,5 @@
 """The beam element: its mass matrix at rest is the consistent Hermite mass; SPD in general."""
+
 import numpy as np
 import pytest
 
@@ -10,8 +11,19 @@ def hermite_mass(rhoA, l):
     (textbook closed form)."""
     M = np.zeros((6, 6))
     M[np.ix_([0, 3], [0, 3])] = rhoA * l / 6 * np.array([[2, 1], [1, 2]])
-    b = rhoA * l / 420 * np.array([[156, 22 * l, 54, -13 * l], [22 * l, 4 * l * l, 13 * l, -3 * l * l],
-                                   [54, 13 * l, 156, -22 * l], [-13 * l, -3 * l * l, -22 * l, 4 * l * l]])
+    b = (
+        rhoA
+        * l
+        / 420
+        * np.array(
+            [
+                [156, 22 * l, 54, -13 * l],
+                [22 * l, 4 * l * l, 13 * l, -3 * l * l],
+                [54, 13 * l, 156, -22 * l],
+                [-13 * l, -3 * l * l, -22 * l, 4 * l * l],
+            ]
+        )
+    )
     M[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = b
     return M
 
@@ -30,12 +42,16 @@ def test_mass_at_rest_is_consistent_hermite_mass(l):
     rhoA = 0.27
     et = element_type(l, 2.0, rhoA, 7e6, 0.0)
     # element coordinates p = (x_I, y_I, θ, u, v, φ) → nodal dofs at rest (small motion)
-    T = np.array([[1, 0, 0, 0, 0, 0],     # u1 = x_I
-                  [0, 1, 0, 0, 0, 0],     # v1 = y_I
-                  [0, 0, 1, 0, 0, 0],     # φ1 = θ
-                  [1, 0, 0, 1, 0, 0],     # u2 = x_I + u
-                  [0, 1, l, 0, 1, 0],     # v2 = y_I + lθ + v
-                  [0, 0, 1, 0, 0, 1]])    # φ2 = θ + φ
+    T = np.array(
+        [
+            [1, 0, 0, 0, 0, 0],  # u1 = x_I
+            [0, 1, 0, 0, 0, 0],  # v1 = y_I
+            [0, 0, 1, 0, 0, 0],  # φ1 = θ
+            [1, 0, 0, 1, 0, 0],  # u2 = x_I + u
+            [0, 1, l, 0, 1, 0],  # v2 = y_I + lθ + v
+            [0, 0, 1, 0, 0, 1],
+        ]
+    )  # φ2 = θ + φ
     expected = T.T @ hermite_mass(rhoA, l) @ T
     np.testing.assert_allclose(element_mass(et), expected, rtol=1e-13, atol=1e-15 * rhoA * l)
 
@@ -43,8 +59,9 @@ def test_mass_at_rest_is_consistent_hermite_mass(l):
 def test_inextensible_mass_is_bending_part():
     l, rhoA = 0.3, 1.2
     et = element_type(l, 2.0, rhoA, None, 0.0)
-    T = np.array([[1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 1, 0, 0], [1, 0, 0, 0, 0], [0, 1, l, 1, 0],
-                  [0, 0, 1, 0, 1]])
+    T = np.array(
+        [[1, 0, 0, 0, 0], [0, 1, 0, 0, 0], [0, 0, 1, 0, 0], [1, 0, 0, 0, 0], [0, 1, l, 1, 0], [0, 0, 1, 0, 1]]
+    )
     np.testing.assert_allclose(element_mass(et), T.T @ hermite_mass(rhoA, l) @ T, rtol=1e-13, atol=1e-16)
 
 

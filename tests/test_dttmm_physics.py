@@ -1,17 +1,19 @@
 """DT-TMM against closed forms: statics, clamped frequencies, rigid limit, energy, spin-up."""
+
 import dataclasses as dc
 
 import numpy as np
 import pytest
+from conftest import case, shortened, with_links
 
 import dttmm
 from dttmm import Case, Constant, Drive, Link, Manipulator, Scenario, Section
 
-from conftest import case, shortened, with_links
-
 
 def clamped(sec, gravity=(0.0, 0.0), duration=0.5, out=0.01):
-    return Case(Manipulator((Link(sec),), gravity), Scenario(duration, out, (Drive("motion", Constant(0.0)),)))
+    return Case(
+        Manipulator((Link(sec),), gravity), Scenario(duration, out, (Drive("motion", Constant(0.0)),))
+    )
 
 
 @pytest.mark.parametrize("k", [8, 16])
@@ -70,7 +72,10 @@ def test_rigid_limit_single_link(single_link):
     J = 0.01 + 0.27 * 1.0**3 / 3
     t = res.t
     # τ = +1 on [0, 0.5), −1 on [0.5, 1), 0 afterwards
-    theta = np.where(t < 0.5, 0.5 * t**2, np.where(t < 1.0, 0.125 + 0.5 * (t - 0.5) - 0.5 * (t - 0.5) ** 2, 0.25)) / J
+    theta = (
+        np.where(t < 0.5, 0.5 * t**2, np.where(t < 1.0, 0.125 + 0.5 * (t - 0.5) - 0.5 * (t - 0.5) ** 2, 0.25))
+        / J
+    )
     assert np.max(np.abs(res.joint_angle[:, 0] - theta)) < 1e-6
 
 
@@ -78,10 +83,11 @@ def _energy_case(extensible=True):
     c = case("three_link")
     if not extensible:  # explicit RK4 cannot afford the axial modes' step limit
         c = with_links(c, EA=None)
-    drives = tuple(Drive("torque", Constant(0.0), initial_angle=a, initial_rate=r)
-                   for a, r in zip((0.3, -0.5, 0.4), (2.0, -1.0, 3.0)))
-    c = dc.replace(c, model=dc.replace(c.model, gravity=(0.0, 0.0)),
-                   scenario=Scenario(0.3, 1e-3, drives))
+    drives = tuple(
+        Drive("torque", Constant(0.0), initial_angle=a, initial_rate=r)
+        for a, r in zip((0.3, -0.5, 0.4), (2.0, -1.0, 3.0))
+    )
+    c = dc.replace(c, model=dc.replace(c.model, gravity=(0.0, 0.0)), scenario=Scenario(0.3, 1e-3, drives))
     return c
 
 
@@ -112,8 +118,13 @@ def test_bang_bang_switch_keeps_second_order(single_link):
     ref = dttmm.simulate(c, elements_per_link=2, h=1.25e-4, cut_loads=False, energy=False)
     errs = []
     for h in (4e-3, 2e-3, 1e-3):
-        r = dttmm.simulate(dc.replace(c, scenario=dc.replace(c.scenario, output_step=4e-3)), elements_per_link=2,
-                           h=h, cut_loads=False, energy=False)
+        r = dttmm.simulate(
+            dc.replace(c, scenario=dc.replace(c.scenario, output_step=4e-3)),
+            elements_per_link=2,
+            h=h,
+            cut_loads=False,
+            energy=False,
+        )
         errs.append(np.max(np.abs(r.joint_angle[:, 0] - ref.joint_angle[::4, 0])))
     slopes = np.diff(np.log(errs)) / np.log(0.5)
     assert np.all(np.abs(slopes - 2) < 0.3), (errs, slopes)
@@ -149,9 +160,14 @@ def test_cut_loads_of_a_cantilever_under_gravity():
     sec = Section(L, 100.0, rhoA, 7e6, damping=0.02)
     k = 8
     # generalised-α damps the overdamped Kelvin-Voigt roots that the trapezoidal rule keeps ringing
-    res = dttmm.simulate(clamped(sec, (0.0, -g), duration=1.0), elements_per_link=k, h=1e-3,
-                         integrator="generalized-alpha", rho_inf=0.5)
-    loads = res.cut_loads[-1]                     # (k + 1, 3): element roots, then the tip
+    res = dttmm.simulate(
+        clamped(sec, (0.0, -g), duration=1.0),
+        elements_per_link=k,
+        h=1e-3,
+        integrator="generalized-alpha",
+        rho_inf=0.5,
+    )
+    loads = res.cut_loads[-1]  # (k + 1, 3): element roots, then the tip
     x = np.arange(k + 1) * L / k
     np.testing.assert_allclose(loads[:, 2], rhoA * g * (L - x), atol=1e-4)
     np.testing.assert_allclose(loads[:, 0], rhoA * g * (L - x) ** 2 / 2, atol=1e-4)

@@ -1,12 +1,12 @@
 """The second-order axial strain element: consistent forces, unchanged linear regime, faster
 convergence in k, agreement with Exudyn ANCF (an independent geometrically exact element)."""
+
 import numpy as np
 import pytest
+from conftest import case, shortened
 
 import dttmm
 from dttmm.element import elastic_forces, element_type, strain_energy
-
-from conftest import case, shortened
 
 
 def test_forces_are_the_energy_gradient_and_tangent_its_jacobian():
@@ -18,9 +18,11 @@ def test_forces_are_the_energy_gradient_and_tangent_its_jacobian():
         for i in range(3):
             d = np.zeros((1, 3))
             d[0, i] = 1e-6 * max(abs(e[j, i]), 1e-4)
-            grad = (strain_energy(et, e[j:j + 1] + d) - strain_energy(et, e[j:j + 1] - d)) / (2 * d[0, i])
+            grad = (strain_energy(et, e[j : j + 1] + d) - strain_energy(et, e[j : j + 1] - d)) / (2 * d[0, i])
             assert grad == pytest.approx(f[j, i], rel=1e-6, abs=1e-9 * np.abs(f[j]).max())
-            jac = (elastic_forces(et, e[j:j + 1] + d)[0] - elastic_forces(et, e[j:j + 1] - d)[0])[0] / (2 * d[0, i])
+            jac = (elastic_forces(et, e[j : j + 1] + d)[0] - elastic_forces(et, e[j : j + 1] - d)[0])[0] / (
+                2 * d[0, i]
+            )
             np.testing.assert_allclose(KT[j, :, i], jac, rtol=1e-6, atol=1e-6 * np.abs(KT[j]).max())
 
 
@@ -50,9 +52,20 @@ def test_second_order_converges_faster_in_k():
     errs = {}
     for strain in ("linear", "second-order"):
         ref = dttmm.simulate(c, elements_per_link=32, h=1e-3, strain=strain, cut_loads=False, energy=False)
-        errs[strain] = [np.sqrt(np.mean((dttmm.simulate(c, elements_per_link=k, h=1e-3, strain=strain,
-                                                        cut_loads=False, energy=False).tip_deflection
-                                         - ref.tip_deflection) ** 2)) for k in (4, 8)]
+        errs[strain] = [
+            np.sqrt(
+                np.mean(
+                    (
+                        dttmm.simulate(
+                            c, elements_per_link=k, h=1e-3, strain=strain, cut_loads=False, energy=False
+                        ).tip_deflection
+                        - ref.tip_deflection
+                    )
+                    ** 2
+                )
+            )
+            for k in (4, 8)
+        ]
     order_so = np.log2(errs["second-order"][0] / errs["second-order"][1])
     order_lin = np.log2(errs["linear"][0] / errs["linear"][1])
     assert order_so >= 2.8 and 1.7 <= order_lin <= 2.5, (errs, order_so, order_lin)
@@ -60,7 +73,9 @@ def test_second_order_converges_faster_in_k():
 
 
 def test_spin_up_second_order_bounded_and_at_the_benchmark_peak(spin_up):
-    res = dttmm.simulate(spin_up, elements_per_link=8, h=1e-2, strain="second-order", cut_loads=False, energy=False)
+    res = dttmm.simulate(
+        spin_up, elements_per_link=8, h=1e-2, strain="second-order", cut_loads=False, energy=False
+    )
     v = res.tip_deflection[:, 0]
     assert np.max(np.abs(v)) == pytest.approx(0.40015, rel=3e-3)  # Exudyn ANCF k = 64 (notes §4.1)
 
@@ -81,6 +96,14 @@ def test_second_order_with_generalized_alpha_survives_large_steps(single_link, k
     """The trapezoidal rule is not unconditionally stable for the nonlinear second-order
     element (measured: single_link at h = 4e-3 diverges for k = 2 and 8); generalised-α's
     numerical dissipation of the unresolved axial-bending modes keeps it stable."""
-    res = dttmm.simulate(single_link, elements_per_link=k, h=4e-3, strain="second-order",
-                         integrator="generalized-alpha", rho_inf=0.8, cut_loads=False, energy=False)
+    res = dttmm.simulate(
+        single_link,
+        elements_per_link=k,
+        h=4e-3,
+        strain="second-order",
+        integrator="generalized-alpha",
+        rho_inf=0.8,
+        cut_loads=False,
+        energy=False,
+    )
     assert np.max(np.abs(res.tip_deflection)) == pytest.approx(0.341, abs=0.01)  # ANCF: 0.34097

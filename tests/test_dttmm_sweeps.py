@@ -17,10 +17,13 @@ from dttmm.sweeps import SWEEPS
 def chain(n, *, extensible=True, motion_joint=None):
     """n equal aluminium-strip links, hubs, payload, gravity; joint `motion_joint` is motion-driven."""
     sec = Section(0.5, 2.3333, 0.27, 7e6 if extensible else None)
-    links = tuple(Link(sec, Hub(0.1 if i else 0.0, 0.005), Payload(0.1, 1e-4) if i == n - 1 else None)
-                  for i in range(n))
-    drives = tuple(Drive("motion", Sine(0.3, 1.0)) if i == motion_joint else Drive("torque", Sine(0.5 / (i + 1), 1.0))
-                   for i in range(n))
+    links = tuple(
+        Link(sec, Hub(0.1 if i else 0.0, 0.005), Payload(0.1, 1e-4) if i == n - 1 else None) for i in range(n)
+    )
+    drives = tuple(
+        Drive("motion", Sine(0.3, 1.0)) if i == motion_joint else Drive("torque", Sine(0.5 / (i + 1), 1.0))
+        for i in range(n)
+    )
     return Case(Manipulator(links, (0.0, -9.81)), Scenario(0.1, 1e-3, drives))
 
 
@@ -33,8 +36,10 @@ def step_systems(c, k, seed=0, h=1e-3):
     split = lambda x: [x[lk.e_slice].reshape(lk.k, lk.et.ne) for lk in st.links]
     tau, mot = drive_values(st, 0.3)
     kin = kinematics(st, q, qd)
-    out = {sw: SWEEPS[sw](st, kin, 0.25 * h * h, 0.5 * h, split(q), split(qd), tau, mot[:, 2])
-           for sw in ("riccati", "plain")}
+    out = {
+        sw: SWEEPS[sw](st, kin, 0.25 * h * h, 0.5 * h, split(q), split(qd), tau, mot[:, 2])
+        for sw in ("riccati", "plain")
+    }
     return out["riccati"], out["plain"]
 
 

@@ -1,14 +1,14 @@
 """DT-TMM is exact: it reproduces the global-equation ("traditional") solver of the same
 discretisation (reference_models/global_newmark.py, written independently of the kernel, from the mechanics in docs/method.md)."""
+
 import numpy as np
 import pytest
+from conftest import case, shortened, with_links
 
 import dttmm
 from dttmm.structure import build_structure
 from reference_models import _global_numpy as gnp
 from reference_models import global_newmark as gm
-
-from conftest import case, shortened, with_links
 
 
 def physical_state(st, rng):
@@ -47,8 +47,9 @@ def test_acceleration_solver_equals_global_Minv_f(name, k):
         rhs = (f + gnp._torques(c, lay, 0.3, False) - lay.K @ q - lay.D @ qd)[free]
         Mf = M[np.ix_(free, free)]
         rhs = rhs - M[np.ix_(free, lay.presc)] @ a[lay.presc]
-        backward = np.linalg.norm(Mf @ a[free] - rhs) / (np.linalg.norm(Mf, 2) * np.linalg.norm(a[free])
-                                                         + np.linalg.norm(rhs))
+        backward = np.linalg.norm(Mf @ a[free] - rhs) / (
+            np.linalg.norm(Mf, 2) * np.linalg.norm(a[free]) + np.linalg.norm(rhs)
+        )
         assert backward <= 1e-13
         bound = max(1e-9, 20 * np.linalg.cond(Mf) * np.finfo(float).eps)
         assert np.linalg.norm(a - b) <= bound * np.linalg.norm(b)
@@ -58,14 +59,19 @@ def _compare(a, b):
     return (np.max(np.abs(a.end_effector - b.end_effector)), np.max(np.abs(a.joint_angle - b.joint_angle)))
 
 
-@pytest.mark.parametrize("name, k, duration", [
-    ("single_link", 1, None), ("three_link", 1, None),
-    ("single_link", 8, 0.6), ("three_link", 8, 0.3),
-    pytest.param("single_link", 8, None, marks=pytest.mark.slow),
-    pytest.param("three_link", 8, None, marks=pytest.mark.slow),
-    pytest.param("single_link", 32, None, marks=pytest.mark.slow),
-    pytest.param("three_link", 32, None, marks=pytest.mark.slow),
-])
+@pytest.mark.parametrize(
+    "name, k, duration",
+    [
+        ("single_link", 1, None),
+        ("three_link", 1, None),
+        ("single_link", 8, 0.6),
+        ("three_link", 8, 0.3),
+        pytest.param("single_link", 8, None, marks=pytest.mark.slow),
+        pytest.param("three_link", 8, None, marks=pytest.mark.slow),
+        pytest.param("single_link", 32, None, marks=pytest.mark.slow),
+        pytest.param("three_link", 32, None, marks=pytest.mark.slow),
+    ],
+)
 @pytest.mark.parametrize("iterations", [None, 1])
 def test_newmark_trajectories_equal_global(name, k, duration, iterations):
     """Same Newmark step, same frozen-coefficient iteration: identical iterates, so the
@@ -131,6 +137,7 @@ def test_converges_to_solve_ivp_reference_at_second_order():
 # Second-order axial strain (strain="second-order"): DT-TMM numpy engine vs the global solver
 # ----------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("name", ["single_link", "three_link", "spin_up"])
 @pytest.mark.parametrize("k", [1, 4, 16])
 def test_second_order_acceleration_solver_equals_global(name, k):
@@ -152,10 +159,17 @@ def test_second_order_acceleration_solver_equals_global(name, k):
         assert np.linalg.norm(lin - b) > 1e-3 * np.linalg.norm(b)
 
 
-@pytest.mark.parametrize("name, k", [
-    ("single_link", 1), ("single_link", 4), ("single_link", 8), ("three_link", 1), ("three_link", 4),
-    pytest.param("three_link", 8, marks=pytest.mark.slow),
-])
+@pytest.mark.parametrize(
+    "name, k",
+    [
+        ("single_link", 1),
+        ("single_link", 4),
+        ("single_link", 8),
+        ("three_link", 1),
+        ("three_link", 4),
+        pytest.param("three_link", 8, marks=pytest.mark.slow),
+    ],
+)
 @pytest.mark.parametrize("iterations", [None, 1])
 def test_second_order_newmark_trajectories_equal_global(name, k, iterations):
     """Newton-linearised elastic forces in the frozen-coefficient iteration: identical
@@ -179,8 +193,14 @@ def test_second_order_motion_joint_torque_and_generalized_alpha_equal_global():
     np.testing.assert_allclose(a.joint_torque, b.joint_torque, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(a.tip_deflection, b.tip_deflection, atol=1e-10)
     c = shortened(case("three_link"), 0.1)
-    kw = dict(elements_per_link=4, h=1e-3, integrator="generalized-alpha", rho_inf=0.7, iterations=2,
-              strain="second-order")
+    kw = dict(
+        elements_per_link=4,
+        h=1e-3,
+        integrator="generalized-alpha",
+        rho_inf=0.7,
+        iterations=2,
+        strain="second-order",
+    )
     a = dttmm.simulate(c, cut_loads=False, energy=False, **kw)
     b = gm.simulate(c, **kw)
     assert max(_compare(a, b)) <= 1e-9

@@ -1,6 +1,7 @@
 """The global-equation solver (reference_models.global_newmark) against independent references:
 closed-form beam results, the rigid-body limit, Lagrange's equations, energy balance and an
 adaptive high-order integrator."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -20,6 +21,7 @@ CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
 
 try:
     import numba  # noqa: F401
+
     _ENGINES = ["numpy", "numba"]
 except ImportError:  # the compiled engine is optional (extra "fast")
     _ENGINES = ["numpy"]
@@ -29,6 +31,7 @@ needs_numba = pytest.mark.skipif("numba" not in _ENGINES, reason="numba not inst
 # ----------------------------------------------------------------------------------------------
 # helpers
 # ----------------------------------------------------------------------------------------------
+
 
 def _load(name):
     return dttmm.load_case(CASES / f"{name}.toml")
@@ -45,8 +48,9 @@ def _with_beams(case, **changes):
 
 
 def _shorten(case, duration, output_step):
-    return dataclasses.replace(case, scenario=dataclasses.replace(
-        case.scenario, duration=duration, output_step=output_step))
+    return dataclasses.replace(
+        case, scenario=dataclasses.replace(case.scenario, duration=duration, output_step=output_step)
+    )
 
 
 def _single(beam, drive, *, gravity=(0.0, 0.0), duration=0.1, output_step=0.01, hub=None):
@@ -61,11 +65,19 @@ def _random_state(case, k, seed, scale=0.3):
 
 def _hermite_mass(rhoA, l):
     """Consistent mass of the Hermite beam on (w1, θ1, w2, θ2) and of the linear bar on (u1, u2)."""
-    Mb = rhoA * l / 420.0 * np.array([
-        [156, 22 * l, 54, -13 * l],
-        [22 * l, 4 * l * l, 13 * l, -3 * l * l],
-        [54, 13 * l, 156, -22 * l],
-        [-13 * l, -3 * l * l, -22 * l, 4 * l * l]])
+    Mb = (
+        rhoA
+        * l
+        / 420.0
+        * np.array(
+            [
+                [156, 22 * l, 54, -13 * l],
+                [22 * l, 4 * l * l, 13 * l, -3 * l * l],
+                [54, 13 * l, 156, -22 * l],
+                [-13 * l, -3 * l * l, -22 * l, 4 * l * l],
+            ]
+        )
+    )
     Mu = rhoA * l / 6.0 * np.array([[2.0, 1.0], [1.0, 2.0]])
     return Mb, Mu
 
@@ -77,6 +89,7 @@ def _slope(hs, errs):
 # ----------------------------------------------------------------------------------------------
 # (1) mass matrix
 # ----------------------------------------------------------------------------------------------
+
 
 @pytest.mark.parametrize("k", [1, 3])
 def test_mass_matrix_symmetric_positive_definite(k):
@@ -105,8 +118,9 @@ def test_element_mass_rotates_with_the_frame():
     R = np.eye(6)
     c, s = math.cos(th), math.sin(th)
     R[:2, :2] = [[c, -s], [s, c]]
-    assert np.allclose(gn.element_mass(rhoA, l, th, e), R @ gn.element_mass(rhoA, l, 0.0, e) @ R.T,
-                       rtol=1e-13, atol=1e-15)
+    assert np.allclose(
+        gn.element_mass(rhoA, l, th, e), R @ gn.element_mass(rhoA, l, 0.0, e) @ R.T, rtol=1e-13, atol=1e-15
+    )
 
 
 def test_single_link_mass_at_rest_maps_hermite_mass_to_minimal_coordinates():
@@ -131,7 +145,7 @@ def test_kinetic_energy_matches_point_velocities():
     q, qd = _random_state(case, k, 7)
     names = gn.coordinate_names(case, k)
     elastic = np.array([not n.startswith("alpha") for n in names])
-    q[elastic], qd[elastic] = 0.0, 0.0   # straight links: every beam point lies on the root line
+    q[elastic], qd[elastic] = 0.0, 0.0  # straight links: every beam point lies on the root line
     eps = 1e-6
     f1, f0 = gn.kinematics(case, k, q + eps * qd), gn.kinematics(case, k, q - eps * qd)
     T = 0.0
@@ -153,17 +167,26 @@ def test_kinetic_energy_matches_point_velocities():
 # Lagrange's equations: velocity terms and gravity from M(q) and the potential
 # ----------------------------------------------------------------------------------------------
 
+
 def test_velocity_and_gravity_terms_follow_from_lagrange_equations():
     """M q̈ = −h(q, q̇) − Kq + Q_g with h = Ṁq̇ − ½∂(q̇ᵀMq̇)/∂q and Q_g = −∂V/∂q,
     all derivatives by central differences of mass_matrix and energy."""
     case = _load("three_link")
-    case = dataclasses.replace(case, scenario=dataclasses.replace(
-        case.scenario, drives=tuple(Drive("torque", Constant(0.0)) for _ in range(3))))
+    case = dataclasses.replace(
+        case,
+        scenario=dataclasses.replace(
+            case.scenario, drives=tuple(Drive("torque", Constant(0.0)) for _ in range(3))
+        ),
+    )
     k = 2
     q, qd = _random_state(case, k, 3, scale=0.05)
     n, eps = q.size, 1e-6
-    dM = np.array([(gn.mass_matrix(case, k, q + eps * u) - gn.mass_matrix(case, k, q - eps * u)) / (2 * eps)
-                   for u in np.eye(n)])
+    dM = np.array(
+        [
+            (gn.mass_matrix(case, k, q + eps * u) - gn.mass_matrix(case, k, q - eps * u)) / (2 * eps)
+            for u in np.eye(n)
+        ]
+    )
     h = np.einsum("c,cij,j->i", qd, dM, qd) - 0.5 * np.einsum("icj,c,j->i", dM, qd, qd)
     V = lambda x: gn.energy(case, k, x, np.zeros(n))["gravity"]
     Qg = -np.array([(V(q + eps * u) - V(q - eps * u)) / (2 * eps) for u in np.eye(n)])
@@ -176,6 +199,7 @@ def test_velocity_and_gravity_terms_follow_from_lagrange_equations():
 # ----------------------------------------------------------------------------------------------
 # (2) rigid limit
 # ----------------------------------------------------------------------------------------------
+
 
 def test_rigid_limit_matches_closed_form_rotor():
     """EI and EA × 1e6: the hub angle is the double integral of τ/J."""
@@ -201,10 +225,12 @@ def test_rigid_limit_matches_closed_form_rotor():
 # (3) cantilever statics
 # ----------------------------------------------------------------------------------------------
 
+
 def _cantilever(damping=0.0, duration=0.1):
     beam = Section(1.0, 1.0e3, 1.0, 1.0e7, damping)
-    return _single(beam, Drive("motion", Constant(0.0)), gravity=(0.0, -9.81), duration=duration,
-                   output_step=0.01)
+    return _single(
+        beam, Drive("motion", Constant(0.0)), gravity=(0.0, -9.81), duration=duration, output_step=0.01
+    )
 
 
 def test_cantilever_static_deflection_under_gravity():
@@ -238,6 +264,7 @@ def test_damped_cantilever_settles_to_static_deflection_and_holding_torque():
 # (4) clamped natural frequencies
 # ----------------------------------------------------------------------------------------------
 
+
 def test_clamped_natural_frequencies():
     beam = Section(1.2, 3.0, 0.6)
     case, k = _single(beam, Drive("motion", Constant(0.0))), 8
@@ -254,6 +281,7 @@ def test_clamped_natural_frequencies():
 # ----------------------------------------------------------------------------------------------
 # (5) energy balance
 # ----------------------------------------------------------------------------------------------
+
 
 def _free_three_link():
     base = _with_beams(_load("three_link"), EA=None)
@@ -277,13 +305,18 @@ def test_energy_drift_is_second_order_in_h():
 # (6) order of convergence against an adaptive 8th-order reference
 # ----------------------------------------------------------------------------------------------
 
+
 def _newmark_errors(case, k, hs, **options):
     ref = gn.simulate(case, elements_per_link=k, h=hs[0], integrator="dop853", rtol=1e-9, atol=1e-11)
     errs = []
     for h in hs:
         res = gn.simulate(case, elements_per_link=k, h=h, **options)
-        errs.append(max(np.abs(res.joint_angle - ref.joint_angle).max(),
-                        np.abs(res.tip_deflection - ref.tip_deflection).max()))
+        errs.append(
+            max(
+                np.abs(res.joint_angle - ref.joint_angle).max(),
+                np.abs(res.tip_deflection - ref.tip_deflection).max(),
+            )
+        )
     return np.array(errs)
 
 
@@ -326,6 +359,7 @@ def test_radau_and_dop853_agree():
 # stepping details: iteration counts, outputs between step ends, motion drives
 # ----------------------------------------------------------------------------------------------
 
+
 def test_fixed_iteration_count_and_tolerance_driven_iteration():
     case = _shorten(_load("three_link"), 0.02, 0.01)
     fixed = gn.simulate(case, elements_per_link=1, h=1e-3, iterations=2)
@@ -341,14 +375,16 @@ def test_fixed_iteration_count_and_tolerance_driven_iteration():
 def test_sparse_linear_solver_gives_the_dense_solution():
     case = _shorten(_load("three_link"), 0.01, 1e-3)
     dense = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1)
-    sparse = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1, linear_solver="sparse", engine="numpy")
+    sparse = gn.simulate(
+        case, elements_per_link=2, h=1e-3, iterations=1, linear_solver="sparse", engine="numpy"
+    )
     assert np.allclose(sparse.link_tip, dense.link_tip, rtol=0, atol=1e-12)
     assert sparse.meta["iterations_mean"] == 2
 
 
 def test_outputs_between_step_ends_are_cubic_hermite_of_the_step_states():
     case = _shorten(_load("three_link"), 0.02, 2e-3)
-    steps = gn.simulate(case, elements_per_link=2, h=2e-3)                     # outputs = step ends
+    steps = gn.simulate(case, elements_per_link=2, h=2e-3)  # outputs = step ends
     fine = gn.simulate(_shorten(case, 0.02, 5e-4), elements_per_link=2, h=2e-3)  # 3 of 4 between
     assert np.array_equal(fine.joint_angle[::4], steps.joint_angle)
     assert np.array_equal(fine.joint_rate[::4], steps.joint_rate)
@@ -356,10 +392,18 @@ def test_outputs_between_step_ends_are_cubic_hermite_of_the_step_states():
     for j, s in ((1, 0.25), (2, 0.5), (3, 0.75)):
         y0, y1 = steps.joint_angle[:-1], steps.joint_angle[1:]
         v0, v1 = steps.joint_rate[:-1], steps.joint_rate[1:]
-        y = ((2 * s**3 - 3 * s**2 + 1) * y0 + (s**3 - 2 * s**2 + s) * H * v0
-             + (-2 * s**3 + 3 * s**2) * y1 + (s**3 - s**2) * H * v1)
-        v = ((6 * s**2 - 6 * s) * y0 / H + (3 * s**2 - 4 * s + 1) * v0
-             + (-6 * s**2 + 6 * s) * y1 / H + (3 * s**2 - 2 * s) * v1)
+        y = (
+            (2 * s**3 - 3 * s**2 + 1) * y0
+            + (s**3 - 2 * s**2 + s) * H * v0
+            + (-2 * s**3 + 3 * s**2) * y1
+            + (s**3 - s**2) * H * v1
+        )
+        v = (
+            (6 * s**2 - 6 * s) * y0 / H
+            + (3 * s**2 - 4 * s + 1) * v0
+            + (-6 * s**2 + 6 * s) * y1 / H
+            + (3 * s**2 - 2 * s) * v1
+        )
         assert np.allclose(fine.joint_angle[j::4], y, rtol=0, atol=1e-14)
         assert np.allclose(fine.joint_rate[j::4], v, rtol=0, atol=1e-11)
 
@@ -400,28 +444,32 @@ def test_non_finite_state_raises_with_partial_result():
 # (7) bad input
 # ----------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("kwargs, field", [
-    ({"elements_per_link": 0}, "elements_per_link"),
-    ({"elements_per_link": 1.5}, "elements_per_link"),
-    ({"elements_per_link": True}, "elements_per_link"),
-    ({"h": 0.0}, "h"),
-    ({"h": -1e-3}, "h"),
-    ({"h": math.nan}, "h"),
-    ({"h": 5.0}, "h"),
-    ({"integrator": "euler"}, "integrator"),
-    ({"iterations": -1}, "iterations"),
-    ({"iterations": 1.5}, "iterations"),
-    ({"tol": 0.0}, "tol"),
-    ({"beta": -0.25}, "beta"),
-    ({"linear_solver": "magic"}, "linear_solver"),
-    ({"integrator": "generalized-alpha", "rho_inf": 1.5}, "rho_inf"),
-    ({"integrator": "dop853", "rtol": 0.0}, "rtol"),
-    ({"integrator": "dop853", "beta": 0.3}, "beta"),
-    ({"maxiter": 3}, "maxiter"),
-    ({"max_iterations": 0}, "max_iterations"),
-    ({"engine": "fortran"}, "engine"),
-    pytest.param({"linear_solver": "sparse", "engine": "numba"}, "linear_solver", marks=needs_numba),
-])
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"elements_per_link": 0}, "elements_per_link"),
+        ({"elements_per_link": 1.5}, "elements_per_link"),
+        ({"elements_per_link": True}, "elements_per_link"),
+        ({"h": 0.0}, "h"),
+        ({"h": -1e-3}, "h"),
+        ({"h": math.nan}, "h"),
+        ({"h": 5.0}, "h"),
+        ({"integrator": "euler"}, "integrator"),
+        ({"iterations": -1}, "iterations"),
+        ({"iterations": 1.5}, "iterations"),
+        ({"tol": 0.0}, "tol"),
+        ({"beta": -0.25}, "beta"),
+        ({"linear_solver": "magic"}, "linear_solver"),
+        ({"integrator": "generalized-alpha", "rho_inf": 1.5}, "rho_inf"),
+        ({"integrator": "dop853", "rtol": 0.0}, "rtol"),
+        ({"integrator": "dop853", "beta": 0.3}, "beta"),
+        ({"maxiter": 3}, "maxiter"),
+        ({"max_iterations": 0}, "max_iterations"),
+        ({"engine": "fortran"}, "engine"),
+        pytest.param({"linear_solver": "sparse", "engine": "numba"}, "linear_solver", marks=needs_numba),
+    ],
+)
 def test_bad_settings_are_refused_naming_the_field(kwargs, field):
     args = {"elements_per_link": 2, "h": 1e-3, **kwargs}
     with pytest.raises(dttmm.InputError) as info:
@@ -446,13 +494,23 @@ def test_coordinate_names_order():
     assert names[:7] == ["alpha_1", "u_1_1", "v_1_1", "phi_1_1", "u_1_2", "v_1_2", "phi_1_2"]
     assert names[7] == "alpha_2" and len(names) == 21
     inext = gn.coordinate_names(_with_beams(case, EA=None), 1)
-    assert inext == ["alpha_1", "v_1_1", "phi_1_1", "alpha_2", "v_2_1", "phi_2_1",
-                     "alpha_3", "v_3_1", "phi_3_1"]
+    assert inext == [
+        "alpha_1",
+        "v_1_1",
+        "phi_1_1",
+        "alpha_2",
+        "v_2_1",
+        "phi_2_1",
+        "alpha_3",
+        "v_3_1",
+        "phi_3_1",
+    ]
 
 
 # ----------------------------------------------------------------------------------------------
 # (9) second-order axial strain (strain="second-order")
 # ----------------------------------------------------------------------------------------------
+
 
 def _mixed_case():
     """Two extensible links and one inextensible one (unchanged by the strain option)."""
@@ -494,8 +552,9 @@ def test_second_order_force_is_energy_gradient_and_tangent_its_jacobian(k):
         assert np.array_equal(KT, KT.T)
         # inextensible link and joint angles: exactly the linear element
         K = gn.stiffness_matrix(case, k)
-        lin = np.array([n.startswith("alpha") or n.endswith(tuple(f"_2_{j + 1}" for j in range(k)))
-                        for n in names])
+        lin = np.array(
+            [n.startswith("alpha") or n.endswith(tuple(f"_2_{j + 1}" for j in range(k))) for n in names]
+        )
         np.testing.assert_allclose(KT[lin], K[lin], rtol=1e-14, atol=1e-14 * np.abs(K).max())
         np.testing.assert_allclose(f[lin], (K @ q)[lin], rtol=1e-14, atol=1e-14 * np.abs(f).max())
         # the second-order terms matter at this state
@@ -581,10 +640,13 @@ def test_strain_option_is_validated_and_linear_is_the_default():
 # (9) compiled engine against the numpy engine; stopping rule and status
 # ----------------------------------------------------------------------------------------------
 
+
 def _engines_case(name, damping=0.0):
-    case = {"single_link": lambda: _shorten(_load("single_link"), 0.6, 0.02),
-            "three_link": lambda: _shorten(_load("three_link"), 0.3, 0.01),
-            "spin_up": lambda: _shorten(_load("spin_up"), 2.0, 0.1)}[name]()
+    case = {
+        "single_link": lambda: _shorten(_load("single_link"), 0.6, 0.02),
+        "three_link": lambda: _shorten(_load("three_link"), 0.3, 0.01),
+        "spin_up": lambda: _shorten(_load("spin_up"), 2.0, 0.1),
+    }[name]()
     return _with_beams(case, damping=damping) if damping else case
 
 
@@ -673,6 +735,7 @@ def test_non_finite_state_raises_with_partial_result_compiled_engine():
 # (10) Kelvin-Voigt damping on the rate of the second-order strain
 # ----------------------------------------------------------------------------------------------
 
+
 def _one_element(EA, EI, l, mu):
     beam = Section(l, EI, 1.0, EA, mu)
     return _single(beam, Drive("torque", Constant(0.0)))
@@ -722,14 +785,21 @@ def _elastica_tip(L, EI, w):
     s = np.linspace(0.0, L, 201)
     y0 = np.zeros((4, s.size))
     y0[2] = s
-    sol = scipy.integrate.solve_bvp(f, lambda a, b: np.array([a[0], b[1], a[2], a[3]]), s, y0, tol=1e-10,
-                                    max_nodes=100000)
+    sol = scipy.integrate.solve_bvp(
+        f, lambda a, b: np.array([a[0], b[1], a[2], a[3]]), s, y0, tol=1e-10, max_nodes=100000
+    )
     assert sol.status == 0
     return np.array([sol.y[2, -1], sol.y[3, -1]])
 
 
-@pytest.mark.parametrize("k, engine, tol", [pytest.param(8, "numba", 3e-3, marks=needs_numba),
-                                             pytest.param(16, "numba", 4e-4, marks=needs_numba), (8, "numpy", 3e-3)])
+@pytest.mark.parametrize(
+    "k, engine, tol",
+    [
+        pytest.param(8, "numba", 3e-3, marks=needs_numba),
+        pytest.param(16, "numba", 4e-4, marks=needs_numba),
+        (8, "numpy", 3e-3),
+    ],
+)
 def test_damped_second_order_cantilever_settles_to_the_elastica(k, engine, tol):
     """Heavy cantilever (Exudyn's self-weight test: L = 2 m, ρA = 78 kg/m, EI = 833.3 N·m²)
     made nearly inextensible (EA = 1e9 N), μ = 0.35 s, dropped from straight: with the damping
@@ -740,11 +810,19 @@ def test_damped_second_order_cantilever_settles_to_the_elastica(k, engine, tol):
     0.44 m (k = 8) and 0.085 m (k = 16) above the elastica at t = 10 s (measured)."""
     L, EI, rhoA = 2.0, 833.3333333333334, 78.0
     beam = Section(L, EI, rhoA, 1.0e9, 0.35)
-    case = Case(Manipulator((Link(beam),), (0.0, -9.81)),
-                Scenario(10.0, 0.5, (Drive("motion", Constant(0.0)),)))
-    res = gn.simulate(case, elements_per_link=k, h=5e-3, integrator="generalized-alpha", rho_inf=0.8,
-                      strain="second-order", engine=engine)
+    case = Case(
+        Manipulator((Link(beam),), (0.0, -9.81)), Scenario(10.0, 0.5, (Drive("motion", Constant(0.0)),))
+    )
+    res = gn.simulate(
+        case,
+        elements_per_link=k,
+        h=5e-3,
+        integrator="generalized-alpha",
+        rho_inf=0.8,
+        strain="second-order",
+        engine=engine,
+    )
     tip = res.link_tip[:, 0]
     assert res.status == "ok"
-    assert np.abs(tip[-1] - tip[-3]).max() < 1e-5                   # at rest from t = 9 s on
+    assert np.abs(tip[-1] - tip[-3]).max() < 1e-5  # at rest from t = 9 s on
     assert np.abs(tip[-1] - _elastica_tip(L, EI, rhoA * 9.81)).max() < tol

@@ -8,6 +8,7 @@ elements, a difference of nearly cancelling terms: 1e-9). The plain sweep amplif
 by the condition of its final system, so there the bound is scaled by the condition number the
 run records.
 """
+
 from __future__ import annotations
 
 import dataclasses as dc
@@ -41,16 +42,27 @@ def mixed_case(duration=0.02, output_step=0.0025):
     """Torque and motion joints, an inextensible middle link, hubs, payloads, gravity, damping,
     a torque jump inside a step (restart) and an output grid off the step grid (Hermite)."""
     al = {"EI": 2.3333333333333335, "rhoA": 0.27}
-    links = (dttmm.Link(dttmm.Section(0.5, EA=7e6, damping=2e-4, **al), hub=dttmm.Hub(0.0, 0.01)),
-             dttmm.Link(dttmm.Section(0.4, EA=None, damping=1e-4, **al), hub=dttmm.Hub(0.2, 0.005),
-                        payload=dttmm.Payload(0.05, 1e-4)),
-             dttmm.Link(dttmm.Section(0.3, EA=5e6, **al), hub=dttmm.Hub(0.1, 0.002),
-                        payload=dttmm.Payload(0.1, 2e-4)))
-    drives = (dttmm.Drive("torque", dttmm.Sine(1.0, 2.0), initial_rate=0.3),
-              dttmm.Drive("motion", dttmm.Sine(0.3, 1.5, phase=0.2)),
-              dttmm.Drive("torque", dttmm.BangBang((0.2, -0.3, 0.1), (0.0105, 0.016)), initial_angle=0.4))
-    return dttmm.Case(dttmm.Manipulator(links, gravity=(0.0, -9.81)),
-                      dttmm.Scenario(duration, output_step, drives), name="mixed")
+    links = (
+        dttmm.Link(dttmm.Section(0.5, EA=7e6, damping=2e-4, **al), hub=dttmm.Hub(0.0, 0.01)),
+        dttmm.Link(
+            dttmm.Section(0.4, EA=None, damping=1e-4, **al),
+            hub=dttmm.Hub(0.2, 0.005),
+            payload=dttmm.Payload(0.05, 1e-4),
+        ),
+        dttmm.Link(
+            dttmm.Section(0.3, EA=5e6, **al), hub=dttmm.Hub(0.1, 0.002), payload=dttmm.Payload(0.1, 2e-4)
+        ),
+    )
+    drives = (
+        dttmm.Drive("torque", dttmm.Sine(1.0, 2.0), initial_rate=0.3),
+        dttmm.Drive("motion", dttmm.Sine(0.3, 1.5, phase=0.2)),
+        dttmm.Drive("torque", dttmm.BangBang((0.2, -0.3, 0.1), (0.0105, 0.016)), initial_angle=0.4),
+    )
+    return dttmm.Case(
+        dttmm.Manipulator(links, gravity=(0.0, -9.81)),
+        dttmm.Scenario(duration, output_step, drives),
+        name="mixed",
+    )
 
 
 @pytest.fixture(scope="module")
@@ -74,9 +86,13 @@ def _compare(case, rtol=RTOL, load_rtol=None, **kw):
     assert r1.meta["engine"] == "numba" and r0.meta["engine"] == "python"
     np.testing.assert_array_equal(r1.t, r0.t)
     assert r1.n_steps == r0.n_steps
-    errs = {"angle": _rel(r1.joint_angle, r0.joint_angle), "tip": _rel(r1.tip_deflection, r0.tip_deflection),
-            "torque": _rel(r1.joint_torque, r0.joint_torque), "energy": _rel(r1.energy, r0.energy),
-            "loads": _rel(r1.cut_loads, r0.cut_loads)}
+    errs = {
+        "angle": _rel(r1.joint_angle, r0.joint_angle),
+        "tip": _rel(r1.tip_deflection, r0.tip_deflection),
+        "torque": _rel(r1.joint_torque, r0.joint_torque),
+        "energy": _rel(r1.energy, r0.energy),
+        "loads": _rel(r1.cut_loads, r0.cut_loads),
+    }
     bounds = dict.fromkeys(errs, rtol)
     bounds.update(energy=100 * rtol, loads=load_rtol or rtol)
     bad = {key: v for key, v in errs.items() if not v <= bounds[key]}
@@ -96,8 +112,15 @@ INTEGRATORS = {"newmark": {}, "generalized-alpha": {"rho_inf": 0.8}}
 @pytest.mark.parametrize("strain", ["linear", SO])
 def test_engines_agree(mixed, strain, sweep, integrator, mode):
     """numba and python on the mixed arm (k = 1: the plain sweep stays well conditioned)."""
-    kw = dict(elements_per_link=1, h=1e-3, strain=strain, sweep=sweep, integrator=integrator,
-              iterations=MODES[mode], **INTEGRATORS[integrator])
+    kw = dict(
+        elements_per_link=1,
+        h=1e-3,
+        strain=strain,
+        sweep=sweep,
+        integrator=integrator,
+        iterations=MODES[mode],
+        **INTEGRATORS[integrator],
+    )
     rtol, load_rtol = RTOL, SO_LOAD_RTOL if strain == SO else None
     if sweep == "plain":
         amp = max(1.0, dttmm.simulate(mixed, engine="numba", **kw).meta["final_system_cond"])
@@ -107,15 +130,25 @@ def test_engines_agree(mixed, strain, sweep, integrator, mode):
 
 @pytest.mark.parametrize("strain", ["linear", SO])
 def test_engines_agree_rk4(strain):
-    _compare(mixed_case(0.0005, 1e-4), elements_per_link=2, h=1e-5, integrator="rk4", strain=strain,
-             load_rtol=SO_LOAD_RTOL if strain == SO else None)
+    _compare(
+        mixed_case(0.0005, 1e-4),
+        elements_per_link=2,
+        h=1e-5,
+        integrator="rk4",
+        strain=strain,
+        load_rtol=SO_LOAD_RTOL if strain == SO else None,
+    )
 
 
 def _random_states(case, k, strain, rng, n=3):
     st = build_structure(case, k, strain)
     for _ in range(n):
-        yield st, rng.normal(scale=0.02, size=st.n_dof), rng.normal(scale=0.5, size=st.n_dof), \
-            float(rng.uniform(0, 0.05))
+        yield (
+            st,
+            rng.normal(scale=0.02, size=st.n_dof),
+            rng.normal(scale=0.5, size=st.n_dof),
+            float(rng.uniform(0, 0.05)),
+        )
 
 
 @pytest.mark.parametrize("strain", ["linear", SO])
@@ -141,7 +174,7 @@ def test_kernel_accelerations_match_numpy_reference(strain, sweep):
 
 def test_second_order_forces_act_at_random_states():
     rng = np.random.default_rng(11)
-    for st, q, qd, t in _random_states(mixed_case(), 3, SO, rng):
+    for _st, q, qd, t in _random_states(mixed_case(), 3, SO, rng):
         a_so = dttmm.accelerations(mixed_case(), 3, q, qd, t, strain=SO)
         a_lin = dttmm.accelerations(mixed_case(), 3, q, qd, t)
         assert _rel(a_lin, a_so) > 1e-6
@@ -175,8 +208,9 @@ def test_thinned_cut_loads_are_every_stride_th_sample(monkeypatch):
 
     def thinned(st, times, want_loads, want_energy):
         rec = make(st, times, want_loads, want_energy)
-        return rec._replace(loads=np.full(((times.size - 1) // 3 + 1, *rec.loads.shape[1:]), np.nan),
-                            load_stride=3)
+        return rec._replace(
+            loads=np.full(((times.size - 1) // 3 + 1, *rec.loads.shape[1:]), np.nan), load_stride=3
+        )
 
     monkeypatch.setattr(driver, "new_record", thinned)
     r = dttmm.simulate(c, elements_per_link=2, h=1e-3)
@@ -216,24 +250,28 @@ def _run_python(code: str, env_extra=None):
     import os
 
     env = dict(os.environ, **(env_extra or {}))
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env, check=False)
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, env=env, check=False
+    )
 
 
 def test_runs_without_numba():
     """With numba unimportable the kernel runs uncompiled, with the same numbers."""
-    code = ("import sys; sys.modules['numba'] = None\n"
-            "import dataclasses as dc, numpy as np, dttmm\n"
-            f"c = dttmm.load_case(r'{CASES / 'single_link.toml'}')\n"
-            "c = dc.replace(c, scenario=dc.replace(c.scenario, duration=0.003))\n"
-            "r = dttmm.simulate(c, elements_per_link=2, h=1e-3)\n"
-            "assert r.meta['engine'] == 'python', r.meta\n"
-            "np.save(sys.stdout.buffer, r.tip_deflection)\n"
-            "try:\n"
-            "    dttmm.simulate(c, elements_per_link=1, h=1e-3, engine='numba')\n"
-            "except dttmm.InputError:\n"
-            "    pass\n"
-            "else:\n"
-            "    raise SystemExit('engine=numba accepted without numba')\n")
+    code = (
+        "import sys; sys.modules['numba'] = None\n"
+        "import dataclasses as dc, numpy as np, dttmm\n"
+        f"c = dttmm.load_case(r'{CASES / 'single_link.toml'}')\n"
+        "c = dc.replace(c, scenario=dc.replace(c.scenario, duration=0.003))\n"
+        "r = dttmm.simulate(c, elements_per_link=2, h=1e-3)\n"
+        "assert r.meta['engine'] == 'python', r.meta\n"
+        "np.save(sys.stdout.buffer, r.tip_deflection)\n"
+        "try:\n"
+        "    dttmm.simulate(c, elements_per_link=1, h=1e-3, engine='numba')\n"
+        "except dttmm.InputError:\n"
+        "    pass\n"
+        "else:\n"
+        "    raise SystemExit('engine=numba accepted without numba')\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=300, check=False)
     assert out.returncode == 0, out.stderr.decode()
     import io

@@ -3,6 +3,7 @@
 References: closed-form rotor and spin-up solutions, and an independent absolute-angle
 Lagrangian model of the planar chain written here in numpy.
 """
+
 import dataclasses
 import math
 from pathlib import Path
@@ -40,7 +41,7 @@ class NumpyChain:
         self.Mb = m + mh + mp
         self.s = m * L / 2 + mp * L
         I = m * L**2 / 3 + Jh + Jp + mp * L**2
-        outboard = np.array([self.Mb[i + 1:].sum() for i in range(n)])  # Σ_{i>j} M_i
+        outboard = np.array([self.Mb[i + 1 :].sum() for i in range(n)])  # Σ_{i>j} M_i
         self.beta = np.empty((n, n))
         for j in range(n):
             self.beta[j, j] = I[j] + L[j] ** 2 * outboard[j]
@@ -75,7 +76,7 @@ class NumpyChain:
 
 def random_arm(rng, n):
     links = []
-    for i in range(n):
+    for _ in range(n):
         hub = dttmm.Hub(rng.uniform(0, 0.5), rng.uniform(0, 0.05)) if rng.random() < 0.8 else None
         pay = dttmm.Payload(rng.uniform(0, 0.5), rng.uniform(0, 0.02)) if rng.random() < 0.6 else None
         links.append(dttmm.Link(dttmm.Section(rng.uniform(0.2, 1.5), 1.0, rng.uniform(0.1, 2.0)), hub, pay))
@@ -100,16 +101,22 @@ def test_model_matches_numpy_lagrangian(n):
         M = np.triu(M) + np.triu(M, 1).T
         np.testing.assert_allclose(M, ref.mass(q), rtol=0, atol=1e-10)
         np.testing.assert_allclose(pin.nonLinearEffects(model, data, q, v), ref.nle(q, v), rtol=0, atol=1e-10)
-        np.testing.assert_allclose(pin.aba(model, data, q, v, tau), ref.fd(q, v, tau), rtol=0,
-                                   atol=1e-10 * (1 + np.abs(ref.fd(q, v, tau)).max()))
+        np.testing.assert_allclose(
+            pin.aba(model, data, q, v, tau),
+            ref.fd(q, v, tau),
+            rtol=0,
+            atol=1e-10 * (1 + np.abs(ref.fd(q, v, tau)).max()),
+        )
         assert abs(pin.computeMechanicalEnergy(model, data, q, v) - ref.energy(q, v)) < 1e-10
 
 
 def rotor_angle(t, J):
     """θ(t) = ∫∫ τ/J for τ = +1 on [0, 0.5), −1 on [0.5, 1), 0 afterwards (single_link.toml)."""
     t = np.asarray(t)
-    return np.where(t < 0.5, 0.5 * t**2,
-                    np.where(t < 1.0, 0.125 + 0.5 * (t - 0.5) - 0.5 * (t - 0.5) ** 2, 0.25)) / J
+    return (
+        np.where(t < 0.5, 0.5 * t**2, np.where(t < 1.0, 0.125 + 0.5 * (t - 0.5) - 0.5 * (t - 0.5) ** 2, 0.25))
+        / J
+    )
 
 
 def rotor_rate(t, J):
@@ -163,8 +170,9 @@ def test_three_link_convergence_order(integrator, order):
     case = dttmm.load_case(CASES / "three_link.toml")
     ref = pr.simulate(case, h=1e-3, integrator="dop853")
     hs = np.array([2e-3, 1e-3, 7e-4])
-    errs = [np.abs(pr.simulate(case, h=h, integrator=integrator).joint_angle - ref.joint_angle).max()
-            for h in hs]
+    errs = [
+        np.abs(pr.simulate(case, h=h, integrator=integrator).joint_angle - ref.joint_angle).max() for h in hs
+    ]
     fitted = np.polyfit(np.log(hs), np.log(errs), 1)[0]
     assert abs(fitted - order) < 0.5, (errs, fitted)
 
@@ -196,8 +204,11 @@ def test_spin_up_torque_is_inertia_times_acceleration():
         other = pr.simulate(case, h=0.05, integrator=integrator)
         np.testing.assert_array_equal(other.joint_torque, res.joint_torque)
     acc = np.where(t < T, ws / T * (1 - np.cos(2 * np.pi * t / T)), 0.0)
-    angle = np.where(t < T, ws / T * (t**2 / 2 + (T / (2 * np.pi)) ** 2 * (np.cos(2 * np.pi * t / T) - 1)),
-                     ws * (t - T / 2))
+    angle = np.where(
+        t < T,
+        ws / T * (t**2 / 2 + (T / (2 * np.pi)) ** 2 * (np.cos(2 * np.pi * t / T) - 1)),
+        ws * (t - T / 2),
+    )
     np.testing.assert_allclose(res.joint_torque[:, 0], J * acc, rtol=0, atol=1e-12 * J * ws / T * 2)
     np.testing.assert_allclose(res.joint_angle[:, 0], angle, rtol=1e-13, atol=1e-13)
     assert res.joint_torque[:, 0].max() == pytest.approx(2 * J * ws / T, rel=1e-6)  # peak at T/2
@@ -206,8 +217,10 @@ def test_spin_up_torque_is_inertia_times_acceleration():
 def mixed_case(output_step=0.01, until=1.2):
     """Joint 1 prescribed (smooth), joint 2 torque-driven with a torque jump at ``until``."""
     arm = random_arm(np.random.default_rng(7), 2)
-    drives = [dttmm.Drive("motion", dttmm.Sine(0.8, 0.7)),
-              dttmm.Drive("torque", dttmm.Sine(0.3, 1.3, until=until), initial_angle=0.5, initial_rate=-0.2)]
+    drives = [
+        dttmm.Drive("motion", dttmm.Sine(0.8, 0.7)),
+        dttmm.Drive("torque", dttmm.Sine(0.3, 1.3, until=until), initial_angle=0.5, initial_rate=-0.2),
+    ]
     return dttmm.Case(arm, dttmm.Scenario(2.0, output_step, tuple(drives)))
 
 
@@ -220,8 +233,9 @@ def test_mixed_drives_consistent(integrator):
     motion = np.array([law.motion(t) for t in res.t])
     np.testing.assert_allclose(res.joint_angle[:, 0], motion[:, 0], rtol=0, atol=1e-14)
     np.testing.assert_allclose(res.joint_rate[:, 0], motion[:, 1], rtol=0, atol=1e-14)
-    np.testing.assert_allclose(res.joint_torque[:, 1], [case.scenario.drives[1].torque(t) for t in res.t],
-                               rtol=0, atol=0)
+    np.testing.assert_allclose(
+        res.joint_torque[:, 1], [case.scenario.drives[1].torque(t) for t in res.t], rtol=0, atol=0
+    )
     # the torque reported for the motion joint, applied in the independent model at the same
     # state, reproduces the prescribed acceleration
     for s in range(0, res.t.size, 10):
@@ -237,8 +251,12 @@ def test_mixed_drives_torque_fed_back():
         case = with_scenario(mixed_case(until=math.inf), 1.0, dt, mixed_case(until=math.inf).scenario.drives)
         res = pr.simulate(case, h=dt, integrator="rk4")
         d0, d1 = case.scenario.drives
-        fed = dttmm.Drive("torque", dttmm.Table(tuple(res.t), tuple(res.joint_torque[:, 0])),
-                          initial_angle=d0.initial_angle, initial_rate=d0.initial_rate)
+        fed = dttmm.Drive(
+            "torque",
+            dttmm.Table(tuple(res.t), tuple(res.joint_torque[:, 0])),
+            initial_angle=d0.initial_angle,
+            initial_rate=d0.initial_rate,
+        )
         back = pr.simulate(with_scenario(case, 1.0, dt, [fed, d1]), h=dt, integrator="rk4")
         errs.append(np.abs(back.joint_angle - res.joint_angle).max())
     assert errs[1] < 1e-3 and 1.5 < math.log2(errs[0] / errs[1]) < 2.5, errs

@@ -262,7 +262,9 @@ def test_error_histories_and_loads(report):
     loads = pd.read_csv(data / "paper_loads.csv").set_index(["case", "method"])
     # the spinner's joint is motion-driven: its torque is an output of every method
     assert np.isfinite(loads.loc[("spinner", "exudyn-ancf"), "torque1_l2"])
-    assert "torque1_l2" in loads and not np.isfinite(loads.loc[("three_link", "dttmm")].get("torque1_l2", np.nan))
+    assert "torque1_l2" in loads and not np.isfinite(
+        loads.loc[("three_link", "dttmm")].get("torque1_l2", np.nan)
+    )
     assert np.isfinite(loads.loc[("three_link", "dttmm"), "moment1_l2"])
     # Exudyn records no energy; DT-TMM's energy is compared with the energy reference run
     assert np.isnan(loads.loc[("three_link", "exudyn-ancf"), "energy_l2"])

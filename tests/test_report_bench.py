@@ -168,7 +168,13 @@ def test_provenance_warns_only_for_another_commit():
 def test_two_significant_digits():
     from reports.peers import sig2
 
-    assert [sig2(x) for x in (8031.0, 2304.4, 2.84, 0.0456, 4096.0)] == ["8000", "2300", "2.8", "0.046", "4100"]
+    assert [sig2(x) for x in (8031.0, 2304.4, 2.84, 0.0456, 4096.0)] == [
+        "8000",
+        "2300",
+        "2.8",
+        "0.046",
+        "4100",
+    ]
     assert sig2(float("nan")) == "n/a" and sig2(None) == "n/a"
 
 

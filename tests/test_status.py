@@ -1,5 +1,6 @@
 """Result.status of fixed sweep counts and "auto" (residual check, energy check), and
 divergence checks. References are the converged runs (tolerance 1e-10) of the same case."""
+
 from __future__ import annotations
 
 from pathlib import Path

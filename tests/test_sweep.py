@@ -9,12 +9,12 @@ import sys
 import time
 from pathlib import Path
 
+import _rotor_method as rotor
 import numpy as np
 import pandas as pd
 import pytest
-
-import _rotor_method as rotor
 from conftest import case, shortened
+
 from experiments import methods, metrics
 from experiments.runs import RunStore, Task
 from experiments.sweep import pending, run_sweep

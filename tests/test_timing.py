@@ -145,9 +145,22 @@ def test_work_precision_summary_quotes_the_least_times_of_the_repeats():
     for m, first_call in (("dttmm", 5.0), ("global", 0.2)):
         for k, err in ((2, 1e-3), (4, 1e-4)):
             rows.append(
-                {"case": "x", "method": m, "options": "", "k": k, "h": 1e-3, "status": "ok", "ee_l2": err,
-                 "wall_time": first_call, "timing_wall_min": 0.01 * k, "timing_cpu_min": 0.009 * k,
-                 "timing_cpu_median": 0.009 * k, "timing_repeats": 3, "timing_noisy": False, "timing_noise": ""}
+                {
+                    "case": "x",
+                    "method": m,
+                    "options": "",
+                    "k": k,
+                    "h": 1e-3,
+                    "status": "ok",
+                    "ee_l2": err,
+                    "wall_time": first_call,
+                    "timing_wall_min": 0.01 * k,
+                    "timing_cpu_min": 0.009 * k,
+                    "timing_cpu_median": 0.009 * k,
+                    "timing_repeats": 3,
+                    "timing_noisy": False,
+                    "timing_noise": "",
+                }
             )
     s = wp.analyse(None, pd.DataFrame(rows))["work_precision_summary"].set_index("method")
     assert s.loc["dttmm", "wall_time_to_target"] == pytest.approx(0.04)

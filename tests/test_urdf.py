@@ -1,4 +1,5 @@
 """URDF export of the rigid arm (dttmm.urdf) and the ``dttmm urdf`` command."""
+
 import shutil
 import subprocess
 import sys
@@ -51,13 +52,18 @@ def test_urdf_matches_programmatic_model():
     for _ in range(5):
         q, v, tau = rng.normal(0, 2, (3, 3))
         np.testing.assert_allclose(pin.crba(from_urdf, du, q), pin.crba(direct, dd, q), rtol=0, atol=1e-12)
-        np.testing.assert_allclose(pin.aba(from_urdf, du, q, v, tau), pin.aba(direct, dd, q, v, tau),
-                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            pin.aba(from_urdf, du, q, v, tau), pin.aba(direct, dd, q, v, tau), rtol=0, atol=1e-12
+        )
         pin.framesForwardKinematics(from_urdf, du, q)
         pin.framesForwardKinematics(direct, dd, q)
         for name in ("tip", "link1_tip", "link2_tip"):
-            np.testing.assert_allclose(du.oMf[from_urdf.getFrameId(name)].translation,
-                                       dd.oMf[direct.getFrameId(name)].translation, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(
+                du.oMf[from_urdf.getFrameId(name)].translation,
+                dd.oMf[direct.getFrameId(name)].translation,
+                rtol=0,
+                atol=1e-14,
+            )
 
 
 def test_cli_prints_urdf(capsys):

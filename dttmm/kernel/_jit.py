@@ -10,6 +10,7 @@ not the files of the functions it calls, so an edit to one kernel module could l
 machine code for a caller in another. The cache therefore lives in a folder named by a hash of
 all kernel sources: any edit starts a fresh cache.
 """
+
 from __future__ import annotations
 
 import hashlib

@@ -2,6 +2,7 @@
 drive laws on the step schedule, runs the time loop (compiled or not) in chunks, and turns
 what it recorded into a :class:`dttmm.Result` — or a SimulationError with the partial result.
 """
+
 from __future__ import annotations
 
 import math
@@ -42,15 +43,20 @@ def resolve_engine(engine) -> str:
     """None → "numba" when numba imports, else "python"; "numpy" is a deprecated alias of
     "python" (the numpy time loop is gone; the uncompiled kernel replaces it)."""
     if engine == "numpy":
-        warnings.warn('engine="numpy" is deprecated: the numpy time loop was replaced by the uncompiled '
-                      'kernel, engine="python"', DeprecationWarning, stacklevel=3)
+        warnings.warn(
+            'engine="numpy" is deprecated: the numpy time loop was replaced by the uncompiled '
+            'kernel, engine="python"',
+            DeprecationWarning,
+            stacklevel=3,
+        )
         engine = "python"
     if engine is None:
         return "numba" if _jit.HAVE_NUMBA else "python"
     plumbing.choice("engine", engine, ENGINES)
     if engine == "numba" and not _jit.HAVE_NUMBA:
-        raise InputError("engine", engine, "numba is not installed (pip install 'dttmm[fast]'); use "
-                                           "engine='python'")
+        raise InputError(
+            "engine", engine, "numba is not installed (pip install 'dttmm[fast]'); use engine='python'"
+        )
     return engine
 
 
@@ -58,9 +64,11 @@ def _modules(engine: str):
     """(loop, recorder) modules of the engine: compiled, or the uncompiled copy."""
     if engine == "numba" or _jit.PURE:
         from . import recorder
+
         return loop, recorder
     from ..kernel_python import loop as ploop
     from ..kernel_python import recorder as precorder
+
     return ploop, precorder
 
 
@@ -102,11 +110,21 @@ class Settings:
                 mode, nfix = IT_AUTO, 0
             else:
                 mode, nfix = IT_FIXED, int(self.iterations)
-        return loop.Options(integrator=INT_RK4 if fam is None else INT_NEWMARK, sweep=SWEEP_CODES[self.sweep],
-                            iteration=mode, n_fixed=nfix, tol=float(self.tol),
-                            max_iterations=int(self.max_iterations), auto_fraction=float(self.auto_fraction),
-                            beta=float(beta), gamma=float(gamma), alpha_m=float(am), alpha_f=float(af),
-                            lte=float(lte), check_every=CHECK_EVERY if mode in (IT_FIXED, IT_AUTO) and fam else 0)
+        return loop.Options(
+            integrator=INT_RK4 if fam is None else INT_NEWMARK,
+            sweep=SWEEP_CODES[self.sweep],
+            iteration=mode,
+            n_fixed=nfix,
+            tol=float(self.tol),
+            max_iterations=int(self.max_iterations),
+            auto_fraction=float(self.auto_fraction),
+            beta=float(beta),
+            gamma=float(gamma),
+            alpha_m=float(am),
+            alpha_f=float(af),
+            lte=float(lte),
+            check_every=CHECK_EVERY if mode in (IT_FIXED, IT_AUTO) and fam else 0,
+        )
 
 
 def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
@@ -127,8 +145,17 @@ def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.D
             right[rs, i] = [law(t, False) for t in t_end[rs]]
         if rk4:
             mid[:, i] = [law(t, False) for t in t_mid]
-    return loop.Drives(t_end=t_end, restart=np.asarray(restart, np.bool_), need_loads=need_loads, tau_left=taul,
-                       mot_left=motl, tau_right=taur, mot_right=motr, tau_mid=taum, mot_mid=motm)
+    return loop.Drives(
+        t_end=t_end,
+        restart=np.asarray(restart, np.bool_),
+        need_loads=need_loads,
+        tau_left=taul,
+        mot_left=motl,
+        tau_right=taur,
+        mot_right=motr,
+        tau_mid=taum,
+        mot_mid=motm,
+    )
 
 
 def drive_values(st: Structure, t: float, left: bool = False):
@@ -151,9 +178,18 @@ def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Rec
     stride = max(1, math.ceil(nt * ncuts / 2.0e6)) if want_loads else 0
     full = lambda *shape: np.full((nt, *shape), np.nan)
     loads = np.full(((nt - 1) // stride + 1, ncuts, 3), np.nan) if want_loads else np.zeros((0, ncuts, 3))
-    return Record(t=times, angle=full(n), rate=full(n), torque=full(n), root=full(n, 2), tip=full(n, 2),
-                  root_angle=full(n), energy=full() if want_energy else np.zeros(0), loads=loads,
-                  load_stride=stride)
+    return Record(
+        t=times,
+        angle=full(n),
+        rate=full(n),
+        torque=full(n),
+        root=full(n, 2),
+        tip=full(n, 2),
+        root_angle=full(n),
+        energy=full() if want_energy else np.zeros(0),
+        loads=loads,
+        load_stride=stride,
+    )
 
 
 def load_plan(rec: Record, t_end, i0: int):
@@ -181,11 +217,23 @@ def to_result(rec: Record, upto: int, wall: float, n_steps: int, meta: dict, sta
     sl = slice(0, upto)
     want_loads = rec.load_stride > 0
     loads = rec.loads[: (upto - 1) // rec.load_stride + 1] if want_loads and upto else None
-    return make_result(t=rec.t[sl], joint_angle=rec.angle[sl], joint_rate=rec.rate[sl], joint_torque=rec.torque[sl],
-                       link_root=rec.root[sl], link_root_angle=rec.root_angle[sl], link_tip=rec.tip[sl],
-                       wall_time=wall, n_steps=n_steps, meta=meta, cut_loads=loads,
-                       cut_load_t=rec.t[sl][:: rec.load_stride] if want_loads else None,
-                       energy=rec.energy[sl] if rec.energy.size else None, status=status, warnings=warnings)
+    return make_result(
+        t=rec.t[sl],
+        joint_angle=rec.angle[sl],
+        joint_rate=rec.rate[sl],
+        joint_torque=rec.torque[sl],
+        link_root=rec.root[sl],
+        link_root_angle=rec.root_angle[sl],
+        link_tip=rec.tip[sl],
+        wall_time=wall,
+        n_steps=n_steps,
+        meta=meta,
+        cut_loads=loads,
+        cut_load_t=rec.t[sl][:: rec.load_stride] if want_loads else None,
+        energy=rec.energy[sl] if rec.energy.size else None,
+        status=status,
+        warnings=warnings,
+    )
 
 
 def initial_state(st: Structure):
@@ -197,10 +245,21 @@ def initial_state(st: Structure):
 
 
 def base_meta(st: Structure, s: Settings) -> dict:
-    meta = {"method": "dttmm", "sweep": s.sweep, "elements_per_link": st.k, "h": float(s.h),
-            "integrator": s.integrator, "iterations": s.iterations, "tol": s.tol, "n_dof": st.n_dof,
-            "final_system_size": 3, "versions": plumbing.versions(), "success": True, "engine": s.engine,
-            "strain": s.strain}
+    meta = {
+        "method": "dttmm",
+        "sweep": s.sweep,
+        "elements_per_link": st.k,
+        "h": float(s.h),
+        "integrator": s.integrator,
+        "iterations": s.iterations,
+        "tol": s.tol,
+        "n_dof": st.n_dof,
+        "final_system_size": 3,
+        "versions": plumbing.versions(),
+        "success": True,
+        "engine": s.engine,
+        "strain": s.strain,
+    }
     if s.iterations == "auto":
         meta["auto_fraction"] = s.auto_fraction
     return meta
@@ -278,12 +337,26 @@ def simulate_structure(st: Structure, s: Settings):
     ok, cond0 = lp.accel(md, dt, SWEEP_CODES[s.sweep], q, qd, tau0, mot0, ws, qdd, ws.torque, loads, True)
     partial = lambda m, upto=0: to_result(rec, upto, time.perf_counter() - wall0, int(stats.steps_done[0]), m)
     if not ok:
-        raise plumbing.simulation_failure("Singular matrix", t=0.0, step=0, component="step system", meta=meta,
-                                          partial=partial,
-                                          message="initial acceleration solve failed (Singular matrix)")
+        raise plumbing.simulation_failure(
+            "Singular matrix",
+            t=0.0,
+            step=0,
+            component="step system",
+            meta=meta,
+            partial=partial,
+            message="initial acceleration solve failed (Singular matrix)",
+        )
     lp.apply_motion(md.motion, md.im, mot0, q, qd)
-    st0 = loop.State(q=q, qd=qd, qdd=qdd, aux=qdd.copy(), q_prev=q.copy(), qd_prev=qd.copy(),
-                     torque_prev=ws.torque.copy(), loads_prev=loads.copy())
+    st0 = loop.State(
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        aux=qdd.copy(),
+        q_prev=q.copy(),
+        qd_prev=qd.copy(),
+        torque_prev=ws.torque.copy(),
+        loads_prev=loads.copy(),
+    )
     s0 = (st0.q_prev, st0.qd_prev, st0.torque_prev, st0.loads_prev)
     stats.ptr[0] = rp.record(md, -1.0, 0.0, s0, s0, (ws.qs, ws.qds), 0, rec)
     stats.cond_max[0] = 0.0 if math.isnan(cond0) else cond0
@@ -291,16 +364,23 @@ def simulate_structure(st: Structure, s: Settings):
     opts = s.options()
 
     short = s.engine == "numba" and n_steps * max(st.n_elements, 1) <= SHORT_RUN and not s.progress
-    status, bar = _run_chunked(lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps,
-                               False if short else s.progress)
+    status, bar = _run_chunked(
+        lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps, False if short else s.progress
+    )
     wall = time.perf_counter() - wall0
     if bar is not None:
         bar.close()
     upto = int(stats.ptr[0])
     if status:
-        _raise_failure(st, status, stats, t_end, meta,
-                       lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]), m),
-                       float(rec.t[upto - 1]) if upto else 0.0)
+        _raise_failure(
+            st,
+            status,
+            stats,
+            t_end,
+            meta,
+            lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]), m),
+            float(rec.t[upto - 1]) if upto else 0.0,
+        )
     _add_stats(meta, stats, s, n_steps, wall, t_end)
     if rec.energy.size and not any(st.motion):
         _energy_growth(meta, st, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
@@ -323,29 +403,40 @@ def verdict(meta: dict, s: Settings, n_steps: int):
     n_unconv = meta.get("unconverged_steps", 0)
     if n_unconv:
         status = "unconverged"
-        warns.append(f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
-                     f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}")
+        warns.append(
+            f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
+            f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}"
+        )
     n_flag = meta.get("residual_flagged", 0)
     if n_flag:
         status = "unconverged"
-        warns.append(f"iterations={s.iterations!r}: the step equations are not solved to the time-discretisation "
-                     f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
-                     f"{meta['residual_first_t']:.6g} s; worst at t = {meta['residual_worst_t']:.6g} s: one more "
-                     f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
-                     f"{meta['residual_worst_ratio']:.3g} × the truncation error)")
+        warns.append(
+            f"iterations={s.iterations!r}: the step equations are not solved to the time-discretisation "
+            f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
+            f"{meta['residual_first_t']:.6g} s; worst at t = {meta['residual_worst_t']:.6g} s: one more "
+            f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
+            f"{meta['residual_worst_ratio']:.3g} × the truncation error)"
+        )
     growth = meta.get("energy_growth", 0.0)
     if growth > ENERGY_GROWTH:
         if s.iterations is not None:
             status = "unconverged"
-        warns.append(f"the energy grew with no input: by {growth:.3g} × the run's energy scale (> {ENERGY_GROWTH:g}) "
-                     f"by t = {meta['energy_growth_t']:.6g} s" + (f"; iterations={s.iterations!r} does not solve "
-                                                                  "the step equations well enough"
-                                                                  if s.iterations is not None else ""))
+        warns.append(
+            f"the energy grew with no input: by {growth:.3g} × the run's energy scale (> {ENERGY_GROWTH:g}) "
+            f"by t = {meta['energy_growth_t']:.6g} s"
+            + (
+                f"; iterations={s.iterations!r} does not solve the step equations well enough"
+                if s.iterations is not None
+                else ""
+            )
+        )
     cond = meta.get("final_system_cond", 0.0)
     if cond > ILL_CONDITIONED:
         status = "ill-conditioned"
-        warns.append(f"plain sweep: final-system condition number up to {cond:.3g} (> {ILL_CONDITIONED:g}); "
-                     "use sweep='riccati'")
+        warns.append(
+            f"plain sweep: final-system condition number up to {cond:.3g} (> {ILL_CONDITIONED:g}); "
+            "use sweep='riccati'"
+        )
     return status, warns
 
 
@@ -391,9 +482,15 @@ def _energy_growth(meta: dict, st: Structure, t, energy, torque, rate) -> None:
 def _raise_failure(st, status, stats, t_end, meta, partial, t_last):
     step = int(stats.steps_done[0])
     if status == ST_SINGULAR:
-        raise plumbing.simulation_failure("Singular matrix", t=t_end[step], step=step, component="step system",
-                                          meta=meta, partial=partial,
-                                          message="linear solve failed (Singular matrix)")
+        raise plumbing.simulation_failure(
+            "Singular matrix",
+            t=t_end[step],
+            step=step,
+            component="step system",
+            meta=meta,
+            partial=partial,
+            message="linear solve failed (Singular matrix)",
+        )
     bad = int(stats.bad_index[0])
     name = st.coordinate_names()[bad]
     if status == ST_NONFINITE:
@@ -402,11 +499,21 @@ def _raise_failure(st, status, stats, t_end, meta, partial, t_last):
         why = "runaway elastic displacement"
         value, bound = float(stats.bad_value[0]), md_lim(st, bad)
         el = next(lk.length / lk.k for i, lk in enumerate(st.links) if name.startswith(f"link {i + 1},"))
-        detail = (f"elastic rotation {value:.4g} rad beyond ±{bound:.4g} rad" if name.endswith("phi") else
-                  f"elastic displacement {value:.4g} m beyond {bound / el:.3g} element lengths, {bound:.4g} m")
-    raise plumbing.simulation_failure(why, t=t_end[step], step=step, component=name, meta=meta, partial=partial,
-                                      message=f"simulation diverged ({why}: {detail}; the partial result "
-                                              f"ends at t = {t_last:.6g} s, before the failed step)")
+        detail = (
+            f"elastic rotation {value:.4g} rad beyond ±{bound:.4g} rad"
+            if name.endswith("phi")
+            else f"elastic displacement {value:.4g} m beyond {bound / el:.3g} element lengths, {bound:.4g} m"
+        )
+    raise plumbing.simulation_failure(
+        why,
+        t=t_end[step],
+        step=step,
+        component=name,
+        meta=meta,
+        partial=partial,
+        message=f"simulation diverged ({why}: {detail}; the partial result "
+        f"ends at t = {t_last:.6g} s, before the failed step)",
+    )
 
 
 def md_lim(st: Structure, index: int) -> float:
@@ -418,17 +525,27 @@ def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> No
     if s.integrator == "rk4":
         meta.update({"iterations_mean": 4.0, "iterations_max": 4, "unconverged_steps": 0})
     else:
-        meta.update({"iterations_mean": float(stats.sweeps[0]) / max(n_steps, 1),
-                     "iterations_max": int(stats.max_sweeps[0]), "unconverged_steps": int(stats.unconverged[0])})
+        meta.update(
+            {
+                "iterations_mean": float(stats.sweeps[0]) / max(n_steps, 1),
+                "iterations_max": int(stats.max_sweeps[0]),
+                "unconverged_steps": int(stats.unconverged[0]),
+            }
+        )
     if s.sweep == "plain":
         meta["final_system_cond"] = float(stats.cond_max[0])
     if stats.checks[0]:
         t_of = lambda j: float(t_end[j]) if j >= 0 else None
-        meta.update({"residual_checks": int(stats.checks[0]), "residual_flagged": int(stats.flagged[0]),
-                     "residual_first_t": t_of(int(stats.first_flag[0])),
-                     "residual_worst_t": t_of(int(stats.worst_step[0])),
-                     "residual_worst_ratio": float(stats.worst_ratio[0]),
-                     "residual_worst": float(stats.worst_resid[0])})
+        meta.update(
+            {
+                "residual_checks": int(stats.checks[0]),
+                "residual_flagged": int(stats.flagged[0]),
+                "residual_first_t": t_of(int(stats.first_flag[0])),
+                "residual_worst_t": t_of(int(stats.worst_step[0])),
+                "residual_worst_ratio": float(stats.worst_ratio[0]),
+                "residual_worst": float(stats.worst_resid[0]),
+            }
+        )
     meta["time_per_step"] = wall / n_steps
 
 
@@ -443,8 +560,20 @@ def accelerations_at(st: Structure, q, qd, t: float, sweep: str, engine: str):
     ws = lp.new_work(st.n_dof, st.n_links, ncuts)
     tau, mot = drive_values(st, t)
     qdd = np.empty(st.n_dof)
-    ok, _ = lp.accel(md, dt, SWEEP_CODES[sweep], np.ascontiguousarray(q, float), np.ascontiguousarray(qd, float),
-                     tau, mot, ws, qdd, ws.torque, ws.loads, True)
+    ok, _ = lp.accel(
+        md,
+        dt,
+        SWEEP_CODES[sweep],
+        np.ascontiguousarray(q, float),
+        np.ascontiguousarray(qd, float),
+        tau,
+        mot,
+        ws,
+        qdd,
+        ws.torque,
+        ws.loads,
+        True,
+    )
     if not ok:
         raise np.linalg.LinAlgError("singular matrix")
     return qdd
@@ -457,8 +586,10 @@ _WARM = False
 def _tiny_case() -> Case:
     """Two links (extensible with a hub, inextensible with a payload), a torque and a motion
     drive with a jump: every code path of the loop."""
-    links = (Link(Section(0.5, 2.0, 0.3, 7e6), hub=Hub(0.1, 0.01)),
-             Link(Section(0.5, 2.0, 0.3, None), payload=Payload(0.1, 0.0)))
+    links = (
+        Link(Section(0.5, 2.0, 0.3, 7e6), hub=Hub(0.1, 0.01)),
+        Link(Section(0.5, 2.0, 0.3, None), payload=Payload(0.1, 0.0)),
+    )
     drives = (Drive("torque", Sine(1.0, 1.0, until=0.0025)), Drive("motion", Constant(0.0)))
     return Case(Manipulator(links, gravity=(0.0, -9.81)), Scenario(0.004, 0.002, drives))
 
@@ -472,9 +603,21 @@ def warmup() -> float:
         return 0.0
     t = time.perf_counter()
     # one run compiles every branch (integrators and sweeps are run-time codes of one signature)
-    s = Settings(h=1e-3, integrator="newmark", sweep="riccati", iterations=None, tol=1e-10, max_iterations=50,
-                 family=plumbing.newmark_family("newmark"), auto_fraction=0.1, cut_loads=True, energy=True,
-                 progress=False, engine="numba", strain="linear")
+    s = Settings(
+        h=1e-3,
+        integrator="newmark",
+        sweep="riccati",
+        iterations=None,
+        tol=1e-10,
+        max_iterations=50,
+        family=plumbing.newmark_family("newmark"),
+        auto_fraction=0.1,
+        cut_loads=True,
+        energy=True,
+        progress=False,
+        engine="numba",
+        strain="linear",
+    )
     _WARM = True  # simulate_structure must not recurse into warmup
     try:
         simulate_structure(build_structure(_tiny_case(), 1), s)

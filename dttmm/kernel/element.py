@@ -7,6 +7,7 @@ s(ξ, e) = s0(ξ) + S(ξ) e, constant moments of s0 and S); here written as scal
 padded coordinates (u, v, φ), exploiting the sparsity of the moments (u couples to (v, φ) only
 through D2 and C_SES; :func:`dttmm.kernel.layout.build_model` checks the pattern).
 """
+
 from __future__ import annotations
 
 import math
@@ -25,10 +26,13 @@ def rotate(c, s, th_new, phi):
     if abs(phi) > PHI_SMALL:
         return math.cos(th_new), math.sin(th_new)
     p2 = phi * phi
-    sp = phi * (1.0 + p2 * (-1.0 / 6 + p2 * (1.0 / 120 + p2 * (-1.0 / 5040 + p2 * (1.0 / 362880
-                                                                                 - p2 / 39916800)))))
-    cp = 1.0 + p2 * (-0.5 + p2 * (1.0 / 24 + p2 * (-1.0 / 720 + p2 * (1.0 / 40320 + p2 * (-1.0 / 3628800
-                                                                                       + p2 / 479001600)))))
+    sp = phi * (
+        1.0 + p2 * (-1.0 / 6 + p2 * (1.0 / 120 + p2 * (-1.0 / 5040 + p2 * (1.0 / 362880 - p2 / 39916800))))
+    )
+    cp = 1.0 + p2 * (
+        -0.5
+        + p2 * (1.0 / 24 + p2 * (-1.0 / 720 + p2 * (1.0 / 40320 + p2 * (-1.0 / 3628800 + p2 / 479001600))))
+    )
     return c * cp - s * sp, s * cp + c * sp
 
 
@@ -106,8 +110,14 @@ def elastic_known(md, qt, qdt, dt):
                     dt.f_known[g, r] = md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2
             else:
                 for r in range(3):
-                    dt.f_known[g, r] = (md.K[i, r, 0] * e0 + md.K[i, r, 1] * e1 + md.K[i, r, 2] * e2
-                                        + md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2)
+                    dt.f_known[g, r] = (
+                        md.K[i, r, 0] * e0
+                        + md.K[i, r, 1] * e1
+                        + md.K[i, r, 2] * e2
+                        + md.D[i, r, 0] * d0
+                        + md.D[i, r, 1] * d1
+                        + md.D[i, r, 2] * d2
+                    )
 
 
 @njit(nrt=False)
@@ -127,8 +137,20 @@ def effective_mass(md, cq, cv, dt):
 def strain_constants(md, i):
     """Second-order strain constants of link i: (EA, EA·l, 1/l, G (4, row-major), K_b (4,
     row-major), K_uu)."""
-    return (md.EA[i], md.EAl[i], md.inv_l[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1],
-            md.K[i, 1, 1], md.K[i, 1, 2], md.K[i, 2, 1], md.K[i, 2, 2], md.K[i, 0, 0])
+    return (
+        md.EA[i],
+        md.EAl[i],
+        md.inv_l[i],
+        md.G[i, 0, 0],
+        md.G[i, 0, 1],
+        md.G[i, 1, 0],
+        md.G[i, 1, 1],
+        md.K[i, 1, 1],
+        md.K[i, 1, 2],
+        md.K[i, 2, 1],
+        md.K[i, 2, 2],
+        md.K[i, 0, 0],
+    )
 
 
 @njit(fastmath=CONTRACT, inline="always")
@@ -147,8 +169,17 @@ def second_order_terms(sc, e0, e1, e2):
     f0 = EA * eps
     f1 = Nl * Gw1 + (Kb00 * e1 + Kb01 * e2)
     f2 = Nl * Gw2 + (Kb10 * e1 + Kb11 * e2)
-    return (f0, f1, f2, EA * Gw1, EA * Gw2, a1 * Gw1 + Nl * G00, a1 * Gw2 + Nl * G01, a2 * Gw1 + Nl * G10,
-            a2 * Gw2 + Nl * G11)
+    return (
+        f0,
+        f1,
+        f2,
+        EA * Gw1,
+        EA * Gw2,
+        a1 * Gw1 + Nl * G00,
+        a1 * Gw2 + Nl * G01,
+        a2 * Gw1 + Nl * G10,
+        a2 * Gw2 + Nl * G11,
+    )
 
 
 @njit(fastmath=CONTRACT, inline="always")
@@ -178,10 +209,34 @@ def link_constants(md, i, g0, g1):
     """The nonzero element moments of link i and its element weight, read once per link (a
     tuple of scalars that :func:`element_terms` unpacks)."""
     m = md.m[i]
-    return (m, m * g0, m * g1, md.cs0[i, 0], md.CS[i, 0, 0], md.CS[i, 1, 1], md.CS[i, 1, 2], md.cs0s0[i], md.cs0S[i, 0],
-            md.d1[i, 1], md.d1[i, 2], md.D2[i, 0, 1], md.D2[i, 0, 2], md.D2[i, 1, 0], md.D2[i, 2, 0],
-            md.CSS[i, 0, 0], md.CSS[i, 1, 1], md.CSS[i, 1, 2], md.CSS[i, 2, 2], md.CSES[i, 0, 1],
-            md.CSES[i, 0, 2], md.CSES[i, 1, 0], md.CSES[i, 2, 0], md.sO0[i, 0], md.sO0[i, 1], md.su[i])
+    return (
+        m,
+        m * g0,
+        m * g1,
+        md.cs0[i, 0],
+        md.CS[i, 0, 0],
+        md.CS[i, 1, 1],
+        md.CS[i, 1, 2],
+        md.cs0s0[i],
+        md.cs0S[i, 0],
+        md.d1[i, 1],
+        md.d1[i, 2],
+        md.D2[i, 0, 1],
+        md.D2[i, 0, 2],
+        md.D2[i, 1, 0],
+        md.D2[i, 2, 0],
+        md.CSS[i, 0, 0],
+        md.CSS[i, 1, 1],
+        md.CSS[i, 1, 2],
+        md.CSS[i, 2, 2],
+        md.CSES[i, 0, 1],
+        md.CSES[i, 0, 2],
+        md.CSES[i, 1, 0],
+        md.CSES[i, 2, 0],
+        md.sO0[i, 0],
+        md.sO0[i, 1],
+        md.su[i],
+    )
 
 
 @njit(fastmath=CONTRACT, inline="always")
@@ -198,8 +253,34 @@ def element_terms(lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1):
     ``gb0, gb1`` = γ̄_O (its rotation entry is 0). B_a = [[1, 0, −ry], [0, 1, rx], [0, 0, 1]]
     and B_e = [[s_u c, −s, 0], [s_u s, c, 0], [0, 0, 1]] follow from (c, s, rx, ry).
     """
-    (_m, mg0, mg1, s00, C00, C11, C12, css0, q0, d11, d12, D01, D02, D10, D20, S00, S11, S12, S22, E01, E02, E10, E20,
-     so00, so01, su) = lc
+    (
+        _m,
+        mg0,
+        mg1,
+        s00,
+        C00,
+        C11,
+        C12,
+        css0,
+        q0,
+        d11,
+        d12,
+        D01,
+        D02,
+        D10,
+        D20,
+        S00,
+        S11,
+        S12,
+        S22,
+        E01,
+        E02,
+        E10,
+        E20,
+        so00,
+        so01,
+        su,
+    ) = lc
     ms0 = s00 + C00 * e0
     ms1 = C11 * e1 + C12 * e2
     rem0 = -c * ms1 - s * ms0
@@ -239,5 +320,21 @@ def element_terms(lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1):
     sf0 = su * f0
     gb0 = -td2 * rx + tdd * (-c * f1 - s * sf0)
     gb1 = -td2 * ry + tdd * (-s * f1 + c * sf0)
-    return (ms0, ms1, rem0, rem1, Jt, (A00, A01, A02, A10, A11, A12, A20, A21, A22), ha0, ha1, ha2, he0, he1, he2,
-            rx, ry, gb0, gb1)
+    return (
+        ms0,
+        ms1,
+        rem0,
+        rem1,
+        Jt,
+        (A00, A01, A02, A10, A11, A12, A20, A21, A22),
+        ha0,
+        ha1,
+        ha2,
+        he0,
+        he1,
+        he2,
+        rx,
+        ry,
+        gb0,
+        gb1,
+    )

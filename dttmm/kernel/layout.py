@@ -2,13 +2,15 @@
 :class:`Data` workspace per run (the model/data split of Pinocchio), plus the named codes.
 
 Both are named tuples of arrays (structure of arrays), so numba reads the fields by name at
-the speed of a flat table (measured: records with named fields were ~2× slower). Elastic coordinates are *padded* to three per element, (u, v, φ): an inextensible link
+the speed of a flat table (measured: records with named fields were ~2× slower). Elastic
+coordinates are *padded* to three per element, (u, v, φ): an inextensible link
 gets a decoupled dummy u (unit effective mass, no coupling, zero load), so one code path
 serves ne = 2 and ne = 3 links mixed in one arm; the dummy never enters q.
 
 Symmetric 3×3 matrices that the sweeps carry between elements (articulated inertias P) are
 stored packed, in the order of :data:`SYM` (00, 01, 02, 11, 12, 22).
 """
+
 from __future__ import annotations
 
 from typing import NamedTuple
@@ -18,9 +20,9 @@ import numpy as np
 __all__ = ["SYM", "Data", "Model", "build_model", "make_data"]
 
 # --- codes shared by the driver and the kernel -----------------------------------------------
-INT_NEWMARK, INT_RK4 = 0, 1              # integrator family
-SW_RICCATI, SW_PLAIN = 0, 1              # sweep
-IT_FIXED, IT_TOL, IT_AUTO = 0, 1, 2      # iteration control: m + 1 sweeps / tolerance / "auto"
+INT_NEWMARK, INT_RK4 = 0, 1  # integrator family
+SW_RICCATI, SW_PLAIN = 0, 1  # sweep
+IT_FIXED, IT_TOL, IT_AUTO = 0, 1, 2  # iteration control: m + 1 sweeps / tolerance / "auto"
 # run status
 ST_OK, ST_NONFINITE, ST_RUNAWAY, ST_SINGULAR = 0, 1, 2, 3
 SWEEP_CODES = {"riccati": SW_RICCATI, "plain": SW_PLAIN}
@@ -41,50 +43,76 @@ class Model(NamedTuple):
     """Constants of the discretised arm, one row per link (element moments padded to ne = 3;
     all integrals ∫ … ρA dx over one element, see :mod:`dttmm.element`)."""
 
-    n: int                 # links
-    k: int                 # elements per link
-    grav: np.ndarray       # (2,) m/s²
-    m: np.ndarray          # (n,) element mass
-    cs0: np.ndarray        # (n, 2) ∫ s0
-    CS: np.ndarray         # (n, 2, 3) ∫ S
-    cs0s0: np.ndarray      # (n,) ∫ s0·s0
-    cs0S: np.ndarray       # (n, 3) ∫ s0ᵀS
-    d1: np.ndarray         # (n, 3) ∫ s0ᵀEᵀS
-    D2: np.ndarray         # (n, 3, 3) ∫ SᵀEᵀS
-    CSS: np.ndarray        # (n, 3, 3) ∫ SᵀS (elastic mass)
-    CSES: np.ndarray       # (n, 3, 3) ∫ SᵀES
-    K: np.ndarray          # (n, 3, 3) linear stiffness
-    D: np.ndarray          # (n, 3, 3) damping
-    sO0: np.ndarray        # (n, 2) s0 at the outboard node
-    su: np.ndarray         # (n,) axial entry of S_O (0 for an inextensible link)
-    m_hub: np.ndarray      # (n,) hub mass and inertia (outboard side of joint i)
+    n: int  # links
+    k: int  # elements per link
+    grav: np.ndarray  # (2,) m/s²
+    m: np.ndarray  # (n,) element mass
+    cs0: np.ndarray  # (n, 2) ∫ s0
+    CS: np.ndarray  # (n, 2, 3) ∫ S
+    cs0s0: np.ndarray  # (n,) ∫ s0·s0
+    cs0S: np.ndarray  # (n, 3) ∫ s0ᵀS
+    d1: np.ndarray  # (n, 3) ∫ s0ᵀEᵀS
+    D2: np.ndarray  # (n, 3, 3) ∫ SᵀEᵀS
+    CSS: np.ndarray  # (n, 3, 3) ∫ SᵀS (elastic mass)
+    CSES: np.ndarray  # (n, 3, 3) ∫ SᵀES
+    K: np.ndarray  # (n, 3, 3) linear stiffness
+    D: np.ndarray  # (n, 3, 3) damping
+    sO0: np.ndarray  # (n, 2) s0 at the outboard node
+    su: np.ndarray  # (n,) axial entry of S_O (0 for an inextensible link)
+    m_hub: np.ndarray  # (n,) hub mass and inertia (outboard side of joint i)
     J_hub: np.ndarray
-    m_pay: np.ndarray      # (n,) payload mass and inertia (tip of link i)
+    m_pay: np.ndarray  # (n,) payload mass and inertia (tip of link i)
     J_pay: np.ndarray
-    dummy: np.ndarray      # (n,) 1.0 for the padded dummy u of an inextensible link
+    dummy: np.ndarray  # (n,) 1.0 for the padded dummy u of an inextensible link
     second_order: np.ndarray  # (n,) bool: axial strain u/l + ½ wᵀGw
-    EA: np.ndarray         # (n,) second-order strain constants: EA, 1/l, EA·l, G (2, 2)
+    EA: np.ndarray  # (n,) second-order strain constants: EA, 1/l, EA·l, G (2, 2)
     inv_l: np.ndarray
     EAl: np.ndarray
     G: np.ndarray
-    mu: np.ndarray         # (n,) Kelvin-Voigt μ (s) of a second-order link (0 otherwise)
-    ne: np.ndarray         # (n,) int: elastic coordinates per element (2 or 3)
-    i_alpha: np.ndarray    # (n,) int: index of α_i in q
-    e_start: np.ndarray    # (n,) int: index of the link's first elastic coordinate in q
-    pad: np.ndarray        # (n,) int: 3 − ne
-    motion: np.ndarray     # (n,) bool: joint i is motion-driven
-    im: np.ndarray         # (n_motion,) int: indices of the motion-driven α in q
-    lim: np.ndarray        # (n_dof,) runaway bound per coordinate (inf for joint angles)
+    mu: np.ndarray  # (n,) Kelvin-Voigt μ (s) of a second-order link (0 otherwise)
+    ne: np.ndarray  # (n,) int: elastic coordinates per element (2 or 3)
+    i_alpha: np.ndarray  # (n,) int: index of α_i in q
+    e_start: np.ndarray  # (n,) int: index of the link's first elastic coordinate in q
+    pad: np.ndarray  # (n,) int: 3 − ne
+    motion: np.ndarray  # (n,) bool: joint i is motion-driven
+    im: np.ndarray  # (n_motion,) int: indices of the motion-driven α in q
+    lim: np.ndarray  # (n_dof,) runaway bound per coordinate (inf for joint angles)
 
 
 def build_model(st) -> Model:
     """Pack a :class:`dttmm.structure.Structure` into a :class:`Model`."""
     n = st.n_links
     z = lambda *shape: np.zeros((n, *shape))
-    f = {name: z() for name in ("m", "cs0s0", "su", "m_hub", "J_hub", "m_pay", "J_pay", "dummy", "EA",
-                                "inv_l", "EAl", "mu")}
-    f.update(cs0=z(2), CS=z(2, 3), cs0S=z(3), d1=z(3), D2=z(3, 3), CSS=z(3, 3), CSES=z(3, 3), K=z(3, 3),
-             D=z(3, 3), sO0=z(2), G=z(2, 2))
+    f = {
+        name: z()
+        for name in (
+            "m",
+            "cs0s0",
+            "su",
+            "m_hub",
+            "J_hub",
+            "m_pay",
+            "J_pay",
+            "dummy",
+            "EA",
+            "inv_l",
+            "EAl",
+            "mu",
+        )
+    }
+    f.update(
+        cs0=z(2),
+        CS=z(2, 3),
+        cs0S=z(3),
+        d1=z(3),
+        D2=z(3, 3),
+        CSS=z(3, 3),
+        CSES=z(3, 3),
+        K=z(3, 3),
+        D=z(3, 3),
+        sO0=z(2),
+        G=z(2, 2),
+    )
     ne, pad = np.zeros(n, np.int64), np.zeros(n, np.int64)
     second_order = np.zeros(n, np.bool_)
     lim = np.full(st.n_dof, np.inf)
@@ -118,21 +146,42 @@ def build_model(st) -> Model:
             el[:, 0] = RUNAWAY_LENGTHS_U2 * lk.length / lk.k
         lim[lk.e_slice] = el.ravel()
     ia = st.alpha_index.astype(np.int64)
-    return Model(n=n, k=st.k, grav=np.ascontiguousarray(st.gravity, dtype=float), ne=ne, i_alpha=ia,
-                 e_start=np.array([lk.e_slice.start for lk in st.links], np.int64), pad=pad,
-                 motion=st.motion.astype(np.bool_), im=np.ascontiguousarray(ia[st.motion]), lim=lim,
-                 second_order=second_order, **f)
+    return Model(
+        n=n,
+        k=st.k,
+        grav=np.ascontiguousarray(st.gravity, dtype=float),
+        ne=ne,
+        i_alpha=ia,
+        e_start=np.array([lk.e_slice.start for lk in st.links], np.int64),
+        pad=pad,
+        motion=st.motion.astype(np.bool_),
+        im=np.ascontiguousarray(ia[st.motion]),
+        lim=lim,
+        second_order=second_order,
+        **f,
+    )
 
 
 def _check_pattern(f: dict, i: int) -> None:
     """The sweeps hard-code the sparsity of the element moments (u couples to (v, φ) only
     through D2 and C_SES) and the outboard shape S_O = [[s_u, 0, 0], [0, 1, 0]]: refuse anything
     else rather than compute it wrong. ``f``: the padded fields of :func:`build_model`."""
-    zero = [f["cs0"][i, 1], f["CS"][i, 0, 1], f["CS"][i, 0, 2], f["CS"][i, 1, 0], f["cs0S"][i, 1], f["cs0S"][i, 2],
-            f["d1"][i, 0]]
-    for name, entries in (("D2", ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))), ("CSS", ((0, 1), (0, 2), (1, 0), (2, 0))),
-                          ("CSES", ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))), ("K", ((0, 1), (0, 2), (1, 0), (2, 0))),
-                          ("D", ((0, 1), (0, 2), (1, 0), (2, 0)))):
+    zero = [
+        f["cs0"][i, 1],
+        f["CS"][i, 0, 1],
+        f["CS"][i, 0, 2],
+        f["CS"][i, 1, 0],
+        f["cs0S"][i, 1],
+        f["cs0S"][i, 2],
+        f["d1"][i, 0],
+    ]
+    for name, entries in (
+        ("D2", ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))),
+        ("CSS", ((0, 1), (0, 2), (1, 0), (2, 0))),
+        ("CSES", ((0, 0), (1, 1), (1, 2), (2, 1), (2, 2))),
+        ("K", ((0, 1), (0, 2), (1, 0), (2, 0))),
+        ("D", ((0, 1), (0, 2), (1, 0), (2, 0))),
+    ):
         zero += [f[name][i, r, c] for r, c in entries]
     if any(z != 0.0 for z in zero):  # pragma: no cover
         raise AssertionError("unexpected element moment pattern")
@@ -150,45 +199,67 @@ class Data(NamedTuple):
     allocated at full size only for that sweep.
     """
 
-    c: np.ndarray          # (N,)
-    s: np.ndarray          # (N,)
-    td: np.ndarray         # (N,)
-    e: np.ndarray          # (N, 3)
-    ed: np.ndarray         # (N, 3)
-    f_known: np.ndarray    # (N, 3)
-    e_hat: np.ndarray      # (N, 6) ê, ê' of second-order links
-    Ka: np.ndarray         # (N, 3, 3)
-    k0: np.ndarray         # (N, 3)
-    P: np.ndarray          # (N, 6) packed symmetric
-    c_I: np.ndarray        # (N, 3)
-    rso: np.ndarray        # (N, 2)
-    gbar: np.ndarray       # (N, 2)
-    a: np.ndarray          # (N, 3)
-    P_tip: np.ndarray      # (n, 6)
-    c_tip: np.ndarray      # (n, 3)
-    P_hub: np.ndarray      # (n, 6)
-    c_hub: np.ndarray      # (n, 3)
-    ga: np.ndarray         # (n, 3)
-    g0: np.ndarray         # (n,)
-    a_tip: np.ndarray      # (n, 3)
-    Mt: np.ndarray         # (n, 3, 3)
-    cq: np.ndarray         # (n, 2) c_q, c_v
-    cuts: np.ndarray       # plain: (n_cuts, 6, 4) the cut state z = B w at every cut
-    E: np.ndarray          # plain: (N, 3, 7) ë = E (a_I, f_I, 1)
-    subs: np.ndarray       # plain: (n, 4, 4) joint substitutions w_before = S w_after
+    c: np.ndarray  # (N,)
+    s: np.ndarray  # (N,)
+    td: np.ndarray  # (N,)
+    e: np.ndarray  # (N, 3)
+    ed: np.ndarray  # (N, 3)
+    f_known: np.ndarray  # (N, 3)
+    e_hat: np.ndarray  # (N, 6) ê, ê' of second-order links
+    Ka: np.ndarray  # (N, 3, 3)
+    k0: np.ndarray  # (N, 3)
+    P: np.ndarray  # (N, 6) packed symmetric
+    c_I: np.ndarray  # (N, 3)
+    rso: np.ndarray  # (N, 2)
+    gbar: np.ndarray  # (N, 2)
+    a: np.ndarray  # (N, 3)
+    P_tip: np.ndarray  # (n, 6)
+    c_tip: np.ndarray  # (n, 3)
+    P_hub: np.ndarray  # (n, 6)
+    c_hub: np.ndarray  # (n, 3)
+    ga: np.ndarray  # (n, 3)
+    g0: np.ndarray  # (n,)
+    a_tip: np.ndarray  # (n, 3)
+    Mt: np.ndarray  # (n, 3, 3)
+    cq: np.ndarray  # (n, 2) c_q, c_v
+    cuts: np.ndarray  # plain: (n_cuts, 6, 4) the cut state z = B w at every cut
+    E: np.ndarray  # plain: (N, 3, 7) ë = E (a_I, f_I, 1)
+    subs: np.ndarray  # plain: (n, 4, 4) joint substitutions w_before = S w_after
     substituted: np.ndarray  # plain: (n,) bool
-    slot: np.ndarray       # plain: (n,) int: entry of w holding α̈_i, or NO_SLOT
+    slot: np.ndarray  # plain: (n,) int: entry of w holding α̈_i, or NO_SLOT
 
 
 def make_data(md: Model, plain: bool = False) -> Data:
     """A zeroed workspace for ``md`` (the plain sweep's arrays tiny unless ``plain``)."""
     n, N = md.n, md.n * md.k
     ncuts = n * (md.k + 1) if plain else 1
-    return Data(c=np.zeros(N), s=np.zeros(N), td=np.zeros(N), e=np.zeros((N, 3)), ed=np.zeros((N, 3)),
-                f_known=np.zeros((N, 3)), e_hat=np.zeros((N, 6)), Ka=np.zeros((N, 3, 3)), k0=np.zeros((N, 3)),
-                P=np.zeros((N, 6)), c_I=np.zeros((N, 3)), rso=np.zeros((N, 2)), gbar=np.zeros((N, 2)),
-                a=np.zeros((N, 3)), P_tip=np.zeros((n, 6)), c_tip=np.zeros((n, 3)), P_hub=np.zeros((n, 6)),
-                c_hub=np.zeros((n, 3)), ga=np.zeros((n, 3)), g0=np.zeros(n), a_tip=np.zeros((n, 3)),
-                Mt=np.zeros((n, 3, 3)), cq=np.zeros((n, 2)), cuts=np.zeros((ncuts, 6, 4)),
-                E=np.zeros((N if plain else 1, 3, 7)), subs=np.zeros((n, 4, 4)),
-                substituted=np.zeros(n, np.bool_), slot=np.zeros(n, np.int64))
+    return Data(
+        c=np.zeros(N),
+        s=np.zeros(N),
+        td=np.zeros(N),
+        e=np.zeros((N, 3)),
+        ed=np.zeros((N, 3)),
+        f_known=np.zeros((N, 3)),
+        e_hat=np.zeros((N, 6)),
+        Ka=np.zeros((N, 3, 3)),
+        k0=np.zeros((N, 3)),
+        P=np.zeros((N, 6)),
+        c_I=np.zeros((N, 3)),
+        rso=np.zeros((N, 2)),
+        gbar=np.zeros((N, 2)),
+        a=np.zeros((N, 3)),
+        P_tip=np.zeros((n, 6)),
+        c_tip=np.zeros((n, 3)),
+        P_hub=np.zeros((n, 6)),
+        c_hub=np.zeros((n, 3)),
+        ga=np.zeros((n, 3)),
+        g0=np.zeros(n),
+        a_tip=np.zeros((n, 3)),
+        Mt=np.zeros((n, 3, 3)),
+        cq=np.zeros((n, 2)),
+        cuts=np.zeros((ncuts, 6, 4)),
+        E=np.zeros((N if plain else 1, 3, 7)),
+        subs=np.zeros((n, 4, 4)),
+        substituted=np.zeros(n, np.bool_),
+        slot=np.zeros(n, np.int64),
+    )

@@ -6,6 +6,7 @@ Each Newmark step solves the equations of motion at t_{n+1} with q = q̃ + c_q q
 q̇ = q̃' + c_v q̈ (:func:`predict`): sweeps at the latest iterate until the stop rule of
 :func:`_stop` holds (or a fixed number of sweeps).
 """
+
 from __future__ import annotations
 
 import math
@@ -39,19 +40,19 @@ from .riccati import riccati, riccati_loads
 class Options(NamedTuple):
     """Run settings (codes from :mod:`dttmm.kernel.layout`)."""
 
-    integrator: int        # INT_NEWMARK or INT_RK4
-    sweep: int             # SW_RICCATI or SW_PLAIN
-    iteration: int         # IT_FIXED, IT_TOL or IT_AUTO
-    n_fixed: int           # IT_FIXED: sweeps per step − 1
+    integrator: int  # INT_NEWMARK or INT_RK4
+    sweep: int  # SW_RICCATI or SW_PLAIN
+    iteration: int  # IT_FIXED, IT_TOL or IT_AUTO
+    n_fixed: int  # IT_FIXED: sweeps per step − 1
     tol: float
     max_iterations: int
     auto_fraction: float
-    beta: float            # Newmark family (β, γ, α_m, α_f) and |β − 1/6|/β
+    beta: float  # Newmark family (β, γ, α_m, α_f) and |β − 1/6|/β
     gamma: float
     alpha_m: float
     alpha_f: float
     lte: float
-    check_every: int       # fixed/"auto" sweeps: residual check every this many steps (0: never)
+    check_every: int  # fixed/"auto" sweeps: residual check every this many steps (0: never)
 
 
 class Drives(NamedTuple):
@@ -60,7 +61,7 @@ class Drives(NamedTuple):
     limits), the right limits at restart steps, the mid-step values (RK4)."""
 
     t_end: np.ndarray
-    restart: np.ndarray     # (n_steps,) bool: a drive jumps at the step end
+    restart: np.ndarray  # (n_steps,) bool: a drive jumps at the step end
     need_loads: np.ndarray  # (n_steps,) bool: the recorder needs the cut loads of this step
     tau_left: np.ndarray
     mot_left: np.ndarray
@@ -87,57 +88,85 @@ class State(NamedTuple):
 class Stats(NamedTuple):
     """Counters of a run, one-element arrays accumulated across calls of :func:`run`."""
 
-    sweeps: np.ndarray        # total sweeps
-    max_sweeps: np.ndarray    # most sweeps in one step
-    unconverged: np.ndarray   # steps that stopped before the tolerance
-    cond_max: np.ndarray      # largest final-system condition number (plain sweep)
+    sweeps: np.ndarray  # total sweeps
+    max_sweeps: np.ndarray  # most sweeps in one step
+    unconverged: np.ndarray  # steps that stopped before the tolerance
+    cond_max: np.ndarray  # largest final-system condition number (plain sweep)
     steps_done: np.ndarray
-    status: np.ndarray        # ST_* code
-    bad_index: np.ndarray     # coordinate that failed the state check
-    bad_value: np.ndarray     # its value
-    ptr: np.ndarray           # next output sample
-    checks: np.ndarray        # residual checks done (fixed sweep counts and "auto")
-    flagged: np.ndarray       # checks whose iteration error exceeded the truncation error
-    first_flag: np.ndarray    # step of the first flagged check (-1: none)
-    worst_step: np.ndarray    # step of the largest ratio (-1: none)
-    worst_ratio: np.ndarray   # largest ratio iteration error / truncation error
-    worst_resid: np.ndarray   # max|Δq̈|/max(1, max|q̈|) of that check
+    status: np.ndarray  # ST_* code
+    bad_index: np.ndarray  # coordinate that failed the state check
+    bad_value: np.ndarray  # its value
+    ptr: np.ndarray  # next output sample
+    checks: np.ndarray  # residual checks done (fixed sweep counts and "auto")
+    flagged: np.ndarray  # checks whose iteration error exceeded the truncation error
+    first_flag: np.ndarray  # step of the first flagged check (-1: none)
+    worst_step: np.ndarray  # step of the largest ratio (-1: none)
+    worst_ratio: np.ndarray  # largest ratio iteration error / truncation error
+    worst_resid: np.ndarray  # max|Δq̈|/max(1, max|q̈|) of that check
 
 
 def new_stats() -> Stats:
     i = lambda: np.zeros(1, np.int64)
-    return Stats(sweeps=i(), max_sweeps=i(), unconverged=i(), cond_max=np.zeros(1), steps_done=i(),
-                 status=i(), bad_index=i(), bad_value=np.zeros(1), ptr=i(), checks=i(), flagged=i(),
-                 first_flag=np.full(1, -1, np.int64), worst_step=np.full(1, -1, np.int64), worst_ratio=np.zeros(1),
-                 worst_resid=np.zeros(1))
+    return Stats(
+        sweeps=i(),
+        max_sweeps=i(),
+        unconverged=i(),
+        cond_max=np.zeros(1),
+        steps_done=i(),
+        status=i(),
+        bad_index=i(),
+        bad_value=np.zeros(1),
+        ptr=i(),
+        checks=i(),
+        flagged=i(),
+        first_flag=np.full(1, -1, np.int64),
+        worst_step=np.full(1, -1, np.int64),
+        worst_ratio=np.zeros(1),
+        worst_resid=np.zeros(1),
+    )
 
 
 class Work(NamedTuple):
     """Scratch arrays of the time loop."""
 
-    x: np.ndarray          # (n_dof,) q̈ iterates
+    x: np.ndarray  # (n_dof,) q̈ iterates
     xn: np.ndarray
-    qt: np.ndarray         # predictors q̃, q̃'
+    qt: np.ndarray  # predictors q̃, q̃'
     qdt: np.ndarray
-    qi: np.ndarray         # iterate (q, q̇)
+    qi: np.ndarray  # iterate (q, q̇)
     qdi: np.ndarray
-    k2: np.ndarray         # RK4 stages
+    k2: np.ndarray  # RK4 stages
     k3: np.ndarray
     ka: np.ndarray
-    qs: np.ndarray         # (q, q̇) with the motion laws applied / interpolated samples
+    qs: np.ndarray  # (q, q̇) with the motion laws applied / interpolated samples
     qds: np.ndarray
-    acc: np.ndarray        # (n,) prescribed α̈
-    torque: np.ndarray     # (n,) and (n_cuts, 3): of the step's solve
+    acc: np.ndarray  # (n,) prescribed α̈
+    torque: np.ndarray  # (n,) and (n_cuts, 3): of the step's solve
     loads: np.ndarray
-    torque_r: np.ndarray   # of a restart solve (not recorded)
+    torque_r: np.ndarray  # of a restart solve (not recorded)
     loads_r: np.ndarray
 
 
 def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
     v = lambda: np.empty(n_dof)
-    return Work(x=v(), xn=v(), qt=v(), qdt=v(), qi=v(), qdi=v(), k2=v(), k3=v(), ka=v(), qs=v(), qds=v(),
-                acc=np.empty(n), torque=np.empty(n), loads=np.empty((n_cuts, 3)), torque_r=np.empty(n),
-                loads_r=np.empty((n_cuts, 3)))
+    return Work(
+        x=v(),
+        xn=v(),
+        qt=v(),
+        qdt=v(),
+        qi=v(),
+        qdi=v(),
+        k2=v(),
+        k3=v(),
+        ka=v(),
+        qs=v(),
+        qds=v(),
+        acc=np.empty(n),
+        torque=np.empty(n),
+        loads=np.empty((n_cuts, 3)),
+        torque_r=np.empty(n),
+        loads_r=np.empty((n_cuts, 3)),
+    )
 
 
 @njit(nrt=False, inline="always")
@@ -273,8 +302,9 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
             return False, used, False
         if opts.sweep == SW_PLAIN and cond > stats.cond_max[0]:
             stats.cond_max[0] = cond
-        dx, xmax, dq = _update_iterate(ws.x, ws.xn, ws.qt, ws.qdt, ws.qi, ws.qdi, st.qdd, cq, cv,
-                                       opts.iteration == IT_AUTO)
+        dx, xmax, dq = _update_iterate(
+            ws.x, ws.xn, ws.qt, ws.qdt, ws.qi, ws.qdi, st.qdd, cq, cv, opts.iteration == IT_AUTO
+        )
         if opts.iteration != IT_FIXED:
             stop, converged = _stop(opts, it, dx, prev_dx, xmax, dq)
             if stop:
@@ -302,8 +332,10 @@ def _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats):
     if not ok:
         d = np.inf
     floor = opts.tol * max(1.0, xmax)
-    ratio = max(d / (opts.lte * dq + floor),
-                opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor))
+    ratio = max(
+        d / (opts.lte * dq + floor),
+        opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor),
+    )
     scale = max(1.0, xmax)
     stats.checks[0] += 1
     if not ratio <= 1.0:  # NaN counts as flagged
@@ -321,8 +353,9 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, ke
     """One Newmark-family step of size h to the end values (tau, mot); with ``check``, the
     residual check of step s after it (:func:`_residual_check`); with ``keep``, q̈_n is kept
     in ws.ka for the next step's check. Returns ok."""
-    cq, cv = predict(opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt,
-                     ws.qdt)
+    cq, cv = predict(
+        opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt, ws.qdt
+    )
     copy(st.qdd, ws.x)
     ii = 0
     for i in range(md.n):
@@ -381,27 +414,44 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
         qi[r] = q[r] + hf * qd[r]
         qdi[r] = qd[r] + hf * qdd[r]
         k2v[r] = qdi[r]
-    ok, cond = accel(md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, ka, ws.torque, ws.loads, False)
+    ok, cond = accel(
+        md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, ka, ws.torque, ws.loads, False
+    )
     if ok:
         for r in range(q.shape[0]):
             qi[r] = q[r] + hf * k2v[r]
             qdi[r] = qd[r] + hf * ka[r]
             k3v[r] = qdi[r]
-        ok, cond = accel(md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, x, ws.torque, ws.loads, False)
+        ok, cond = accel(
+            md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, x, ws.torque, ws.loads, False
+        )
     if ok:
         for r in range(q.shape[0]):
             qi[r] = q[r] + h * k3v[r]
             qdi[r] = qd[r] + h * x[r]
-        ok, cond = accel(md, dt, code, qi, qdi, drv.tau_left[s], drv.mot_left[s], ws, xn, ws.torque, ws.loads,
-                         False)
+        ok, cond = accel(
+            md, dt, code, qi, qdi, drv.tau_left[s], drv.mot_left[s], ws, xn, ws.torque, ws.loads, False
+        )
     if ok:
         # k1 = (q̇, q̈), k2 = (k2v, ka), k3 = (k3v, x), k4 = (qdi, xn)
         for r in range(q.shape[0]):
             q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
             qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
         apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
-        ok, cond = accel(md, dt, code, q, qd, drv.tau_left[s], drv.mot_left[s], ws, qdd, ws.torque, ws.loads,
-                         drv.need_loads[s])
+        ok, cond = accel(
+            md,
+            dt,
+            code,
+            q,
+            qd,
+            drv.tau_left[s],
+            drv.mot_left[s],
+            ws,
+            qdd,
+            ws.torque,
+            ws.loads,
+            drv.need_loads[s],
+        )
     if not ok:
         return False
     if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep: keep the max
@@ -435,8 +485,20 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
         return ST_RUNAWAY if finite else ST_NONFINITE
     if drv.restart[s]:  # a drive jumps at t1: restart with the right-hand limit; the
         # recorded sample at t1 keeps the left limit (the step's own solve)
-        ok, cond = accel(md, dt, opts.sweep, st.q, st.qd, drv.tau_right[s], drv.mot_right[s], ws, st.qdd,
-                         ws.torque_r, ws.loads_r, False)
+        ok, cond = accel(
+            md,
+            dt,
+            opts.sweep,
+            st.q,
+            st.qd,
+            drv.tau_right[s],
+            drv.mot_right[s],
+            ws,
+            st.qdd,
+            ws.torque_r,
+            ws.loads_r,
+            False,
+        )
         if not ok:
             return ST_SINGULAR
         if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep
@@ -472,8 +534,21 @@ def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
             keep = every > 0 and ((s + 1) % every == 0 or s + 1 == last)
             if check and s == 0:  # no q̈_{−1}: the first check uses Δq̈ for Δ²q̈
                 copy(st.qdd, ws.ka)
-            ok = newmark_step(md, dt, opts, st, ws, t1 - t0, drv.tau_left[s], drv.mot_left[s],
-                              drv.need_loads[s], stats, check, keep, s)
+            ok = newmark_step(
+                md,
+                dt,
+                opts,
+                st,
+                ws,
+                t1 - t0,
+                drv.tau_left[s],
+                drv.mot_left[s],
+                drv.need_loads[s],
+                stats,
+                check,
+                keep,
+                s,
+            )
         else:
             ok = rk4_step(md, dt, opts, st, ws, t1 - t0, drv, s, stats)
         status = _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats) if ok else ST_SINGULAR

@@ -6,6 +6,7 @@ torque condition (substitution w_before = S w_after); the tip condition f = 0 cl
 system. Not the default sweep: it loses digits exponentially with mesh refinement, and is
 kept for the comparison, so it uses small dense matrices.
 """
+
 from __future__ import annotations
 
 import math
@@ -23,8 +24,19 @@ def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the
     elastic force), B_a, B_e, γ̄_O (from :func:`element_terms`)."""
     c, s = dt.c[g], dt.s[g]
     (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
-        lc, c, s, dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1], dt.ed[g, 2],
-        md.grav[0], md.grav[1])
+        lc,
+        c,
+        s,
+        dt.td[g],
+        dt.e[g, 0],
+        dt.e[g, 1],
+        dt.e[g, 2],
+        dt.ed[g, 0],
+        dt.ed[g, 1],
+        dt.ed[g, 2],
+        md.grav[0],
+        md.grav[1],
+    )
     m, su = lc[0], lc[-1]
     Maa[:, :] = 0.0
     Maa[0, 0] = m
@@ -77,8 +89,19 @@ def _second_order_dense(md, dt, i, g, Mt, he):
     mu = md.mu[i]
     if mu != 0.0:
         g0d, g1d, g2d, D01, D02, D11, D12, D22 = second_order_damping(
-            mu, md.EA[i], md.EAl[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1], e1, e2,
-            dt.e_hat[g, 3], dt.e_hat[g, 4], dt.e_hat[g, 5])
+            mu,
+            md.EA[i],
+            md.EAl[i],
+            md.G[i, 0, 0],
+            md.G[i, 0, 1],
+            md.G[i, 1, 0],
+            md.G[i, 1, 1],
+            e1,
+            e2,
+            dt.e_hat[g, 3],
+            dt.e_hat[g, 4],
+            dt.e_hat[g, 5],
+        )
         he[0] += g0d
         he[1] += g1d
         he[2] += g2d
@@ -159,11 +182,11 @@ def _joint(md, dt, i, tau, acc, B, Bn, S):
     dt.substituted[i] = False
     if i == 0:
         B[:, :] = 0.0
-        if md.motion[0]:      # w = (Fx, Fy, τ1), α̈ known
+        if md.motion[0]:  # w = (Fx, Fy, τ1), α̈ known
             B[3, 0] = B[4, 1] = B[5, 2] = 1.0
             B[2, 3] = acc[0]
             dt.slot[0] = NO_SLOT
-        else:                 # w = (Fx, Fy, α̈1), τ1 known
+        else:  # w = (Fx, Fy, α̈1), τ1 known
             B[3, 0] = B[4, 1] = 1.0
             B[5, 3] = tau[0]
             B[2, 2] = 1.0

@@ -1,5 +1,6 @@
 """Output sampling inside the time loop: the state on the output grid (cubic Hermite between
 step ends, linear for torques and loads), and kinematics and energy at a state."""
+
 from __future__ import annotations
 
 import math
@@ -59,10 +60,14 @@ def _energy(lc, md, i, frame, e, f):
     f0, f1, f2 = f
     g0, g1 = md.grav[0], md.grav[1]
     (ms0, ms1, rem0, rem1, Jt, A, _ha0, _ha1, _ha2, _he0, _he1, _he2, _rx, _ry, _gb0, _gb1) = element_terms(
-        lc, c, s, thd, e0, e1, e2, f0, f1, f2, g0, g1)
+        lc, c, s, thd, e0, e1, e2, f0, f1, f2, g0, g1
+    )
     m = lc[0]
-    Tae = (vx * A[0] + vy * A[3] + thd * A[6]) * f0 + (vx * A[1] + vy * A[4] + thd * A[7]) * f1 \
+    Tae = (
+        (vx * A[0] + vy * A[3] + thd * A[6]) * f0
+        + (vx * A[1] + vy * A[4] + thd * A[7]) * f1
         + (vx * A[2] + vy * A[5] + thd * A[8]) * f2
+    )
     Tee = 0.0
     Vee = 0.0
     for r in range(3):
@@ -77,8 +82,9 @@ def _energy(lc, md, i, frame, e, f):
         Gw1 = md.G[i, 0, 0] * e1 + md.G[i, 0, 1] * e2
         Gw2 = md.G[i, 1, 0] * e1 + md.G[i, 1, 1] * e2
         eps = e0 * md.inv_l[i] + 0.5 * (e1 * Gw1 + e2 * Gw2)
-        Vee = md.EAl[i] * eps * eps + (e1 * (md.K[i, 1, 1] * e1 + md.K[i, 1, 2] * e2)
-                                       + e2 * (md.K[i, 2, 1] * e1 + md.K[i, 2, 2] * e2))
+        Vee = md.EAl[i] * eps * eps + (
+            e1 * (md.K[i, 1, 1] * e1 + md.K[i, 1, 2] * e2) + e2 * (md.K[i, 2, 1] * e1 + md.K[i, 2, 2] * e2)
+        )
     Taa = m * (vx * vx + vy * vy) + 2.0 * thd * (rem0 * vx + rem1 * vy) + Jt * thd * thd
     comx = m * px + (c * ms0 - s * ms1)
     comy = m * py + (s * ms0 + c * ms1)

@@ -11,6 +11,7 @@ Per element, with the element terms of :func:`element_terms`:
 exploiting B_a = [[1, 0, −r_y], [0, 1, r_x], [0, 0, 1]], B_e = blockdiag(A(θ)·diag(s_u, 1), 1),
 and factoring the 3×3 SPD block H by LDLᵀ.
 """
+
 from __future__ import annotations
 
 from ._jit import CONTRACT, njit
@@ -80,7 +81,8 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
     M00, M11, M12, M22, cq, cv = Mt
     c, s, td, e0, e1, e2, f0, f1, f2, eh0, eh1, eh2 = kin
     (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
-        lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1)
+        lc, c, s, td, e0, e1, e2, f0, f1, f2, g0, g1
+    )
     he0 = he0 + fk[0]
     he1 = he1 + fk[1]
     he2 = he2 + fk[2]
@@ -115,8 +117,20 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
     if so:
         # second-order strain at the iterate e (sweeps._elastic_rhs):
         # h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)
-        sc = (md.EA[i], md.EAl[i], md.inv_l[i], md.G[i, 0, 0], md.G[i, 0, 1], md.G[i, 1, 0], md.G[i, 1, 1],
-              md.K[i, 1, 1], md.K[i, 1, 2], md.K[i, 2, 1], md.K[i, 2, 2], md.K[i, 0, 0])
+        sc = (
+            md.EA[i],
+            md.EAl[i],
+            md.inv_l[i],
+            md.G[i, 0, 0],
+            md.G[i, 0, 1],
+            md.G[i, 1, 0],
+            md.G[i, 1, 1],
+            md.K[i, 1, 1],
+            md.K[i, 1, 2],
+            md.K[i, 2, 1],
+            md.K[i, 2, 2],
+            md.K[i, 0, 0],
+        )
         fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(sc, e0, e1, e2)
         Kb00, Kb01, Kb10, Kb11, Kuu = sc[7], sc[8], sc[9], sc[10], sc[11]
         de0 = eh0 - e0
@@ -134,7 +148,8 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
         if mu != 0.0:
             # damping on the strain rate, D(e) at the iterate: h̃_e += ΔD(e) ê', M̃_ee += c_v ΔD(e)
             g0d, g1d, g2d, D01, D02, D11, D12, D22 = second_order_damping(
-                mu, sc[0], sc[1], sc[3], sc[4], sc[5], sc[6], e1, e2, dh[0], dh[1], dh[2])
+                mu, sc[0], sc[1], sc[3], sc[4], sc[5], sc[6], e1, e2, dh[0], dh[1], dh[2]
+            )
             r0 -= g0d
             r1 -= g1d
             r2 -= g2d
@@ -209,25 +224,70 @@ def backward(md, dt, tau, acc):
         Pc = _rigid_body(Pc, md.m_pay[i], md.J_pay[i], g0, g1)  # payload at the tip of link i
         _store_Pc(dt.P_tip, dt.c_tip, i, Pc)
         m = md.m[i]
-        lc = (m, m * g0, m * g1, md.cs0[i, 0], md.CS[i, 0, 0], md.CS[i, 1, 1], md.CS[i, 1, 2], md.cs0s0[i],
-              md.cs0S[i, 0], md.d1[i, 1], md.d1[i, 2], md.D2[i, 0, 1], md.D2[i, 0, 2], md.D2[i, 1, 0],
-              md.D2[i, 2, 0], md.CSS[i, 0, 0], md.CSS[i, 1, 1], md.CSS[i, 1, 2], md.CSS[i, 2, 2], md.CSES[i, 0, 1],
-              md.CSES[i, 0, 2], md.CSES[i, 1, 0], md.CSES[i, 2, 0], md.sO0[i, 0], md.sO0[i, 1], md.su[i])
+        lc = (
+            m,
+            m * g0,
+            m * g1,
+            md.cs0[i, 0],
+            md.CS[i, 0, 0],
+            md.CS[i, 1, 1],
+            md.CS[i, 1, 2],
+            md.cs0s0[i],
+            md.cs0S[i, 0],
+            md.d1[i, 1],
+            md.d1[i, 2],
+            md.D2[i, 0, 1],
+            md.D2[i, 0, 2],
+            md.D2[i, 1, 0],
+            md.D2[i, 2, 0],
+            md.CSS[i, 0, 0],
+            md.CSS[i, 1, 1],
+            md.CSS[i, 1, 2],
+            md.CSS[i, 2, 2],
+            md.CSES[i, 0, 1],
+            md.CSES[i, 0, 2],
+            md.CSES[i, 1, 0],
+            md.CSES[i, 2, 0],
+            md.sO0[i, 0],
+            md.sO0[i, 1],
+            md.su[i],
+        )
         Mt = (dt.Mt[i, 0, 0], dt.Mt[i, 1, 1], dt.Mt[i, 1, 2], dt.Mt[i, 2, 2], dt.cq[i, 0], dt.cq[i, 1])
         so = md.second_order[i]
         damped = so and md.mu[i] != 0.0
         for j in range(k - 1, -1, -1):
             g = i * k + j
-            kin = (dt.c[g], dt.s[g], dt.td[g], dt.e[g, 0], dt.e[g, 1], dt.e[g, 2], dt.ed[g, 0], dt.ed[g, 1],
-                   dt.ed[g, 2], dt.e_hat[g, 0], dt.e_hat[g, 1], dt.e_hat[g, 2])
+            kin = (
+                dt.c[g],
+                dt.s[g],
+                dt.td[g],
+                dt.e[g, 0],
+                dt.e[g, 1],
+                dt.e[g, 2],
+                dt.ed[g, 0],
+                dt.ed[g, 1],
+                dt.ed[g, 2],
+                dt.e_hat[g, 0],
+                dt.e_hat[g, 1],
+                dt.e_hat[g, 2],
+            )
             if damped:  # ê' of a damped second-order link (its strain-rate damping)
                 dh = (dt.e_hat[g, 3], dt.e_hat[g, 4], dt.e_hat[g, 5])
             else:
                 dh = (0.0, 0.0, 0.0)
             fk = (dt.f_known[g, 0], dt.f_known[g, 1], dt.f_known[g, 2])
             Ka, k0, Pc, rg = _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1)
-            (dt.Ka[g, 0, 0], dt.Ka[g, 0, 1], dt.Ka[g, 0, 2], dt.Ka[g, 1, 0], dt.Ka[g, 1, 1], dt.Ka[g, 1, 2],
-             dt.Ka[g, 2, 0], dt.Ka[g, 2, 1], dt.Ka[g, 2, 2]) = Ka
+            (
+                dt.Ka[g, 0, 0],
+                dt.Ka[g, 0, 1],
+                dt.Ka[g, 0, 2],
+                dt.Ka[g, 1, 0],
+                dt.Ka[g, 1, 1],
+                dt.Ka[g, 1, 2],
+                dt.Ka[g, 2, 0],
+                dt.Ka[g, 2, 1],
+                dt.Ka[g, 2, 2],
+            ) = Ka
             dt.k0[g, 0], dt.k0[g, 1], dt.k0[g, 2] = k0
             _store_Pc(dt.P, dt.c_I, g, Pc)
             dt.rso[g, 0], dt.rso[g, 1], dt.gbar[g, 0], dt.gbar[g, 1] = rg

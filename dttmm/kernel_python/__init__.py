@@ -4,6 +4,7 @@ time under this package name, where ``njit`` is the identity (see :mod:`dttmm.ke
 This is the engine "python": the same algorithm as the compiled kernel, line for line, for
 debugging and for installations without numba.
 """
+
 from pathlib import Path
 
 # submodules of this package are the files of dttmm/kernel/

@@ -60,7 +60,10 @@ def _series(res, ref, case, label) -> pd.DataFrame:
         t, d = metrics.difference_series(res, ref)
         on = np.isin(df.t.to_numpy(), t)
         for i in range(res.n_joints):
-            for q, col in ((f"angle{i + 1}", f"joint_angle_{i + 1}"), (f"tip{i + 1}", f"tip_deflection_{i + 1}")):
+            for q, col in (
+                (f"angle{i + 1}", f"joint_angle_{i + 1}"),
+                (f"tip{i + 1}", f"tip_deflection_{i + 1}"),
+            ):
                 df.loc[on, f"d_{col}"] = d[q]
         df.loc[on, "d_ee"] = d["ee"]
     return _thin(df).assign(case=case, method=label)
@@ -83,8 +86,13 @@ def _load_series(res, ref, eref, case_obj, case, label) -> tuple[pd.DataFrame, d
         for q in filter(only, d):
             df.loc[on, f"d_{q}"] = d[q]
             scale = err[f"{q}_scale"]
-            row.update({f"{q}_l2": err[f"{q}_l2"], f"{q}_linf": err[f"{q}_linf"],
-                        f"{q}_rel": err[f"{q}_l2"] / scale if scale > 0 else np.nan})
+            row.update(
+                {
+                    f"{q}_l2": err[f"{q}_l2"],
+                    f"{q}_linf": err[f"{q}_linf"],
+                    f"{q}_rel": err[f"{q}_l2"] / scale if scale > 0 else np.nan,
+                }
+            )
     return _thin(df).assign(case=case, method=label), row
 
 
@@ -135,8 +143,16 @@ def analyse(ctx, table):
             series.append(_series(ref, None, case, "reference"))
             ls, _ = _load_series(ref, None, eref, case_obj, case, "reference")
             loads.append(ls)
-            rows.append({"case": case, "method": "reference", "status": "ok", "reason": "",
-                         "peak_tip": float(np.max(np.abs(ref.tip_deflection[:, -1]))), MAIN_ERROR: 0.0})
+            rows.append(
+                {
+                    "case": case,
+                    "method": "reference",
+                    "status": "ok",
+                    "reason": "",
+                    "peak_tip": float(np.max(np.abs(ref.tip_deflection[:, -1]))),
+                    MAIN_ERROR: 0.0,
+                }
+            )
         compared = table[(table.case == case) & (table.role == COMPARED)] if len(table) else table
         for _, r in compared.iterrows():
             res = ctx.store.history(task_from_row(r)) if r.status == "ok" else None
@@ -146,8 +162,9 @@ def analyse(ctx, table):
             series.append(_series(res, ref, case, r.method))
             ls, err = _load_series(res, ref, eref, case_obj, case, r.method)
             loads.append(ls)
-            load_rows.append({"case": case, "method": r.method, "k": r.k, "h": r.h, **err,
-                              "energy_reference": eref_name})
+            load_rows.append(
+                {"case": case, "method": r.method, "k": r.k, "h": r.h, **err, "energy_reference": eref_name}
+            )
     empty = pd.DataFrame(columns=["t", "case", "method"])
     return {
         NAME: table,

@@ -88,16 +88,26 @@ def equal_accuracy(table: pd.DataFrame, targets=TARGETS) -> pd.DataFrame:
     rows = []
     flex = table[(table.k > 0) & (table.status == "ok")]
     for case, g in flex.groupby("case", sort=False):
-        cost = {m: [cost_at(envelope(gm.cpu_time, gm[MAIN_ERROR]), t) for t in targets]
-                for m, gm in g.groupby("method", sort=False)}
+        cost = {
+            m: [cost_at(envelope(gm.cpu_time, gm[MAIN_ERROR]), t) for t in targets]
+            for m, gm in g.groupby("method", sort=False)
+        }
         for i, t in enumerate(targets):
             for m, c in cost.items():
                 phys = PHYSICS.get(m, "unknown")
                 base = BASE.get(phys)
                 b = cost.get(base, [math.nan] * len(targets))[i] if base else math.nan
-                rows.append({"case": case, "target_error": t, "method": m, "physics": phys,
-                             "cpu_time": c[i], "against": base if base in cost else "",
-                             "ratio": c[i] / b if base in cost and m != base else math.nan})
+                rows.append(
+                    {
+                        "case": case,
+                        "target_error": t,
+                        "method": m,
+                        "physics": phys,
+                        "cpu_time": c[i],
+                        "against": base if base in cost else "",
+                        "ratio": c[i] / b if base in cost and m != base else math.nan,
+                    }
+                )
     cols = ["case", "target_error", "method", "physics", "cpu_time", "against", "ratio"]
     return pd.DataFrame(rows, columns=cols)
 
@@ -132,7 +142,11 @@ def analyse(ctx, table):
                     "wall_time_to_target": float(reach.wall_time_min.min()) if len(reach) else np.nan,
                 }
             )
-    return {NAME: table, f"{NAME}_summary": pd.DataFrame(rows), f"{NAME}_equal_accuracy": equal_accuracy(table)}
+    return {
+        NAME: table,
+        f"{NAME}_summary": pd.DataFrame(rows),
+        f"{NAME}_equal_accuracy": equal_accuracy(table),
+    }
 
 
 if __name__ == "__main__":  # python -m experiments.studies.<name> [--quick|--full] ...
