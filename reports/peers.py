@@ -8,6 +8,7 @@ import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from .figures import _legend, _style
 from .render import Section
 
 __all__ = [
@@ -175,22 +176,27 @@ def _timed(t: pd.DataFrame) -> pd.DataFrame:
 def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
     """CPU time (least of the repeats; bar to the median) against k, one line per method;
     noisy points (machine loaded or wide spread) drawn hollow."""
-    fig = Figure(figsize=(6.0, 4.2), layout="constrained")
+    fig = Figure(figsize=(6.0, 5.0), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     t = _timed(table)
     t = t[(t.status == "ok") & (t.k > 0)]
     ex = dict(zip(exponents.method, exponents.exponent)) if len(exponents) else {}
-    for m, g in t.groupby("method", sort=False):
+    for i, (m, g) in enumerate(t.groupby("method", sort=False)):
         g = g.sort_values("k")
         p = ex.get(m, np.nan)
-        (line,) = ax.loglog(
-            g.k, g.cpu_time, "-", label=f"{_label(m)}" + (f" (∝ k^{p:.2f})" if np.isfinite(p) else "")
+        st = _style(m, i)
+        c = st.color
+        ax.loglog(
+            g.k,
+            g.cpu_time,
+            st.linestyle,
+            color=c,
+            label=f"{_label(m)}" + (f" (∝ k^{p:.2f})" if np.isfinite(p) else ""),
         )
-        c = line.get_color()
         quiet, noisy = g[~g.noisy], g[g.noisy]
-        ax.loglog(quiet.k, quiet.cpu_time, "o", color=c)
-        ax.loglog(noisy.k, noisy.cpu_time, "o", mfc="none", color=c)
+        ax.loglog(quiet.k, quiet.cpu_time, st.marker, color=c, ls="none")
+        ax.loglog(noisy.k, noisy.cpu_time, st.marker, mfc="none", color=c, ls="none")
         med = g.cpu_time_median.where(np.isfinite(g.cpu_time_median), g.cpu_time)
         ax.vlines(g.k, g.cpu_time, med, color=c, lw=1)
     ks = sorted({int(k) for k in t.k})
@@ -203,7 +209,7 @@ def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
         ylabel=f"CPU time (s), least of ≥ {n} runs",
         title=f"{case}: CPU time against k (hollow: noisy)",
     )
-    ax.legend(fontsize=8)
+    _legend(ax, ncol=1)
     return fig
 
 
@@ -234,17 +240,19 @@ def work_precision_figure(table: pd.DataFrame, case: str) -> Figure:
     markers for noisy timings, the rigid baseline as stars."""
     from experiments.studies._common import MAIN_ERROR
 
-    fig = Figure(figsize=(6.0, 4.2), layout="constrained")
+    fig = Figure(figsize=(6.0, 5.6), layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     t = _timed(table)
     g = t[(t.case == case) & np.isfinite(t[MAIN_ERROR].astype(float))]
-    for m, gm in g[g.k > 0].groupby("method", sort=False):
+    for i, (m, gm) in enumerate(g[g.k > 0].groupby("method", sort=False)):
         gm = gm.sort_values("cpu_time")
-        (line,) = ax.loglog(gm.cpu_time, gm[MAIN_ERROR], "-", label=_label(m))
-        c = line.get_color()
-        ax.loglog(gm.cpu_time[~gm.noisy], gm[MAIN_ERROR][~gm.noisy], "o", color=c, ms=4)
-        ax.loglog(gm.cpu_time[gm.noisy], gm[MAIN_ERROR][gm.noisy], "o", mfc="none", color=c, ms=4)
+        st = _style(m, i)
+        c = st.color
+        ax.loglog(gm.cpu_time, gm[MAIN_ERROR], st.linestyle, color=c, label=_label(m))
+        quiet, noisy = gm[~gm.noisy], gm[gm.noisy]
+        ax.loglog(quiet.cpu_time, quiet[MAIN_ERROR], st.marker, color=c, ms=4, ls="none")
+        ax.loglog(noisy.cpu_time, noisy[MAIN_ERROR], st.marker, mfc="none", color=c, ms=4, ls="none")
     for m, r in g[g.k == 0].groupby("method"):
         ax.loglog(r.cpu_time, r[MAIN_ERROR], "*", ms=12, color="k", label=f"{_label(m)} (rigid-model floor)")
     ax.set(
@@ -252,7 +260,7 @@ def work_precision_figure(table: pd.DataFrame, case: str) -> Figure:
         ylabel="end-effector RMS error (m)",
         title=f"{case}: work-precision (lower left is better)",
     )
-    ax.legend(fontsize=7)
+    _legend(ax, ncol=2, fontsize=7)
     return fig
 
 
