@@ -232,6 +232,54 @@ def cost_text(table: pd.DataFrame, exponents: pd.DataFrame) -> list[str]:
         "are noisy (hollow: load above the core count, or median more than 10 % above the least): "
         "read their differences under about 20 % as noise."
     )
+    out += crossover_text(ok)
+    return out
+
+
+def crossover_text(ok: pd.DataFrame, scaling_csv="data/bench/global_scaling.csv") -> list[str]:
+    """Where DT-TMM overtakes the compiled global solver: in k from the cost table (same linear
+    element, same h), and in k and n from ``python -m experiments.global_scaling`` when its table
+    is there."""
+    out = []
+    if {"dttmm", "global"} <= set(ok.method):
+        ratio = (
+            ok[ok.method == "global"].set_index("k").cpu_time
+            / ok[ok.method == "dttmm"].set_index("k").cpu_time
+        )
+        ratio = ratio.dropna().sort_index()
+        if len(ratio):
+            faster = ratio[ratio > 1]
+            where = (
+                f"at every k measured (k = {int(ratio.index[0])}…{int(ratio.index[-1])})"
+                if len(faster) == len(ratio)
+                else f"from k = {int(faster.index[0])} on"
+                if len(faster)
+                else "at no k measured"
+            )
+            out.append(
+                f"DT-TMM (Newmark) against the compiled global solver (same element, same h): DT-TMM is "
+                f"cheaper {where}; time ratio global / DT-TMM "
+                + ", ".join(f"{sig2(v)} at k = {int(k)}" for k, v in ratio.items())
+                + "."
+            )
+    try:
+        sc = pd.read_csv(scaling_csv)
+    except (OSError, ValueError):
+        return out
+    for study, name in (("k", "elements per link k (three_link)"), ("n", "links n (k = 8)")):
+        r = sc[sc.study == study].sort_values("size")
+        if len(r):
+            below = r[r.ratio_global_over_dttmm <= 1]
+            where = (
+                "no crossover: DT-TMM is cheaper at every size"
+                if not len(below)
+                else (f"the global solver is cheaper up to {study} = {int(below['size'].max())}")
+            )
+            out.append(
+                f"Per step over {name} ({scaling_csv}, `python -m experiments.global_scaling`): {where}; "
+                f"ratio {sig2(r.ratio_global_over_dttmm.iloc[0])} at {study} = {int(r['size'].iloc[0])} to "
+                f"{sig2(r.ratio_global_over_dttmm.iloc[-1])} at {study} = {int(r['size'].iloc[-1])}."
+            )
     return out
 
 

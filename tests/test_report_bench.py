@@ -221,3 +221,26 @@ def test_real_benchmark_file_gives_finite_dttmm_exponents():
     ex = bench.scaling_exponents(rec)
     d = ex[ex.method.str.startswith("dttmm") & (ex.method != "dttmm-rk4")]
     assert len(d) and np.isfinite(d.exponent).all()
+
+
+def test_crossover_text_names_where_dttmm_overtakes_the_global_solver(tmp_path):
+    import pandas as pd
+
+    from reports.peers import crossover_text
+
+    ok = pd.DataFrame(
+        {
+            "method": ["dttmm"] * 3 + ["global"] * 3,
+            "k": [1, 4, 16] * 2,
+            "cpu_time": [2.0, 3.0, 4.0, 1.0, 6.0, 40.0],
+        }
+    )
+    text = crossover_text(ok, scaling_csv=tmp_path / "absent.csv")
+    assert len(text) == 1 and "cheaper from k = 4 on" in text[0] and "0.5 at k = 1" in text[0]
+    sc = pd.DataFrame(
+        {"study": ["k", "k", "n"], "size": [1, 8, 2], "ratio_global_over_dttmm": [0.8, 3.0, 1.5]}
+    )
+    sc.to_csv(tmp_path / "s.csv", index=False)
+    text = crossover_text(ok[ok.k > 1], scaling_csv=tmp_path / "s.csv")
+    assert "at every k measured" in text[0]
+    assert "cheaper up to k = 1" in text[1] and "no crossover" in text[2]
