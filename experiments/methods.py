@@ -221,6 +221,9 @@ class _Bound:
     def __call__(self, case, k, h, **options):
         opts = dict(self.options)
         opts.update(options)
+        if getattr(self.simulate, "__module__", "").startswith("dttmm."):
+            # runs of a sweep report through the sweep's own progress bar, not one bar each
+            opts.setdefault("progress", False)
         kk = int(k) if self.uses_k else None
         try:
             return self.simulate(case, elements_per_link=kk, h=float(h), **opts)
