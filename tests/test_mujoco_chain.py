@@ -225,11 +225,13 @@ def test_unstable_step_fails_with_partial_result():
 
 # ------------------------------------------------------------------------------ convergence (slow)
 def _reference(name):
-    from experiments.references import load_reference
+    from experiments.plan import PLANS
+    from experiments.references import load_reference, reference_key
 
     c = case(name)
     c = dc.replace(c, scenario=dc.replace(c.scenario, output_step=4e-3))
-    ref, prov = load_reference(REFS, c)
+    plan = PLANS["quick"]
+    ref, prov = load_reference(REFS, c, reference_key(c, plan.reference[name], plan.check[name]))
     if ref is None:
         pytest.skip(f"no stored reference for {name}")
     return c, ref, prov
