@@ -11,9 +11,8 @@ import numpy as np
 
 from ._validate import positive
 from .errors import InputError
-from .plumbing import versions
 
-__all__ = ["step_schedule", "versions"]
+__all__ = ["step_schedule"]
 
 
 def step_schedule(duration: float, h: float, breakpoints=()) -> tuple[np.ndarray, np.ndarray]:

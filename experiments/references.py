@@ -82,7 +82,7 @@ def load_reference(folder, case, key: str):
 
 
 def _versions(res) -> dict:
-    from dttmm.timegrid import versions
+    from dttmm.plumbing import versions
 
     v = versions()
     v.update({k: str(x) for k, x in (res.meta.get("versions") or {}).items()})

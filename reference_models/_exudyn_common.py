@@ -448,7 +448,7 @@ def simulate_exudyn(
     )
     meta.update(element.meta(case, k, axial, **(element_options or {})))
     try:
-        from dttmm.timegrid import versions
+        from dttmm.plumbing import versions
 
         meta["versions"] = {**versions(), "exudyn": exu.__version__}
     except Exception:  # versions() is informational only

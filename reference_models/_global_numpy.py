@@ -13,23 +13,11 @@ from dttmm.case import Case
 from dttmm.drives import Constant, Drive
 from dttmm.errors import InputError, SimulationError
 from dttmm.model import Link, Manipulator, Section
+from dttmm.plumbing import versions
 from dttmm.scenario import Scenario
-from dttmm.timegrid import step_schedule, versions
+from dttmm.timegrid import step_schedule
 
-__all__ = [
-    "accelerations",
-    "mass_matrix",
-    "stiffness_matrix",
-    "elastic_forces",
-    "energy",
-    "kinematics",
-    "coordinate_names",
-    "element_mass",
-    "damping_forces",
-    "INTEGRATORS",
-    "STRAINS",
-    "ENGINES",
-]
+# The public names are re-exported by reference_models.global_newmark (the facade).
 
 INTEGRATORS = ("newmark", "generalized-alpha", "radau", "dop853")
 STRAINS = ("linear", "second-order")

@@ -52,8 +52,9 @@ import numpy as np
 from dttmm.case import Case
 from dttmm.drives import ControlState, require_no_computed_torque
 from dttmm.errors import InputError, SimulationError
+from dttmm.plumbing import versions
 from dttmm.result import make_result
-from dttmm.timegrid import step_schedule, versions
+from dttmm.timegrid import step_schedule
 
 from ._mujoco_model import INTEGRATORS, chain_xml, layout
 

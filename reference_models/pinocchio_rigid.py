@@ -36,8 +36,9 @@ from scipy.integrate import solve_ivp
 
 from dttmm.drives import ComputedTorque, ControlState, reference_of
 from dttmm.errors import InputError, SimulationError
+from dttmm.plumbing import versions
 from dttmm.result import make_result
-from dttmm.timegrid import step_schedule, versions
+from dttmm.timegrid import step_schedule
 
 __all__ = ["INTEGRATORS", "build_model", "simulate"]
 
