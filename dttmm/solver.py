@@ -11,7 +11,7 @@ import numpy as np
 
 from . import plumbing
 from .case import Case
-from .drives import require_open_loop
+from .drives import UserLaw, require_open_loop
 from .errors import InputError
 from .kernel import driver
 from .resources import check_run_size
@@ -52,6 +52,27 @@ def accelerations(
     if q.shape != (st.n_dof,) or qd.shape != (st.n_dof,):
         raise InputError("q/qd", (q.shape, qd.shape), f"must both have shape ({st.n_dof},)")
     return driver.accelerations_at(st, q, qd, t, sweep, engine)
+
+
+def _check_closed_loop(case: Case, sweep: str) -> None:
+    """Refuse the closed-loop drives the kernel does not run: user laws, and any closed-loop
+    law with the plain sweep."""
+    for i, d in enumerate(case.scenario.drives):
+        if not d.closed_loop:
+            continue
+        if isinstance(d.law, UserLaw):
+            raise InputError(
+                f"scenario.drives[{i}].law",
+                d.law.label,
+                f"user law on joint {i + 1} is not supported by dttmm (pd and pid laws are)",
+            )
+        if sweep == "plain":
+            raise InputError(
+                f"scenario.drives[{i}].law",
+                d.law.name,
+                f"closed-loop drive law {d.law.name!r} on joint {i + 1} needs sweep='riccati' "
+                "(the plain sweep runs open-loop drives only)",
+            )
 
 
 def simulate(
@@ -114,7 +135,7 @@ def simulate(
     plumbing.choice("integrator", integrator, INTEGRATORS)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
     plumbing.choice("strain", strain, STRAINS)
-    require_open_loop(case, "dttmm")
+    _check_closed_loop(case, sweep)
     check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy)
     s = driver.Settings(
         h=plumbing.positive_number("h", h),

@@ -95,8 +95,8 @@ class Settings:
     engine: str
     strain: str
 
-    def options(self) -> loop.Options:
-        """The kernel's run options."""
+    def options(self, closed: bool = False) -> loop.Options:
+        """The kernel's run options (``closed``: the case has closed-loop joints)."""
         fam = self.family
         if fam is None:  # RK4
             beta = gamma = am = af = lte = 0.0
@@ -124,6 +124,7 @@ class Settings:
             alpha_f=float(af),
             lte=float(lte),
             check_every=CHECK_EVERY if mode in (IT_FIXED, IT_AUTO) and fam else 0,
+            closed=bool(closed),
         )
 
 
@@ -138,6 +139,8 @@ def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.D
     taum, motm = (np.zeros((ns, n)), np.zeros((ns, n, 3))) if rk4 else (np.zeros((1, n)), np.zeros((1, n, 3)))
     rs = np.flatnonzero(restart)
     for i, (d, m) in enumerate(zip(st.case.scenario.drives, st.motion)):
+        if d.closed_loop:
+            continue  # its tables: control_tables
         law, tau_or_mot = (d.motion, (motl, motr, motm)) if m else (d.torque, (taul, taur, taum))
         left, right, mid = tau_or_mot
         left[:, i] = [law(t, True) for t in t_end]
@@ -155,7 +158,43 @@ def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.D
         mot_right=motr,
         tau_mid=taum,
         mot_mid=motm,
+        **control_tables(st, t_end, restart, rk4),
     )
+
+
+def control_tables(st: Structure, t_end, restart, rk4: bool) -> dict:
+    """The closed-loop fields of :class:`loop.Drives`: per joint the code (1: pd/pid) and the
+    constants (kp, kd, ki, g_M, limit, J_hub), per step the feedforward torque and the
+    reference (α_ref, α̇_ref) at the step end (left limits), at restart steps the right limits,
+    at mid-step (RK4). Without closed-loop joints: zeros, the tables one row."""
+    from .. import control
+
+    n, ns = st.n_links, t_end.size
+    g = control.gains(st.case)
+    code = np.where(g.code == 1, 1, 0).astype(np.int64)
+    gain = np.ascontiguousarray(np.column_stack([g.kp, g.kd, g.ki, g.moment_gain, g.limit, g.j_hub]), float)
+    one = lambda: (np.zeros((1, n)), np.zeros((1, n, 2)))
+    (ffl, refl), (ffr, refr), (ffm, refm) = one(), one(), one()
+    if code.any():
+        ffl, refl = control.time_tables(st.case, t_end, left=True)
+        ffr, refr = np.zeros((ns, n)), np.zeros((ns, n, 2))
+        rs = np.flatnonzero(restart)
+        if rs.size:
+            ffr[rs], refr[rs] = control.time_tables(st.case, t_end[rs], left=False)
+        if rk4:
+            t_start = np.concatenate(([0.0], t_end[:-1]))
+            ffm, refm = control.time_tables(st.case, t_start + 0.5 * (t_end - t_start), left=False)
+    c = lambda a: np.ascontiguousarray(a, float)
+    return {
+        "code": code,
+        "gain": gain,
+        "ff_left": c(ffl),
+        "ref_left": c(refl),
+        "ff_right": c(ffr),
+        "ref_right": c(refr),
+        "ff_mid": c(ffm),
+        "ref_mid": c(refm),
+    }
 
 
 def drive_values(st: Structure, t: float, left: bool = False):
@@ -165,7 +204,7 @@ def drive_values(st: Structure, t: float, left: bool = False):
     for i, (d, m) in enumerate(zip(st.case.scenario.drives, st.motion)):
         if m:
             mot[i] = d.motion(t, left)
-        else:
+        elif not d.closed_loop:  # closed loop: the kernel evaluates the law
             tau[i] = d.torque(t, left)
     return tau, mot
 
@@ -330,11 +369,23 @@ def simulate_structure(st: Structure, s: Settings):
     ws = lp.new_work(st.n_dof, st.n_links, ncuts)
     stats = lp.new_stats()
 
-    # initial accelerations, and the samples at t = 0
+    # initial accelerations (closed-loop laws at z = 0), and the samples at t = 0
     q, qd = initial_state(st)
     tau0, mot0 = drive_values(st, 0.0)
     qdd, loads = np.empty(st.n_dof), np.empty((ncuts, 3))
-    ok, cond0 = lp.accel(md, dt, SWEEP_CODES[s.sweep], q, qd, tau0, mot0, ws, qdd, ws.torque, loads, True)
+    drv = drive_tables(st, t_end, restart, np.zeros(n_steps, np.bool_), s.integrator == "rk4")
+    closed = bool(drv.code.any())
+    opts = s.options(closed)
+    z0 = np.zeros(st.n_links)
+    if closed:
+        ff0, ref0 = _control().time_tables(st.case, [0.0], left=False)
+        ok, cond0 = lp.accel_closed(
+            md, dt, opts, q, qd, tau0, mot0, drv, ff0[0], ref0[0], z0, ws, qdd, ws.torque, loads, True
+        )
+        zerr0 = np.where(drv.code == 1, ref0[0, :, 0] - q[st.alpha_index], 0.0)
+    else:
+        ok, cond0 = lp.accel(md, dt, SWEEP_CODES[s.sweep], q, qd, tau0, mot0, ws, qdd, ws.torque, loads, True)
+        zerr0 = np.zeros(st.n_links)
     partial = lambda m, upto=0: to_result(rec, upto, time.perf_counter() - wall0, int(stats.steps_done[0]), m)
     if not ok:
         raise plumbing.simulation_failure(
@@ -356,12 +407,13 @@ def simulate_structure(st: Structure, s: Settings):
         qd_prev=qd.copy(),
         torque_prev=ws.torque.copy(),
         loads_prev=loads.copy(),
+        z=z0,
+        zerr=zerr0,
     )
     s0 = (st0.q_prev, st0.qd_prev, st0.torque_prev, st0.loads_prev)
     stats.ptr[0] = rp.record(md, -1.0, 0.0, s0, s0, (ws.qs, ws.qds), 0, rec)
     stats.cond_max[0] = 0.0 if math.isnan(cond0) else cond0
-    drv = drive_tables(st, t_end, restart, load_plan(rec, t_end, int(stats.ptr[0])), s.integrator == "rk4")
-    opts = s.options()
+    drv = drv._replace(need_loads=load_plan(rec, t_end, int(stats.ptr[0])))
 
     short = s.engine == "numba" and n_steps * max(st.n_elements, 1) <= SHORT_RUN and not s.progress
     status, bar = _run_chunked(
@@ -577,6 +629,12 @@ def accelerations_at(st: Structure, q, qd, t: float, sweep: str, engine: str):
     if not ok:
         raise np.linalg.LinAlgError("singular matrix")
     return qdd
+
+
+def _control():
+    from .. import control
+
+    return control
 
 
 # ---------------------------------------------------------------------------------------------

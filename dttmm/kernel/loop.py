@@ -21,6 +21,7 @@ from ._jit import njit
 # named-tuple arguments, which costs more than a small model's sweep. They are inlined into
 # `run` (a real call would pass every array of the tuples as separate arguments).
 from .element import angles, effective_mass, elastic_known
+from .feedback import CODE_PD, state_laws, step_laws
 from .layout import (
     INT_NEWMARK,
     IT_AUTO,
@@ -53,12 +54,18 @@ class Options(NamedTuple):
     alpha_f: float
     lte: float
     check_every: int  # fixed/"auto" sweeps: residual check every this many steps (0: never)
+    closed: bool  # some joint has a closed-loop (pd/pid) law
 
 
 class Drives(NamedTuple):
     """Drive values per step (the drive laws are Python objects, evaluated beforehand):
     torques (n_steps, n) and motions (n_steps, n, 3) = (α, α̇, α̈) at the step end (left
-    limits), the right limits at restart steps, the mid-step values (RK4)."""
+    limits), the right limits at restart steps, the mid-step values (RK4).
+
+    Closed-loop joints (``code`` 1; 0 elsewhere) have the constants ``gain`` (n, 6) of
+    :mod:`dttmm.kernel.feedback` and, at the same instants, the feedforward torque ``ff_*``
+    (n_steps, n) and the reference (α_ref, α̇_ref) ``ref_*`` (n_steps, n, 2); without closed-loop
+    joints these tables have one row of zeros."""
 
     t_end: np.ndarray
     restart: np.ndarray  # (n_steps,) bool: a drive jumps at the step end
@@ -69,11 +76,20 @@ class Drives(NamedTuple):
     mot_right: np.ndarray
     tau_mid: np.ndarray
     mot_mid: np.ndarray
+    code: np.ndarray
+    gain: np.ndarray
+    ff_left: np.ndarray
+    ref_left: np.ndarray
+    ff_right: np.ndarray
+    ref_right: np.ndarray
+    ff_mid: np.ndarray
+    ref_mid: np.ndarray
 
 
 class State(NamedTuple):
     """(q, q̇, q̈, a) now (a: the auxiliary acceleration of generalised-α) and the last
-    recorded step end (q, q̇, torques, cut loads), all overwritten as the run goes."""
+    recorded step end (q, q̇, torques, cut loads), all overwritten as the run goes; per joint
+    the integral state z of a closed-loop law and its error α_ref − α now."""
 
     q: np.ndarray
     qd: np.ndarray
@@ -83,6 +99,8 @@ class State(NamedTuple):
     qd_prev: np.ndarray
     torque_prev: np.ndarray
     loads_prev: np.ndarray
+    z: np.ndarray
+    zerr: np.ndarray
 
 
 class Stats(NamedTuple):
@@ -145,6 +163,10 @@ class Work(NamedTuple):
     loads: np.ndarray
     torque_r: np.ndarray  # of a restart solve (not recorded)
     loads_r: np.ndarray
+    taul: np.ndarray  # (n,) closed loop: torques of the sweep (τ_k − s α̈_k at such joints)
+    zs: np.ndarray  # (n,) closed loop: z of an RK4 stage; z_{n+1} of a Newmark step
+    zsum: np.ndarray  # (n,) closed loop: RK4's weighted sum of ż; e_{n+1} of a Newmark step
+    xc: np.ndarray  # (n_dof,) closed loop: previous iterate of the forward dynamics
 
 
 def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
@@ -166,6 +188,10 @@ def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
         loads=np.empty((n_cuts, 3)),
         torque_r=np.empty(n),
         loads_r=np.empty((n_cuts, 3)),
+        taul=np.zeros(n),
+        zs=np.zeros(n),
+        zsum=np.zeros(n),
+        xc=np.empty(n_dof),
     )
 
 
@@ -215,6 +241,48 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
         if not md.motion[i]:
             torque[i] = tau[i]
     if want_loads and code == SW_RICCATI:
+        riccati_loads(md, dt, loads)
+    return ok, cond
+
+
+@njit(nrt=False)  # a real call: closed-loop runs only, and inlining it four times into `run` costs compile time
+def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads):
+    """:func:`accel` with closed-loop joints: their laws at (q, q̇), integral states z (n,),
+    feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
+    ω̇ of its link root, itself a result of the sweep: the sweeps repeat, each with the laws
+    linearised in α̈ at the last one, until max|Δq̈| ≤ tol·max(1, max|q̈|) (at most
+    ``max_iterations``). The torques of closed-loop joints are the laws' τ. Returns (ok, cond)."""
+    copy(q, ws.qs)
+    copy(qd, ws.qds)
+    for i in range(md.n):
+        ws.acc[i] = mot[i, 2]
+        ws.taul[i] = tau[i]
+    apply_motion(md.motion, md.im, mot, ws.qs, ws.qds)
+    elastic_known(md, ws.qs, ws.qds, dt)
+    effective_mass(md, 0.0, 0.0, dt)
+    ok = True
+    cond = np.nan
+    for it in range(opts.max_iterations):
+        loop = state_laws(md, dt, drv, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
+        ok, cond = sweep(md, dt, opts.sweep, ws.qs, ws.qds, ws.taul, ws.acc, xout, torque, loads)
+        if not ok:
+            return ok, cond
+        if not loop:
+            break
+        if it > 0:
+            dx = 0.0
+            xmax = 0.0
+            for r in range(xout.shape[0]):
+                dx = max(dx, abs(xout[r] - ws.xc[r]))
+                xmax = max(xmax, abs(xout[r]))
+            if dx <= opts.tol * max(1.0, xmax) or not math.isfinite(dx):
+                break
+        copy(xout, ws.xc)
+    for i in range(md.n):
+        if not md.motion[i]:
+            torque[i] = tau[i]
+    state_laws(md, dt, drv, ff, ref, z, ws.qs, ws.qds, xout, ws, False, torque)  # τ at the final ω̇
+    if want_loads and opts.sweep == SW_RICCATI:
         riccati_loads(md, dt, loads)
     return ok, cond
 
@@ -284,9 +352,10 @@ def _update_iterate(x, xn, qt, qdt, qi, qdi, qdd, cq, cv, want_dq):
 
 
 @njit(nrt=False, inline="always")
-def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
-    """Sweeps of one Newmark step from the iterate x = ws.x. Returns (ok, sweeps used,
-    converged)."""
+def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h):
+    """Sweeps of one Newmark step (step s of ``drv``, size h) from the iterate x = ws.x; the
+    closed-loop laws linearised at each iterate (:func:`dttmm.kernel.feedback.step_laws`).
+    Returns (ok, sweeps used, converged)."""
     nsw = opts.max_iterations if opts.iteration != IT_FIXED else opts.n_fixed + 1
     converged = opts.iteration == IT_FIXED
     prev_dx = np.inf
@@ -294,9 +363,15 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats):
     for r in range(ws.x.shape[0]):
         ws.qi[r] = ws.qt[r] + cq * ws.x[r]
         ws.qdi[r] = ws.qdt[r] + cv * ws.x[r]
+    tv = tau
+    if opts.closed:
+        copy(tau, ws.taul)
+        tv = ws.taul
     for it in range(nsw):
         apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
-        ok, cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.xn, ws.torque, ws.loads)
+        if opts.closed:
+            step_laws(md, dt, drv, s, st, ws, h, cq, cv, False)
+        ok, cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tv, ws.acc, ws.xn, ws.torque, ws.loads)
         used = it + 1
         if not ok:
             return False, used, False
@@ -349,10 +424,11 @@ def _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats):
 
 
 @njit(nrt=False, inline="always")
-def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, keep, s):
-    """One Newmark-family step of size h to the end values (tau, mot); with ``check``, the
-    residual check of step s after it (:func:`_residual_check`); with ``keep``, q̈_n is kept
-    in ws.ka for the next step's check. Returns ok."""
+def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, keep, s, drv):
+    """One Newmark-family step s of ``drv``, of size h, to the end values (tau, mot); with
+    ``check``, the residual check after it (:func:`_residual_check`); with ``keep``, q̈_n is
+    kept in ws.ka for the next step's check. Closed-loop joints: the law's τ of the converged
+    iterate is the step's torque, and z, α_ref − α move to t_{n+1}. Returns ok."""
     cq, cv = predict(
         opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt, ws.qdt
     )
@@ -365,7 +441,7 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, ke
             ii += 1
     elastic_known(md, ws.qt, ws.qdt, dt)
     effective_mass(md, cq, cv, dt)
-    ok, used, converged = _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats)
+    ok, used, converged = _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h)
     if not ok:
         return False
     stats.sweeps[0] += used
@@ -398,60 +474,95 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, ke
             ws.torque[i] = tau[i]
     if want_loads and opts.sweep == SW_RICCATI:
         riccati_loads(md, dt, ws.loads)
+    if opts.closed:  # the laws at the converged iterate (ws.qi, ws.qdi, ω̇ of its sweep)
+        step_laws(md, dt, drv, s, st, ws, h, cq, cv, True)
+        tau = ws.taul
     if check:  # after the loads: the extra sweep overwrites the workspace they are read from
         _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats)
+    if opts.closed:
+        for i in range(md.n):
+            if drv.code[i] == CODE_PD:
+                st.z[i] = ws.zs[i]
+                st.zerr[i] = ws.zsum[i]
     return True
 
 
 @njit(nrt=False, inline="always")
+def _accel_at(md, dt, opts, q, qd, drv, s, stage, ws, xout, want_loads):
+    """Forward dynamics at an RK4 stage of step s (``stage`` 1: mid-step laws of time, 2: the
+    step end) into xout; closed-loop laws with the stage's integral states ws.zs."""
+    if stage == 1:
+        tau, mot = drv.tau_mid[s], drv.mot_mid[s]
+    else:
+        tau, mot = drv.tau_left[s], drv.mot_left[s]
+    if not opts.closed:
+        return accel(md, dt, opts.sweep, q, qd, tau, mot, ws, xout, ws.torque, ws.loads, want_loads)
+    if stage == 1:
+        ff, ref = drv.ff_mid[s], drv.ref_mid[s]
+    else:
+        ff, ref = drv.ff_left[s], drv.ref_left[s]
+    return accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, ws.zs, ws, xout, ws.torque, ws.loads, want_loads)
+
+
+@njit(nrt=False, inline="always")
+def _rk4_z(md, drv, st, ws, ref, q, w, c):
+    """Closed-loop integral states at an RK4 stage: ż = α_ref − α of the stage state q (its
+    reference ``ref`` (n, 2)) enters the sum with weight w and the next stage's z = z_n + c ż."""
+    for i in range(md.n):
+        if drv.code[i] == CODE_PD:
+            zd = ref[i, 0] - q[md.i_alpha[i]]
+            ws.zsum[i] += w * zd
+            ws.zs[i] = st.z[i] + c * zd
+
+
+@njit(nrt=False, inline="always")
 def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
-    """Classical RK4 on (q, q̇) with the exact acceleration solver (step s of ``drv``)."""
+    """Classical RK4 on (q, q̇) (and the integral states z of closed-loop laws, ż = α_ref − α)
+    with the exact acceleration solver (step s of ``drv``)."""
     q, qd, qdd = st.q, st.qd, st.qdd
     qi, qdi, k2v, k3v, ka, x, xn = ws.qi, ws.qdi, ws.k2, ws.k3, ws.ka, ws.x, ws.xn
     hf = 0.5 * h
-    code = opts.sweep
+    if opts.closed:  # stage 1: ż = e_n
+        for i in range(md.n):
+            ws.zsum[i] = st.zerr[i]
+            ws.zs[i] = st.z[i] + hf * st.zerr[i]
     for r in range(q.shape[0]):
         qi[r] = q[r] + hf * qd[r]
         qdi[r] = qd[r] + hf * qdd[r]
         k2v[r] = qdi[r]
-    ok, cond = accel(
-        md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, ka, ws.torque, ws.loads, False
-    )
+    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, 1, ws, ka, False)
     if ok:
+        if opts.closed:
+            _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, hf)
         for r in range(q.shape[0]):
             qi[r] = q[r] + hf * k2v[r]
             qdi[r] = qd[r] + hf * ka[r]
             k3v[r] = qdi[r]
-        ok, cond = accel(
-            md, dt, code, qi, qdi, drv.tau_mid[s], drv.mot_mid[s], ws, x, ws.torque, ws.loads, False
-        )
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, 1, ws, x, False)
     if ok:
+        if opts.closed:
+            _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, h)
         for r in range(q.shape[0]):
             qi[r] = q[r] + h * k3v[r]
             qdi[r] = qd[r] + h * x[r]
-        ok, cond = accel(
-            md, dt, code, qi, qdi, drv.tau_left[s], drv.mot_left[s], ws, xn, ws.torque, ws.loads, False
-        )
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, 2, ws, xn, False)
     if ok:
+        if opts.closed:
+            _rk4_z(md, drv, st, ws, drv.ref_left[s], qi, 1.0, 0.0)
+            for i in range(md.n):
+                if drv.code[i] == CODE_PD:
+                    st.z[i] += h / 6.0 * ws.zsum[i]
+                    ws.zs[i] = st.z[i]
         # k1 = (q̇, q̈), k2 = (k2v, ka), k3 = (k3v, x), k4 = (qdi, xn)
         for r in range(q.shape[0]):
             q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
             qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
         apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
-        ok, cond = accel(
-            md,
-            dt,
-            code,
-            q,
-            qd,
-            drv.tau_left[s],
-            drv.mot_left[s],
-            ws,
-            qdd,
-            ws.torque,
-            ws.loads,
-            drv.need_loads[s],
-        )
+        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, 2, ws, qdd, drv.need_loads[s])
+        if opts.closed:
+            for i in range(md.n):
+                if drv.code[i] == CODE_PD:
+                    st.zerr[i] = drv.ref_left[s, i, 0] - q[md.i_alpha[i]]
     if not ok:
         return False
     if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep: keep the max
@@ -485,20 +596,40 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
         return ST_RUNAWAY if finite else ST_NONFINITE
     if drv.restart[s]:  # a drive jumps at t1: restart with the right-hand limit; the
         # recorded sample at t1 keeps the left limit (the step's own solve)
-        ok, cond = accel(
-            md,
-            dt,
-            opts.sweep,
-            st.q,
-            st.qd,
-            drv.tau_right[s],
-            drv.mot_right[s],
-            ws,
-            st.qdd,
-            ws.torque_r,
-            ws.loads_r,
-            False,
-        )
+        if opts.closed:
+            ok, cond = accel_closed(
+                md,
+                dt,
+                opts,
+                st.q,
+                st.qd,
+                drv.tau_right[s],
+                drv.mot_right[s],
+                drv,
+                drv.ff_right[s],
+                drv.ref_right[s],
+                st.z,
+                ws,
+                st.qdd,
+                ws.torque_r,
+                ws.loads_r,
+                False,
+            )
+        else:
+            ok, cond = accel(
+                md,
+                dt,
+                opts.sweep,
+                st.q,
+                st.qd,
+                drv.tau_right[s],
+                drv.mot_right[s],
+                ws,
+                st.qdd,
+                ws.torque_r,
+                ws.loads_r,
+                False,
+            )
         if not ok:
             return ST_SINGULAR
         if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep
@@ -548,6 +679,7 @@ def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
                 check,
                 keep,
                 s,
+                drv,
             )
         else:
             ok = rk4_step(md, dt, opts, st, ws, t1 - t0, drv, s, stats)

@@ -181,7 +181,13 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
 def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
     """Across the hub and joint i: returns ((P, c) on the outboard side of the joint (9),
     (P, c) on its inboard side (9), (ga (3), g0)) with α̈_i = ga·a + g0 (torque-driven) or
-    α̈_i = g0 (motion-driven; ga unused)."""
+    α̈_i = g0 (motion-driven; ga unused).
+
+    A torque-driven joint whose torque is linearised in its own acceleration,
+    τ = tau_i + s α̈_i (a closed-loop law, s = ``acc_i``; 0 for an open-loop torque), has the
+    joint equation P[2, :]·a + p22 α̈_i + c2 = τ, so α̈_i = −(P[2, :]·a + c2 − tau_i)/(p22 − s)
+    and the inboard side f = P a + c + P[:, 2] α̈_i: P_in = P − P[:, 2] P[2, :]/(p22 − s) stays
+    symmetric; its row 2 (the joint moment τ as a function of a) vanishes only for s = 0."""
     p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
     p00 += m_hub
     p11 += m_hub
@@ -195,7 +201,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
         c0 += p02 * gg
         c1 += p12 * gg
         c2 += p22 * gg
-    else:
+    elif acc_i == 0.0:
         ga0 = -p02 / p22
         ga1 = -p12 / p22
         ga2 = -1.0
@@ -209,6 +215,21 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
         c2 += p22 * gg
         p00, p01, p11 = n00, n01, n11
         p02 = p12 = p22 = 0.0
+    else:  # closed loop: the slope s = acc_i acts as a joint stiffness (see above)
+        den = p22 - acc_i
+        ga0 = -p02 / den
+        ga1 = -p12 / den
+        ga2 = -p22 / den
+        gg = (tau_i - c2) / den
+        r = -acc_i / den  # 1 + ga2
+        n00 = p00 + p02 * ga0
+        n01 = p01 + p02 * ga1
+        n11 = p11 + p12 * ga1
+        c0 += p02 * gg
+        c1 += p12 * gg
+        c2 += p22 * gg
+        p00, p01, p11 = n00, n01, n11
+        p02, p12, p22 = p02 * r, p12 * r, p22 * r
     return hub, (p00, p01, p02, p11, p12, p22, c0, c1, c2), (ga0, ga1, ga2, gg)
 
 
