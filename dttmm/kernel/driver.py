@@ -95,8 +95,9 @@ class Settings:
     engine: str
     strain: str
 
-    def options(self, closed: bool = False) -> loop.Options:
-        """The kernel's run options (``closed``: the case has closed-loop joints)."""
+    def options(self, closed: bool = False, coupled: bool = False) -> loop.Options:
+        """The kernel's run options (``closed``: the case has closed-loop joints; ``coupled``:
+        one past the first has moment feedback)."""
         fam = self.family
         if fam is None:  # RK4
             beta = gamma = am = af = lte = 0.0
@@ -125,6 +126,7 @@ class Settings:
             lte=float(lte),
             check_every=CHECK_EVERY if mode in (IT_FIXED, IT_AUTO) and fam else 0,
             closed=bool(closed),
+            coupled=bool(coupled),
         )
 
 
@@ -375,7 +377,8 @@ def simulate_structure(st: Structure, s: Settings):
     qdd, loads = np.empty(st.n_dof), np.empty((ncuts, 3))
     drv = drive_tables(st, t_end, restart, np.zeros(n_steps, np.bool_), s.integrator == "rk4")
     closed = bool(drv.code.any())
-    opts = s.options(closed)
+    coupled = bool(np.any((drv.code[1:] == 1) & (drv.gain[1:, 3] * drv.gain[1:, 5] != 0.0)))
+    opts = s.options(closed, coupled)
     z0 = np.zeros(st.n_links)
     if closed:
         ff0, ref0 = _control().time_tables(st.case, [0.0], left=False)

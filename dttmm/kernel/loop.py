@@ -21,7 +21,7 @@ from ._jit import njit
 # named-tuple arguments, which costs more than a small model's sweep. They are inlined into
 # `run` (a real call would pass every array of the tuples as separate arguments).
 from .element import angles, effective_mass, elastic_known
-from .feedback import CODE_PD, state_laws, step_laws
+from .feedback import A_EVERY, CODE_PD, correct, inboard, n_sensitivity, state_laws, step_laws
 from .layout import (
     INT_NEWMARK,
     IT_AUTO,
@@ -55,6 +55,7 @@ class Options(NamedTuple):
     lte: float
     check_every: int  # fixed/"auto" sweeps: residual check every this many steps (0: never)
     closed: bool  # some joint has a closed-loop (pd/pid) law
+    coupled: bool  # some joint past the first has moment feedback (feedback.correct)
 
 
 class Drives(NamedTuple):
@@ -167,6 +168,12 @@ class Work(NamedTuple):
     zs: np.ndarray  # (n,) closed loop: z of an RK4 stage; z_{n+1} of a Newmark step
     zsum: np.ndarray  # (n,) closed loop: RK4's weighted sum of ż; e_{n+1} of a Newmark step
     xc: np.ndarray  # (n_dof,) closed loop: previous iterate of the forward dynamics
+    dw: np.ndarray  # (n,) closed loop: ∂τ/∂ω̇ at the iterate
+    yk: np.ndarray  # (n,) closed loop: inboard part of ω̇ at the iterate, of the base sweep,
+    yb: np.ndarray
+    tb: np.ndarray  # (n,) closed loop: the base sweep's torques
+    amat: np.ndarray  # (n, n) closed loop: ∂y/∂τ' of the sweep
+    gmat: np.ndarray  # (n, n + 1) closed loop: scratch of the solve
 
 
 def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
@@ -192,6 +199,12 @@ def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
         zs=np.zeros(n),
         zsum=np.zeros(n),
         xc=np.empty(n_dof),
+        dw=np.zeros(n),
+        yk=np.zeros(n),
+        yb=np.zeros(n),
+        tb=np.zeros(n),
+        amat=np.zeros((n, n)),
+        gmat=np.zeros((n, n + 1)),
     )
 
 
@@ -245,6 +258,27 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     return ok, cond
 
 
+@njit(nrt=False)  # a real call: closed-loop runs only
+def sensitivity(md, dt, opts, q, qd, drv, ws):
+    """Base sweep at (q, q̇) with the torques ws.taul (its y into ws.yb, which it copies to
+    ws.tb) and one sweep per closed-loop joint j with τ'_j + 1: ws.amat[:, j] = ∂y/∂τ'_j
+    (the sweep is affine in its torques). Outputs go to scratch (ws.k3, restart arrays).
+    Returns ok."""
+    ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.k3, ws.torque_r, ws.loads_r)
+    for i in range(md.n):
+        ws.yb[i] = inboard(md, dt, ws.k3, i)
+        ws.tb[i] = ws.taul[i]
+    for j in range(md.n):
+        if drv.code[j] != CODE_PD or not ok:
+            continue
+        ws.taul[j] = ws.tb[j] + 1.0
+        ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.k3, ws.torque_r, ws.loads_r)
+        ws.taul[j] = ws.tb[j]
+        for i in range(md.n):
+            ws.amat[i, j] = inboard(md, dt, ws.k3, i) - ws.yb[i]
+    return ok
+
+
 @njit(nrt=False)  # a real call: closed-loop runs only, and inlining it four times into `run` costs compile time
 def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads):
     """:func:`accel` with closed-loop joints: their laws at (q, q̇), integral states z (n,),
@@ -263,7 +297,16 @@ def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torqu
     ok = True
     cond = np.nan
     for it in range(opts.max_iterations):
+        if it > 0:
+            copy(ws.taul, ws.tb)
         loop = state_laws(md, dt, drv, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
+        if opts.coupled:
+            if it == 0:
+                if not sensitivity(md, dt, opts, ws.qs, ws.qds, drv, ws):
+                    return False, cond
+            else:
+                copy(ws.yk, ws.yb)
+            correct(md, drv, ws)
         ok, cond = sweep(md, dt, opts.sweep, ws.qs, ws.qds, ws.taul, ws.acc, xout, torque, loads)
         if not ok:
             return ok, cond
@@ -370,9 +413,22 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h):
     for it in range(nsw):
         apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
         if opts.closed:
+            copy(ws.taul, ws.tb)  # the last sweep's torques (it ≥ 1)
             step_laws(md, dt, drv, s, st, ws, h, cq, cv, False)
+            if opts.coupled:
+                # the first sweep of a step holds y at the last step's (A is of an earlier
+                # state; correcting from the last step's sweep overshoots, measured), unless
+                # A is measured now, about this very iterate
+                if it == 0 and (s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])):
+                    if not sensitivity(md, dt, opts, ws.qi, ws.qdi, drv, ws):
+                        return False, used, False
+                    used += n_sensitivity(md, drv)
+                    correct(md, drv, ws)
+                elif it > 0:
+                    copy(ws.yk, ws.yb)
+                    correct(md, drv, ws)
         ok, cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tv, ws.acc, ws.xn, ws.torque, ws.loads)
-        used = it + 1
+        used += 1
         if not ok:
             return False, used, False
         if opts.sweep == SW_PLAIN and cond > stats.cond_max[0]:
