@@ -168,6 +168,7 @@ class Work(NamedTuple):
     zs: np.ndarray  # (n,) closed loop: z of an RK4 stage; z_{n+1} of a Newmark step
     zsum: np.ndarray  # (n,) closed loop: RK4's weighted sum of ż; e_{n+1} of a Newmark step
     xc: np.ndarray  # (n_dof,) closed loop: previous iterate of the forward dynamics
+    xs: np.ndarray  # (n_dof,) closed loop: q̈ of the sensitivity sweeps
     dw: np.ndarray  # (n,) closed loop: ∂τ/∂ω̇ at the iterate
     yk: np.ndarray  # (n,) closed loop: inboard part of ω̇ at the iterate, of the base sweep,
     yb: np.ndarray
@@ -199,6 +200,7 @@ def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
         zs=np.zeros(n),
         zsum=np.zeros(n),
         xc=np.empty(n_dof),
+        xs=np.empty(n_dof),
         dw=np.zeros(n),
         yk=np.zeros(n),
         yb=np.zeros(n),
@@ -262,20 +264,20 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
 def sensitivity(md, dt, opts, q, qd, drv, ws):
     """Base sweep at (q, q̇) with the torques ws.taul (its y into ws.yb, which it copies to
     ws.tb) and one sweep per closed-loop joint j with τ'_j + 1: ws.amat[:, j] = ∂y/∂τ'_j
-    (the sweep is affine in its torques). Outputs go to scratch (ws.k3, restart arrays).
+    (the sweep is affine in its torques). Outputs go to scratch (ws.xs, restart arrays).
     Returns ok."""
-    ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.k3, ws.torque_r, ws.loads_r)
+    ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
     for i in range(md.n):
-        ws.yb[i] = inboard(md, dt, ws.k3, i)
+        ws.yb[i] = inboard(md, dt, ws.xs, i)
         ws.tb[i] = ws.taul[i]
     for j in range(md.n):
         if drv.code[j] != CODE_PD or not ok:
             continue
         ws.taul[j] = ws.tb[j] + 1.0
-        ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.k3, ws.torque_r, ws.loads_r)
+        ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
         ws.taul[j] = ws.tb[j]
         for i in range(md.n):
-            ws.amat[i, j] = inboard(md, dt, ws.k3, i) - ws.yb[i]
+            ws.amat[i, j] = inboard(md, dt, ws.xs, i) - ws.yb[i]
     return ok
 
 
