@@ -419,10 +419,13 @@ def simulate_structure(st: Structure, s: Settings):
     drv = drv._replace(need_loads=load_plan(rec, t_end, int(stats.ptr[0])))
 
     short = s.engine == "numba" and n_steps * max(st.n_elements, 1) <= SHORT_RUN and not s.progress
+    cpu0 = time.process_time()
     status, bar = _run_chunked(
         lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps, False if short else s.progress
     )
+    cpu_loop = time.process_time() - cpu0
     wall = time.perf_counter() - wall0
+    meta["loop_cpu_time"] = cpu_loop  # CPU time of the time loop alone (s)
     if bar is not None:
         bar.close()
     upto = int(stats.ptr[0])
@@ -655,6 +658,15 @@ def _tiny_case() -> Case:
     return Case(Manipulator(links, gravity=(0.0, -9.81)), Scenario(0.004, 0.002, drives))
 
 
+def _tiny_closed_case() -> Case:
+    """Two links under pd laws with moment feedback: the closed-loop entry points."""
+    from ..drives import PD
+
+    link = Link(Section(0.5, 2.0, 0.3, 7e6), hub=Hub(0.1, 0.01))
+    drives = tuple(Drive("torque", PD(1.0, 0.1, Constant(0.1), moment_gain=0.5)) for _ in range(2))
+    return Case(Manipulator((link, link), gravity=(0.0, -9.81)), Scenario(0.004, 0.002, drives))
+
+
 def warmup() -> float:
     """Compile (or load from the on-disk cache) every kernel entry point on a tiny case and
     return the seconds it took. A no-op returning 0.0 once done in this process, or without
@@ -682,6 +694,7 @@ def warmup() -> float:
     _WARM = True  # simulate_structure must not recurse into warmup
     try:
         simulate_structure(build_structure(_tiny_case(), 1), s)
+        simulate_structure(build_structure(_tiny_closed_case(), 1), s)
     except BaseException:
         _WARM = False
         raise

@@ -261,17 +261,17 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
 
 
 @njit(nrt=False)  # a real call: closed-loop runs only
-def sensitivity(md, dt, opts, q, qd, drv, ws):
-    """Base sweep at (q, q̇) with the torques ws.taul (its y into ws.yb, which it copies to
-    ws.tb) and one sweep per closed-loop joint j with τ'_j + 1: ws.amat[:, j] = ∂y/∂τ'_j
-    (the sweep is affine in its torques). Outputs go to scratch (ws.xs, restart arrays).
-    Returns ok."""
+def sensitivity(md, dt, opts, q, qd, drv, ws, columns):
+    """Base sweep at (q, q̇) with the torques ws.taul (its y into ws.yb, the torques copied to
+    ws.tb) and, with ``columns``, one sweep per closed-loop joint j with τ'_j + 1:
+    ws.amat[:, j] = ∂y/∂τ'_j (the sweep is affine in its torques). Outputs go to scratch
+    (ws.xs, restart arrays). Returns ok."""
     ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
     for i in range(md.n):
         ws.yb[i] = inboard(md, dt, ws.xs, i)
         ws.tb[i] = ws.taul[i]
     for j in range(md.n):
-        if drv.code[j] != CODE_PD or not ok:
+        if drv.code[j] != CODE_PD or not ok or not columns:
             continue
         ws.taul[j] = ws.tb[j] + 1.0
         ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
@@ -304,7 +304,7 @@ def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torqu
         loop = state_laws(md, dt, drv, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
         if opts.coupled:
             if it == 0:
-                if not sensitivity(md, dt, opts, ws.qs, ws.qds, drv, ws):
+                if not sensitivity(md, dt, opts, ws.qs, ws.qds, drv, ws, True):
                     return False, cond
             else:
                 copy(ws.yk, ws.yb)
@@ -418,17 +418,16 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h):
             copy(ws.taul, ws.tb)  # the last sweep's torques (it ≥ 1)
             step_laws(md, dt, drv, s, st, ws, h, cq, cv, False)
             if opts.coupled:
-                # the first sweep of a step holds y at the last step's (A is of an earlier
-                # state; correcting from the last step's sweep overshoots, measured), unless
-                # A is measured now, about this very iterate
-                if it == 0 and (s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])):
-                    if not sensitivity(md, dt, opts, ws.qi, ws.qdi, drv, ws):
+                if it == 0:
+                    # a base sweep about this very iterate (y of the last step's is a poor
+                    # guess: measured), with A anew every A_EVERY steps and after a restart
+                    fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                    if not sensitivity(md, dt, opts, ws.qi, ws.qdi, drv, ws, fresh):
                         return False, used, False
-                    used += n_sensitivity(md, drv)
-                    correct(md, drv, ws)
-                elif it > 0:
+                    used += n_sensitivity(md, drv) if fresh else 1
+                else:
                     copy(ws.yk, ws.yb)
-                    correct(md, drv, ws)
+                correct(md, drv, ws)
         ok, cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tv, ws.acc, ws.xn, ws.torque, ws.loads)
         used += 1
         if not ok:
