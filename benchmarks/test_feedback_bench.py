@@ -41,7 +41,8 @@ def replay(closed: dttmm.Case, res: dttmm.Result) -> dttmm.Case:
     """The arm open loop, each joint driven by the closed-loop run's torques (a table through
     the torque at every step end)."""
     drives = tuple(
-        Drive("torque", Table(tuple(res.t), tuple(res.joint_torque[:, i]))) for i in range(res.joint_torque.shape[1])
+        Drive("torque", Table(tuple(res.t), tuple(res.joint_torque[:, i])))
+        for i in range(res.joint_torque.shape[1])
     )
     return dc.replace(closed, scenario=dc.replace(closed.scenario, drives=drives))
 

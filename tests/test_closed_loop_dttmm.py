@@ -26,7 +26,9 @@ from dttmm.errors import InputError
 L, RHOA, JH = 1.0, 1.0, 0.1
 J = JH + RHOA * L**3 / 3
 KP, KD = 20.0, 1.5
-THREE_LINK = Path(__file__).resolve().parents[1] / "experiments" / "cases" / "control" / "closed_loop_three_link.toml"
+THREE_LINK = (
+    Path(__file__).resolve().parents[1] / "experiments" / "cases" / "control" / "closed_loop_three_link.toml"
+)
 
 
 def rotor(law, duration=2.0, EI=1e8, step=0.01):
@@ -122,14 +124,18 @@ def test_feedforward_jump_restarts_the_step():
     law = PID(KP, KD, Constant(0.3), feedforward=BangBang((1.0, -2.0), (0.505,)), ki=5.0)
     for integrator, h in (("newmark", 5e-4), ("rk4", 1e-5)):
         case = rotor(law, duration=1.0, EI=1e8 if integrator == "newmark" else 1e7)
-        res = dttmm.simulate(case, elements_per_link=2 if integrator == "newmark" else 1, h=h, integrator=integrator)
+        res = dttmm.simulate(
+            case, elements_per_link=2 if integrator == "newmark" else 1, h=h, integrator=integrator
+        )
         exact = linear_response(res.t, 5.0, 0.3, ((0.0, 1.0), (0.505, -2.0)))
         assert np.abs(res.joint_angle[:, 0] - exact).max() <= 1e-6
 
 
 def test_saturation_accelerates_at_the_limit():
     limit = 1.0
-    res = dttmm.simulate(rotor(PD(KP, KD, Constant(0.5), limit=limit), duration=1.0), elements_per_link=2, h=5e-4)
+    res = dttmm.simulate(
+        rotor(PD(KP, KD, Constant(0.5), limit=limit), duration=1.0), elements_per_link=2, h=5e-4
+    )
     tau = res.joint_torque[:, 0]
     assert np.abs(tau).max() <= limit * (1 + 1e-12)
     sat = np.flatnonzero(tau == limit)
@@ -142,9 +148,7 @@ def test_saturation_accelerates_at_the_limit():
 
 def three_link(duration=0.2, moment_gain=0.5, output_step=1e-3):
     case = dttmm.load_case(THREE_LINK)
-    drives = tuple(
-        Drive("torque", dc.replace(d.law, moment_gain=moment_gain)) for d in case.scenario.drives
-    )
+    drives = tuple(Drive("torque", dc.replace(d.law, moment_gain=moment_gain)) for d in case.scenario.drives)
     scen = dc.replace(case.scenario, duration=duration, output_step=output_step, drives=drives)
     return dc.replace(case, scenario=scen)
 

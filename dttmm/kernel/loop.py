@@ -281,7 +281,8 @@ def sensitivity(md, dt, opts, q, qd, drv, ws, columns):
     return ok
 
 
-@njit(nrt=False)  # a real call: closed-loop runs only, and inlining it four times into `run` costs compile time
+# a real call: closed-loop runs only, and inlining it four times into `run` costs compile time
+@njit(nrt=False)
 def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads):
     """:func:`accel` with closed-loop joints: their laws at (q, q̇), integral states z (n,),
     feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
@@ -558,7 +559,9 @@ def _accel_at(md, dt, opts, q, qd, drv, s, stage, ws, xout, want_loads):
         ff, ref = drv.ff_mid[s], drv.ref_mid[s]
     else:
         ff, ref = drv.ff_left[s], drv.ref_left[s]
-    return accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, ws.zs, ws, xout, ws.torque, ws.loads, want_loads)
+    return accel_closed(
+        md, dt, opts, q, qd, tau, mot, drv, ff, ref, ws.zs, ws, xout, ws.torque, ws.loads, want_loads
+    )
 
 
 @njit(nrt=False, inline="always")
