@@ -76,12 +76,6 @@ def gains(case) -> Gains:
             g.code[i] = CODE_PD
             g.kp[i], g.kd[i], g.ki[i] = law.kp, law.kd, law.gain_integral
             g.moment_gain[i], g.limit[i] = law.moment_gain, law.limit
-            if law.moment_gain <= -1.0:
-                raise InputError(
-                    f"scenario.drives[{i}].moment_gain",
-                    law.moment_gain,
-                    "must be > -1 (at -1 the torque loop through the root bending moment has no solution)",
-                )
     return g
 
 
