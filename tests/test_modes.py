@@ -218,3 +218,44 @@ def test_bad_input_names_the_field():
         modes(clamped(), 2, n=0)
     with pytest.raises(InputError, match="elements_per_link"):
         linearize(clamped(), 0)
+
+
+# ----------------------------------------------------------------------------- command line
+def test_cli_modes_writes_table_csv_and_plot(tmp_path, capsys):
+    import pandas as pd
+
+    from dttmm.cli import main
+
+    path = CASES / "benchmarks" / "deluca_link2_clamped.toml"
+    out = tmp_path / "m"
+    assert main(["modes", str(path), "-k", "8", "--n", "3", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "frequency [Hz]" in printed and "2.17833" in printed and "15.9146" in printed
+    freq = pd.read_csv(out / "deluca_link2_clamped_modes.csv")
+    np.testing.assert_allclose(
+        freq["frequency_hz"], modes(dttmm.load_case(path), 8, n=3).frequencies, rtol=1e-12
+    )
+    shapes = pd.read_csv(out / "deluca_link2_clamped_shapes.csv")
+    assert list(shapes.columns) == ["coordinate", "mode_1", "mode_2", "mode_3"] and len(shapes) == 16
+    defl = pd.read_csv(out / "deluca_link2_clamped_deflections.csv")
+    assert len(defl) == 9 and defl["s_m"].iloc[-1] == pytest.approx(0.5)
+    assert (out / "deluca_link2_clamped_modes.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    "argv, field",
+    [(["-k", "0"], "elements_per_link"), (["-k", "2", "--n", "0"], "--n"), (["-k", "x"], "--elements")],
+)
+def test_cli_modes_bad_input_exit_2(tmp_path, capsys, argv, field):
+    from dttmm.cli import main
+
+    path = CASES / "benchmarks" / "deluca_link2_clamped.toml"
+    assert main(["modes", str(path), *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert field in err and len(err.strip().splitlines()) == 1
+
+
+def test_cli_modes_missing_case_exit_2(tmp_path, capsys):
+    from dttmm.cli import main
+
+    assert main(["modes", str(tmp_path / "none.toml"), "-k", "2", "--out", str(tmp_path / "o")]) == 2
