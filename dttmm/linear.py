@@ -297,7 +297,15 @@ def _eigen(K: np.ndarray, M: np.ndarray):
     """(ω² ascending, shapes M-normalised, symmetric?) of K φ = ω² M φ."""
     scale = max(np.abs(K).max(), 1e-300)
     if np.abs(K - K.T).max() <= 1e-9 * scale:
-        lam, V = scipy.linalg.eigh(0.5 * (K + K.T), M)
+        Ks = 0.5 * (K + K.T)
+        try:
+            # flexibility form M φ = ω⁻² K φ when K is positive definite: the lowest ω² are
+            # then the largest eigenvalues, not round-off-sized ones next to ω²_max
+            mu, V = scipy.linalg.eigh(M, Ks)
+            lam, V = 1.0 / mu[::-1], V[:, ::-1]
+            V = V / np.sqrt(np.einsum("im,ij,jm->m", V, M, V))
+        except np.linalg.LinAlgError:
+            lam, V = scipy.linalg.eigh(Ks, M)
         return lam, V, True
     lam, V = scipy.linalg.eig(K, M)
     order = np.argsort(lam.real)
