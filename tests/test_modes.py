@@ -304,3 +304,19 @@ def test_cli_modes_missing_case_exit_2(tmp_path, capsys):
     from dttmm.cli import main
 
     assert main(["modes", str(tmp_path / "none.toml"), "-k", "2", "--out", str(tmp_path / "o")]) == 2
+
+
+def test_closed_loop_joint_is_a_free_joint_with_torque_input():
+    """A pd-driven joint linearises as a free joint whose torque is an input: the same M, K, D,
+    B as with an open-loop zero torque on it."""
+    c = dttmm.load_case(CASES / "control" / "closed_loop_three_link.toml")
+    assert any(d.closed_loop for d in c.scenario.drives)
+    opened = tuple(
+        Drive("torque", Constant(0.0), initial_angle=d.initial_angle) if d.closed_loop else d
+        for d in c.scenario.drives
+    )
+    a = linearize(c, 2)
+    b = linearize(dc.replace(c, scenario=dc.replace(c.scenario, drives=opened)), 2)
+    assert a.torque_joints == b.torque_joints
+    for x, y in ((a.M, b.M), (a.K, b.K), (a.D, b.D), (a.B, b.B)):
+        np.testing.assert_array_equal(x, y)
