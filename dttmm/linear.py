@@ -46,6 +46,8 @@ __all__ = ["Linearization", "Modes", "linearize", "modes"]
 _STENCIL = ((1, 4.0 / 5.0), (2, -1.0 / 5.0), (3, 4.0 / 105.0), (4, -1.0 / 280.0))
 #: Relative step of the stencil (times the coordinate's scale).
 STEP = 2e-4
+#: Most free coordinates linearised (dense matrices, O(n²) sweeps).
+MAX_FREE = 2500
 
 
 @dataclass(frozen=True)
@@ -210,31 +212,37 @@ def linearize(
     Linearization
     """
     st, t = _check(case, elements_per_link, t, strain)
+    if not (isinstance(step, (int, float)) and 0.0 < step < 0.1):
+        raise InputError("step", step, "must be a relative difference step in (0, 0.1)")
     tau, mot = _drive_inputs(case, st, t, torque)
     q0, qd0 = _point(case, st, mot, state)
     free = np.flatnonzero(~np.isin(np.arange(st.n_dof), st.alpha_index[st.motion]))
-    nf = free.size
+    if free.size > MAX_FREE:
+        raise InputError(
+            "elements_per_link",
+            elements_per_link,
+            f"gives {free.size} free coordinates (dense limit {MAX_FREE})",
+        )
     acc = lambda q, qd, Q=None, tq=tau: sweep_accelerations(st, q, qd, tq, mot, forces=Q).qdd[free]
     a0 = acc(q0, qd0)
     # M⁻¹ from unit generalized forces (q̈ is affine in Q: the difference is exact)
-    Minv = np.empty((nf, nf))
-    for c, j in enumerate(free):
-        Q = np.zeros(st.n_dof)
-        Q[j] = 1.0
-        Minv[:, c] = acc(q0, qd0, Q) - a0
+    eye = np.zeros((free.size, st.n_dof))
+    eye[np.arange(free.size), free] = 1.0
+    Minv = np.column_stack([acc(q0, qd0, Q) - a0 for Q in eye])
     M = np.linalg.inv(Minv)
     M = 0.5 * (M + M.T)
     scale = _scales(st)
-    K = -np.linalg.solve(Minv, derivative(lambda q: acc(q, qd0), q0, free, scale, step))
-    D = -np.linalg.solve(Minv, derivative(lambda qd: acc(q0, qd), qd0, free, scale, step))
+    Jq = derivative(lambda q: acc(q, qd0), q0, free, scale, step)  # ∂q̈/∂q
+    Jv = derivative(lambda qd: acc(q0, qd), qd0, free, scale, step)  # ∂q̈/∂q̇
     tj = tuple(int(i) for i in np.flatnonzero(~st.motion))
-    B = np.empty((nf, len(tj)))
+    Jt = np.zeros((free.size, len(tj)))  # ∂q̈/∂τ
     for c, i in enumerate(tj):
-        tq = tau.copy()
-        tq[i] += 1.0
-        B[:, c] = np.linalg.solve(Minv, acc(q0, qd0, tq=tq) - a0)
-    A = np.block([[np.zeros((nf, nf)), np.eye(nf)], [-np.linalg.solve(M, K), -np.linalg.solve(M, D)]])
-    B_ss = np.vstack([np.zeros((nf, len(tj))), np.linalg.solve(M, B)])
+        Jt[:, c] = acc(q0, qd0, tq=tau + np.eye(st.n_links)[i]) - a0
+    # M · J as a solve with the computed M⁻¹ keeps the inversion's round-off out of K, D, B
+    K, D, B = (np.linalg.solve(Minv, J) for J in (-Jq, -Jv, Jt))
+    Z = np.zeros((free.size, free.size))
+    A = np.block([[Z, np.eye(free.size)], [Jq, Jv]])
+    B_ss = np.vstack([np.zeros_like(Jt), Jt])
     names = st.coordinate_names()
     qdd = sweep_accelerations(st, q0, qd0, tau, mot).qdd
     return Linearization(

@@ -320,3 +320,17 @@ def test_closed_loop_joint_is_a_free_joint_with_torque_input():
     assert a.torque_joints == b.torque_joints
     for x, y in ((a.M, b.M), (a.K, b.K), (a.D, b.D), (a.B, b.B)):
         np.testing.assert_array_equal(x, y)
+
+
+def test_state_space_pair():
+    """A = [[0, I], [−M⁻¹K, −M⁻¹D]], B_ss = [[0], [M⁻¹B]] (to round-off), and the undamped
+    clamped link's eigenvalues of A are ±iω of its modes."""
+    lin = linearize(_general_case(), 2, t=0.37, state=_general_state(_general_case(), 2))
+    nf = lin.n_free
+    assert rel(lin.A[nf:, :nf], -np.linalg.solve(lin.M, lin.K)) <= 1e-9
+    assert rel(lin.A[nf:, nf:], -np.linalg.solve(lin.M, lin.D)) <= 1e-9
+    assert rel(lin.B_ss[nf:], np.linalg.solve(lin.M, lin.B)) <= 1e-9
+    assert np.all(lin.A[:nf, nf:] == np.eye(nf)) and np.all(lin.B_ss[:nf] == 0)
+    m = modes(clamped(), 4)
+    w = np.sort(np.abs(np.linalg.eigvals(m.linearization.A).imag))[::2]
+    np.testing.assert_allclose(w, 2 * np.pi * m.frequencies, rtol=1e-8)
