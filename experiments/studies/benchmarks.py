@@ -33,7 +33,7 @@ SETTINGS = {
     "static_tip_displacement": {"methods": STATIC, "h": 1e-2},
     "tip_deflection_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
     "tip_path_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
-    "frequencies": {"methods": ["dttmm", "global"]},
+    "frequencies": {"methods": ["dttmm", "global", "exudyn-ancf"]},
 }
 REQUIRED = (
     "source",
