@@ -38,10 +38,15 @@ KERNEL_DIR = Path(__file__).resolve().parent
 NOT_COMPILED = ("__init__.py", "driver.py")
 
 
+#: compiled sources outside the kernel folder (the closed-loop law of dttmm/control.py)
+OUTSIDE = (KERNEL_DIR.parent / "control.py",)
+
+
 def source_hash() -> str:
-    """First 16 hex digits of the SHA-256 of every compiled kernel source file (by name)."""
+    """First 16 hex digits of the SHA-256 of every compiled kernel source file (by name), and of
+    the files in :data:`OUTSIDE`."""
     h = hashlib.sha256()
-    for path in sorted(p for p in KERNEL_DIR.glob("*.py") if p.name not in NOT_COMPILED):
+    for path in sorted(p for p in KERNEL_DIR.glob("*.py") if p.name not in NOT_COMPILED) + list(OUTSIDE):
         h.update(path.name.encode())
         h.update(path.read_bytes())
     return h.hexdigest()[:16]

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import plumbing
+from .. import control, plumbing
 from ..case import Case
 from ..drives import Constant, Drive, Sine
 from ..errors import InputError
@@ -169,11 +169,9 @@ def control_tables(st: Structure, t_end, restart, rk4: bool) -> dict:
     constants (kp, kd, ki, g_M, limit, J_hub), per step the feedforward torque and the
     reference (α_ref, α̇_ref) at the step end (left limits), at restart steps the right limits,
     at mid-step (RK4). Without closed-loop joints: zeros, the tables one row."""
-    from .. import control
-
     n, ns = st.n_links, t_end.size
     g = control.gains(st.case)
-    code = np.where(g.code == 1, 1, 0).astype(np.int64)
+    code = np.where(g.code == control.CODE_PD, control.CODE_PD, control.CODE_OPEN).astype(np.int64)
     gain = np.ascontiguousarray(np.column_stack([g.kp, g.kd, g.ki, g.moment_gain, g.limit, g.j_hub]), float)
     one = lambda: (np.zeros((1, n)), np.zeros((1, n, 2)))
     (ffl, refl), (ffr, refr), (ffm, refm) = one(), one(), one()
@@ -377,15 +375,15 @@ def simulate_structure(st: Structure, s: Settings):
     qdd, loads = np.empty(st.n_dof), np.empty((ncuts, 3))
     drv = drive_tables(st, t_end, restart, np.zeros(n_steps, np.bool_), s.integrator == "rk4")
     closed = bool(drv.code.any())
-    coupled = bool(np.any((drv.code[1:] == 1) & (drv.gain[1:, 3] * drv.gain[1:, 5] != 0.0)))
+    coupled = bool(np.any((drv.code[1:] == control.CODE_PD) & (drv.gain[1:, 3] * drv.gain[1:, 5] != 0.0)))
     opts = s.options(closed, coupled)
     z0 = np.zeros(st.n_links)
     if closed:
-        ff0, ref0 = _control().time_tables(st.case, [0.0], left=False)
+        ff0, ref0 = control.time_tables(st.case, [0.0], left=False)
         ok, cond0 = lp.accel_closed(
             md, dt, opts, q, qd, tau0, mot0, drv, ff0[0], ref0[0], z0, ws, qdd, ws.torque, loads, True
         )
-        zerr0 = np.where(drv.code == 1, ref0[0, :, 0] - q[st.alpha_index], 0.0)
+        zerr0 = np.where(drv.code == control.CODE_PD, ref0[0, :, 0] - q[st.alpha_index], 0.0)
     else:
         ok, cond0 = lp.accel(md, dt, SWEEP_CODES[s.sweep], q, qd, tau0, mot0, ws, qdd, ws.torque, loads, True)
         zerr0 = np.zeros(st.n_links)
@@ -635,12 +633,6 @@ def accelerations_at(st: Structure, q, qd, t: float, sweep: str, engine: str):
     if not ok:
         raise np.linalg.LinAlgError("singular matrix")
     return qdd
-
-
-def _control():
-    from .. import control
-
-    return control
 
 
 # ---------------------------------------------------------------------------------------------

@@ -25,32 +25,37 @@ joint's ``Drives.code`` is 1 for pd/pid and 0 otherwise.
 
 from __future__ import annotations
 
-import math
-
+from .. import control
 from ._jit import njit
 
 #: columns of Drives.gain
 KP, KD, KI, GM, LIMIT, JHUB = range(6)
 #: Drives.code of a pd/pid joint
-CODE_PD = 1
+CODE_PD = control.CODE_PD
+
+#: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
+_pd_torque = njit(nrt=False, inline="always")(control.pd_torque)
 
 
 @njit(nrt=False, inline="always")
 def pd_torque(gain, i, ff, a_ref, r_ref, z, alpha, rate, omega_dot):
     """(τ, ∂τ/∂α, ∂τ/∂α̇, ∂τ/∂z, ∂τ/∂ω̇) of the pd/pid law of joint i (row i of ``gain``)
-    with the moment feedback solved in closed form; all slopes zero beyond the limit."""
-    kp = gain[i, KP]
-    kd = gain[i, KD]
-    ki = gain[i, KI]
-    gm = gain[i, GM]
-    jh = gain[i, JHUB]
-    l0 = ff + kp * (a_ref - alpha) + kd * (r_ref - rate) + ki * z
-    inv = 1.0 / (1.0 + gm)
-    tau = (l0 + gm * jh * omega_dot) * inv
-    lim = gain[i, LIMIT]
-    if abs(tau) > lim:
-        return math.copysign(lim, tau), 0.0, 0.0, 0.0, 0.0
-    return tau, -kp * inv, -kd * inv, ki * inv, gm * jh * inv
+    with the moment feedback solved in closed form (:func:`dttmm.control.pd_torque`)."""
+    return _pd_torque(
+        gain[i, KP],
+        gain[i, KD],
+        gain[i, KI],
+        gain[i, GM],
+        gain[i, LIMIT],
+        gain[i, JHUB],
+        ff,
+        a_ref,
+        r_ref,
+        z,
+        alpha,
+        rate,
+        omega_dot,
+    )
 
 
 @njit(nrt=False, inline="always")
