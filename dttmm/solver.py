@@ -54,17 +54,18 @@ def accelerations(
     return driver.accelerations_at(st, q, qd, t, sweep, engine)
 
 
-def _check_closed_loop(case: Case, sweep: str) -> None:
-    """Refuse the closed-loop drives the kernel does not run: user laws, and any closed-loop
-    law with the plain sweep."""
+def _check_closed_loop(case: Case, sweep: str, engine: str) -> None:
+    """Refuse the closed-loop drives the kernel does not run: user laws with the compiled
+    kernel, and any closed-loop law with the plain sweep."""
     for i, d in enumerate(case.scenario.drives):
         if not d.closed_loop:
             continue
-        if isinstance(d.law, UserLaw):
+        if isinstance(d.law, UserLaw) and engine != "python":
             raise InputError(
                 f"scenario.drives[{i}].law",
                 d.law.label,
-                f"user law on joint {i + 1} is not supported by dttmm (pd and pid laws are)",
+                f"user law on joint {i + 1} runs with engine='python' only (the compiled kernel "
+                "calls no Python function; pd and pid laws run compiled)",
             )
         if sweep == "plain":
             raise InputError(
@@ -135,7 +136,7 @@ def simulate(
     plumbing.choice("integrator", integrator, INTEGRATORS)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
     plumbing.choice("strain", strain, STRAINS)
-    _check_closed_loop(case, sweep)
+    _check_closed_loop(case, sweep, driver.resolve_engine(engine))
     check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy)
     s = driver.Settings(
         h=plumbing.positive_number("h", h),

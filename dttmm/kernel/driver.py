@@ -165,13 +165,14 @@ def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.D
 
 
 def control_tables(st: Structure, t_end, restart, rk4: bool) -> dict:
-    """The closed-loop fields of :class:`loop.Drives`: per joint the code (1: pd/pid) and the
+    """The closed-loop fields of :class:`loop.Drives`: per joint the code (1: pd/pid, 2: user
+    law, whose laws are in ``user``: engine "python" only; else an empty array) and the
     constants (kp, kd, ki, g_M, limit, J_hub), per step the feedforward torque and the
     reference (α_ref, α̇_ref) at the step end (left limits), at restart steps the right limits,
     at mid-step (RK4). Without closed-loop joints: zeros, the tables one row."""
     n, ns = st.n_links, t_end.size
     g = control.gains(st.case)
-    code = np.where(g.code == control.CODE_PD, control.CODE_PD, control.CODE_OPEN).astype(np.int64)
+    code = np.ascontiguousarray(g.code, np.int64)
     gain = np.ascontiguousarray(np.column_stack([g.kp, g.kd, g.ki, g.moment_gain, g.limit, g.j_hub]), float)
     one = lambda: (np.zeros((1, n)), np.zeros((1, n, 2)))
     (ffl, refl), (ffr, refr), (ffm, refm) = one(), one(), one()
@@ -185,7 +186,13 @@ def control_tables(st: Structure, t_end, restart, rk4: bool) -> dict:
             t_start = np.concatenate(([0.0], t_end[:-1]))
             ffm, refm = control.time_tables(st.case, t_start + 0.5 * (t_end - t_start), left=False)
     c = lambda a: np.ascontiguousarray(a, float)
+    user = (
+        tuple(d.law if c == control.CODE_USER else None for d, c in zip(st.case.scenario.drives, code))
+        if np.any(code == control.CODE_USER)
+        else np.zeros(0)
+    )
     return {
+        "user": user,
         "code": code,
         "gain": gain,
         "ff_left": c(ffl),
@@ -381,7 +388,7 @@ def simulate_structure(st: Structure, s: Settings):
     if closed:
         ff0, ref0 = control.time_tables(st.case, [0.0], left=False)
         ok, cond0 = lp.accel_closed(
-            md, dt, opts, q, qd, tau0, mot0, drv, ff0[0], ref0[0], z0, ws, qdd, ws.torque, loads, True
+            md, dt, opts, 0.0, q, qd, tau0, mot0, drv, ff0[0], ref0[0], z0, ws, qdd, ws.torque, loads, True
         )
         zerr0 = np.where(drv.code == control.CODE_PD, ref0[0, :, 0] - q[st.alpha_index], 0.0)
     else:

@@ -26,12 +26,13 @@ joint's ``Drives.code`` is 1 for pd/pid and 0 otherwise.
 from __future__ import annotations
 
 from .. import control
-from ._jit import njit
+from ._jit import PURE, njit
 
 #: columns of Drives.gain
 KP, KD, KI, GM, LIMIT, JHUB = range(6)
-#: Drives.code of a pd/pid joint
+#: Drives.code of a pd/pid joint, of a user law (engine "python" only)
 CODE_PD = control.CODE_PD
+CODE_USER = control.CODE_USER
 
 #: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
 _pd_torque = njit(nrt=False, inline="always")(control.pd_torque)
@@ -108,16 +109,18 @@ def step_laws(md, dt, drv, s, st, ws, h, cq, cv, final):
     for i in range(md.n):
         if drv.code[i] == CODE_PD:
             step_law(md, dt, drv, s, st, ws, h, cq, cv, i, final)
+    out = ws.torque if final else ws.torque_r  # ws.torque: the last sweep's, the moments
+    user_laws(md, dt, drv, drv.t_end[s], ws.qi, ws.qdi, ws.x, cq, cv, ws, ws.torque, out, False)
 
 
 @njit(nrt=False, inline="always")
-def state_laws(md, dt, drv, ff, ref, z, q, qd, x, ws, first, torque):
+def state_laws(md, dt, drv, t, ff, ref, z, q, qd, x, ws, first, torque):
     """Laws of the closed-loop joints at the state (q, q̇) with integral states z (n,) and the
     laws of time ``ff`` (n,), ``ref`` (n, 2), linearised in α̈ through ω̇ only (the forward
     dynamics). ``first``: no sweep at this state yet, ω̇ and α̈ of the iterate taken as 0.
     Sets ws.taul, ws.acc and the law's τ in ``torque`` of those joints; returns whether any
-    law depends on ω̇."""
-    loop = False
+    law depends on ω̇ (user laws: on the moment). ``t``: the time (user laws)."""
+    loop = user_laws(md, dt, drv, t, q, qd, x, 0.0, 0.0, ws, torque, torque, first)
     for i in range(md.n):
         if drv.code[i] != CODE_PD:
             continue
@@ -195,3 +198,65 @@ def correct(md, drv, ws):
     for i in range(n):
         if drv.code[i] == CODE_PD:
             ws.taul[i] = ws.tb[i] + g[i, n]
+
+
+# --- user laws: engine "python" only -------------------------------------------------------
+if PURE:
+
+    def user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+        """User laws (code CODE_USER) at the iterate (q, q̇, q̈ = x) at time t: each law sees a
+        :class:`dttmm.drives.ControlState` (its moment: M_root = τ − J_hub ω̇ of the last sweep,
+        τ from ``tsweep``, 0 before the first; integral 0; every joint's angle and rate; every link's tip
+        deflection in its clamped-root frame) and is linearised with s = ∂τ/∂α c_q + ∂τ/∂α̇ c_v
+        into ws.acc, ws.taul = τ − s α̈_k; its τ goes to ``torque``. Returns whether there is
+        one (its moment dependence is resolved by repeating the sweeps)."""
+        import numpy as np
+
+        from ..drives import ControlState
+        from ..result import tip_deflection
+        from .recorder import sample
+
+        if not any(drv.code[i] == CODE_USER for i in range(md.n)):
+            return False
+        ia = md.i_alpha
+        n = md.n
+        scratch = _Sample(np.zeros((1, n, 2)), np.zeros((1, n, 2)), np.zeros((1, n)), np.zeros(0))
+        sample(md, q, qd, 0, scratch)
+        tips = tuple(float(v) for v in tip_deflection(scratch.root[0], scratch.root_angle[0], scratch.tip[0]))
+        angles = tuple(float(q[j]) for j in ia)
+        rates = tuple(float(qd[j]) for j in ia)
+        for i in range(n):
+            if drv.code[i] != CODE_USER:
+                continue
+            wd = 0.0 if first else root_omega_dot(md, dt, i)
+            moment = 0.0 if first else tsweep[i] - drv.gain[i, JHUB] * wd
+            state = ControlState(
+                joint=i,
+                angle=angles[i],
+                rate=rates[i],
+                moment=float(moment),
+                integral=0.0,
+                angles=angles,
+                rates=rates,
+                tip_deflections=tips,
+            )
+            tau, d_a, d_r, _ = drv.user[i].evaluate(float(t), state)
+            slope = d_a * cq + d_r * cv
+            ws.acc[i] = slope
+            ws.taul[i] = tau - slope * (0.0 if first else x[ia[i]])
+            ws.dw[i] = 0.0
+            torque[i] = tau
+        return True
+
+    class _Sample:
+        """The rows of a Record that :func:`dttmm.kernel.recorder.sample` writes."""
+
+        def __init__(self, root, tip, root_angle, energy):
+            self.root, self.tip, self.root_angle, self.energy = root, tip, root_angle, energy
+
+else:
+
+    @njit(nrt=False, inline="always")
+    def user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+        """The compiled kernel runs no user laws (refused before the run)."""
+        return False

@@ -78,6 +78,7 @@ class Drives(NamedTuple):
     tau_mid: np.ndarray
     mot_mid: np.ndarray
     code: np.ndarray
+    user: object  # engine "python": the user laws (tuple, None where not); else np.zeros(0)
     gain: np.ndarray
     ff_left: np.ndarray
     ref_left: np.ndarray
@@ -283,8 +284,8 @@ def sensitivity(md, dt, opts, q, qd, drv, ws, columns):
 
 # a real call: closed-loop runs only, and inlining it four times into `run` costs compile time
 @njit(nrt=False)
-def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads):
-    """:func:`accel` with closed-loop joints: their laws at (q, q̇), integral states z (n,),
+def accel_closed(md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads):
+    """:func:`accel` with closed-loop joints: their laws at (q, q̇) and time t, integral states z (n,),
     feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
     ω̇ of its link root, itself a result of the sweep: the sweeps repeat, each with the laws
     linearised in α̈ at the last one, until max|Δq̈| ≤ tol·max(1, max|q̈|) (at most
@@ -302,7 +303,7 @@ def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torqu
     for it in range(opts.max_iterations):
         if it > 0:
             copy(ws.taul, ws.tb)
-        loop = state_laws(md, dt, drv, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
+        loop = state_laws(md, dt, drv, t, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
         if opts.coupled:
             if it == 0:
                 if not sensitivity(md, dt, opts, ws.qs, ws.qds, drv, ws, True):
@@ -325,9 +326,9 @@ def accel_closed(md, dt, opts, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torqu
                 break
         copy(xout, ws.xc)
     for i in range(md.n):
-        if not md.motion[i]:
+        if not md.motion[i] and drv.code[i] == 0:  # closed loop: the sweep's τ until the laws
             torque[i] = tau[i]
-    state_laws(md, dt, drv, ff, ref, z, ws.qs, ws.qds, xout, ws, False, torque)  # τ at the final ω̇
+    state_laws(md, dt, drv, t, ff, ref, z, ws.qs, ws.qds, xout, ws, False, torque)  # τ at the final ω̇
     if want_loads and opts.sweep == SW_RICCATI:
         riccati_loads(md, dt, loads)
     return ok, cond
@@ -528,7 +529,7 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, ke
         if md.motion[i]:
             st.aux[md.im[ii]] = ws.x[md.im[ii]]
             ii += 1
-        else:
+        elif drv.code[i] == 0:  # closed loop: the law's τ, below
             ws.torque[i] = tau[i]
     if want_loads and opts.sweep == SW_RICCATI:
         riccati_loads(md, dt, ws.loads)
@@ -546,21 +547,23 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, ke
 
 
 @njit(nrt=False, inline="always")
-def _accel_at(md, dt, opts, q, qd, drv, s, stage, ws, xout, want_loads):
-    """Forward dynamics at an RK4 stage of step s (``stage`` 1: mid-step laws of time, 2: the
-    step end) into xout; closed-loop laws with the stage's integral states ws.zs."""
+def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads):
+    """Forward dynamics at an RK4 stage of step s of size h (``stage`` 1: mid-step laws of
+    time, 2: the step end) into xout; closed-loop laws with the stage's integral states ws.zs."""
     if stage == 1:
         tau, mot = drv.tau_mid[s], drv.mot_mid[s]
     else:
         tau, mot = drv.tau_left[s], drv.mot_left[s]
     if not opts.closed:
         return accel(md, dt, opts.sweep, q, qd, tau, mot, ws, xout, ws.torque, ws.loads, want_loads)
+    t = drv.t_end[s]
     if stage == 1:
         ff, ref = drv.ff_mid[s], drv.ref_mid[s]
+        t -= 0.5 * h
     else:
         ff, ref = drv.ff_left[s], drv.ref_left[s]
     return accel_closed(
-        md, dt, opts, q, qd, tau, mot, drv, ff, ref, ws.zs, ws, xout, ws.torque, ws.loads, want_loads
+        md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, ws.zs, ws, xout, ws.torque, ws.loads, want_loads
     )
 
 
@@ -590,7 +593,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
         qi[r] = q[r] + hf * qd[r]
         qdi[r] = qd[r] + hf * qdd[r]
         k2v[r] = qdi[r]
-    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, 1, ws, ka, False)
+    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, ka, False)
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, hf)
@@ -598,14 +601,14 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
             qi[r] = q[r] + hf * k2v[r]
             qdi[r] = qd[r] + hf * ka[r]
             k3v[r] = qdi[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, 1, ws, x, False)
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, x, False)
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, h)
         for r in range(q.shape[0]):
             qi[r] = q[r] + h * k3v[r]
             qdi[r] = qd[r] + h * x[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, 2, ws, xn, False)
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 2, ws, xn, False)
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_left[s], qi, 1.0, 0.0)
@@ -618,7 +621,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
             q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
             qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
         apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
-        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, 2, ws, qdd, drv.need_loads[s])
+        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, h, 2, ws, qdd, drv.need_loads[s])
         if opts.closed:
             for i in range(md.n):
                 if drv.code[i] == CODE_PD:
@@ -661,6 +664,7 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
                 md,
                 dt,
                 opts,
+                t1,
                 st.q,
                 st.qd,
                 drv.tau_right[s],
