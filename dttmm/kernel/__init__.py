@@ -8,6 +8,7 @@ Modules, in the order of the algorithm:
 * :mod:`~dttmm.kernel.element` — the element terms (one function for every pass), frame
   angles, known elastic forces, effective elastic mass;
 * :mod:`~dttmm.kernel.riccati` and :mod:`~dttmm.kernel.plain` — the two sweeps;
+* :mod:`~dttmm.kernel.feedback` — closed-loop (pd/pid, user) joint torques inside the loop;
 * :mod:`~dttmm.kernel.loop` — predictor, iteration control, Newmark and RK4 steps, the loop;
 * :mod:`~dttmm.kernel.recorder` — output sampling (cubic Hermite) and energy;
 * :mod:`~dttmm.kernel.driver` — the Python side: builds the records, evaluates the drive laws,
