@@ -41,6 +41,7 @@ CASE_FILE = "control/closed_loop_three_link.toml"
 WINDOW = 1.0  # s: residual vibration is measured on the last WINDOW s of the run
 MAX_POINTS = 1000  # time samples kept per curve in the stored series
 NOT_SUPPORTED = "not supported"
+NO_VIBRATION = 1e-9  # m: below this a tip deflection is round-off (a rigid link), not vibration
 
 
 # ----------------------------------------------------------------------------- cases
@@ -186,7 +187,8 @@ def decay_rate(t, w, t_move: float, window: float = WINDOW) -> tuple[float, floa
     """(decay rate ln(A_early/A_late)/Δt (1/s), A_early, A_late (units of ``w``)) of the
     vibration ``w`` after the move: A the largest peak of |w| in each of the two
     :func:`windows`, Δt the time between those peaks. Exact for a damped sine whose windows
-    hold a peak each. NaN when the run ends before the move or has no vibration."""
+    hold a peak each. NaN when the run ends before the move or has no vibration (a peak below
+    NO_VIBRATION)."""
     t, w = np.asarray(t, float), np.abs(np.asarray(w, float))
     T = float(t[-1])
     if not T > t_move:
@@ -197,7 +199,7 @@ def decay_rate(t, w, t_move: float, window: float = WINDOW) -> tuple[float, floa
         return math.nan, math.nan, math.nan
     te, ae = peak(t[e], w[e])
     tl, al = peak(t[late], w[late])
-    if not (ae > 0 and al > 0 and tl > te):
+    if not (ae > NO_VIBRATION and al > NO_VIBRATION and tl > te):
         return math.nan, ae, al
     return float(np.log(ae / al) / (tl - te)), ae, al
 
