@@ -380,11 +380,16 @@ ZERO_HZ = 1e-6  # frequencies below this (Hz) are the rigid-body modes of free j
 
 
 def _dttmm_frequencies(case, k: int) -> np.ndarray:
+    import importlib
+
     import dttmm
 
     fn = getattr(dttmm, "modes", None)
     if fn is None:
-        raise LookupError("dttmm.modes is not in this version of dttmm")
+        try:
+            fn = importlib.import_module("dttmm.linear").modes
+        except (ImportError, AttributeError):
+            raise LookupError("dttmm.modes is not in this version of dttmm") from None
     return np.asarray(fn(case, elements_per_link=int(k)).frequencies, float)
 
 
