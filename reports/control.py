@@ -132,6 +132,27 @@ def gain_text(g: pd.DataFrame, method: str | None) -> list[str]:
     ]
 
 
+def agreement(g: pd.DataFrame) -> list[str]:
+    """Where two or more methods ran the same gain: their largest relative spread in peak |w₁|
+    and in the decay rate, over the gains."""
+    ok = g[g.status == "ok"]
+    both = ok.groupby("moment_gain").filter(lambda d: len(d) > 1)
+    if both.empty:
+        return []
+
+    def spread(col):
+        return max(
+            float((d[col].max() - d[col].min()) / abs(d[col].mean())) for _, d in both.groupby("moment_gain")
+        )
+
+    names = ", ".join(figures._label(m) for m in dict.fromkeys(both.method))
+    gains = ", ".join(f"{x:g}" for x in sorted(set(both.moment_gain)))
+    return [
+        f"{names} agree at moment_gain {gains} within {_g(100 * spread('peak_w1'), 2)} % in the peak deflection "
+        f"of link 1 and {_g(100 * spread('decay_rate1'), 2)} % in its decay rate."
+    ]
+
+
 def modes_display(m: pd.DataFrame) -> pd.DataFrame:
     """Frequencies per system and mode: DT-TMM, Exudyn (Hz), relative difference."""
     d = m[np.isfinite(m.dttmm_hz.astype(float))]
@@ -172,28 +193,33 @@ def modes_text(m: pd.DataFrame | None) -> list[str]:
 
 
 def tracking_figure(s: pd.DataFrame):
-    """Tip deflection of link 1 (left) and the largest joint tracking error (right) against
-    time, every finished run and the reference."""
-    fig, axes = figures._figure(ncols=2, size=(5.6, 4.0))
+    """Against time, every finished run: tip deflection of link 1 with the reference (left), the
+    largest joint tracking error (middle) and the end effector's distance to the reference
+    (right, log scale; runs of the case itself only)."""
+    fig, axes = figures._figure(ncols=3, size=(4.4, 4.0))
     for i, (key, d) in enumerate(s.groupby(["method", "case"], sort=False)):
-        m = key[0]
+        m, own = key[0], d.case.iloc[0] == s.case.iloc[0]
         st = figures._style(m, i)
         ref = m == "reference"
         kw = {"color": st.color, "ls": st.linestyle, "lw": 3 if ref else 1.2, "alpha": 0.5 if ref else 1.0}
-        lab = (
-            "reference"
-            if ref
-            else figures._label(m) + ("" if d.case.iloc[0] == s.case.iloc[0] else " (gM 0)")
-        )
-        axes[0].plot(d.t, 1e3 * d.w1, label=lab, **kw)
+        kw["label"] = "reference" if ref else figures._label(m) + ("" if own else " (moment_gain 0)")
+        axes[0].plot(d.t, 1e3 * d.w1, **kw)
         if not ref:
-            axes[1].plot(d.t, d.track_error, label=lab, **kw)
+            axes[1].plot(d.t, d.track_error, **kw)
+        if not ref and own and np.isfinite(d.ee_diff).any():
+            axes[2].semilogy(d.t, np.maximum(d.ee_diff, 1e-12), **kw)
     axes[0].set_ylabel("tip deflection of link 1 (mm)")
-    axes[1].set_ylabel("max over joints |α − α_ref| (rad)")
+    axes[1].set_ylabel("largest |α − α_ref| of the joints (rad)")
+    axes[2].set_ylabel("end-effector distance to reference (m)")
+    if axes[2].lines:  # four decades below the largest distance: the start from zero is not of interest
+        top = max(float(np.nanmax(ln.get_ydata())) for ln in axes[2].lines)
+        axes[2].set_ylim(bottom=max(1e-12, 1e-4 * top))
+    else:
+        axes[2].text(0.5, 0.5, "no reference run", transform=axes[2].transAxes, ha="center")
     for ax in axes:
         ax.set_xlabel("t (s)")
         ax.grid(True, alpha=0.3)
-        figures._legend(ax)
+        figures._legend(ax, ncol=1)
     return fig
 
 
@@ -276,7 +302,7 @@ def section(inputs) -> Section | None:
                     "decay rate of link 1's residual vibration (left) and its peak deflection (right) against moment_gain",
                 )
             )
-        text += gain_text(g, who)
+        text += gain_text(g, who) + agreement(g)
     m = inputs.tables.get("control_modes")
     text += modes_text(m)
     if m is not None and np.isfinite(m.dttmm_hz.astype(float)).any():
