@@ -62,6 +62,7 @@ def test_refusal_is_not_supported():
     )
     assert C.status_of({"status": "failed", "reason": "SimulationError: diverged"})[0] == "failed"
     assert C.status_of({"status": "ok", "reason": ""}) == ("ok", "")
+    assert C.status_of({"status": "ok", "reason": math.nan}) == ("ok", "")
 
 
 def test_elastic_frequencies_drop_rigid_body_modes():
@@ -171,6 +172,19 @@ def test_section_builds_with_not_supported_rows(tables):
     body = md.read_text()
     assert "## Closed loop" in body and "control_methods.csv" in body
     assert (root / "full" / "data" / "control_gain_sweep.csv").exists()
+
+
+def test_section_rebuilds_from_stored_tables(tables, tmp_path):
+    from experiments.study import load_tables, save_tables
+    from reports import control as RC
+    from reports.build import Inputs
+
+    t, _ = tables
+    stored = load_tables(save_tables(t, tmp_path / "data"))
+    (tmp_path / "fig").mkdir()
+    sec = RC.section(Inputs(stored, {}, tmp_path / "fig", tmp_path))
+    again = RC.section(Inputs(dict(t), {}, tmp_path / "fig", tmp_path))
+    assert sec.text == again.text and len(sec.figures) == 2
 
 
 def test_gain_finding_is_computed_from_the_numbers():

@@ -221,7 +221,8 @@ def path_difference(res, ref) -> float:
 def status_of(row) -> tuple[str, str]:
     """(status, reason) of a run row for the tables: a refusal of the closed-loop drives (or of
     a setting of them) by the method is "not supported" with the refusal's text."""
-    status, reason = str(row["status"]), str(row.get("reason", "") or "")
+    status, reason = str(row["status"]), row.get("reason", "")
+    reason = reason if isinstance(reason, str) else ""  # NaN or None: no reason recorded
     if status == "failed" and reason.startswith("InputError: ") and "scenario.drives[" in reason:
         return NOT_SUPPORTED, reason.removeprefix("InputError: ")
     return status, reason
