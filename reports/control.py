@@ -185,7 +185,8 @@ def modes_text(m: pd.DataFrame | None) -> list[str]:
     if len(both):
         worst = both.loc[both.rel_diff.astype(float).idxmax()]
         out.append(
-            f"Largest relative difference: {_g(worst.rel_diff, 2)} ({worst.system}, mode {int(worst['mode'])})."
+            f"Largest relative difference: {_g(worst.rel_diff, 2)} ({worst.system}, mode {int(worst['mode'])}; "
+            f"DT-TMM at k = {int(worst.k)}, Exudyn at k = {int(worst.exudyn_k)})."
         )
     if notes:
         out.append("Not compared: " + "; ".join(notes) + ".")
