@@ -216,3 +216,16 @@ def test_section_absent_without_the_study():
     from reports.build import Inputs
 
     assert RC.section(Inputs({}, {}, None, None)) is None
+
+
+def test_pairs_sentence():
+    import pandas as pd
+
+    from reports import control as RC
+
+    pairs = pd.DataFrame(
+        {"a": ["dttmm"] * 2, "b": ["global"] * 2, "ee_max": [1e-12, 3e-11], "angle_max": [2e-12, 1e-12]}
+    )
+    (text,) = RC.pairs_text(pairs)
+    assert "3e-11 m and 2e-12 rad over 2 run(s)" in text
+    assert RC.pairs_text(pairs.iloc[:0]) == []
