@@ -275,6 +275,14 @@ def run_metrics(res, case, t_move: float, window: float) -> dict:
     return out
 
 
+def _difference(res, ref) -> float:
+    """path_difference, NaN without a reference or on another output grid (a run cut short)."""
+    try:
+        return path_difference(res, ref) if ref is not None else math.nan
+    except ValueError:
+        return math.nan
+
+
 def _measured(ctx, rows, case, gain, t_move, window, ref=None) -> list:
     out = []
     for _, r in rows.iterrows():
@@ -294,7 +302,7 @@ def _measured(ctx, rows, case, gain, t_move, window, ref=None) -> list:
         res = _history(ctx, r)
         if res is not None:
             row.update(run_metrics(res, case, t_move, window))
-            row["ee_diff_max"] = path_difference(res, ref) if ref is not None else math.nan
+            row["ee_diff_max"] = _difference(res, ref)
         out.append(row)
     return out
 
