@@ -291,7 +291,7 @@ _CL_RUNS = [
 ]
 _CONTROL = {
     "runs": _CL_RUNS,
-    "rigid": [("pinocchio-rigid", 1e-3)],
+    "rigid_runs": [("pinocchio-rigid", 1e-3)],
     "reference": [("exudyn-ancf", 32, 2.5e-4), ("dttmm", 32, 2.5e-4)],
     "gains": [0.0, 0.5, 1.0, 2.0],
     "gain_runs": [("dttmm", 8, 1e-3), ("mujoco-chain", 8, 1e-4)],

@@ -119,7 +119,7 @@ def tables(tmp_path_factory):
     params = {
         "duration": 1.6,
         "runs": [("open-loop-only", 2, 1e-3), ("mujoco-chain", 2, 1e-3), ("pinocchio-rigid", 0, 2e-3)],
-        "rigid": [("pinocchio-rigid", 2e-3)],
+        "rigid_runs": [("pinocchio-rigid", 2e-3)],
         "reference": [("open-loop-only", 4, 1e-3), ("mujoco-chain", 4, 5e-4)],
         "gains": [0.0, 1.0],
         "gain_runs": [("open-loop-only", 2, 1e-3), ("mujoco-chain", 2, 1e-3)],

@@ -14,7 +14,7 @@ Plan parameters (``ctx.plan.studies["control"]``):
 
 * ``case_file``: the case file, relative to ``experiments/cases`` (default the three-link arm);
   ``duration``: s, None keeps the file's value (the move and at least 1.5 s after it must fit);
-* ``runs``: [(method, k, h)] on the case as written; ``rigid``: [(method, h)] run on the
+* ``runs``: [(method, k, h)] on the case as written; ``rigid_runs``: [(method, h)] run on the
   variant without moment feedback (a rigid link has no root moment to feed back);
 * ``reference``: [(method, k, h)] candidates, the first that finishes "ok" is the reference of
   the tip-position differences;
@@ -129,7 +129,7 @@ def planned(ctx) -> dict:
     T = base.scenario.duration
     return {
         "runs": [Task(base.name, m, k, h, T) for m, k, h in p.get("runs", ())],
-        "rigid": [Task(cases["rigid"].name, m, 0, h, T) for m, h in p.get("rigid", ())],
+        "rigid": [Task(cases["rigid"].name, m, 0, h, T) for m, h in p.get("rigid_runs", ())],
         "reference": [Task(base.name, m, k, h, T) for m, k, h in p.get("reference", ())],
         "gains": {
             float(g): [Task(cases[f"gain {g:g}"].name, m, k, h, T) for m, k, h in p.get("gain_runs", ())]
