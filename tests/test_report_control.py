@@ -84,6 +84,7 @@ def test_gain_variants_and_move_end():
 
 def test_quick_plan_holds_the_move_and_residual_vibration():
     from experiments.plan import PLANS
+    from reports import cli
 
     for plan in PLANS.values():
         p = plan.studies[C.NAME]
@@ -96,6 +97,8 @@ def test_quick_plan_holds_the_move_and_residual_vibration():
             "mujoco-chain",
             "pinocchio-rigid",
         }
+        # the report's availability probe reads every study's parameters
+        assert "mujoco-chain" in cli._methods_in(plan)
 
 
 # ----------------------------------------------------------------------------- study + section
