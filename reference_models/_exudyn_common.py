@@ -416,7 +416,7 @@ def simulate_exudyn(
     ]
     all_sensors = [x for tr in s_hub + s_tip for x in tr] + [x for x in s_force if x is not None]
     if closed is not None:
-        all_sensors += list(closed.sensors.values())
+        all_sensors += list(closed.sensors.values()) + list(closed.acc_sensors.values())
 
     mbs.Assemble()
     if closed is not None:
@@ -579,7 +579,8 @@ def simulate_exudyn(
             w_tip[:, i] = stored(s_tip[i][2])[:m, -1]
             d = sc.drives[i]
             if d.closed_loop:  # the law's τ at the converged step (the connector force is −τ)
-                tq[:, i] = -stored(closed.sensors[i])[:m, -1]
+                acc = stored(closed.acc_sensors[i])[:m, -1] if i in closed.acc_sensors else None
+                tq[:, i] = closed.torque(i, stored(closed.sensors[i])[:m, -1], acc)
             elif d.kind == "torque":
                 # the value that acted on the step ending at the output time (left limit; right at t = 0)
                 tq[:, i] = [d.torque(float(tt), tt > 0) for tt in t_out[:m]]

@@ -71,6 +71,7 @@ class ClosedLoop:
         self.hub_nodes, self.tip_nodes = list(hub_nodes), list(tip_nodes)
         self.connectors: dict[int, int] = {}
         self.sensors: dict[int, int] = {}
+        self.acc_sensors: dict[int, int] = {}
         self.seg_start = 0.0
         self.t_n = 0.0
         self.z = np.zeros(self.n)  # integral states at t_n
@@ -82,13 +83,29 @@ class ClosedLoop:
         self.hub_idx = self.tip_idx = None
 
     # --- building ----------------------------------------------------------------------------
+    def _loop_joints(self) -> list[int]:
+        """Joints whose user function reads ω̇: user laws, and moment feedback that may saturate."""
+        return [
+            i
+            for i in self.joints
+            if isinstance(self.drives[i].law, UserLaw)
+            or (self._mass_coupled(i) and math.isfinite(self.drives[i].law.limit))
+        ]
+
     @property
     def needs_consistent_start(self) -> bool:
-        """True when a law depends on ω̇ (moment feedback or a user law): the initial
-        accelerations then need the fixed point of :meth:`consistent_start`."""
-        return any(
-            isinstance(self.drives[i].law, UserLaw) or self.drives[i].law.moment_gain != 0.0 for i in self.joints
-        )
+        """True when a user function reads ω̇: the initial accelerations then need the fixed
+        point of :meth:`consistent_start`."""
+        return bool(self._loop_joints())
+
+    def torque(self, i: int, force: np.ndarray, hub_acc: np.ndarray | None) -> np.ndarray:
+        """The law's τ of joint i from its connector force rows and, with mass coupling, the hub
+        angular acceleration rows (the same output times)."""
+        tau = -np.asarray(force, float)
+        if self._mass_coupled(i):
+            g = self.drives[i].law.moment_gain
+            tau = tau + g / (1.0 + g) * self.j_hub[i] * np.asarray(hub_acc, float)
+        return tau
 
     def add_joint(self, mbs, exu, ii, i: int, m_in: int, m_out: int) -> int:
         """Add the law's connector between the coordinate markers m_in (rotation of the tip
@@ -104,6 +121,25 @@ class ClosedLoop:
                 self.error = exc
                 return math.nan
 
+        if self._mass_coupled(i):
+            # τ = L0/(1+g) + c·J_h·ω̇ (unsaturated): the second term as constant mass entries,
+            # −c·J_h on the hub rotation and +c·J_h coupling the reaction on the tip body of
+            # link i−1 to ω̇ (a non-symmetric mass matrix; EigenSparse's LU takes it)
+            cj = self.drives[i].law.moment_gain / (1.0 + self.drives[i].law.moment_gain) * self.j_hub[i]
+            nodes = ([self.tip_nodes[i - 1]] if i else []) + [self.hub_nodes[i]]
+            m = np.zeros((3 * len(nodes), 3 * len(nodes)))
+            m[-1, -1] = -cj
+            if i:
+                m[2, -1] = cj
+            mbs.AddObject(ii.ObjectGenericODE2(nodeNumbers=nodes, massMatrix=m))
+            self.acc_sensors[i] = mbs.AddSensor(
+                ii.SensorNode(
+                    nodeNumber=self.hub_nodes[i],
+                    outputVariableType=exu.OutputVariableType.AngularAcceleration,
+                    storeInternal=True,
+                    writeToFile=False,
+                )
+            )
         c = mbs.AddObject(
             ii.ObjectConnectorCoordinateSpringDamper(
                 markerNumbers=[m_in, m_out], stiffness=0.0, damping=0.0, springForceUserFunction=force
@@ -152,11 +188,20 @@ class ClosedLoop:
         return val
 
     # --- the laws ----------------------------------------------------------------------------
+    def _mass_coupled(self, i: int) -> bool:
+        """True for a pd/pid joint whose law depends on ω̇ (moment feedback and a hub inertia)."""
+        law = self.drives[i].law
+        return not isinstance(law, UserLaw) and law.moment_gain != 0.0 and self.j_hub[i] != 0.0
+
     def _pd_force(self, i: int):
+        """The user function of a pd/pid joint. With moment feedback the share c·J_h·ω̇ of τ
+        (c = g/(1 + g)) is carried by the mass coupling of :meth:`add_joint` (exact, in the
+        Jacobian); the function returns the rest: L0/(1 + g) while unsaturated (no ω̇), and
+        ±limit − c·J_h·ω̇ while saturated (ω̇ the Newton iterate)."""
         law = self.drives[i].law
         kp, kd, ki = float(law.kp), float(law.kd), float(law.gain_integral)
         gm, lim, jh, a0 = float(law.moment_gain), float(law.limit), self.j_hub[i], self.alpha0[i]
-        idx = [None]
+        cj = gm / (1.0 + gm) * jh if self._mass_coupled(i) else 0.0
 
         def fn(mbs_, t, u, v):
             left = t > self.seg_start
@@ -165,14 +210,19 @@ class ClosedLoop:
             l0 = tff + kp * (a_ref - alpha) + kd * (r_ref - v)
             if ki != 0.0:
                 l0 += ki * (self.z[i] + 0.5 * (t - self.t_n) * (self.e_n[i] + a_ref - alpha))
-            if gm != 0.0:
-                if idx[0] is None:
-                    idx[0] = self.hub_idx[i]
-                wd = mbs_.systemData.GetODE2Coordinates_tt()[idx[0]]
-                l0 = (l0 + gm * jh * wd) / (1.0 + gm)
-            tau = l0 if abs(l0) <= lim else math.copysign(lim, l0)
+            base = l0 / (1.0 + gm)
+            if cj == 0.0:
+                tau = base if abs(base) <= lim else math.copysign(lim, base)
+                self.tau_last[i] = tau
+                return -tau
+            coupled = cj * mbs_.systemData.GetODE2Coordinates_tt()[self.hub_idx[i]]
+            tau = base + coupled
+            if abs(tau) <= lim:
+                self.tau_last[i] = tau
+                return -base
+            tau = math.copysign(lim, tau)
             self.tau_last[i] = tau
-            return -tau
+            return -(tau - coupled)
 
         return fn
 
@@ -255,9 +305,7 @@ class ClosedLoop:
         w in the initial state; solve F(w) = w with a difference Jacobian (F is affine while no
         law saturates). Leaves w in the initial state; returns the number of solves.
         """
-        sel = [
-            i for i in self.joints if isinstance(self.drives[i].law, UserLaw) or self.drives[i].law.moment_gain != 0.0
-        ]
+        sel = self._loop_joints()
         if not sel:
             return 0
         idx = [self.hub_idx[i] for i in sel]
