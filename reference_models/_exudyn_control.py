@@ -148,7 +148,10 @@ class ClosedLoop:
         self.connectors[i] = c
         self.sensors[i] = mbs.AddSensor(
             ii.SensorObject(
-                objectNumber=c, outputVariableType=exu.OutputVariableType.Force, storeInternal=True, writeToFile=False
+                objectNumber=c,
+                outputVariableType=exu.OutputVariableType.Force,
+                storeInternal=True,
+                writeToFile=False,
             )
         )
         return c
