@@ -250,26 +250,42 @@ def _three_link(duration):
 
 @pytest.mark.slow
 def test_three_link_ancf_converges_in_h():
-    """ANCF k = 8 at h = 1e-3 and 5e-4 s over the move: tip positions agree to < 2e-5 m."""
+    """ANCF k = 8 at h = 1e-3 and 5e-4 s over the move: tip positions agree to < 1e-5 m
+    (measured at k = 32 over 3 s against h = 2.5e-4: 2.4e-6 and 3.4e-7 m)."""
     case = _three_link(1.2)
     a = exudyn_ancf.simulate(case, elements_per_link=8, h=1e-3)
     b = exudyn_ancf.simulate(case, elements_per_link=8, h=5e-4)
+    assert np.abs(a.link_tip - b.link_tip).max() < 1e-5
+
+
+@pytest.mark.slow
+def test_three_link_ge_beam_agrees_with_ancf():
+    """Two element families, the same closed loop: measured 5.9e-6 m over the move (k = 32)."""
+    case = _three_link(1.2)
+    a = exudyn_ancf.simulate(case, elements_per_link=32, h=5e-4)
+    b = exudyn_beam.simulate(case, elements_per_link=32, h=5e-4)
     assert np.abs(a.link_tip - b.link_tip).max() < 2e-5
 
 
 @pytest.mark.slow
-def test_three_link_ancf_agrees_with_the_mujoco_chain():
+def test_three_link_mujoco_chain_converges_to_ancf():
+    """The MuJoCo chain samples the law once per step (first order in h) on a hinge chain; with k
+    and 1/h doubled together its tip error against ANCF halves (measured over 3 s: 5.9e-3,
+    2.9e-3, 1.5e-3 m for k = 8, 16, 32 at h = 1e-4, 5e-5, 2.5e-5 s)."""
     mc = pytest.importorskip("reference_models.mujoco_chain")
     case = _three_link(1.2)
-    a = exudyn_ancf.simulate(case, elements_per_link=8, h=1e-3)
-    b = mc.simulate(case, elements_per_link=8, h=1e-4)
-    assert np.abs(a.link_tip - b.link_tip).max() < 2e-3
+    ref = exudyn_ancf.simulate(case, elements_per_link=16, h=5e-4)
+    d8 = np.abs(mc.simulate(case, elements_per_link=8, h=1e-4).link_tip - ref.link_tip).max()
+    d16 = np.abs(mc.simulate(case, elements_per_link=16, h=5e-5).link_tip - ref.link_tip).max()
+    assert d16 < 2.5e-3 and 0.4 < d16 / d8 < 0.6, (d8, d16)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason="DT-TMM closed loop is not on this branch yet")
+@pytest.mark.xfail(strict=False, reason="DT-TMM's closed loop is not merged into this branch yet")
 def test_three_link_ancf_agrees_with_dttmm():
+    """The same arm in open loop (the closed-loop torques of ANCF fed as tables to both) differs
+    by 9.3e-6 m between ANCF and DT-TMM at k = 32, h = 1e-3 over 3 s."""
     case = _three_link(1.2)
     a = exudyn_ancf.simulate(case, elements_per_link=32, h=1e-3)
     b = dttmm.simulate(case, elements_per_link=32, h=1e-3, cut_loads=False, energy=False)
-    assert np.abs(a.link_tip - b.link_tip).max() < 2e-4
+    assert np.abs(a.link_tip - b.link_tip).max() < 5e-5
