@@ -44,6 +44,12 @@ first step end after it (listed in ``meta["breakpoints_off_grid"]``). The report
 torque drive is the value that acted on the step ending at the output time (left limit; at
 t = 0 the right limit).
 
+Closed-loop drives (``pd``, ``pid``, user laws): the law is the user function of a coordinate
+spring-damper between the joint's two rotation coordinates, evaluated implicitly at the step end
+(no lag; generalized-α keeps its second order); moment feedback enters partly as constant mass
+coupling. Details: :mod:`reference_models._exudyn_control`. The reported torque of such a joint
+is the law's τ at the converged step.
+
 Torque of a motion drive: minus the multiplier of the coordinate constraint (index-3 generalized-α).
 It is less accurate than the positions (it carries the high-frequency content of the stiff
 links; measured first order in h on a soft strip) and at t = 0 it reads 0, because no multiplier

@@ -20,10 +20,15 @@ with no lag; the converged step satisfies it exactly.
 
   which is τ = clip(L0 − g_M M_root) with **M_root = τ − J_hub ω̇**: the moment the hub exerts
   on the beam at its root cross-section, from the moment balance of the hub body (a point mass
-  with inertia J_hub rotating with the root section). ω̇ is the angular acceleration of the hub
-  node read from Exudyn's current acceleration vector, which holds the Newton iterate: the
-  converged step satisfies the law with the step's own ω̇. This term is not in the Jacobian
-  (Newton converges on it as a fixed point with contraction ≤ g_M/(1 + g_M)).
+  with inertia J_hub rotating with the root section); ω̇ is the angular acceleration of the hub
+  node. While unsaturated, τ = L0/(1 + g_M) + c J_hub ω̇ (c = g_M/(1 + g_M)): the second term is
+  linear in the accelerations, so it goes into the model as constant mass-matrix entries of an
+  ``ObjectGenericODE2`` (−c J_hub on the hub rotation, +c J_hub coupling the reaction on the tip
+  body of link i−1 to ω̇; non-symmetric, which the sparse LU takes), exact and in the Jacobian,
+  and the user function returns L0/(1 + g_M). While saturated the user function returns
+  ±limit − c J_hub ω̇ with ω̇ read from Exudyn's current acceleration vector (the Newton
+  iterate): the converged step satisfies the law either way. The reported torque is the
+  connector force plus c J_hub ω̇ (a hub acceleration sensor).
 * Laws of time (reference, feedforward, ``computed_torque`` through
   :func:`dttmm.control.computed_torque`) at the step end with the left limit; at a segment start
   (t = 0 and every restart at a breakpoint) with the right limit.
@@ -36,7 +41,8 @@ with no lag; the converged step satisfies it exactly.
   moment τ_last − J_hub ω̇ with τ_last the law's latest value; integral 0). The slopes the law
   returns are not used: Exudyn differentiates the user function numerically.
 * Initial accelerations (t = 0 and each restart): Exudyn solves M q̈ = f once, with ω̇ in f read
-  from the initial state. With moment feedback (or user laws) the start is made consistent by
+  from the initial state. Where a user function reads ω̇ (user laws; moment feedback with a
+  finite limit) the start is made consistent by
   Newton's method on the hub accelerations, each evaluation one Exudyn initial-acceleration
   solve (``MainSolverImplicitSecondOrder.InitializeSolver``) with the hub accelerations of the
   initial state set to the iterate.
