@@ -171,6 +171,30 @@ def test_saturation_holds_the_limit_and_the_saturated_closed_form():
     assert np.abs(res.joint_torque[:, 0]).min() < 0.5 * lim  # it leaves the limit again
 
 
+def test_saturated_moment_feedback():
+    """Moment feedback with a limit: while saturated τ = limit and α = ½ (limit/J) t² (the
+    feedback only acts through the unsaturated value); it leaves the limit when the unsaturated
+    torque of the rigid rotor, (kp (r − α) − kd α̇)/(1 + g J_rod/J), drops to it."""
+    from scipy.optimize import brentq
+
+    lim, r, kp, g = 1.0, 0.5, 200.0, 1.0
+    res = exudyn_ancf.simulate(
+        rotor(PD(kp, KD, Constant(r), moment_gain=g, limit=lim), duration=1.0, step=0.005),
+        elements_per_link=1,
+        h=2.5e-3,
+    )
+    J = JH + JROD
+    s = 1 + g * JROD / J
+    t_sat = brentq(lambda t: (kp * (r - 0.5 * lim / J * t * t) - KD * lim / J * t) / s - lim, 0.0, 2.0)
+    early = res.t < 0.95 * t_sat
+    assert early.sum() > 50 and res.meta["initial_acceleration_solves"] >= 1
+    assert np.abs(res.joint_torque[:, 0]).max() <= lim
+    np.testing.assert_allclose(res.joint_angle[early, 0], 0.5 * lim / J * res.t[early] ** 2, atol=1e-6)
+    np.testing.assert_allclose(res.joint_torque[early, 0], lim, rtol=0, atol=1e-12)
+    t_off = res.t[np.argmax(res.joint_torque[:, 0] < lim)]  # first output below the limit
+    assert t_sat <= t_off <= t_sat + 0.01  # output step 5 ms
+
+
 @pytest.mark.parametrize("mod", METHODS)
 def test_user_law_equals_the_pd_law(mod):
     def law(t, s):
