@@ -324,7 +324,11 @@ def simulate_exudyn(
     inputs = []  # (kind, item, law, sign, a0): what the pre-step function sets
     # closed-loop laws: a coordinate spring-damper whose user function is the law (implicit at
     # the step end; see reference_models._exudyn_control)
-    closed = ClosedLoop(case, layout.alpha0, hub_nodes, tip_nodes) if any(d.closed_loop for d in sc.drives) else None
+    closed = (
+        ClosedLoop(case, layout.alpha0, hub_nodes, tip_nodes)
+        if any(d.closed_loop for d in sc.drives)
+        else None
+    )
     for i, drive in enumerate(sc.drives):
         m_in = (
             m_ground_pos
