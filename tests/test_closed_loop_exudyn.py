@@ -23,7 +23,7 @@ import scipy.linalg
 pytest.importorskip("exudyn")
 
 import dttmm  # noqa: E402
-from dttmm.drives import PD, PID, Constant, Drive, Sine, UserLaw  # noqa: E402
+from dttmm.drives import PD, PID, Constant, Drive, Sine, Table, UserLaw  # noqa: E402
 from dttmm.errors import InputError  # noqa: E402
 from reference_models import exudyn_ancf, exudyn_beam  # noqa: E402
 
@@ -197,11 +197,16 @@ def test_saturated_moment_feedback():
 
 @pytest.mark.parametrize("mod", METHODS)
 def test_user_law_equals_the_pd_law(mod):
-    def law(t, s):
-        return KP * (0.3 - s.angle) - KD * s.rate, -KP, -KD
+    """The same PD law with a ramp feedforward (a kink at 0.25 s, a breakpoint: a restart,
+    where the user law's start is solved as a fixed point), as a user law and as ``pd``."""
+    ff = Table((0.0, 0.25), (0.0, 0.5))
 
-    a = mod.simulate(rotor(UserLaw(law), duration=0.5), elements_per_link=2, h=2.5e-3)
-    b = mod.simulate(rotor(PD(KP, KD, Constant(0.3)), duration=0.5), elements_per_link=2, h=2.5e-3)
+    def law(t, s):
+        return ff(t) + KP * (0.3 - s.angle) - KD * s.rate, -KP, -KD
+
+    a = mod.simulate(rotor(UserLaw(law, breakpoints=(0.25,)), duration=0.5), elements_per_link=2, h=2.5e-3)
+    b = mod.simulate(rotor(PD(KP, KD, Constant(0.3), ff), duration=0.5), elements_per_link=2, h=2.5e-3)
+    assert a.meta["restarts"] == [0.25] and a.meta["initial_acceleration_solves"] >= 2
     np.testing.assert_allclose(a.joint_angle, b.joint_angle, rtol=0, atol=1e-11)
     np.testing.assert_allclose(a.joint_torque, b.joint_torque, rtol=0, atol=1e-9)
 
