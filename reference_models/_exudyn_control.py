@@ -42,10 +42,9 @@ with no lag; the converged step satisfies it exactly.
   returns are not used: Exudyn differentiates the user function numerically.
 * Initial accelerations (t = 0 and each restart): Exudyn solves M q̈ = f once, with ω̇ in f read
   from the initial state. Where a user function reads ω̇ (user laws; moment feedback with a
-  finite limit) the start is made consistent by
-  Newton's method on the hub accelerations, each evaluation one Exudyn initial-acceleration
-  solve (``MainSolverImplicitSecondOrder.InitializeSolver``) with the hub accelerations of the
-  initial state set to the iterate.
+  finite limit) the start is made consistent by Newton's method on the hub accelerations, each
+  evaluation one Exudyn initial-acceleration solve (``MainSolverImplicitSecondOrder.
+  InitializeSolver``) with the hub accelerations of the initial state set to the iterate.
 """
 
 from __future__ import annotations
