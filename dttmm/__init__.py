@@ -12,6 +12,7 @@ from ._version import __version__ as __version__
 from .case import Case, case_from_dict, case_to_dict, load_case, save_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
 from .errors import InputError, SimulationError
+from .linear import Linearization, Modes, linearize, modes
 from .model import Hub, Link, Manipulator, Payload, Section
 from .resources import check_run_size
 from .result import Result, make_result, tip_deflection
@@ -44,4 +45,8 @@ __all__ = [
     "simulate",
     "accelerations",
     "check_run_size",
+    "linearize",
+    "modes",
+    "Linearization",
+    "Modes",
 ]

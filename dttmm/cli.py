@@ -1,4 +1,4 @@
-"""Command line: ``dttmm simulate``, ``dttmm urdf``, ``dttmm report``.
+"""Command line: ``dttmm simulate``, ``dttmm modes``, ``dttmm urdf``, ``dttmm report``.
 
 Exit codes: 0 — done, status "ok"; 1 — the simulation failed (the partial result is written);
 2 — bad input (one line on stderr naming the field or option); 3 — the run finished but its
@@ -141,6 +141,10 @@ def _dispatch(argv: list[str]) -> int:
         from .urdf import main as urdf_main
 
         return urdf_main(argv[1:])
+    if argv and argv[0] == "modes":
+        from .modes_cli import modes_parser, run_modes
+
+        return run_modes(modes_parser().parse_args(argv[1:]))
     if argv and argv[0] == "simulate":
         from .simulate_cli import run_simulate
 
@@ -148,6 +152,7 @@ def _dispatch(argv: list[str]) -> int:
     p = OneLineParser(prog="dttmm", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
     sub.add_parser("simulate", help="simulate a case with DT-TMM and write its results")
+    sub.add_parser("modes", help="natural frequencies and mode shapes of a case")
     sub.add_parser("urdf", help="print the rigid arm of a case as URDF")
     sub.add_parser("report", help="run the studies and build the report")
     p.parse_args(argv)

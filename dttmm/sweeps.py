@@ -252,18 +252,35 @@ SWEEPS = {"riccati": riccati, "plain": plain}
 
 
 def accelerations(
-    st: Structure, q: np.ndarray, qd: np.ndarray, tau: np.ndarray, mot: np.ndarray, sweep: str = "riccati"
+    st: Structure,
+    q: np.ndarray,
+    qd: np.ndarray,
+    tau: np.ndarray,
+    mot: np.ndarray,
+    sweep: str = "riccati",
+    forces: np.ndarray | None = None,
 ) -> SweepOut:
     """Forward dynamics at one state: q̈ (n_dof,), cut loads and joint torques at (q, q̇).
 
     ``tau`` (n,) torques of the torque-driven joints (N·m); ``mot`` (n, 3) (α, α̇, α̈) of the
     motion-driven joints, which override the given q, q̇ entries. ``sweep``: "riccati" or "plain".
+    ``forces`` (n_dof,), optional: generalized forces Q applied on the coordinates besides the
+    drives (N or N·m per coordinate; virtual work Qᵀδq). On a joint angle it adds to the joint's
+    torque (ignored on a motion-driven joint, whose angle is prescribed); on an elastic
+    coordinate it enters the element's elastic rows (h̃_e − Q_e). q̈ is affine in Q.
     Raises numpy.linalg.LinAlgError when a step system is singular.
     """
     q, qd = np.array(q, float), np.array(qd, float)
     im = st.alpha_index[st.motion]
     q[im], qd[im] = mot[st.motion, 0], mot[st.motion, 1]
     split = lambda x: [x[lk.e_slice].reshape(lk.k, lk.et.ne) for lk in st.links]
-    out = SWEEPS[sweep](st, kinematics(st, q, qd), 0.0, 0.0, split(q), split(qd), tau, mot[:, 2])
-    out.torque[~st.motion] = tau[~st.motion]
+    kin = kinematics(st, q, qd)
+    tau_in = np.array(tau, float)
+    if forces is not None:
+        forces = np.asarray(forces, float)
+        tau_in = tau_in + np.where(st.motion, 0.0, forces[st.alpha_index])
+        for lk, lkn in zip(st.links, kin.links):
+            lkn.hbar_e = lkn.hbar_e - forces[lk.e_slice].reshape(lk.k, lk.et.ne)
+    out = SWEEPS[sweep](st, kin, 0.0, 0.0, split(q), split(qd), tau_in, mot[:, 2])
+    out.torque[~st.motion] = tau_in[~st.motion]
     return out

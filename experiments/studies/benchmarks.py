@@ -33,7 +33,7 @@ SETTINGS = {
     "static_tip_displacement": {"methods": STATIC, "h": 1e-2},
     "tip_deflection_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
     "tip_path_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
-    "frequencies": {"methods": ["dttmm", "global"]},
+    "frequencies": {"methods": ["dttmm", "global", "exudyn-ancf"]},
 }
 REQUIRED = (
     "source",
@@ -238,40 +238,51 @@ def energy_drift(res, case) -> float:
     return float(np.max(np.abs(res.energy - res.energy[0])) / scale)
 
 
-def frequencies(case, k: int, method: str = "dttmm", n: int = 2, eps: float = 1e-9) -> np.ndarray:
-    """Lowest ``n`` natural frequencies (Hz) of a case at rest, from the central-difference
-    Jacobian of the method's forward dynamics: eigenvalues of −∂q̈/∂q over the free coordinates
-    (those whose acceleration responds at all; a held joint does not)."""
-    acc = _accelerations(method)
-    nd = _n_dof(case, k)
-    q0 = np.zeros(nd)
-    J = np.empty((nd, nd))
-    for j in range(nd):
-        dq = np.zeros(nd)
-        dq[j] = eps
-        J[:, j] = (acc(case, k, q0 + dq, q0) - acc(case, k, q0 - dq, q0)) / (2 * eps)
-    free = np.flatnonzero(np.abs(J).max(axis=1) > 0)
-    lam = np.linalg.eigvals(-J[np.ix_(free, free)])
-    return np.sort(np.sqrt(np.abs(lam.real)))[:n] / (2 * np.pi)
+def frequencies(case, k: int, method: str = "dttmm", n: int = 2) -> np.ndarray:
+    """Lowest ``n`` natural frequencies (Hz) of a case at rest, held joints clamped.
 
-
-def _accelerations(method):
+    "dttmm": :func:`dttmm.modes` (M from the sweep's response to unit forces, K its 8th-order
+    difference tangent); "global": K φ = ω² M φ with the global solver's mass and stiffness
+    matrices over the free coordinates (at rest without gravity, the exact linearisation);
+    "exudyn-ancf": Exudyn's eigenvalues of an ANCF cable model (:mod:`reference_models.exudyn_modes`).
+    """
     if method == "dttmm":
         import dttmm
 
-        return dttmm.accelerations
+        return dttmm.modes(case, k, n=n).frequencies
     if method == "global":
-        from reference_models import global_newmark
+        return _global_frequencies(case, k, n)
+    if method == "exudyn-ancf":
+        from reference_models.exudyn_modes import frequencies as exudyn_frequencies
 
-        return global_newmark.accelerations
-    raise ValueError(f"frequencies: no forward dynamics for method {method!r}")
+        return exudyn_frequencies(case, k, n=n)
+    raise ValueError(f"frequencies: no linearisation for method {method!r}")
 
 
-def _n_dof(case, k) -> int:
-    """Number of coordinates at k elements per link (the layout both solvers share)."""
-    from reference_models.global_newmark import coordinate_names
+def _global_frequencies(case, k, n) -> np.ndarray:
+    """Frequencies from the global solver's M and K (at rest; gravity would add stiffness terms
+    that its constant K leaves out, so a case with gravity is refused)."""
+    import scipy.linalg
 
-    return len(coordinate_names(case, k))
+    from reference_models import global_newmark as gm
+
+    if any(case.model.gravity):
+        raise ValueError("frequencies: the global solver's K is the elastic stiffness only (no gravity)")
+    names = gm.coordinate_names(case, k)
+    q = np.zeros(len(names))
+    alpha = [i for i, nm in enumerate(names) if nm.startswith("alpha_")]
+    for i, d in zip(alpha, case.scenario.drives):
+        q[i] = d.initial_angle
+    held = [i for i, d in zip(alpha, case.scenario.drives) if d.kind == "motion"]
+    free = np.setdiff1d(np.arange(len(names)), held)
+    M = gm.mass_matrix(case, k, q)[np.ix_(free, free)]
+    K = gm.stiffness_matrix(case, k)[np.ix_(free, free)]
+    try:  # flexibility form: the lowest ω² are the largest 1/ω², computed to full accuracy
+        lam = 1.0 / scipy.linalg.eigh(M, K, eigvals_only=True)[::-1]
+    except np.linalg.LinAlgError:  # K singular (a free joint)
+        lam = scipy.linalg.eigh(K, M, eigvals_only=True)
+        lam = np.where(np.abs(lam) <= 1e-13 * np.abs(lam).max(), 0.0, lam)
+    return np.sqrt(np.maximum(lam[:n], 0.0)) / (2 * np.pi)
 
 
 # ----------------------------------------------------------------------------- analysis
@@ -363,13 +374,15 @@ def frequency_rows(name, case, prov, ks, plan_params=None) -> list:
                 f = [math.nan] * n
             for (quantity, target), value, ref in zip(targets(prov), f, fine):
                 diff = abs(value - ref)
-                # below the finite-difference noise the difference is not a discretisation error
+                # below the linearisation's round-off the difference is not a discretisation error
                 diff = diff if diff > FD_NOISE * abs(ref) else math.nan
                 rows.append(_row(name, prov, quantity, target, r, float(value), order_error=diff))
     return rows
 
 
-FD_NOISE = 1e-6  # relative differences below this are finite-difference noise (measured <= 1e-7 at k = 32)
+# relative differences below this are round-off of the linearisation (DT-TMM's lowest De Luca
+# link-1 frequency carries ~2e-7 at k = 32: its ω² is ~1e-10 of the highest one)
+FD_NOISE = 1e-6
 K_FINE = 32  # elements per link of the converged frequencies the observed order is fitted against
 
 

@@ -1,0 +1,144 @@
+"""``dttmm modes CASE -k K [--n N] [--t T] [--out DIR]``: natural frequencies and mode shapes.
+
+Prints the frequencies (Hz), writes ``<case>_modes.csv`` (frequency and damping ratio of each
+mode), ``<case>_shapes.csv`` (M-normalised shapes over the free coordinates),
+``<case>_deflections.csv`` (transverse node deflections of each link per mode) and
+``<case>_modes.png`` (the first elastic modes' deflections along the arm).
+Motion-driven joints are held, torque-driven joints free. Exit codes are those of
+:mod:`dttmm.cli`.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .case import load_case
+from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_OK, OneLineParser
+from .errors import InputError
+
+__all__ = ["modes_parser", "run_modes"]
+
+N_PLOT = 4  # elastic modes drawn in the PNG
+
+
+def _float(text: str) -> float:
+    import argparse
+
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def modes_parser() -> OneLineParser:
+    p = OneLineParser(
+        prog="dttmm modes",
+        description="Natural frequencies and mode shapes of a case, linearised by DT-TMM "
+        "(motion-driven joints held, torque-driven joints free).",
+    )
+    p.add_argument("case", help="case TOML file (format: docs/cases.md)")
+    p.add_argument("--elements", "-k", type=int, required=True, help="elements per link")
+    p.add_argument("--n", type=int, default=6, help="number of lowest modes (default 6)")
+    p.add_argument("--t", type=_float, default=0.0, help="time of the drives' laws (s, default 0)")
+    p.add_argument(
+        "--strain",
+        default="linear",
+        choices=["linear", "second-order"],
+        help="axial strain of the elements (default linear)",
+    )
+    p.add_argument("--out", default="out/modes", help="output folder (created before the run)")
+    return p
+
+
+def _table(m) -> str:
+    has_z = m.damping_ratios is not None
+    lines = ["mode  frequency [Hz]" + ("  damping ratio" if has_z else "")]
+    for i, f in enumerate(m.frequencies):
+        row = f"{i + 1:4d}  {f:14.6g}"
+        if has_z:
+            row += f"  {m.damping_ratios[i]:13.6g}"
+        lines.append(row)
+    return "\n".join(lines)
+
+
+def _write_csv(m, name: str, out: Path) -> list[Path]:
+    import pandas as pd
+
+    nm = m.frequencies.size
+    cols = [f"mode_{i + 1}" for i in range(nm)]
+    freq = pd.DataFrame(
+        {"mode": np.arange(1, nm + 1), "frequency_hz": m.frequencies, "omega2": m.eigenvalues}
+    )
+    if m.damping_ratios is not None:
+        freq["damping_ratio"] = m.damping_ratios
+    shapes = pd.DataFrame(m.shapes, columns=cols)
+    shapes.insert(0, "coordinate", list(m.linearization.coordinates))
+    rows = []
+    for i, (s, w) in enumerate(zip(m.s, m.deflections)):
+        df = pd.DataFrame(w.T, columns=cols)
+        df.insert(0, "s_m", s)
+        df.insert(0, "link", i + 1)
+        rows.append(df)
+    paths = [out / f"{name}_modes.csv", out / f"{name}_shapes.csv", out / f"{name}_deflections.csv"]
+    for df, p in zip((freq, shapes, pd.concat(rows, ignore_index=True)), paths):
+        df.to_csv(p, index=False)
+    return paths
+
+
+def plot_modes(m, path: Path, title: str = "") -> Path:
+    """PNG of the first elastic modes: transverse deflection (each mode scaled to a peak of 1)
+    against the arc length along the arm, links one after the other."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    offsets = np.concatenate(([0.0], np.cumsum([s[-1] for s in m.s])))
+    fig, ax = plt.subplots(figsize=(7, 4))
+    elastic = [i for i in range(m.frequencies.size) if m.frequencies[i] > 0][:N_PLOT]
+    for c, i in enumerate(elastic):
+        peak = max(np.abs(d[i]).max() for d in m.deflections) or 1.0
+        for j, (s, o, d) in enumerate(zip(m.s, offsets, m.deflections)):
+            label = f"mode {i + 1}: {m.frequencies[i]:.4g} Hz" if j == 0 else None
+            ax.plot(s + o, d[i] / peak, marker=".", color=f"C{c}", label=label)
+    for o in offsets[1:-1]:
+        ax.axvline(o, color="0.6", lw=0.8, ls="--")
+    ax.set_xlabel("arc length along the arm [m]")
+    ax.set_ylabel("deflection in the link's root frame [-]")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def run_modes(a) -> int:
+    """Run ``dttmm modes`` for the parsed arguments ``a``; return the exit code."""
+    from .linear import modes
+    from .simulate_cli import prepare_out
+
+    try:
+        if a.n < 1:
+            raise InputError("--n", a.n, "must be an integer ≥ 1")
+        out = prepare_out(a.out)
+        case = load_case(a.case)
+        m = modes(case, a.elements, a.t, n=a.n, strain=a.strain)
+    except InputError as exc:
+        print(f"dttmm: bad input: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except np.linalg.LinAlgError as exc:
+        print(f"dttmm: modes failed: singular system at t = {a.t:g} s ({exc})", file=sys.stderr)
+        return EXIT_FAILED
+    name = case.name or "case"
+    print(_table(m))
+    for w in m.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    paths = _write_csv(m, name, out)
+    paths.append(plot_modes(m, out / f"{name}_modes.png", f"{name}: DT-TMM modes, k = {a.elements}"))
+    print(f"wrote {', '.join(str(p) for p in paths)}")
+    return EXIT_OK
