@@ -171,6 +171,13 @@ def test_section_builds_with_not_supported_rows(tables):
     text = " ".join(sec.text)
     assert "it does not damp" in text or "it damps" in text or "little effect" in text
     assert "Natural frequencies" in text and "MuJoCo hinge chain" in text
+    modes = t[f"{C.NAME}_modes"]
+    if np.isfinite(modes.dttmm_hz).any():  # dttmm.modes exists: the table is shown
+        freq = dict((n, d) for n, d, *_ in sec.tables)["control_frequencies"]
+        assert len(freq) == 2 and (modes.dttmm_hz > 0).all()
+        assert (modes.rel_diff.dropna() < 1e-6).all()  # Exudyn's eigenvalues at the same k
+    else:
+        assert "Natural frequencies: skipped" in text
     _, md = build(dict(t), {}, root / "full", bench_dir=root / "no_bench")
     body = md.read_text()
     assert "## Closed loop" in body and "control_methods.csv" in body
