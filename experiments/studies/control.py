@@ -127,9 +127,11 @@ def planned(ctx) -> dict:
     p, cases = ctx.plan.studies[NAME], _cases(ctx)
     base = next(iter(cases.values()))
     T = base.scenario.duration
+    runs = [Task(base.name, m, k, h, T) for m, k, h in p.get("runs", ())]
+    rigid = [Task(cases["rigid"].name, m, 0, h, T) for m, h in p.get("rigid_runs", ())]
     return {
-        "runs": [Task(base.name, m, k, h, T) for m, k, h in p.get("runs", ())],
-        "rigid": [Task(cases["rigid"].name, m, 0, h, T) for m, h in p.get("rigid_runs", ())],
+        "runs": runs,
+        "rigid": [t for t in rigid if t not in runs],  # a case without moment feedback has no variant
         "reference": [Task(base.name, m, k, h, T) for m, k, h in p.get("reference", ())],
         "gains": {
             float(g): [Task(cases[f"gain {g:g}"].name, m, k, h, T) for m, k, h in p.get("gain_runs", ())]
