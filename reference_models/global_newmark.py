@@ -39,8 +39,7 @@ r_O = r_I + A(θ)(l + u, v), θ_O = θ + φ; a joint adds α to the angle.
 
 from __future__ import annotations
 
-from dttmm.drives import require_open_loop
-
+from . import _global_control
 from ._global_numpy import (
     _STEPPED,
     ENGINES,
@@ -129,11 +128,14 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
         Non-finite state or failed adaptive integration; ``partial`` holds the outputs so far.
     """
     case = _check_case(case)
-    require_open_loop(case, "global")
     k = _check_k(elements_per_link)
     h = _check_h(case, h)
     opt = _check_options(integrator, options)
     engine = _check_engine(engine, integrator, opt)
+    if integrator not in _STEPPED:
+        _global_control.require_stepped(case, f"integrator {integrator!r}")
+    elif engine == "numba":
+        _global_control.require_python_engine(case)
     lay = _layout(case, k, strain)
     if integrator in _STEPPED:
         if engine == "numba":
