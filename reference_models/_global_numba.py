@@ -73,13 +73,12 @@ Pack = namedtuple(
         "tq_idx",
         "tq_drive",
         "mo_drive",
-        "cl_joint",
-        "cl_row",
-        "cl_omega",
-        "cl_gains",
-        "cl_pid",
     ],
 )
+
+# The closed-loop joints, apart from Pack: every compiled call passes its tuples field by field,
+# and the open-loop assembly should not pay for fields it never reads.
+Loop = namedtuple("Loop", ["joint", "row", "omega", "gains", "pid"])
 
 
 def pack(lay, case) -> Pack:
@@ -99,8 +98,6 @@ def pack(lay, case) -> Pack:
             pay.append(pay_of[i])
     drives = case.scenario.drives
     tq = [i for i, d in enumerate(drives) if d.kind == "torque" and not d.closed_loop]
-    cl = np.array([i for i, d in enumerate(drives) if d.closed_loop], np.int64)
-    g = gains(case)
     f8 = np.float64
     return Pack(
         kind=lay.kind.astype(np.int64),
@@ -135,14 +132,22 @@ def pack(lay, case) -> Pack:
         tq_idx=lay.alpha_idx[tq].astype(np.int64),
         tq_drive=np.array(tq, np.int64),
         mo_drive=np.array([i for i, d in enumerate(drives) if d.kind == "motion"], np.int64),
-        cl_joint=cl,
-        cl_row=lay.alpha_idx[cl].astype(np.int64),
-        cl_omega=omega_rows(lay)[cl].astype(f8),
-        # per closed-loop joint: kp, kd, ki, g_M, limit, J_hub
-        cl_gains=np.array([[g.kp[i], g.kd[i], g.ki[i], g.moment_gain[i], g.limit[i], g.j_hub[i]] for i in cl], f8).reshape(
-            -1, 6
-        ),
-        cl_pid=np.array([float(drives[i].law.name == "pid") for i in cl], f8),
+    )
+
+
+def pack_loop(lay, case) -> Loop:
+    """The closed-loop joints of ``case``: drive index, q index of α, ω̇ row (nc, N), gains
+    (nc, 6) = (kp, kd, ki, g_M, limit, J_hub) and 1.0 for a pid law (integral state)."""
+    drives = case.scenario.drives
+    cl = np.array([i for i, d in enumerate(drives) if d.closed_loop], np.int64)
+    g = gains(case)
+    rows = [[g.kp[i], g.kd[i], g.ki[i], g.moment_gain[i], g.limit[i], g.j_hub[i]] for i in cl]
+    return Loop(
+        joint=cl,
+        row=lay.alpha_idx[cl].astype(np.int64),
+        omega=omega_rows(lay)[cl].astype(np.float64),
+        gains=np.array(rows, np.float64).reshape(-1, 6),
+        pid=np.array([float(drives[i].law.name == "pid") for i in cl], np.float64),
     )
 
 
@@ -558,7 +563,7 @@ def _chol_solve(A, b):
 
 
 @njit(cache=True)
-def solve_partitioned(P, A, rhs, x):
+def solve_partitioned(P, A, rhs, x, lu=False):
     """Solve A x = rhs for the free entries of x (prescribed entries of x given); return the
     residual force A[P] x − rhs[P] on the prescribed coordinates (their joint torques)."""
     F, Pp = P.free, P.presc
@@ -573,7 +578,7 @@ def solve_partitioned(P, A, rhs, x):
         bf[a] = acc
         for b in range(nf):
             Aff[a, b] = A[i, F[b]]
-    xf = _chol_solve(Aff, bf) if P.cl_row.size == 0 else np.linalg.solve(Aff, bf)
+    xf = np.linalg.solve(Aff, bf) if lu else _chol_solve(Aff, bf)
     for a in range(nf):
         x[F[a]] = xf[a]
     tau = np.zeros(Pp.size)
@@ -601,7 +606,7 @@ def forward(P, q, qd, Qtau, pres_acc):
 
 
 @njit(cache=True)
-def _laws(P, q, qd, x, ff, ref, zc, dz, cq, cv, M, rhs, tau):
+def _laws(C, q, qd, x, ff, ref, zc, dz, cq, cv, M, rhs, tau):
     """The closed-loop laws at the iterate x (q, q̇ its coordinates): torques into tau (nc,)
     and, when M has rows, their linearisation added to M q̈ = rhs: the slope in the joint's
     own α̈ (through α, α̇ and z = zc + dz·α) on the diagonal and the slope in ω̇ along its
@@ -610,25 +615,27 @@ def _laws(P, q, qd, x, ff, ref, zc, dz, cq, cv, M, rhs, tau):
     inertia felt by the joint with every other coordinate free is small (an inner joint
     at t = 0), so the row is kept exact."""
     N = x.size
-    for c in range(P.cl_row.size):
-        r = P.cl_row[c]
+    for c in range(C.row.size):
+        r = C.row[c]
         wd = 0.0
         for j in range(N):
-            wd += P.cl_omega[c, j] * x[j]
-        g = P.cl_gains[c]
+            wd += C.omega[c, j] * x[j]
+        g = C.gains[c]
         z = zc[c] + dz[c] * q[r]
-        t, da, dv, dzz, dw = _pd(g[0], g[1], g[2], g[3], g[4], g[5], ff[c], ref[c, 0], ref[c, 1], z, q[r], qd[r], wd)
+        t, da, dv, dzz, dw = _pd(
+            g[0], g[1], g[2], g[3], g[4], g[5], ff[c], ref[c, 0], ref[c, 1], z, q[r], qd[r], wd
+        )
         tau[c] = t
         if M.shape[0] > 0:
             s = da * cq + dv * cv + dzz * dz[c] * cq
             M[r, r] -= s
             rhs[r] += t - s * x[r] - dw * wd
             for j in range(N):
-                M[r, j] -= dw * P.cl_omega[c, j]
+                M[r, j] -= dw * C.omega[c, j]
 
 
 @njit(cache=True)
-def forward_closed(P, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
+def forward_closed(P, C, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
     """:func:`forward` with the closed-loop laws (integral states z): the laws' dependence on
     ω̇ is iterated until q̈ stops changing. Returns (q̈, τ of prescribed joints, τ of the
     closed-loop joints)."""
@@ -641,21 +648,21 @@ def forward_closed(P, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
     for r in range(P.presc.size):
         x[P.presc[r]] = pres_acc[r]
     add_elastic(P, q, qd, 0.0, 0.0, M0, rhs0, x)
-    nc = P.cl_row.size
+    nc = C.row.size
     tau_c = np.zeros(nc)
     dz = np.zeros(nc)
     tau = np.zeros(P.presc.size)
     for _ in range(maxit):
         M = M0.copy()
         rhs = rhs0.copy()
-        _laws(P, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M, rhs, tau_c)
+        _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M, rhs, tau_c)
         new = x.copy()
-        tau = solve_partitioned(P, M, rhs, new)
+        tau = solve_partitioned(P, M, rhs, new, True)
         dx = np.max(np.abs(new - x))
         x = new
         if not dx > tol * max(1.0, np.max(np.abs(x))):
             break
-    _laws(P, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M0[:0], rhs0[:0], tau_c)
+    _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M0[:0], rhs0[:0], tau_c)
     return x, tau, tau_c
 
 
@@ -686,7 +693,7 @@ def _load_drives(P, tq, mo, Q, tau_link):
 
 
 @njit(cache=True)
-def _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, ff, ref, zc, dz, tau_c):
+def _iterate(P, C, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, ff, ref, zc, dz, tau_c):
     """Iterate one step's q̈ (in place in x); returns (τ of the prescribed joints, solves,
     converged); the closed-loop torques at the final iterate go into tau_c. Stopping rule as
     DT-TMM: max|Δq̈| ≤ tol·max(1, max|q̈|), or stagnation at the round-off floor (from the 4th
@@ -710,9 +717,9 @@ def _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, f
         rhs = f + Q
         add_elastic(P, qi, qdi, cq, cv, M, rhs, x)
         if tau_c.size:
-            _laws(P, qi, qdi, x, ff, ref, zc, dz, cq, cv, M, rhs, tau_c)
+            _laws(C, qi, qdi, x, ff, ref, zc, dz, cq, cv, M, rhs, tau_c)
         new = x.copy()
-        tau = solve_partitioned(P, M, rhs, new)
+        tau = solve_partitioned(P, M, rhs, new, tau_c.size > 0)
         dx = np.max(np.abs(new - x)) if N else 0.0
         x[:] = new
         if itmode == IT_TOL:
@@ -730,7 +737,7 @@ def _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, f
         for i in range(N):
             qi[i] = qt[i] + cq * x[i]
             qdi[i] = qtd[i] + cv * x[i]
-        _laws(P, qi, qdi, x, ff, ref, zc, dz, cq, cv, M[:0], f[:0], tau_c)
+        _laws(C, qi, qdi, x, ff, ref, zc, dz, cq, cv, M[:0], f[:0], tau_c)
     return tau, it + 1, converged
 
 
@@ -742,7 +749,7 @@ def _record(P, rq, rqd, rtau, c, q, qd, tau):
 
 
 @njit(cache=True)
-def _emit(P, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c):
+def _emit(P, C, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c):
     """Record every output time in (t0, t1]: the step end when it falls on t1, else cubic
     Hermite of (q, q̇); prescribed joints from their law, their torques linear in time."""
     Pp = P.presc
@@ -767,8 +774,8 @@ def _emit(P, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, 
             tau[dr] = (1 - s) * tau0[dr] + s * tau1[dr]
         for r in range(P.tq_drive.size):
             tau[P.tq_drive[r]] = out_tq[c, r]
-        for r in range(P.cl_joint.size):
-            dr = P.cl_joint[r]
+        for r in range(C.joint.size):
+            dr = C.joint[r]
             tau[dr] = (1 - s) * tau0[dr] + s * tau1[dr]
         _record(P, rq, rqd, rtau, c, q, qd, tau)
         c += 1
@@ -793,6 +800,7 @@ def _first_nonfinite(q, qd, qdd):
 @njit(cache=True)
 def run(
     P,
+    C,
     coef,
     itmode,
     nfix,
@@ -843,7 +851,7 @@ def run(
     c = int(stats[4])
     t0 = 0.0
     tol_t = 1e-9 * t_end[0] if t_end.size else 0.0
-    nc = P.cl_row.size
+    nc = C.row.size
     zc = np.zeros(nc)
     dz = np.zeros(nc)
     tau_c = np.zeros(nc)
@@ -862,11 +870,31 @@ def run(
         for r in range(Pp.size):
             x[Pp[r]] = mo_l[n, r, 2]
         for j in range(nc):  # trapezoidal integral state: z_{n+1} = zc + dz α_{n+1}
-            pid = P.cl_pid[j]
+            pid = C.pid[j]
             zc[j] = pid * (z[j] + 0.5 * dt * (err[j] + ref_l[n, j, 0]))
             dz[j] = -0.5 * dt * pid
         tau_p, ns, ok = _iterate(
-            P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo_l[n], M, f, ff_l[n], ref_l[n], zc, dz, tau_c
+            P,
+            C,
+            Wk,
+            itmode,
+            nfix,
+            tol,
+            maxit,
+            qt,
+            qtd,
+            cq,
+            cv,
+            x,
+            Q,
+            mo_l[n],
+            M,
+            f,
+            ff_l[n],
+            ref_l[n],
+            zc,
+            dz,
+            tau_c,
         )
         stats[0] += ns
         stats[1] = max(stats[1], ns)
@@ -881,21 +909,23 @@ def run(
             q1[i], qd1[i], a1[i] = mo_l[n, r, 0], mo_l[n, r, 1], mo_l[n, r, 2]
             tau1[P.mo_drive[r]] = tau_p[r]
         for j in range(nc):
-            r = P.cl_row[j]
+            r = C.row[j]
             z[j] = zc[j] + dz[j] * q1[r]
             err[j] = ref_l[n, j, 0] - q1[r]
-            tau1[P.cl_joint[j]] = tau_c[j]
+            tau1[C.joint[j]] = tau_c[j]
         bad = _first_nonfinite(q1, qd1, x)
         if bad >= 0:
             stats[4] = c
             stats[5] = bad
             return NONFINITE
-        c = _emit(P, t0, q, qd, tau, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c)
+        c = _emit(P, C, t0, q, qd, tau, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c)
         q, qd, qdd, a, tau = q1, qd1, x, a1, tau1
         if restart[n]:
             _load_drives(P, tq_r[n], mo_r[n], Q, tau1.copy())
             if nc:
-                qdd, _, _ = forward_closed(P, q, qd, Q, mo_r[n, :, 2].copy(), ff_r[n], ref_r[n], z, 1e-14, maxit)
+                qdd, _, _ = forward_closed(
+                    P, C, q, qd, Q, mo_r[n, :, 2].copy(), ff_r[n], ref_r[n], z, 1e-14, maxit
+                )
             else:
                 qdd, _ = forward(P, q, qd, Q, mo_r[n, :, 2].copy())
             a = qdd.copy()
