@@ -28,6 +28,11 @@ damping forces linearised at the iterate, and stops by the same rule as
 that stagnates at the round-off floor (Δ ≥ 0.9·Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)).
 A step that exhausts ``max_iterations`` makes the Result's status "unconverged".
 
+Closed-loop drive laws (``pd``, ``pid``, user laws; docs/control.md, "Global solver") are
+solved implicitly at every step end with the stepped integrators: the law's torque enters the
+generalized force of its joint, its linearisation the iteration matrix, with the root bending
+moment M_root = τ − J_hub ω̇ (ω̇ a fixed row of q̈). See :mod:`reference_models._global_control`.
+
 This module is an independent implementation: it shares with :mod:`dttmm` only the model,
 scenario and result classes, the step schedule and the errors.
 
@@ -111,7 +116,8 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
         For ``"newmark"``/``"generalized-alpha"``: ``"numba"`` (compiled recursive assembly,
         Cholesky solve and time loop; the default when numba is installed) or ``"numpy"``
         (dense Jacobian products and LU; the readable reference, same results to round-off).
-        The adaptive integrators always use the numpy engine.
+        The adaptive integrators always use the numpy engine. Closed-loop user laws (Python
+        callables) need ``"numpy"``.
 
     Returns
     -------
@@ -123,7 +129,8 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     Raises
     ------
     dttmm.InputError
-        Bad k, h, integrator or option (the message names the field).
+        Bad k, h, integrator or option (the message names the field); a closed-loop drive
+        with ``"radau"``/``"dop853"``, or a user law with the compiled engine.
     dttmm.SimulationError
         Non-finite state or failed adaptive integration; ``partial`` holds the outputs so far.
     """

@@ -82,6 +82,19 @@ def test_numpy_engine_equals_compiled_engine_in_closed_loop():
     assert np.abs(a.end_effector - b.end_effector).max() <= 1e-12
 
 
+def test_engines_agree_with_a_prescribed_joint_inboard():
+    # joint 1 follows its reference exactly (motion drive): ω̇ of links 2, 3 has a prescribed part
+    case = three_link(duration=0.25)
+    d1 = case.scenario.drives[0]
+    drives = (Drive("motion", d1.law.reference),) + case.scenario.drives[1:]
+    case = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=drives))
+    a = gn.simulate(case, elements_per_link=2, h=1e-3, engine="numpy")
+    b = gn.simulate(case, elements_per_link=2, h=1e-3, engine="numba")
+    assert a.status == b.status == "ok"
+    assert np.abs(a.end_effector - b.end_effector).max() <= 1e-12
+    assert np.abs(a.joint_torque - b.joint_torque).max() <= 1e-9
+
+
 # --------------------------------------------------------------------------------------------
 # rigid limit: closed forms of the rotor
 # --------------------------------------------------------------------------------------------

@@ -277,7 +277,7 @@ def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
         require_open_loop(case, "dttmm")
 
 
-@pytest.mark.parametrize("module", ["reference_models.global_newmark", "reference_models.exudyn_ancf"])
+@pytest.mark.parametrize("module", ["reference_models.exudyn_ancf"])
 def test_engines_without_closed_loop_refuse_it_by_name(module):
     mod = pytest.importorskip(module)
     case = dttmm.load_case(
