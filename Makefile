@@ -31,7 +31,7 @@ clean:
 	rm -rf $(VENV) build *.egg-info
 
 report: $(STAMP)
-	OPENBLAS_NUM_THREADS=1 $(BIN)/dttmm report --quick --out out/report
+	OPENBLAS_NUM_THREADS=1 $(BIN)/dttmm report --quick --out out/report --prune-cache
 
 bench: $(STAMP)
 	mkdir -p data/bench

@@ -186,7 +186,8 @@ class PDGainFields(_Strict):
 
     kp: NonNegative
     kd: NonNegative
-    moment_gain: Finite = 0.0
+    # > −1: at −1 the torque loop through the root bending moment has no solution
+    moment_gain: Annotated[float, Strict(), Field(gt=-1.0, allow_inf_nan=False)] = 0.0
     limit: Limit = math.inf
 
 

@@ -8,6 +8,7 @@ when both are on disk), keyed by the case's content and the method's code, verif
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
@@ -195,12 +196,35 @@ class RunStore:
         if self.recompute and key not in self._fresh:
             return None
         try:
-            return cachefiles.read_entry(jpath, ppath, key)
+            got = cachefiles.read_entry(jpath, ppath, key)
         except cachefiles.BadEntry as exc:
             if key not in self._warned:
                 self._warned.add(key)
                 cachefiles.warn(jpath, str(exc))
             return None
+        if got is not None:
+            _touch(jpath, ppath)
+        return got
+
+    def prune(self, before: float) -> tuple[int, int]:
+        """Delete the entries not read or written since ``before`` (a ``time.time()``): every
+        read marks its files as used (their modification time), every write is new. Returns
+        (files deleted, bytes freed); empty case folders are removed too."""
+        files = n_bytes = 0
+        if not self.root.is_dir():
+            return 0, 0
+        for path in sorted(self.root.rglob("*")):
+            if path.is_file() and path.suffix in (".json", ".parquet") and path.stat().st_mtime < before:
+                n_bytes += path.stat().st_size
+                path.unlink()
+                files += 1
+        for folder in sorted((p for p in self.root.rglob("*") if p.is_dir()), reverse=True):
+            left = list(folder.iterdir())
+            if all(p.is_file() and p.suffix not in (".json", ".parquet") for p in left):
+                for p in left:  # the folder's lock file
+                    p.unlink()
+                folder.rmdir()
+        return files, n_bytes
 
     def has(self, task: Task) -> bool:
         """Whether a verified entry of the run exists (damaged ones are warned about)."""
@@ -285,6 +309,13 @@ class RunStore:
             drop = ("meta", "versions", "history_sha256", cachefiles.SEAL, "scored_with")
             rows.append({k: v for k, v in row.items() if k not in drop})
         return pd.DataFrame(rows)
+
+
+def _touch(*paths) -> None:
+    """Mark entry files as used now (see :meth:`RunStore.prune`); a read-only store is left as it is."""
+    for p in paths:
+        with contextlib.suppress(OSError):
+            os.utime(p)
 
 
 @functools.cache

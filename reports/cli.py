@@ -42,9 +42,11 @@ def run_report(
     bench_dir="data/bench",
     log=print,
     recompute=False,
+    prune_cache=False,
 ):
     """Run the plan's studies and write the report into ``out``; returns (html, md) paths.
-    ``recompute``: ignore every cached run and reference and write them again."""
+    ``recompute``: ignore every cached run and reference and write them again. ``prune_cache``:
+    afterwards delete the cached runs of this plan's store that the report did not use."""
     from dttmm.case import case_to_dict
     from experiments import methods
     from experiments.context import prepare
@@ -54,6 +56,7 @@ def run_report(
     from .build import build
 
     t0 = time.perf_counter()
+    mark = time.time()
     out = Path(out)
     avail = methods.available(_methods_in(plan))
     for m, why in avail.items():
@@ -76,6 +79,11 @@ def run_report(
     (out / "data" / "report_meta.json").write_text(json.dumps(meta, indent=1, default=str))
     paths = build(tables, meta, out, bench_dir=bench_dir)
     log(f"report: {paths[0]} and {paths[1]} ({time.perf_counter() - t0:.0f} s)")
+    if prune_cache:
+        n_files, n_bytes = ctx.store.prune(mark)
+        log(
+            f"pruned {n_files} cached-run files ({n_bytes / 1e6:.1f} MB) this report did not use from {ctx.store.root}"
+        )
     return paths
 
 
@@ -136,6 +144,11 @@ def main(argv=None) -> int:
         help="ignore every cached run and reference solution and compute (and store) them again",
     )
     ap.add_argument(
+        "--prune-cache",
+        action="store_true",
+        help="afterwards delete this plan's cached runs that the report did not use (older code, edited cases)",
+    )
+    ap.add_argument(
         "--case",
         action="append",
         default=[],
@@ -146,6 +159,8 @@ def main(argv=None) -> int:
     command = "dttmm report " + shlex.join(argv)
     if a.from_data and a.recompute:
         ap.error("--recompute computes the runs again; --from-data only redraws stored tables")
+    if a.from_data and a.prune_cache:
+        ap.error("--prune-cache needs a report that reads its runs; --from-data reads none")
     if a.from_data:
         _from_data(a.out, command, a.bench)
         return 0
@@ -165,6 +180,7 @@ def main(argv=None) -> int:
         command=command,
         bench_dir=a.bench,
         recompute=a.recompute,
+        prune_cache=a.prune_cache,
     )
     return 0
 

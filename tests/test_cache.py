@@ -443,3 +443,28 @@ def test_a_flagged_reference_candidate_is_skipped_like_a_failed_one(tmp_path):
     res, prov = reference(c, [RefSpec("flaky", 4, 1e-4), RefSpec("rotor", 64, 1e-4)], tmp_path)
     assert prov["method"] == "rotor" and res.status == "ok"
     assert len(prov["failures"]) == 1 and "status unconverged: no convergence" in prov["failures"][0]
+
+
+def test_prune_deletes_the_entries_a_report_did_not_use(tmp_path):
+    """Entries read or written after the mark stay; the others (stale code, other plans) go."""
+    import os
+    import time
+
+    cases = _cases()
+    tasks = _tasks(cases)
+    _sweep(tasks, cases, RunStore(tmp_path))
+    old = time.time() - 3600
+    for p in tmp_path.rglob("*"):
+        if p.is_file():
+            os.utime(p, (old, old))
+    mark = time.time() - 1.0
+    used = tasks[:2]
+    store = RunStore(tmp_path, cases)
+    assert all(store.has(t) for t in used)  # a read marks the entry as used
+    n_files, n_bytes = store.prune(mark)
+    assert n_files == 2 * (len(tasks) - len(used)) and n_bytes > 0  # a record and a history each
+    again = RunStore(tmp_path, cases)
+    assert [again.has(t) for t in tasks] == [t in used for t in tasks]
+    # nothing used at all: the folders go too
+    assert again.prune(time.time() + 10.0)[0] == 2 * len(used)
+    assert not any(tmp_path.iterdir())

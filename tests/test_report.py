@@ -282,3 +282,36 @@ def test_page_in_a_real_browser_every_image_loads_no_section_empty(report):
     assert titles[:3] == ["Scoreboard", "Summary", "Cases"] and titles[-2:] == ["Omissions", "Provenance"]
     empty = [s["title"] for s in seen["secs"] if s["text"] < 40 and not s["imgs"] and not s["tables"]]
     assert not empty, f"empty sections: {empty}"
+
+
+def test_prune_cache_keeps_the_runs_a_report_uses_and_deletes_the_rest(report, tmp_path):
+    import os
+
+    stores = [p for p in (report / "data" / "cache" / "runs").iterdir() if p.is_dir()]
+    assert len(stores) == 1
+    before = sorted(p.relative_to(stores[0]) for p in stores[0].rglob("*.json"))
+    stale = stores[0] / before[0].parent / "old-code@0123456789abcdef.json"
+    stale.write_text("{}")
+    os.utime(stale, (1.0e9, 1.0e9))
+    msgs = []
+    cli.run_report(
+        tiny_plan(report),
+        tmp_path / "out",
+        data=report / "data",
+        scheduler="serial",
+        progress=False,
+        command="test",
+        bench_dir=report / "bench",
+        log=msgs.append,
+        prune_cache=True,
+    )
+    assert not stale.exists()
+    assert sorted(p.relative_to(stores[0]) for p in stores[0].rglob("*.json")) == before
+    assert any(m.startswith("pruned 1 cached-run files") for m in msgs)
+
+
+def test_prune_cache_with_from_data_is_refused(capsys):
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["--from-data", "--prune-cache"])
+    assert exc.value.code == 2
+    assert "--prune-cache" in capsys.readouterr().err
