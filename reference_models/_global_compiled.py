@@ -1,6 +1,7 @@
 """Driver of the compiled engine of the global-equation solver (``engine="numba"``).
 
-Tabulates the drive values on the step schedule and at the output times, runs the compiled
+Tabulates the drive values on the step schedule and at the output times (for closed-loop
+joints their feedforward and reference, :func:`dttmm.control.time_tables`), runs the compiled
 time loop of :mod:`reference_models._global_numba`, and turns the recorded (q, q̇, τ) into a
 :class:`dttmm.Result` with the same recorder as the numpy engine.
 """

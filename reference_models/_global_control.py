@@ -29,7 +29,6 @@ import numpy as np
 
 from dttmm.drives import PID, ComputedTorque, ControlState, UserLaw
 from dttmm.errors import InputError
-from dttmm.result import tip_deflection
 
 STEPPED = ("newmark", "generalized-alpha")
 
@@ -89,6 +88,7 @@ class Loop:
     pid: np.ndarray  # (nc,) bool: has an integral state
     bare: list  # per joint: the pd/pid law without moment feedback and limit (gives L0); None for a user law
     user: bool  # some law is a user law (needs tip deflections)
+    tips: object  # q -> (n,) tip deflections in the clamped-root frames (m)
     _ct: dict = field(default_factory=dict)
 
     def computed_torque(self, t: float, left: bool) -> np.ndarray | None:
@@ -103,8 +103,9 @@ class Loop:
         return self._ct[key]
 
 
-def loop_of(case, lay) -> Loop | None:
-    """The :class:`Loop` of ``case``, or None without closed-loop drives."""
+def loop_of(case, lay, tips) -> Loop | None:
+    """The :class:`Loop` of ``case``, or None without closed-loop drives. ``tips``: q ↦ the
+    links' tip deflections in their clamped-root frames (n,) (m), for user laws."""
     drives = case.scenario.drives
     joints = np.array([i for i, d in enumerate(drives) if d.closed_loop], int)
     if joints.size == 0:
@@ -129,6 +130,7 @@ def loop_of(case, lay) -> Loop | None:
         pid=np.array(pid, bool),
         bare=bare,
         user=any(b is None for b in bare),
+        tips=tips,
     )
 
 
@@ -139,13 +141,6 @@ def reference_angles(loop: Loop, t: float) -> np.ndarray:
         if law is not None:
             out[c] = law.reference.motion(t, False)[0]
     return out
-
-
-def _tip_deflections(lay, q) -> tuple:
-    from ._global_numpy import _link_frames
-
-    fr = _link_frames(lay, q)
-    return tuple(tip_deflection(fr["root"], fr["root_angle"], fr["tip"]).tolist())
 
 
 def evaluate(loop: Loop, t, left, q, qd, qdd, z, tau_used):
@@ -173,7 +168,7 @@ def evaluate(loop: Loop, t, left, q, qd, qdd, z, tau_used):
     lay = loop.lay
     a = lay.alpha_idx
     angles, rates = tuple(q[a].tolist()), tuple(qd[a].tolist())
-    tips = _tip_deflections(lay, q) if loop.user else ()
+    tips = tuple(np.asarray(loop.tips(q), float).tolist()) if loop.user else ()
     wdot = loop.omega @ qdd
     drives = loop.case.scenario.drives
     for c, i in enumerate(loop.joints):

@@ -19,6 +19,10 @@ angle j). The generalized forces follow alike from the body wrenches Xᵀ f_rr. 
 of M costs O(N) and the assembly O(N²); the solve is a Cholesky factorisation (O(N³/3)).
 The element data (moments, frames, velocity terms) are the same formulas as the numpy
 engine in :mod:`reference_models.global_newmark`; only the summation differs.
+
+Closed-loop pd/pid joints (:class:`Loop`) add :func:`dttmm.control.pd_torque` at the iterate
+and its linearisation to each solve (:func:`_laws`); their solves use LU, as the exact ω̇ row
+makes the iteration matrix unsymmetric. Open-loop runs keep the Cholesky solve.
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ from dttmm.drives import Constant, Drive
 from dttmm.errors import InputError, SimulationError
 from dttmm.model import Link, Manipulator, Section
 from dttmm.plumbing import versions
+from dttmm.result import tip_deflection
 from dttmm.scenario import Scenario
 from dttmm.timegrid import step_schedule
 
@@ -817,6 +818,12 @@ def kinematics(case, elements_per_link, q) -> dict:
     return _link_frames(lay, _as_state(lay, q, "q"))
 
 
+def _tip_deflections(lay: _Layout, q: np.ndarray) -> np.ndarray:
+    """(n,) transverse tip deflection of every link in its clamped-root frame (m)."""
+    fr = _link_frames(lay, q)
+    return tip_deflection(fr["root"], fr["root_angle"], fr["tip"])
+
+
 def _link_frames(lay: _Layout, q: np.ndarray) -> dict:
     fr = _frames(lay, q)
     last = lay.last_el
@@ -1300,7 +1307,7 @@ def _newmark_run(case, lay, k, h, integrator, opt):
         "linear_solver": opt["linear_solver"],
         "max_iterations": opt["max_iterations"],
         "sel": _element_selector(lay),
-        "loop": gc.loop_of(case, lay),
+        "loop": gc.loop_of(case, lay, lambda q: _tip_deflections(lay, q)),
     }
     meta = _base_meta(lay, k, h, integrator, opt)
     meta.update(dict(zip(("beta", "gamma", "alpha_m", "alpha_f"), coef)))
