@@ -274,3 +274,31 @@ _BENCH = {
 for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured: 2nd-order element)
     _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
 PLANS = {n: replace(p, studies={**p.studies, "benchmarks": _BENCH[n]}) for n, p in PLANS.items()}
+
+# Closed loop (experiments/studies/control.py) on its own case: every method at the report's
+# k = 8, h = 1 ms (MuJoCo at its stable step), the rigid baseline on the variant without moment
+# feedback, a moment-gain sweep. No explicit RK4: the structural damping of the stiff element modes
+# limits it to h ≈ 2.5e-7 s on this arm (diverges at 5e-7 s), 12 million steps for the 3 s.
+_CL_RUNS = [
+    ("dttmm", 8, 1e-3),
+    ("dttmm-2nd", 8, 1e-3),
+    ("global", 8, 1e-3),
+    ("global-2nd", 8, 1e-3),
+    ("exudyn-ancf", 8, 1e-3),
+    ("exudyn-beam", 8, 1e-3),
+    ("mujoco-chain", 8, 1e-4),
+    ("pinocchio-rigid", 0, 1e-3),
+]
+_CONTROL = {
+    "runs": _CL_RUNS,
+    "rigid_runs": [("pinocchio-rigid", 1e-3)],
+    "reference": [("exudyn-ancf", 32, 2.5e-4), ("dttmm", 32, 2.5e-4)],
+    "gains": [0.0, 0.5, 1.0, 2.0],
+    "gain_runs": [("dttmm", 8, 1e-3), ("mujoco-chain", 8, 1e-4)],
+    # equal k for both: DT-TMM's frequencies agree with Exudyn's to 1e-7 at k = 16 (measured)
+    "modes": {"k": 16, "exudyn_k": 16, "n": 4},
+}
+_CONTROL_SIZES = {"quick": _CONTROL, "full": {**_CONTROL, "modes": {"k": 32, "exudyn_k": 32, "n": 4}}}
+for _c in _CONTROL_SIZES.values():  # what the report's availability probe lists
+    _c["methods"] = list(dict.fromkeys(m for m, *_ in _c["runs"] + _c["reference"] + _c["gain_runs"]))
+PLANS = {n: replace(p, studies={**p.studies, "control": _CONTROL_SIZES[n]}) for n, p in PLANS.items()}

@@ -44,6 +44,12 @@ first step end after it (listed in ``meta["breakpoints_off_grid"]``). The report
 torque drive is the value that acted on the step ending at the output time (left limit; at
 t = 0 the right limit).
 
+Closed-loop drives (``pd``, ``pid``, user laws): the law is the user function of a coordinate
+spring-damper between the joint's two rotation coordinates, evaluated implicitly at the step end
+(no lag; generalized-α keeps its second order); moment feedback enters partly as constant mass
+coupling. Details: :mod:`reference_models._exudyn_control`. The reported torque of such a joint
+is the law's τ at the converged step.
+
 Torque of a motion drive: minus the multiplier of the coordinate constraint (index-3 generalized-α).
 It is less accurate than the positions (it carries the high-frequency content of the stiff
 links; measured first order in h on a soft strip) and at t = 0 it reads 0, because no multiplier
@@ -69,7 +75,8 @@ import numpy as np
 
 from dttmm import InputError, SimulationError, make_result
 from dttmm.case import Case
-from dttmm.drives import require_open_loop
+
+from ._exudyn_control import ClosedLoop
 
 __all__ = [
     "simulate_exudyn",
@@ -214,7 +221,6 @@ def simulate_exudyn(
     (root, tip) beam nodes to which the hub and tip bodies are clamped by an ObjectJointGeneric
     locking x, y and the rotation about z (MarkerNodeRigid on the beam node).
     """
-    require_open_loop(case, element.method)
     k, h, n_steps, per_out = check_discretisation(case, elements_per_link, h)
     try:
         rho_inf = float(rho_inf)
@@ -316,6 +322,13 @@ def simulate_exudyn(
     # that Exudyn calls at every residual evaluation (~35 Python calls per step measured).
     constraints = [None] * n
     inputs = []  # (kind, item, law, sign, a0): what the pre-step function sets
+    # closed-loop laws: a coordinate spring-damper whose user function is the law (implicit at
+    # the step end; see reference_models._exudyn_control)
+    closed = (
+        ClosedLoop(case, layout.alpha0, hub_nodes, tip_nodes)
+        if any(d.closed_loop for d in sc.drives)
+        else None
+    )
     for i, drive in enumerate(sc.drives):
         m_in = (
             m_ground_pos
@@ -324,7 +337,15 @@ def simulate_exudyn(
         )
         m_out = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=hub_bodies[i], localPosition=[0, 0, 0]))
         mbs.AddObject(ii.ObjectJointRevolute2D(markerNumbers=[m_in, m_out]))
-        if drive.kind == "torque":
+        if drive.closed_loop:
+            c_in = (
+                m_ground_coord
+                if i == 0
+                else mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=tip_nodes[i - 1], coordinate=2))
+            )
+            c_out = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=hub_nodes[i], coordinate=2))
+            closed.add_joint(mbs, exu, ii, i, c_in, c_out)
+        elif drive.kind == "torque":
             targets = [(hub_bodies[i], 1.0)] + ([(tip_bodies[i - 1], -1.0)] if i > 0 else [])
             for body, sign in targets:
                 marker = mbs.AddMarker(ii.MarkerBodyRigid(bodyNumber=body))
@@ -379,6 +400,14 @@ def simulate_exudyn(
 
         mbs.SetPreStepUserFunction(pre_step)
 
+    if closed is not None:
+
+        def post_step(mbs_, t):
+            closed.post_step(mbs_, t)  # commit the integral states of the converged step
+            return True
+
+        mbs.SetPostStepUserFunction(post_step)
+
     OV = exu.OutputVariableType
     sens = lambda node, var: mbs.AddSensor(
         ii.SensorNode(nodeNumber=node, outputVariableType=var, storeInternal=True, writeToFile=False)
@@ -396,8 +425,12 @@ def simulate_exudyn(
         for c in constraints
     ]
     all_sensors = [x for tr in s_hub + s_tip for x in tr] + [x for x in s_force if x is not None]
+    if closed is not None:
+        all_sensors += list(closed.sensors.values()) + list(closed.acc_sensors.values())
 
     mbs.Assemble()
+    if closed is not None:
+        closed.assembled(mbs)
 
     s = exu.SimulationSettings()
     ti = s.timeIntegration
@@ -458,6 +491,7 @@ def simulate_exudyn(
     wall = cpu = 0.0
     steps_done = newton_total = jac_total = 0
     t_reached = 0.0
+    start_solves = 0
     rows = {sn: [] for sn in all_sensors}
     failure = None
     for a, b in segments:
@@ -468,11 +502,19 @@ def simulate_exudyn(
         err = None
         t0, c0 = time.perf_counter(), time.process_time()
         try:
+            if closed is not None:
+                closed.start_segment(mbs, ta)
+                if closed.needs_consistent_start:
+                    start_solves += closed.consistent_start(mbs, exu, s)
             ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
+        except InputError:
+            raise
         except Exception as exc:  # Exudyn raises on some failures (e.g. singular Jacobian)
             ok, err = False, exc
         wall += time.perf_counter() - t0
         cpu += time.process_time() - c0
+        if closed is not None and closed.error is not None:
+            raise closed.error  # a user law failed (InputError naming the time and the joint)
         it = mbs.sys["dynamicSolver"].it
         done = int(it.currentStepIndex) - 1  # 1-based: N + 1 after a complete run of N steps
         steps_done += max(done, 0)
@@ -499,6 +541,10 @@ def simulate_exudyn(
         mbs.systemData.SetSystemState(
             mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
         )
+        if closed is not None:  # the start guess of the next segment's ω̇ loop (not in the state)
+            mbs.systemData.SetODE2Coordinates_tt(
+                mbs.systemData.GetODE2Coordinates_tt(), exu.ConfigurationType.Initial
+            )
     meta.update(
         steps=n_steps,
         steps_taken=steps_done,
@@ -509,6 +555,13 @@ def simulate_exudyn(
         wall_time_solve=wall,
         cpu_time_solve=cpu,
     )
+    if closed is not None:
+        meta.update(
+            closed_loop="implicit: coordinate spring-damper user function at every residual evaluation (t_{n+1})",
+            root_moment="tau - J_hub * hub angular acceleration (Newton iterate)",
+            integral_state="trapezoidal rule, committed after each step",
+            initial_acceleration_solves=start_solves,
+        )
 
     # --- outputs ------------------------------------------------------------------------------
     def stored(sensor):
@@ -535,7 +588,10 @@ def simulate_exudyn(
             th_tip[:, i] = stored(s_tip[i][1])[:m, -1]
             w_tip[:, i] = stored(s_tip[i][2])[:m, -1]
             d = sc.drives[i]
-            if d.kind == "torque":
+            if d.closed_loop:  # the law's τ at the converged step (the connector force is −τ)
+                acc = stored(closed.acc_sensors[i])[:m, -1] if i in closed.acc_sensors else None
+                tq[:, i] = closed.torque(i, stored(closed.sensors[i])[:m, -1], acc)
+            elif d.kind == "torque":
                 # the value that acted on the step ending at the output time (left limit; right at t = 0)
                 tq[:, i] = [d.torque(float(tt), tt > 0) for tt in t_out[:m]]
             else:

@@ -19,6 +19,10 @@ angle j). The generalized forces follow alike from the body wrenches Xᵀ f_rr. 
 of M costs O(N) and the assembly O(N²); the solve is a Cholesky factorisation (O(N³/3)).
 The element data (moments, frames, velocity terms) are the same formulas as the numpy
 engine in :mod:`reference_models.global_newmark`; only the summation differs.
+
+Closed-loop pd/pid joints (:class:`Loop`) add :func:`dttmm.control.pd_torque` at the iterate
+and its linearisation to each solve (:func:`_laws`); their solves use LU, as the exact ω̇ row
+makes the iteration matrix unsymmetric. Open-loop runs keep the Cholesky solve.
 """
 
 from __future__ import annotations
@@ -27,6 +31,13 @@ from collections import namedtuple
 
 import numpy as np
 from numba import njit
+
+from dttmm.control import gains, pd_torque
+
+from ._global_control import omega_rows
+
+# the pd/pid law τ = clip((L0 + g_M J_hub ω̇)/(1 + g_M), ±limit) and its slopes, inlined
+_pd = njit(inline="always")(pd_torque)
 
 # status codes of the time loop
 OK, NONFINITE = 0, 1
@@ -69,6 +80,10 @@ Pack = namedtuple(
     ],
 )
 
+# The closed-loop joints, apart from Pack: every compiled call passes its tuples field by field,
+# and the open-loop assembly should not pay for fields it never reads.
+Loop = namedtuple("Loop", ["joint", "row", "omega", "gains", "pid"])
+
 
 def pack(lay, case) -> Pack:
     """Arrays of a global_newmark layout, in the order the compiled functions read them."""
@@ -86,7 +101,7 @@ def pack(lay, case) -> Pack:
             el.append(e)
             pay.append(pay_of[i])
     drives = case.scenario.drives
-    tq = [i for i, d in enumerate(drives) if d.kind == "torque"]
+    tq = [i for i, d in enumerate(drives) if d.kind == "torque" and not d.closed_loop]
     f8 = np.float64
     return Pack(
         kind=lay.kind.astype(np.int64),
@@ -121,6 +136,22 @@ def pack(lay, case) -> Pack:
         tq_idx=lay.alpha_idx[tq].astype(np.int64),
         tq_drive=np.array(tq, np.int64),
         mo_drive=np.array([i for i, d in enumerate(drives) if d.kind == "motion"], np.int64),
+    )
+
+
+def pack_loop(lay, case) -> Loop:
+    """The closed-loop joints of ``case``: drive index, q index of α, ω̇ row (nc, N), gains
+    (nc, 6) = (kp, kd, ki, g_M, limit, J_hub) and 1.0 for a pid law (integral state)."""
+    drives = case.scenario.drives
+    cl = np.array([i for i, d in enumerate(drives) if d.closed_loop], np.int64)
+    g = gains(case)
+    rows = [[g.kp[i], g.kd[i], g.ki[i], g.moment_gain[i], g.limit[i], g.j_hub[i]] for i in cl]
+    return Loop(
+        joint=cl,
+        row=lay.alpha_idx[cl].astype(np.int64),
+        omega=omega_rows(lay)[cl].astype(np.float64),
+        gains=np.array(rows, np.float64).reshape(-1, 6),
+        pid=np.array([float(drives[i].law.name == "pid") for i in cl], np.float64),
     )
 
 
@@ -536,7 +567,7 @@ def _chol_solve(A, b):
 
 
 @njit(cache=True)
-def solve_partitioned(P, A, rhs, x):
+def solve_partitioned(P, A, rhs, x, lu=False):
     """Solve A x = rhs for the free entries of x (prescribed entries of x given); return the
     residual force A[P] x − rhs[P] on the prescribed coordinates (their joint torques)."""
     F, Pp = P.free, P.presc
@@ -551,7 +582,7 @@ def solve_partitioned(P, A, rhs, x):
         bf[a] = acc
         for b in range(nf):
             Aff[a, b] = A[i, F[b]]
-    xf = _chol_solve(Aff, bf)
+    xf = np.linalg.solve(Aff, bf) if lu else _chol_solve(Aff, bf)
     for a in range(nf):
         x[F[a]] = xf[a]
     tau = np.zeros(Pp.size)
@@ -576,6 +607,67 @@ def forward(P, q, qd, Qtau, pres_acc):
     add_elastic(P, q, qd, 0.0, 0.0, M, rhs, x)
     tau = solve_partitioned(P, M, rhs, x)
     return x, tau
+
+
+@njit(cache=True)
+def _laws(C, q, qd, x, ff, ref, zc, dz, cq, cv, M, rhs, tau):
+    """The closed-loop laws at the iterate x (q, q̇ its coordinates): torques into tau (nc,)
+    and, when M has rows, their linearisation added to M q̈ = rhs: the slope in the joint's
+    own α̈ (through α, α̇ and z = zc + dz·α) on the diagonal and the slope in ω̇ along its
+    exact row W_c, which makes M unsymmetric (solved by LU). Lagging the inboard part of ω̇
+    at the iterate instead keeps M symmetric, but that fixed point diverges where the
+    inertia felt by the joint with every other coordinate free is small (an inner joint
+    at t = 0), so the row is kept exact."""
+    N = x.size
+    for c in range(C.row.size):
+        r = C.row[c]
+        wd = 0.0
+        for j in range(N):
+            wd += C.omega[c, j] * x[j]
+        g = C.gains[c]
+        z = zc[c] + dz[c] * q[r]
+        t, da, dv, dzz, dw = _pd(
+            g[0], g[1], g[2], g[3], g[4], g[5], ff[c], ref[c, 0], ref[c, 1], z, q[r], qd[r], wd
+        )
+        tau[c] = t
+        if M.shape[0] > 0:
+            s = da * cq + dv * cv + dzz * dz[c] * cq
+            M[r, r] -= s
+            rhs[r] += t - s * x[r] - dw * wd
+            for j in range(N):
+                M[r, j] -= dw * C.omega[c, j]
+
+
+@njit(cache=True)
+def forward_closed(P, C, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
+    """:func:`forward` with the closed-loop laws (integral states z): the laws' dependence on
+    ω̇ is iterated until q̈ stops changing. Returns (q̈, τ of prescribed joints, τ of the
+    closed-loop joints)."""
+    N = q.size
+    M0 = np.empty((N, N))
+    f = np.empty(N)
+    assemble(P, q, qd, M0, f)
+    rhs0 = f + Qtau
+    x = np.zeros(N)
+    for r in range(P.presc.size):
+        x[P.presc[r]] = pres_acc[r]
+    add_elastic(P, q, qd, 0.0, 0.0, M0, rhs0, x)
+    nc = C.row.size
+    tau_c = np.zeros(nc)
+    dz = np.zeros(nc)
+    tau = np.zeros(P.presc.size)
+    for _ in range(maxit):
+        M = M0.copy()
+        rhs = rhs0.copy()
+        _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M, rhs, tau_c)
+        new = x.copy()
+        tau = solve_partitioned(P, M, rhs, new, True)
+        dx = np.max(np.abs(new - x))
+        x = new
+        if not dx > tol * max(1.0, np.max(np.abs(x))):
+            break
+    _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M0[:0], rhs0[:0], tau_c)
+    return x, tau, tau_c
 
 
 @njit(cache=True)
@@ -605,10 +697,11 @@ def _load_drives(P, tq, mo, Q, tau_link):
 
 
 @njit(cache=True)
-def _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f):
+def _iterate(P, C, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, ff, ref, zc, dz, tau_c):
     """Iterate one step's q̈ (in place in x); returns (τ of the prescribed joints, solves,
-    converged). Stopping rule as DT-TMM: max|Δq̈| ≤ tol·max(1, max|q̈|), or stagnation at the
-    round-off floor (from the 4th solve on, Δ ≥ 0.9 Δ_prev and Δ ≤ 1e3·tol·scale)."""
+    converged); the closed-loop torques at the final iterate go into tau_c. Stopping rule as
+    DT-TMM: max|Δq̈| ≤ tol·max(1, max|q̈|), or stagnation at the round-off floor (from the 4th
+    solve on, Δ ≥ 0.9 Δ_prev and Δ ≤ 1e3·tol·scale)."""
     N = x.size
     Pp = P.presc
     nsolve = maxit if itmode == IT_TOL else nfix + 1
@@ -627,8 +720,10 @@ def _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f):
         assemble_ws(P, Wk, qi, qdi, M, f)
         rhs = f + Q
         add_elastic(P, qi, qdi, cq, cv, M, rhs, x)
+        if tau_c.size:
+            _laws(C, qi, qdi, x, ff, ref, zc, dz, cq, cv, M, rhs, tau_c)
         new = x.copy()
-        tau = solve_partitioned(P, M, rhs, new)
+        tau = solve_partitioned(P, M, rhs, new, tau_c.size > 0)
         dx = np.max(np.abs(new - x)) if N else 0.0
         x[:] = new
         if itmode == IT_TOL:
@@ -642,6 +737,11 @@ def _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f):
             if not np.isfinite(dx):
                 break
             prev = dx
+    if tau_c.size:
+        for i in range(N):
+            qi[i] = qt[i] + cq * x[i]
+            qdi[i] = qtd[i] + cv * x[i]
+        _laws(C, qi, qdi, x, ff, ref, zc, dz, cq, cv, M[:0], f[:0], tau_c)
     return tau, it + 1, converged
 
 
@@ -653,7 +753,7 @@ def _record(P, rq, rqd, rtau, c, q, qd, tau):
 
 
 @njit(cache=True)
-def _emit(P, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c):
+def _emit(P, C, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c):
     """Record every output time in (t0, t1]: the step end when it falls on t1, else cubic
     Hermite of (q, q̇); prescribed joints from their law, their torques linear in time."""
     Pp = P.presc
@@ -678,6 +778,9 @@ def _emit(P, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, 
             tau[dr] = (1 - s) * tau0[dr] + s * tau1[dr]
         for r in range(P.tq_drive.size):
             tau[P.tq_drive[r]] = out_tq[c, r]
+        for r in range(C.joint.size):
+            dr = C.joint[r]
+            tau[dr] = (1 - s) * tau0[dr] + s * tau1[dr]
         _record(P, rq, rqd, rtau, c, q, qd, tau)
         c += 1
     return c
@@ -701,6 +804,7 @@ def _first_nonfinite(q, qd, qdd):
 @njit(cache=True)
 def run(
     P,
+    C,
     coef,
     itmode,
     nfix,
@@ -725,8 +829,18 @@ def run(
     rtau,
     uncon,
     stats,
+    ff_l,
+    ref_l,
+    ff_r,
+    ref_r,
+    z,
+    err,
 ):
     """Step the schedule t_end from the state (q, q̇, q̈, a, τ) at t = 0, recording outputs.
+
+    Closed-loop joints: their feedforward ff (nt, nc) and reference (α_ref, α̇_ref) ref
+    (nt, nc, 2) on the schedule (left limits; ``_r``: right limits at restarts), the integral
+    states z (nc,) and err = α_ref − α (nc,) at t = 0 (both updated in place).
 
     stats: [0] solves, [1] max solves per step, [2] unconverged steps, [3] steps done,
     [4] outputs recorded (in: those at t = 0), [5] first non-finite entry of [q, q̇, q̈]. Returns OK or NONFINITE (the failed step is
@@ -741,6 +855,10 @@ def run(
     c = int(stats[4])
     t0 = 0.0
     tol_t = 1e-9 * t_end[0] if t_end.size else 0.0
+    nc = C.row.size
+    zc = np.zeros(nc)
+    dz = np.zeros(nc)
+    tau_c = np.zeros(nc)
     for n in range(t_end.size):
         stats[3] = n
         t1 = t_end[n]
@@ -755,7 +873,33 @@ def run(
         x = qdd.copy()
         for r in range(Pp.size):
             x[Pp[r]] = mo_l[n, r, 2]
-        tau_p, ns, ok = _iterate(P, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo_l[n], M, f)
+        for j in range(nc):  # trapezoidal integral state: z_{n+1} = zc + dz α_{n+1}
+            pid = C.pid[j]
+            zc[j] = pid * (z[j] + 0.5 * dt * (err[j] + ref_l[n, j, 0]))
+            dz[j] = -0.5 * dt * pid
+        tau_p, ns, ok = _iterate(
+            P,
+            C,
+            Wk,
+            itmode,
+            nfix,
+            tol,
+            maxit,
+            qt,
+            qtd,
+            cq,
+            cv,
+            x,
+            Q,
+            mo_l[n],
+            M,
+            f,
+            ff_l[n],
+            ref_l[n],
+            zc,
+            dz,
+            tau_c,
+        )
         stats[0] += ns
         stats[1] = max(stats[1], ns)
         if not ok:
@@ -768,16 +912,26 @@ def run(
             i = Pp[r]
             q1[i], qd1[i], a1[i] = mo_l[n, r, 0], mo_l[n, r, 1], mo_l[n, r, 2]
             tau1[P.mo_drive[r]] = tau_p[r]
+        for j in range(nc):
+            r = C.row[j]
+            z[j] = zc[j] + dz[j] * q1[r]
+            err[j] = ref_l[n, j, 0] - q1[r]
+            tau1[C.joint[j]] = tau_c[j]
         bad = _first_nonfinite(q1, qd1, x)
         if bad >= 0:
             stats[4] = c
             stats[5] = bad
             return NONFINITE
-        c = _emit(P, t0, q, qd, tau, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c)
+        c = _emit(P, C, t0, q, qd, tau, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_mo, rq, rqd, rtau, c)
         q, qd, qdd, a, tau = q1, qd1, x, a1, tau1
         if restart[n]:
             _load_drives(P, tq_r[n], mo_r[n], Q, tau1.copy())
-            qdd, _ = forward(P, q, qd, Q, mo_r[n, :, 2].copy())
+            if nc:
+                qdd, _, _ = forward_closed(
+                    P, C, q, qd, Q, mo_r[n, :, 2].copy(), ff_r[n], ref_r[n], z, 1e-14, maxit
+                )
+            else:
+                qdd, _ = forward(P, q, qd, Q, mo_r[n, :, 2].copy())
             a = qdd.copy()
         t0 = t1
     stats[3] = t_end.size

@@ -14,8 +14,11 @@ from dttmm.drives import Constant, Drive
 from dttmm.errors import InputError, SimulationError
 from dttmm.model import Link, Manipulator, Section
 from dttmm.plumbing import versions
+from dttmm.result import tip_deflection
 from dttmm.scenario import Scenario
 from dttmm.timegrid import step_schedule
+
+from . import _global_control as gc
 
 # The public names are re-exported by reference_models.global_newmark (the facade).
 
@@ -590,10 +593,11 @@ def _kinetic(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> float:
 
 
 def _torques(case, lay: _Layout, t: float, left: bool) -> np.ndarray:
-    """Generalized joint torques (N,): τ_i on α_i of torque-driven joints."""
+    """Generalized joint torques (N,): τ_i on α_i of open-loop torque-driven joints (the
+    closed-loop ones are added by the step iteration)."""
     Q = np.zeros(lay.n_dof)
     for i, d in enumerate(case.scenario.drives):
-        if d.kind == "torque":
+        if d.kind == "torque" and not d.closed_loop:
             Q[lay.alpha_idx[i]] = d.torque(t, left)
     return Q
 
@@ -791,6 +795,7 @@ def accelerations(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.
     lay = _layout(case, elements_per_link, strain)
     q = _as_state(lay, q, "q")
     qd = _as_state(lay, qd, "qd")
+    gc.require_stepped(case, "accelerations()")
     return _forward(case, lay, q, qd, float(t), False)[0]
 
 
@@ -811,6 +816,12 @@ def kinematics(case, elements_per_link, q) -> dict:
     """
     lay = _layout(case, elements_per_link)
     return _link_frames(lay, _as_state(lay, q, "q"))
+
+
+def _tip_deflections(lay: _Layout, q: np.ndarray) -> np.ndarray:
+    """(n,) transverse tip deflection of every link in its clamped-root frame (m)."""
+    fr = _link_frames(lay, q)
+    return tip_deflection(fr["root"], fr["root_angle"], fr["tip"])
 
 
 def _link_frames(lay: _Layout, q: np.ndarray) -> dict:
@@ -1032,13 +1043,16 @@ class _Recorder:
         )
 
 
-def _joint_torques(case, lay, t, left, tau_p) -> np.ndarray:
-    """Joint torques (n,): the drive value of torque joints, the computed one of motion joints."""
+def _joint_torques(case, lay, t, left, tau_p, loop=None, tau_c=None) -> np.ndarray:
+    """Joint torques (n,): the drive value of open-loop torque joints, the computed one of
+    motion joints and ``tau_c`` (the law's) of the closed-loop joints of ``loop``."""
     tau = np.zeros(lay.n_links)
     for i, d in enumerate(case.scenario.drives):
-        if d.kind == "torque":
+        if d.kind == "torque" and not d.closed_loop:
             tau[i] = d.torque(t, left)
     tau[lay.motion] = tau_p
+    if loop is not None:
+        tau[loop.joints] = tau_c
     return tau
 
 
@@ -1081,20 +1095,24 @@ def _fail(rec, lay, wall, n_steps, meta, q, t, step, names):
 # ----------------------------------------------------------------------------------------------
 
 
-def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
+def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv, cl=None):
     """Frozen-coefficient iteration of one step ending at t1 (left-limit drive values).
 
     Iterate i solves [M(q_i) + c_v D_t + c_q K_T] q̈^(i+1) = Q − h(q_i, q̇_i) − f_int(q_i)
     − f_d(q_i, q̇_i) + (c_q K_T + c_v D_t) q̈^(i) with q_i = q̃ + c_q q̈^(i), q̇_i = q̃' + c_v q̈^(i):
     the elastic and damping forces are linearised at the iterate (K_T, D_t at q_i). For the
     linear element (f_int = Kq, f_d = Dq̇) this is [M + c_v D + c_q K] q̈ = Q − h − K q̃ − D q̃'.
+    Closed-loop joints (``cl``: the :class:`_global_control.Loop` with the integral states
+    z = zc + dz·α of the step) add their law and its linearisation at the iterate
+    (:func:`_global_control.linearise`).
 
     Stopping rule (the one of :func:`dttmm.simulate`): converged when
     max|Δq̈| ≤ tol·max(1, max|q̈|), or when from the 4th solve on the change stagnates at the
     round-off floor (Δ ≥ 0.9 Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)); at most
     ``max_iterations`` solves. ``iterations = m`` makes exactly m + 1 solves.
 
-    Returns (q̈, τ of motion joints, number of solves, converged flag).
+    Returns (q̈, τ of motion joints, number of solves, converged flag, τ of closed-loop joints
+    (the law at the final iterate; None without ``cl``)).
     """
     P, F = lay.presc, lay.free
     pres = _prescribed(case, lay, t1, True)
@@ -1124,8 +1142,13 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
         else:
             A = M + Aeff_const
             rhs = f + rhs_const
+        if cl is not None:
+            laws = _laws_at(cl, t1, True, q, qd, qdd)
+            gc.linearise(cl["loop"], A, rhs, qdd, laws, cq, cv, cl["dz"])
         new = qdd.copy()
         new[F] = _linear_solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P], ctx["linear_solver"])
+        if cl is not None:
+            cl["tau_used"] = gc.applied(cl["loop"], laws, new - qdd, cq, cv, cl["dz"])
         delta = np.max(np.abs(new[F] - qdd[F])) if F.size else 0.0
         qdd = new
         if not np.isfinite(delta):
@@ -1142,12 +1165,23 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv):
             break
         prev = delta
     tau_p = A[P] @ qdd - rhs[P]
-    return qdd, tau_p, i + 1, converged
+    tau_c = None
+    if cl is not None:
+        tau_c = _laws_at(cl, t1, True, qt + cq * qdd, qtd + cv * qdd, qdd)[0]
+    return qdd, tau_p, i + 1, converged, tau_c
+
+
+def _laws_at(cl: dict, t, left, q, qd, qdd):
+    """The closed-loop laws at an iterate, z = zc + dz·α (see :func:`_global_control.evaluate`)."""
+    loop = cl["loop"]
+    z = cl["zc"] + cl["dz"] * q[loop.rows]
+    return gc.evaluate(loop, t, left, q, qd, qdd, z, cl["tau_used"])
 
 
 @dataclass
 class _State:
-    """Integrator state at a step end: q, q̇, q̈, the generalized-α auxiliary a, joint torques."""
+    """Integrator state at a step end: q, q̇, q̈, the generalized-α auxiliary a, joint torques
+    and the integral states z (nc,) of the closed-loop joints (None without)."""
 
     t: float
     q: np.ndarray
@@ -1155,16 +1189,52 @@ class _State:
     qdd: np.ndarray
     a: np.ndarray
     tau: np.ndarray
+    z: np.ndarray | None = None
+
+
+def _forward_closed(case, lay, ctx, q, qd, t, left, z, tau0):
+    """:func:`_forward` with the closed-loop laws at the state (q, q̇) and integral states z:
+    M q̈ = Q − h − f_int − f_d + Σ τ_i(q̈) e_{α_i}, solved by iterating the laws' linearisation
+    (their dependence on ω̇ is the only one at a fixed state). Returns (q̈, τ of motion joints,
+    τ of closed-loop joints)."""
+    P, F = lay.presc, lay.free
+    loop = ctx["loop"]
+    cl = {"loop": loop, "zc": z, "dz": np.zeros(z.size), "tau_used": tau0}
+    pres = _prescribed(case, lay, t, left)
+    M, f = _assemble(lay, q, qd, ctx["sel"])
+    rhs0 = f + _torques(case, lay, t, left) - _internal(lay, q)[0] - _damping(lay, q, qd)[0]
+    x = np.zeros(lay.n_dof)
+    x[P] = pres[:, 2]
+    for _ in range(ctx["max_iterations"]):
+        A, rhs = M.copy(), rhs0.copy()
+        laws = _laws_at(cl, t, left, q, qd, x)
+        gc.linearise(loop, A, rhs, x, laws, 0.0, 0.0, cl["dz"])
+        new = x.copy()
+        new[F] = _linear_solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ x[P], ctx["linear_solver"])
+        cl["tau_used"] = gc.applied(loop, laws, new - x, 0.0, 0.0, cl["dz"])
+        delta = np.max(np.abs(new - x))
+        x = new
+        if not delta > 1e-14 * max(1.0, np.max(np.abs(x))):
+            break
+    tau_p = A[P] @ x - rhs[P]
+    return x, tau_p, _laws_at(cl, t, left, q, qd, x)[0]
 
 
 def _initial(case, lay, ctx) -> _State:
-    """State at t = 0: drive initial values, undeformed links, q̈ from the equations."""
+    """State at t = 0: drive initial values, undeformed links, q̈ from the equations (with the
+    closed-loop laws, integral states 0)."""
     P = lay.presc
     q, qd = _initial_state(case, lay)
     pres = _prescribed(case, lay, 0.0, False)
     q[P], qd[P] = pres[:, 0], pres[:, 1]
-    qdd, tau_p = _forward(case, lay, q, qd, 0.0, False, ctx["linear_solver"], ctx["sel"])
-    return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p))
+    loop = ctx["loop"]
+    if loop is None:
+        qdd, tau_p = _forward(case, lay, q, qd, 0.0, False, ctx["linear_solver"], ctx["sel"])
+        return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p))
+    z = np.zeros(loop.joints.size)
+    qdd, tau_p, tau_c = _forward_closed(case, lay, ctx, q, qd, 0.0, False, z, np.zeros(z.size))
+    tau = _joint_torques(case, lay, 0.0, False, tau_p, loop, tau_c)
+    return _State(0.0, q, qd, qdd, qdd.copy(), tau, z)
 
 
 def _predict(st: _State, dt: float, coef):
@@ -1176,27 +1246,47 @@ def _predict(st: _State, dt: float, coef):
     return qt, qtd, beta * dt * dt * (1 - af) / (1 - am), gamma * dt * (1 - af) / (1 - am)
 
 
+def _step_loop(loop, st: _State, t1: float) -> dict | None:
+    """The closed-loop data of the step st.t → t1: the trapezoidal integral state
+    z_{n+1} = z_n + (h/2)(α_ref(t_n) − α_n + α_ref(t_{n+1})) − (h/2) α_{n+1} = zc + dz·α_{n+1}
+    (pid joints; zc = dz = 0 else), and the torques of the last solve (a user law's M_root)."""
+    if loop is None:
+        return None
+    half = 0.5 * (t1 - st.t)
+    err0 = gc.reference_angles(loop, st.t) - st.q[loop.rows]
+    zc = np.where(loop.pid, st.z + half * (err0 + gc.reference_angles(loop, t1)), 0.0)
+    dz = np.where(loop.pid, -half, 0.0)
+    return {"loop": loop, "zc": zc, "dz": dz, "tau_used": st.tau[loop.joints].copy()}
+
+
 def _step(case, lay, ctx, st: _State, t1: float, coef):
     """One step to t1. Returns (new state, solves used, converged flag)."""
     _, _, am, af = coef
     qt, qtd, cq, cv = _predict(st, t1 - st.t, coef)
+    cl = _step_loop(ctx["loop"], st, t1)
     try:
-        qdd, tau_p, n_solves, ok = _iterate(case, lay, ctx, t1, qt, qtd, st.qdd, cq, cv)
+        qdd, tau_p, n_solves, ok, tau_c = _iterate(case, lay, ctx, t1, qt, qtd, st.qdd, cq, cv, cl)
     except np.linalg.LinAlgError:
         qdd, tau_p, n_solves, ok = np.full_like(st.qdd, np.nan), np.zeros(lay.presc.size), 1, False
+        tau_c = None if cl is None else np.full(cl["zc"].size, np.nan)
     q, qd = qt + cq * qdd, qtd + cv * qdd
     a = ((1 - af) * qdd + af * st.qdd - am * st.a) / (1 - am)
     P = lay.presc
     pres = _prescribed(case, lay, t1, True)
     q[P], qd[P], a[P] = pres[:, 0], pres[:, 1], pres[:, 2]
-    tau = _joint_torques(case, lay, t1, True, tau_p)
-    return _State(t1, q, qd, qdd, a, tau), n_solves, ok
+    tau = _joint_torques(case, lay, t1, True, tau_p, ctx["loop"], tau_c)
+    z = None if cl is None else cl["zc"] + cl["dz"] * q[cl["loop"].rows]
+    return _State(t1, q, qd, qdd, a, tau, z), n_solves, ok
 
 
 def _restart(case, lay, ctx, st: _State) -> _State:
     """After a drive breakpoint: q̈ (and a) from the equations with right-limit drive values."""
-    qdd, _ = _forward(case, lay, st.q, st.qd, st.t, False, ctx["linear_solver"], ctx["sel"])
-    return _State(st.t, st.q, st.qd, qdd, qdd.copy(), st.tau)
+    if ctx["loop"] is None:
+        qdd, _ = _forward(case, lay, st.q, st.qd, st.t, False, ctx["linear_solver"], ctx["sel"])
+    else:
+        tau0 = st.tau[ctx["loop"].joints].copy()
+        qdd = _forward_closed(case, lay, ctx, st.q, st.qd, st.t, False, st.z, tau0)[0]
+    return _State(st.t, st.q, st.qd, qdd, qdd.copy(), st.tau, st.z)
 
 
 def _check_finite(rec, lay, st: _State, n: int, wall0: float, meta: dict):
@@ -1217,6 +1307,7 @@ def _newmark_run(case, lay, k, h, integrator, opt):
         "linear_solver": opt["linear_solver"],
         "max_iterations": opt["max_iterations"],
         "sel": _element_selector(lay),
+        "loop": gc.loop_of(case, lay, lambda q: _tip_deflections(lay, q)),
     }
     meta = _base_meta(lay, k, h, integrator, opt)
     meta.update(dict(zip(("beta", "gamma", "alpha_m", "alpha_f"), coef)))
@@ -1232,7 +1323,7 @@ def _newmark_run(case, lay, k, h, integrator, opt):
         if not ok:
             unconverged.append(n)
         _check_finite(rec, lay, new, n, wall0, meta)
-        _emit_outputs(case, lay, rec, st, new, tol_t)
+        _emit_outputs(case, lay, rec, st, new, tol_t, ctx["loop"])
         st = _restart(case, lay, ctx, new) if restart[n] else new
     wall = time.perf_counter() - wall0
     meta.update(
@@ -1259,10 +1350,10 @@ def _convergence(meta: dict, unconverged, t_end, opt):
     return "unconverged", (msg,)
 
 
-def _emit_outputs(case, lay, rec, start: _State, end: _State, tol_t):
+def _emit_outputs(case, lay, rec, start: _State, end: _State, tol_t, loop=None):
     """Record every output time in (t0, t1]: the step-end state when it falls on t1, else
-    cubic Hermite interpolation of (q, q̇) (prescribed joints from their law; their torque
-    linear between the step ends)."""
+    cubic Hermite interpolation of (q, q̇) (prescribed joints from their law; their torque,
+    and that of the closed-loop joints of ``loop``, linear between the step ends)."""
     t0, q0, qd0, tau0 = start.t, start.q, start.qd, start.tau
     t1, q1, qd1, tau1 = end.t, end.q, end.qd, end.tau
     while rec.next_time <= t1 + tol_t:
@@ -1275,7 +1366,9 @@ def _emit_outputs(case, lay, rec, start: _State, end: _State, tol_t):
             pres = _prescribed(case, lay, t, False)
             q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
         s = (t - t0) / (t1 - t0)
-        tau = _joint_torques(case, lay, t, False, ((1 - s) * tau0 + s * tau1)[lay.motion])
+        lin = (1 - s) * tau0 + s * tau1
+        tau_c = None if loop is None else lin[loop.joints]
+        tau = _joint_torques(case, lay, t, False, lin[lay.motion], loop, tau_c)
         rec.add(q, qd, tau)
 
 

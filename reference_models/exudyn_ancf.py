@@ -3,7 +3,7 @@
 Each link: k cable elements on k + 1 ``NodePoint2DSlope1`` nodes (reference coordinates
 [x, y, cos θ, sin θ]); a hub and a tip ``NodeRigidBody2D`` at the link ends, each clamped to the
 end node of the beam by an ``ObjectJointGeneric`` locking x, y and the rotation about z (the
-orientation of a slope node is the angle of its slope vector). Everything else (joints, drives,
+orientation of a slope node is the angle of its slope vector). Everything else (joints, drives incl. closed-loop laws,
 gravity, solver, outputs): :mod:`reference_models._exudyn_common`.
 
 Options beyond the common ones: ``reduced_integration`` (bool, default False) switches the

@@ -14,7 +14,7 @@ which runs with 1e-5 and at h = 5e-4. The report's studies use ``"physical"`` on
 For inextensible links EA is the stiff value of
 :func:`reference_models._exudyn_common.stiff_axial_stiffness`, and κGA and ρI follow from it.
 Damping D = μK on all three strains: μ·EI, μ·EA, μ·κGA.
-Everything else: :mod:`reference_models._exudyn_common`.
+Everything else (joints, drives incl. closed-loop laws, solver): :mod:`reference_models._exudyn_common`.
 """
 
 from __future__ import annotations

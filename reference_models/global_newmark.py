@@ -28,6 +28,11 @@ damping forces linearised at the iterate, and stops by the same rule as
 that stagnates at the round-off floor (Δ ≥ 0.9·Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)).
 A step that exhausts ``max_iterations`` makes the Result's status "unconverged".
 
+Closed-loop drive laws (``pd``, ``pid``, user laws; docs/control.md, "Global solver") are
+solved implicitly at every step end with the stepped integrators: the law's torque enters the
+generalized force of its joint, its linearisation the iteration matrix, with the root bending
+moment M_root = τ − J_hub ω̇ (ω̇ a fixed row of q̈). See :mod:`reference_models._global_control`.
+
 This module is an independent implementation: it shares with :mod:`dttmm` only the model,
 scenario and result classes, the step schedule and the errors.
 
@@ -39,8 +44,7 @@ r_O = r_I + A(θ)(l + u, v), θ_O = θ + φ; a joint adds α to the angle.
 
 from __future__ import annotations
 
-from dttmm.drives import require_open_loop
-
+from . import _global_control
 from ._global_numpy import (
     _STEPPED,
     ENGINES,
@@ -112,7 +116,8 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
         For ``"newmark"``/``"generalized-alpha"``: ``"numba"`` (compiled recursive assembly,
         Cholesky solve and time loop; the default when numba is installed) or ``"numpy"``
         (dense Jacobian products and LU; the readable reference, same results to round-off).
-        The adaptive integrators always use the numpy engine.
+        The adaptive integrators always use the numpy engine. Closed-loop user laws (Python
+        callables) need ``"numpy"``.
 
     Returns
     -------
@@ -124,16 +129,20 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     Raises
     ------
     dttmm.InputError
-        Bad k, h, integrator or option (the message names the field).
+        Bad k, h, integrator or option (the message names the field); a closed-loop drive
+        with ``"radau"``/``"dop853"``, or a user law with the compiled engine.
     dttmm.SimulationError
         Non-finite state or failed adaptive integration; ``partial`` holds the outputs so far.
     """
     case = _check_case(case)
-    require_open_loop(case, "global")
     k = _check_k(elements_per_link)
     h = _check_h(case, h)
     opt = _check_options(integrator, options)
     engine = _check_engine(engine, integrator, opt)
+    if integrator not in _STEPPED:
+        _global_control.require_stepped(case, f"integrator {integrator!r}")
+    elif engine == "numba":
+        _global_control.require_python_engine(case)
     lay = _layout(case, k, strain)
     if integrator in _STEPPED:
         if engine == "numba":

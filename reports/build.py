@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import bench, benchmarks, figures, interpret, peers
+from . import bench, benchmarks, control, figures, interpret, peers
 from .render import Section, write
 from .scoreboard import scoreboard
 
@@ -340,6 +340,7 @@ SECTION_BUILDERS = [
     _loads,
     _cost,
     benchmarks.section,  # benchmark problems (published single-case checks)
+    control.section,  # closed-loop drives: tracking, moment feedback, natural frequencies
     _peer_configuration,
     _bench_section,
 ]

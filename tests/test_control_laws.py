@@ -260,7 +260,6 @@ def test_require_open_loop_names_law_joint_and_method():
 
 
 def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
-    from pathlib import Path
 
     path = (
         Path(__file__).resolve().parents[1]
@@ -275,13 +274,3 @@ def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
     assert [d.law.reference.motion(1.0)[0] for d in case.scenario.drives] == [0.8, -0.6, 0.4]
     with pytest.raises(InputError, match="joint 1 is not supported by dttmm yet"):
         require_open_loop(case, "dttmm")
-
-
-@pytest.mark.parametrize("module", ["reference_models.global_newmark", "reference_models.exudyn_ancf"])
-def test_engines_without_closed_loop_refuse_it_by_name(module):
-    mod = pytest.importorskip(module)
-    case = dttmm.load_case(
-        Path(__file__).parents[1] / "experiments" / "cases" / "control" / "closed_loop_three_link.toml"
-    )
-    with pytest.raises(InputError, match=r"drives\[0\].*'pd'.*not supported by"):
-        mod.simulate(case, elements_per_link=2, h=1e-3)
