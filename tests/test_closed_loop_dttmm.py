@@ -279,6 +279,18 @@ def test_user_law_equals_the_pd_law(integrator, h, gain):
     np.testing.assert_allclose(runs[0].joint_torque, runs[1].joint_torque, rtol=0, atol=1e-9)
 
 
+def test_unconverged_moment_loop_is_reported():
+    """RK4 with moment feedback solves the laws' loop in ω̇ by repeated sweeps: cut short by
+    max_iterations = 1, the run says so."""
+    case = three_link(duration=1e-3, output_step=1e-4)
+    res = dttmm.simulate(case, elements_per_link=2, h=1e-5, integrator="rk4", max_iterations=1)
+    assert res.status == "unconverged"
+    assert res.meta["unconverged_solves"] > 0
+    assert any("forward-dynamics solves" in w for w in res.warnings)
+    ok = dttmm.simulate(case, elements_per_link=2, h=1e-5, integrator="rk4")
+    assert ok.status == "ok" and "unconverged_solves" not in ok.meta
+
+
 def test_refusals_name_the_drive():
     case = rotor(PD(KP, KD, Constant(0.3)))
     with pytest.raises(InputError, match=r"scenario\.drives\[0\]\.law.*sweep='riccati'"):

@@ -445,6 +445,8 @@ def simulate_structure(st: Structure, s: Settings):
             float(rec.t[upto - 1]) if upto else 0.0,
         )
     _add_stats(meta, stats, s, n_steps, wall, t_end)
+    if ws.fd_unconverged[0]:
+        meta["unconverged_solves"] = int(ws.fd_unconverged[0])
     if rec.energy.size and not any(st.motion):
         _energy_growth(meta, st, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
     status, warns = verdict(meta, s, n_steps)
@@ -459,7 +461,8 @@ ILL_CONDITIONED = 1e8
 def verdict(meta: dict, s: Settings, n_steps: int):
     """(status, warnings) of a finished run: "ill-conditioned" when the plain sweep's largest
     final-system condition number exceeds :data:`ILL_CONDITIONED`; "unconverged" when a
-    tolerance-driven step used all ``max_iterations`` sweeps, or when the residual check of a
+    tolerance-driven step used all ``max_iterations`` sweeps, when a forward-dynamics solve with
+    closed-loop laws did (``meta["unconverged_solves"]``), or when the residual check of a
     fixed sweep count or "auto" (``meta["residual_*"]``) flagged a step; else "ok"."""
     warns = []
     status = "ok"
@@ -469,6 +472,13 @@ def verdict(meta: dict, s: Settings, n_steps: int):
         warns.append(
             f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
             f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}"
+        )
+    n_fd = meta.get("unconverged_solves", 0)
+    if n_fd:
+        status = "unconverged"
+        warns.append(
+            f"{n_fd} forward-dynamics solves with closed-loop laws (t = 0, restarts, RK4 stages) "
+            f"stopped after max_iterations = {s.max_iterations} sweeps before reaching tol = {s.tol:g}"
         )
     n_flag = meta.get("residual_flagged", 0)
     if n_flag:

@@ -176,6 +176,7 @@ class Work(NamedTuple):
     tb: np.ndarray  # (n,) closed loop: the base sweep's torques
     amat: np.ndarray  # (n, n) closed loop: ∂y/∂τ' of the sweep
     gmat: np.ndarray  # (n, n + 1) closed loop: scratch of the solve
+    fd_unconverged: np.ndarray  # (1,) closed loop: forward-dynamics solves out of sweeps
 
 
 def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
@@ -208,6 +209,7 @@ def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
         tb=np.zeros(n),
         amat=np.zeros((n, n)),
         gmat=np.zeros((n, n + 1)),
+        fd_unconverged=np.zeros(1, np.int64),
     )
 
 
@@ -289,7 +291,8 @@ def accel_closed(md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, to
     feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
     ω̇ of its link root, itself a result of the sweep: the sweeps repeat, each with the laws
     linearised in α̈ at the last one, until max|Δq̈| ≤ tol·max(1, max|q̈|) (at most
-    ``max_iterations``). The torques of closed-loop joints are the laws' τ. Returns (ok, cond)."""
+    ``max_iterations``; a solve that stops there counts in ws.fd_unconverged). The torques of
+    closed-loop joints are the laws' τ. Returns (ok, cond)."""
     copy(q, ws.qs)
     copy(qd, ws.qds)
     for i in range(md.n):
@@ -300,6 +303,7 @@ def accel_closed(md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, to
     effective_mass(md, 0.0, 0.0, dt)
     ok = True
     cond = np.nan
+    converged = False
     for it in range(opts.max_iterations):
         if it > 0:
             copy(ws.taul, ws.tb)
@@ -315,6 +319,7 @@ def accel_closed(md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, to
         if not ok:
             return ok, cond
         if not loop:
+            converged = True
             break
         if it > 0:
             dx = 0.0
@@ -322,9 +327,14 @@ def accel_closed(md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, to
             for r in range(xout.shape[0]):
                 dx = max(dx, abs(xout[r] - ws.xc[r]))
                 xmax = max(xmax, abs(xout[r]))
-            if dx <= opts.tol * max(1.0, xmax) or not math.isfinite(dx):
+            if dx <= opts.tol * max(1.0, xmax):
+                converged = True
+                break
+            if not math.isfinite(dx):
                 break
         copy(xout, ws.xc)
+    if not converged:
+        ws.fd_unconverged[0] += 1
     for i in range(md.n):
         if not md.motion[i] and drv.code[i] == 0:  # closed loop: the sweep's τ until the laws
             torque[i] = tau[i]
