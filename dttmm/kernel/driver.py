@@ -388,7 +388,24 @@ def simulate_structure(st: Structure, s: Settings):
     if closed:
         ff0, ref0 = control.time_tables(st.case, [0.0], left=False)
         ok, cond0 = lp.accel_closed(
-            md, dt, opts, 0.0, q, qd, tau0, mot0, drv, ff0[0], ref0[0], z0, ws, qdd, ws.torque, loads, True
+            md,
+            dt,
+            opts,
+            0.0,
+            q,
+            qd,
+            tau0,
+            mot0,
+            drv,
+            ff0[0],
+            ref0[0],
+            z0,
+            ws,
+            qdd,
+            ws.torque,
+            loads,
+            True,
+            True,
         )
         zerr0 = np.where(drv.code == control.CODE_PD, ref0[0, :, 0] - q[st.alpha_index], 0.0)
     else:
@@ -595,8 +612,14 @@ def md_lim(st: Structure, index: int) -> float:
 
 
 def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> None:
-    if s.integrator == "rk4":
-        meta.update({"iterations_mean": 4.0, "iterations_max": 4, "unconverged_steps": 0})
+    if s.integrator == "rk4":  # four solves per step (more sweeps with closed-loop laws)
+        meta.update(
+            {
+                "iterations_mean": float(stats.sweeps[0]) / max(n_steps, 1),
+                "iterations_max": int(stats.max_sweeps[0]),
+                "unconverged_steps": 0,
+            }
+        )
     else:
         meta.update(
             {

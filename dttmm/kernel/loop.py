@@ -177,6 +177,7 @@ class Work(NamedTuple):
     amat: np.ndarray  # (n, n) closed loop: ∂y/∂τ' of the sweep
     gmat: np.ndarray  # (n, n + 1) closed loop: scratch of the solve
     fd_unconverged: np.ndarray  # (1,) closed loop: forward-dynamics solves out of sweeps
+    fd_sweeps: np.ndarray  # (1,) closed loop: sweeps of the forward-dynamics solves
 
 
 def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
@@ -210,6 +211,7 @@ def new_work(n_dof: int, n: int, n_cuts: int) -> Work:
         amat=np.zeros((n, n)),
         gmat=np.zeros((n, n + 1)),
         fd_unconverged=np.zeros(1, np.int64),
+        fd_sweeps=np.zeros(1, np.int64),
     )
 
 
@@ -286,13 +288,16 @@ def sensitivity(md, dt, opts, q, qd, drv, ws, columns):
 
 # a real call: closed-loop runs only, and inlining it four times into `run` costs compile time
 @njit(nrt=False)
-def accel_closed(md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads):
+def accel_closed(
+    md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads, fresh
+):
     """:func:`accel` with closed-loop joints: their laws at (q, q̇) and time t, integral states z (n,),
     feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
     ω̇ of its link root, itself a result of the sweep: the sweeps repeat, each with the laws
     linearised in α̈ at the last one, until max|Δq̈| ≤ tol·max(1, max|q̈|) (at most
-    ``max_iterations``; a solve that stops there counts in ws.fd_unconverged). The torques of
-    closed-loop joints are the laws' τ. Returns (ok, cond)."""
+    ``max_iterations``; a solve that stops there counts in ws.fd_unconverged). With moment
+    feedback past the first joint the sensitivity A is measured anew if ``fresh``, else the
+    last one serves. The torques of closed-loop joints are the laws' τ. Returns (ok, cond)."""
     copy(q, ws.qs)
     copy(qd, ws.qds)
     for i in range(md.n):
@@ -310,12 +315,14 @@ def accel_closed(md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, to
         loop = state_laws(md, dt, drv, t, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
         if opts.coupled:
             if it == 0:
-                if not sensitivity(md, dt, opts, ws.qs, ws.qds, drv, ws, True):
+                if not sensitivity(md, dt, opts, ws.qs, ws.qds, drv, ws, fresh):
                     return False, cond
+                ws.fd_sweeps[0] += n_sensitivity(md, drv) if fresh else 1
             else:
                 copy(ws.yk, ws.yb)
             correct(md, drv, ws)
         ok, cond = sweep(md, dt, opts.sweep, ws.qs, ws.qds, ws.taul, ws.acc, xout, torque, loads)
+        ws.fd_sweeps[0] += 1
         if not ok:
             return ok, cond
         if not loop:
@@ -557,9 +564,10 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, ke
 
 
 @njit(nrt=False, inline="always")
-def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads):
+def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fresh):
     """Forward dynamics at an RK4 stage of step s of size h (``stage`` 1: mid-step laws of
-    time, 2: the step end) into xout; closed-loop laws with the stage's integral states ws.zs."""
+    time, 2: the step end) into xout; closed-loop laws with the stage's integral states ws.zs
+    (``fresh``: measure the sensitivity A, :func:`accel_closed`)."""
     if stage == 1:
         tau, mot = drv.tau_mid[s], drv.mot_mid[s]
     else:
@@ -573,7 +581,24 @@ def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads):
     else:
         ff, ref = drv.ff_left[s], drv.ref_left[s]
     return accel_closed(
-        md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, ws.zs, ws, xout, ws.torque, ws.loads, want_loads
+        md,
+        dt,
+        opts,
+        t,
+        q,
+        qd,
+        tau,
+        mot,
+        drv,
+        ff,
+        ref,
+        ws.zs,
+        ws,
+        xout,
+        ws.torque,
+        ws.loads,
+        want_loads,
+        fresh,
     )
 
 
@@ -595,6 +620,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
     q, qd, qdd = st.q, st.qd, st.qdd
     qi, qdi, k2v, k3v, ka, x, xn = ws.qi, ws.qdi, ws.k2, ws.k3, ws.ka, ws.x, ws.xn
     hf = 0.5 * h
+    fd0 = ws.fd_sweeps[0]
     if opts.closed:  # stage 1: ż = e_n
         for i in range(md.n):
             ws.zsum[i] = st.zerr[i]
@@ -603,7 +629,8 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
         qi[r] = q[r] + hf * qd[r]
         qdi[r] = qd[r] + hf * qdd[r]
         k2v[r] = qdi[r]
-    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, ka, False)
+    fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])  # else the A of an earlier stage
+    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, ka, False, fresh)
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, hf)
@@ -611,14 +638,14 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
             qi[r] = q[r] + hf * k2v[r]
             qdi[r] = qd[r] + hf * ka[r]
             k3v[r] = qdi[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, x, False)
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, x, False, False)
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, h)
         for r in range(q.shape[0]):
             qi[r] = q[r] + h * k3v[r]
             qdi[r] = qd[r] + h * x[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 2, ws, xn, False)
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 2, ws, xn, False, False)
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_left[s], qi, 1.0, 0.0)
@@ -631,7 +658,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
             q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
             qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
         apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
-        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, h, 2, ws, qdd, drv.need_loads[s])
+        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, h, 2, ws, qdd, drv.need_loads[s], False)
         if opts.closed:
             for i in range(md.n):
                 if drv.code[i] == CODE_PD:
@@ -640,8 +667,9 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
         return False
     if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep: keep the max
         stats.cond_max[0] = cond
-    stats.sweeps[0] += 4
-    stats.max_sweeps[0] = 4
+    used = ws.fd_sweeps[0] - fd0 if opts.closed else 4
+    stats.sweeps[0] += used
+    stats.max_sweeps[0] = max(stats.max_sweeps[0], used)
     return True
 
 
@@ -688,6 +716,7 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
                 ws.torque_r,
                 ws.loads_r,
                 False,
+                True,
             )
         else:
             ok, cond = accel(
