@@ -310,11 +310,6 @@ def test_three_link_mujoco_chain_converges_to_ancf():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(
-    strict=False,
-    raises=InputError,
-    reason="needs DT-TMM's closed loop (branch kernel); with it merged this passed (1.0e-6 m)",
-)
 def test_three_link_ancf_agrees_with_dttmm():
     """Two discretisations and integrators solving the same closed loop: tip positions within
     1.0e-6 m over the move (measured; 1.2e-6 m over 3 s). For scale, the same arm in open loop

@@ -319,15 +319,6 @@ def test_moment_feedback_lowers_the_deflection_as_in_the_mujoco_chain():
 # --------------------------------------------------------------------------------------------
 
 
-def _kernel_closed_loop() -> bool:
-    try:
-        dttmm.simulate(rotor(PD(KP, KD, Constant(0.3)), duration=0.01), elements_per_link=1, h=1e-3)
-    except InputError:
-        return False
-    return True
-
-
-@pytest.mark.xfail(not _kernel_closed_loop(), reason="the DT-TMM kernel does not run closed-loop drives yet")
 def test_dttmm_equals_global_solver_in_closed_loop():
     case = three_link(duration=0.3)
     a = dttmm.simulate(case, elements_per_link=2, h=1e-3)
