@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pydantic import BaseModel, ValidationError
 
 from .errors import InputError
+from .kernel.userlaw import JitState as JitState  # the state of a numba-jitted user law
 from .schema import LAW_FIELDS, DriveFields, PDGainFields, PIDGainFields, _short, check_fields
 
 __all__ = [
@@ -461,7 +462,9 @@ class PID(PD):
 class UserLaw:
     """A closed-loop law written in Python: ``fn(t, state) -> (τ, ∂τ/∂α, ∂τ/∂α̇)``.
 
-    ``state`` is a :class:`ControlState`. ``breakpoints`` (s): instants where τ may jump (the
+    ``state`` is a :class:`ControlState`; if ``fn`` is numba-jitted, it runs inside the
+    compiled kernel and ``state`` is a :class:`JitState` (the same fields, the tuples as
+    float64 arrays). ``breakpoints`` (s): instants where τ may jump (the
     integrators end a step there). ``label`` names the law in messages. A user law cannot be
     written to a case file.
     """

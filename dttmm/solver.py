@@ -14,6 +14,7 @@ from .case import Case
 from .drives import UserLaw, require_open_loop
 from .errors import InputError
 from .kernel import driver
+from .kernel.userlaw import is_jitted
 from .resources import check_run_size
 from .structure import STRAINS, build_structure
 from .sweeps import SWEEPS
@@ -55,17 +56,19 @@ def accelerations(
 
 
 def _check_closed_loop(case: Case, sweep: str, engine: str) -> None:
-    """Refuse the closed-loop drives the kernel does not run: user laws with the compiled
-    kernel, and any closed-loop law with the plain sweep."""
+    """Refuse the closed-loop drives the kernel does not run: user laws that are plain Python
+    functions with the compiled kernel (numba-jitted ones run), and any closed-loop law with
+    the plain sweep."""
     for i, d in enumerate(case.scenario.drives):
         if not d.closed_loop:
             continue
-        if isinstance(d.law, UserLaw) and engine != "python":
+        if isinstance(d.law, UserLaw) and engine != "python" and not is_jitted(d.law.fn):
             raise InputError(
                 f"scenario.drives[{i}].law",
                 d.law.label,
-                f"user law on joint {i + 1} runs with engine='python' only (the compiled kernel "
-                "calls no Python function; pd and pid laws run compiled)",
+                f"user law on joint {i + 1} is a plain Python function: it runs with "
+                "engine='python' only (the compiled kernel calls no Python function; write the law "
+                "as a numba-jitted function of (t, JitState) to run it compiled)",
             )
         if sweep == "plain":
             raise InputError(

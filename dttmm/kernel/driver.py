@@ -21,7 +21,7 @@ from ..result import make_result
 from ..scenario import Scenario
 from ..structure import Structure, build_structure
 from ..timegrid import step_schedule
-from . import _jit, loop
+from . import _jit, loop, userlaw
 from .layout import (
     INT_NEWMARK,
     INT_RK4,
@@ -166,7 +166,8 @@ def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.D
 
 def control_tables(st: Structure, t_end, restart, rk4: bool) -> dict:
     """The closed-loop fields of :class:`loop.Drives`: per joint the code (1: pd/pid, 2: user
-    law, whose laws are in ``user``: engine "python" only; else an empty array) and the
+    law, whose laws are in ``user``, a tuple; the compiled kernel takes them as
+    :class:`userlaw.UserTables`; else an empty array) and the
     constants (kp, kd, ki, g_M, limit, J_hub), per step the feedforward torque and the
     reference (α_ref, α̇_ref) at the step end (left limits), at restart steps the right limits,
     at mid-step (RK4). Without closed-loop joints: zeros, the tables one row."""
@@ -381,6 +382,8 @@ def simulate_structure(st: Structure, s: Settings):
     tau0, mot0 = drive_values(st, 0.0)
     qdd, loads = np.empty(st.n_dof), np.empty((ncuts, 3))
     drv = drive_tables(st, t_end, restart, np.zeros(n_steps, np.bool_), s.integrator == "rk4")
+    if s.engine == "numba" and isinstance(drv.user, tuple):  # numba-jitted user laws
+        drv = drv._replace(user=userlaw.tables(drv.user, st.n_links))
     closed = bool(drv.code.any())
     coupled = bool(np.any((drv.code[1:] == control.CODE_PD) & (drv.gain[1:, 3] * drv.gain[1:, 5] != 0.0)))
     opts = s.options(closed, coupled)

@@ -200,17 +200,22 @@ def correct(md, drv, ws):
             ws.taul[i] = ws.tb[i] + g[i, n]
 
 
-# --- user laws: engine "python" only -------------------------------------------------------
+# --- user laws: Python callables (engine "python"), numba-jitted laws (both engines) ----------------------------------------------------
 if PURE:
 
     def user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
         """User laws (code CODE_USER) at the iterate (q, q̇, q̈ = x) at time t: each law sees a
-        :class:`dttmm.drives.ControlState` (its moment: M_root = τ − J_hub ω̇ of the last sweep,
+        :class:`dttmm.drives.ControlState` (a numba-jitted law: a
+        :class:`dttmm.kernel.userlaw.JitState`) (its moment: M_root = τ − J_hub ω̇ of the last sweep,
         τ from ``tsweep``, 0 before the first; integral 0; every joint's angle and rate; every link's tip
         deflection in its clamped-root frame) and is linearised with s = ∂τ/∂α c_q + ∂τ/∂α̇ c_v
         into ws.acc, ws.taul = τ − s α̈_k; its τ goes to ``torque``. Returns whether there is
         one (its moment dependence is resolved by repeating the sweeps)."""
+        import math
+
         import numpy as np
+
+        from dttmm.kernel.userlaw import JitState, is_jitted  # the class of the compiled kernel
 
         from ..drives import ControlState
         from ..result import tip_deflection
@@ -225,21 +230,25 @@ if PURE:
         tips = tuple(float(v) for v in tip_deflection(scratch.root[0], scratch.root_angle[0], scratch.tip[0]))
         angles = tuple(float(q[j]) for j in ia)
         rates = tuple(float(qd[j]) for j in ia)
+        arrays = tuple(np.array(v, np.float64) for v in (angles, rates, tips))
         for i in range(n):
             if drv.code[i] != CODE_USER:
                 continue
             wd = 0.0 if first else root_omega_dot(md, dt, i)
             moment = 0.0 if first else tsweep[i] - drv.gain[i, JHUB] * wd
-            state = ControlState(
-                joint=i,
-                angle=angles[i],
-                rate=rates[i],
-                moment=float(moment),
-                integral=0.0,
-                angles=angles,
-                rates=rates,
-                tip_deflections=tips,
-            )
+            if is_jitted(drv.user[i].fn):  # a numba-jitted law takes the compiled kernel's state
+                state = JitState(i, angles[i], rates[i], float(moment), 0.0, *arrays, math.nan)
+            else:
+                state = ControlState(
+                    joint=i,
+                    angle=angles[i],
+                    rate=rates[i],
+                    moment=float(moment),
+                    integral=0.0,
+                    angles=angles,
+                    rates=rates,
+                    tip_deflections=tips,
+                )
             tau, d_a, d_r, _ = drv.user[i].evaluate(float(t), state)
             slope = d_a * cq + d_r * cv
             ws.acc[i] = slope
@@ -255,8 +264,57 @@ if PURE:
             self.root, self.tip, self.root_angle, self.energy = root, tip, root_angle, energy
 
 else:
+    import math
 
-    @njit(nrt=False, inline="always")
+    import numpy as np
+    from numba import types
+    from numba.extending import overload
+
+    from .recorder import sample
+    from .userlaw import JitState
+
     def user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
-        """The compiled kernel runs no user laws (refused before the run)."""
-        return False
+        """The user laws of the compiled kernel (numba-jitted laws in ``drv.user``, a
+        :class:`dttmm.kernel.userlaw.UserTables`), as in the uncompiled kernel; compiled by the
+        overload below, a no-op returning False where ``drv.user`` is an array (no user law)."""
+        raise NotImplementedError  # pragma: no cover - only ever compiled
+
+    @overload(user_laws, jit_options={"_nrt": False, "boundscheck": False})
+    def _user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+        if isinstance(drv.types[drv.fields.index("user")], types.Array):
+            # open-loop and pd/pid runs: their kernel has no user-law code at all
+
+            def none(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+                return False
+
+            return none
+
+        def laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+            u = drv.user
+            ia = md.i_alpha
+            sample(md, q, qd, 0, u)
+            for j in range(md.n):
+                th = u.root_angle[0, j]
+                dx = u.tip[0, j, 0] - u.root[0, j, 0]
+                dy = u.tip[0, j, 1] - u.root[0, j, 1]
+                u.tips[j] = -math.sin(th) * dx + math.cos(th) * dy
+                u.angles[j] = q[ia[j]]
+                u.rates[j] = qd[ia[j]]
+            for i in range(md.n):
+                if drv.code[i] != CODE_USER:
+                    continue
+                moment = 0.0
+                ak = 0.0
+                if not first:
+                    moment = tsweep[i] - drv.gain[i, JHUB] * root_omega_dot(md, dt, i)
+                    ak = x[ia[i]]
+                state = JitState(i, u.angles[i], u.rates[i], moment, 0.0, u.angles, u.rates, u.tips, np.nan)
+                tau, d_a, d_r = u.fns[u.slot[i]](t, state)
+                slope = d_a * cq + d_r * cv
+                ws.acc[i] = slope
+                ws.taul[i] = tau - slope * ak
+                ws.dw[i] = 0.0
+                torque[i] = tau
+            return True
+
+        return laws
