@@ -7,6 +7,8 @@ Both validate their settings here and hand the discretised case to the kernel
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from . import plumbing
@@ -158,4 +160,8 @@ def simulate(
         engine=driver.resolve_engine(engine),
         strain=strain,
     )
-    return driver.simulate_structure(build_structure(case, elements_per_link, strain), s)
+    with warnings.catch_warnings():
+        # numba flags its first-class function type (the calls of jitted user laws) as
+        # experimental each time it types one; this project's tests cover that use
+        warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
+        return driver.simulate_structure(build_structure(case, elements_per_link, strain), s)

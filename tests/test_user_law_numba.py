@@ -1,0 +1,135 @@
+"""Numba-jitted user laws inside the compiled DT-TMM kernel.
+
+A jitted law re-implementing PD must run as law="pd" (an independent implementation of the
+same discrete equations: the pd law's closed-form moment loop against the user law's moment
+resolved by repeated sweeps), and the compiled kernel must run it as the uncompiled kernel
+(engine "python") does. The first user-law run compiles a second specialisation of the kernel
+(~80 s CPU, then cached on disk): those runs are in the slow tier.
+"""
+
+from __future__ import annotations
+
+import dataclasses as dc
+
+import numpy as np
+import pytest
+
+import dttmm
+from dttmm.drives import PD, Constant, ControlState, Drive, JitState, UserLaw
+from dttmm.errors import InputError
+
+numba = pytest.importorskip("numba")
+
+from tests.test_closed_loop_dttmm import KD, KP, rotor, three_link  # noqa: E402
+
+
+def test_state_type_has_the_fields_of_control_state():
+    assert JitState._fields == tuple(f.name for f in dc.fields(ControlState))
+
+
+def test_law_that_does_not_fit_the_signature_names_the_drive():
+    @numba.njit
+    def bad(t, s):
+        return s.no_such_field, 0.0, 0.0
+
+    with pytest.raises(InputError, match=r"scenario\.drives\[0\]\.law.*numba-jitted user law"):
+        dttmm.simulate(rotor(UserLaw(bad)), elements_per_link=2, h=1e-3, engine="numba")
+
+
+def test_plain_python_law_is_still_refused_by_the_compiled_kernel():
+    with pytest.raises(InputError, match=r"scenario\.drives\[0\]\.law.*numba-jitted"):
+        dttmm.simulate(
+            rotor(UserLaw(lambda t, s: (0.0, 0.0, 0.0))), elements_per_link=2, h=1e-3, engine="numba"
+        )
+
+
+def _jit_pd(gain):
+    @numba.njit
+    def law(t, s):
+        return KP * (0.3 - s.angle) + KD * (0.0 - s.rate) - gain * s.moment, -KP, -KD
+
+    return UserLaw(law, label="jit-pd")
+
+
+def _close(a, b, angle_tol, load_tol):
+    """Angles to ``angle_tol``; rates and torques (set by the moment loop's iteration
+    tolerance where the two runs resolve it differently) to ``load_tol``."""
+    for f, tol in (("joint_angle", angle_tol), ("joint_rate", load_tol), ("joint_torque", load_tol)):
+        np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=0, atol=tol, err_msg=f)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("integrator", "h", "gain"), [("newmark", 1e-3, 0.0), ("newmark", 1e-3, 0.5), ("rk4", 2e-5, 0.5)]
+)
+def test_jitted_pd_law_on_the_rotor(integrator, h, gain):
+    """As law="pd" (the moment feedback through ``state.moment``) and as engine "python"."""
+    run = lambda law, engine: dttmm.simulate(
+        rotor(law, duration=0.02 if integrator == "rk4" else 0.05, EI=1e4),
+        elements_per_link=2,
+        h=h,
+        integrator=integrator,
+        engine=engine,
+    )
+    jit = run(_jit_pd(gain), "numba")
+    assert jit.status == "ok"
+    _close(jit, run(PD(KP, KD, Constant(0.3), moment_gain=gain), "numba"), 1e-12, 1e-9)
+    _close(jit, run(_jit_pd(gain), "python"), 1e-12, 1e-12)
+
+
+# the three-link arm's pd laws (experiments/cases/control/closed_loop_three_link.toml): ramps
+# to these angles over 1 s
+GAINS = np.array([[111.0, 16.5], [34.0, 5.0], [4.9, 0.73]])
+
+
+def _three_link_pd(targets):
+    gains = GAINS.copy()
+
+    @numba.njit
+    def law(t, s):
+        i = s.joint
+        v = targets[i]
+        kp, kd = gains[i, 0], gains[i, 1]
+        return kp * (v * t - s.angle) + kd * (v - s.rate), -kp, -kd
+
+    return UserLaw(law, label="jit-three-link")
+
+
+def _with_laws(case, laws):
+    drives = tuple(Drive("torque", law) for law in laws)
+    return dc.replace(case, scenario=dc.replace(case.scenario, drives=drives))
+
+
+@pytest.mark.slow
+def test_jitted_pd_law_on_the_three_link_arm():
+    """One jitted law on three joints (dispatching on ``state.joint``) as the case's pd laws."""
+    case = three_link(duration=0.02, moment_gain=0.0)
+    targets = np.array([d.law.reference.motion(1.0)[0] for d in case.scenario.drives])
+    law = _three_link_pd(targets)
+    kw = {"elements_per_link": 2, "h": 1e-3}
+    pd = dttmm.simulate(case, **kw)
+    jit = dttmm.simulate(_with_laws(case, (law,) * 3), **kw)
+    assert jit.status == "ok"
+    _close(jit, pd, 1e-12, 1e-9)
+
+
+@pytest.mark.slow
+def test_law_reading_tips_and_moment_runs_as_in_python():
+    """Distinct laws on the joints, reading every link's tip deflection and the root moment:
+    the compiled kernel sees the same state as the uncompiled one."""
+    case = three_link(duration=0.01, moment_gain=0.0)
+    targets = np.array([d.law.reference.motion(1.0)[0] for d in case.scenario.drives])
+    base = _three_link_pd(targets).fn
+
+    @numba.njit
+    def tips(t, s):
+        tau, da, dr = base(t, s)
+        return tau - 50.0 * (s.tip_deflections[0] + s.tip_deflections[2]) - 0.05 * s.moment, da, dr
+
+    laws = (UserLaw(tips), UserLaw(base), UserLaw(tips))
+    kw = {"elements_per_link": 2, "h": 1e-3}
+    a = dttmm.simulate(_with_laws(case, laws), engine="numba", **kw)
+    b = dttmm.simulate(_with_laws(case, laws), engine="python", **kw)
+    assert a.status == "ok"
+    _close(a, b, 1e-12, 1e-12)
+    assert np.abs(a.tip_deflection).max() > 0.0
