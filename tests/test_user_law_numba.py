@@ -142,3 +142,15 @@ def test_law_reading_tips_and_moment_runs_as_in_python():
     assert a.status == "ok"
     _close(a, b, 1e-12, 1e-12)
     assert np.abs(a.tip_deflection).max() > 0.0
+
+
+@pytest.mark.slow
+def test_non_finite_torque_stops_the_run_at_that_step():
+    @numba.njit
+    def bad(t, s):
+        if t > 0.0105:
+            return np.nan, -1.0, -1.0
+        return -s.angle, -1.0, 0.0
+
+    with pytest.raises(dttmm.SimulationError, match=r"non-finite.*t = 0\.011 s"):
+        dttmm.simulate(rotor(UserLaw(bad), duration=0.05, step=1e-3), elements_per_link=2, h=1e-3)
