@@ -387,9 +387,33 @@ def code_commit(root=None) -> str:
     return r.stdout.strip() if r.returncode == 0 else ""
 
 
+#: the folders whose code the benchmarks time: a benchmark file made at another commit still
+#: describes the code when none of them changed in between
+TIMED_CODE = ("dttmm", "reference_models", "benchmarks")
+
+
+def code_changed(since: str, commit: str, root=None) -> bool:
+    """Whether the timed code (:data:`TIMED_CODE`) differs between the two commits (True when
+    git cannot tell, e.g. a commit unknown to this checkout)."""
+    import subprocess
+
+    root = Path(root) if root else Path(__file__).resolve().parents[1]
+    try:
+        r = subprocess.run(
+            ["git", "diff", "--quiet", since, commit, "--", *TIMED_CODE],
+            cwd=root,
+            capture_output=True,
+            check=False,
+        )
+    except OSError:
+        return True
+    return r.returncode != 0
+
+
 def provenance(info, commit: str | None = None) -> list[str]:
     """Where the benchmark numbers come from, how they were timed, and a warning when the file
-    was made at another commit than the code (``commit``; found with git when None)."""
+    was made at another commit than the code (``commit``; found with git when None) and the
+    timed code changed in between."""
     commit = code_commit() if commit is None else commit
     cores = info.get("cores")
     dirty = " (uncommitted changes)" if info.get("dirty") else ""
@@ -403,7 +427,13 @@ def provenance(info, commit: str | None = None) -> list[str]:
         )
     ]
     bc = str(info.get("commit") or "")
-    if commit and bc and not (commit.startswith(bc) or bc.startswith(commit)):
+    other = commit and bc and not (commit.startswith(bc) or bc.startswith(commit))
+    if other and not code_changed(bc, commit):
+        out.append(
+            f"The file was made at commit {bc[:10]}; the timed code ({', '.join(TIMED_CODE)}) is the same "
+            f"at the code's commit {commit[:10]}."
+        )
+    elif other:
         out.append(
             f"Warning: this benchmark file was made at commit {bc[:10]}, not at the code's commit "
             f"{commit[:10]}; its timings may not describe this code (rerun `make bench`)."

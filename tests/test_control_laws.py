@@ -243,15 +243,15 @@ def test_case_file_pd_on_a_motion_drive_is_refused():
 
 def test_require_open_loop_names_law_joint_and_method():
     base = load('law = "constant"\nvalue = 1.0\n')
-    require_open_loop(base, "dttmm")  # open loop: nothing to refuse
+    require_open_loop(base, "my-engine")  # open loop: nothing to refuse
     link = base.model.links[0]
     drives = (Drive("torque", Constant(0.0)), Drive("torque", PD(1.0, 1.0, Constant(0.0))))
     case = dttmm.Case(dttmm.Manipulator((link, link)), dttmm.Scenario(1.0, 0.1, drives))
     with pytest.raises(InputError) as e:
-        require_open_loop(case, "exudyn-ancf")
+        require_open_loop(case, "my-engine")
     assert str(e.value) == (
         "scenario.drives[1].law = 'pd': closed-loop drive law 'pd' on joint 2 is not "
-        "supported by exudyn-ancf yet"
+        "supported by my-engine yet"
     )
     require_no_computed_torque(case, "mujoco-chain")
     ct = (drives[0], Drive("torque", PD(1.0, 1.0, Constant(0.0), ComputedTorque())))
@@ -259,7 +259,7 @@ def test_require_open_loop_names_law_joint_and_method():
         require_no_computed_torque(dttmm.Case(case.model, dttmm.Scenario(1.0, 0.1, ct)), "mujoco-chain")
 
 
-def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
+def test_the_shipped_closed_loop_case_loads_and_an_engine_without_closed_loop_refuses_it():
 
     path = (
         Path(__file__).resolve().parents[1]
@@ -272,5 +272,5 @@ def test_the_shipped_closed_loop_case_loads_and_is_refused_where_unsupported():
     assert [d.law.name for d in case.scenario.drives] == ["pd"] * 3
     assert all(d.closed_loop and d.law.moment_gain == 0.5 for d in case.scenario.drives)
     assert [d.law.reference.motion(1.0)[0] for d in case.scenario.drives] == [0.8, -0.6, 0.4]
-    with pytest.raises(InputError, match="joint 1 is not supported by dttmm yet"):
-        require_open_loop(case, "dttmm")
+    with pytest.raises(InputError, match="joint 1 is not supported by my-engine yet"):
+        require_open_loop(case, "my-engine")

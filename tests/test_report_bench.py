@@ -244,3 +244,34 @@ def test_crossover_text_names_where_dttmm_overtakes_the_global_solver(tmp_path):
     text = crossover_text(ok[ok.k > 1], scaling_csv=tmp_path / "s.csv")
     assert "at every k measured" in text[0]
     assert "cheaper up to k = 1" in text[1] and "no crossover" in text[2]
+
+
+def test_code_changed_looks_at_the_timed_code_only(tmp_path):
+    import shutil
+    import subprocess
+
+    if shutil.which("git") is None:
+        pytest.skip("git is not installed")
+    git = lambda *a: subprocess.run(
+        ["git", "-c", "user.name=t", "-c", "user.email=t@t", *a],
+        cwd=tmp_path,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+    git("init", "-q")
+    (tmp_path / "dttmm").mkdir()
+    (tmp_path / "dttmm" / "a.py").write_text("x = 1\n")
+    (tmp_path / "README.md").write_text("a\n")
+    git("add", "-A")
+    git("commit", "-qm", "one")
+    first = git("rev-parse", "HEAD")
+    (tmp_path / "README.md").write_text("b\n")
+    git("commit", "-qam", "docs only")
+    docs = git("rev-parse", "HEAD")
+    (tmp_path / "dttmm" / "a.py").write_text("x = 2\n")
+    git("commit", "-qam", "code")
+    code = git("rev-parse", "HEAD")
+    assert not bench.code_changed(first, docs, root=tmp_path)
+    assert bench.code_changed(docs, code, root=tmp_path)
+    assert bench.code_changed("0123456789", code, root=tmp_path)  # unknown commit: cannot tell

@@ -294,8 +294,9 @@ def accel_closed(
     """:func:`accel` with closed-loop joints: their laws at (q, q̇) and time t, integral states z (n,),
     feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
     ω̇ of its link root, itself a result of the sweep: the sweeps repeat, each with the laws
-    linearised in α̈ at the last one, until max|Δq̈| ≤ tol·max(1, max|q̈|) (at most
-    ``max_iterations``; a solve that stops there counts in ws.fd_unconverged). With moment
+    linearised in α̈ at the last one, until max|Δq̈| ≤ tol·max(1, max|q̈|) or the change stagnates
+    at the round-off floor, as in a step (at most ``max_iterations``; a solve that stops there
+    counts in ws.fd_unconverged). With moment
     feedback past the first joint the sensitivity A is measured anew if ``fresh``, else the
     last one serves. The torques of closed-loop joints are the laws' τ. Returns (ok, cond)."""
     copy(q, ws.qs)
@@ -309,6 +310,7 @@ def accel_closed(
     ok = True
     cond = np.nan
     converged = False
+    prev_dx = np.inf
     for it in range(opts.max_iterations):
         if it > 0:
             copy(ws.taul, ws.tb)
@@ -334,11 +336,16 @@ def accel_closed(
             for r in range(xout.shape[0]):
                 dx = max(dx, abs(xout[r] - ws.xc[r]))
                 xmax = max(xmax, abs(xout[r]))
-            if dx <= opts.tol * max(1.0, xmax):
+            scale = max(1.0, xmax)
+            if dx <= opts.tol * scale:
                 converged = True
+                break
+            if it >= 3 and dx >= 0.9 * prev_dx and dx <= 1e3 * opts.tol * scale:
+                converged = True  # stagnation at the round-off floor (the rule of a step's sweeps)
                 break
             if not math.isfinite(dx):
                 break
+            prev_dx = dx
         copy(xout, ws.xc)
     if not converged:
         ws.fd_unconverged[0] += 1
