@@ -17,6 +17,7 @@ import pytest
 import dttmm
 from dttmm.drives import PD, Constant, ControlState, Drive, JitState, UserLaw
 from dttmm.errors import InputError
+from dttmm.kernel.userlaw import make_state
 
 numba = pytest.importorskip("numba")
 
@@ -25,6 +26,21 @@ from tests.test_closed_loop_dttmm import KD, KP, rotor, three_link  # noqa: E402
 
 def test_state_type_has_the_fields_of_control_state():
     assert JitState._fields == tuple(f.name for f in dc.fields(ControlState))
+
+
+def test_a_law_can_be_tried_by_hand():
+    law = _jit_pd(0.5).fn
+    state = make_state(0, 0.1, -0.2, moment=0.4, tips=[1e-3])
+    assert isinstance(state.angles, np.ndarray) and state.tip_deflections[0] == 1e-3
+    assert law(0.0, state) == law.py_func(0.0, state) == (KP * 0.2 + KD * 0.2 - 0.2, -KP, -KD)
+
+
+def test_jitted_law_in_the_uncompiled_kernel():
+    """engine="python" passes a jitted law the compiled kernel's JitState (no kernel compile)."""
+    run = lambda law: dttmm.simulate(
+        rotor(law, duration=0.02, EI=1e4), elements_per_link=2, h=1e-3, engine="python"
+    )
+    _close(run(_jit_pd(0.5)), run(PD(KP, KD, Constant(0.3), moment_gain=0.5)), 1e-12, 1e-9)
 
 
 def test_law_that_does_not_fit_the_signature_names_the_drive():
