@@ -495,7 +495,10 @@ class UserLaw:
         return 0.0
 
     def evaluate(self, t: float, state: ControlState, left: bool = False):
-        """(τ, ∂τ/∂α, ∂τ/∂α̇, 0.0) from the user's function."""
+        """(τ, ∂τ/∂α, ∂τ/∂α̇, 0.0) from the user's function (a numba-jitted one is given the
+        state as a :class:`JitState`, in every engine)."""
+        if isinstance(state, ControlState) and _is_jitted(self.fn):
+            state = _jit_state(state)
         out = self.fn(t, state)
         try:
             tau, da, dr = (float(x) for x in out)
@@ -515,6 +518,30 @@ class UserLaw:
 
     def params(self) -> dict:
         raise InputError("law", self.label, "a user law (Python callable) cannot be written to a case file")
+
+
+def _is_jitted(fn) -> bool:
+    from .kernel.userlaw import is_jitted
+
+    return is_jitted(fn)
+
+
+def _jit_state(state: ControlState) -> JitState:
+    """The :class:`JitState` of a :class:`ControlState` (computed_torque None → nan)."""
+    from .kernel.userlaw import make_state
+
+    js = make_state(
+        state.joint,
+        state.angle,
+        state.rate,
+        state.moment,
+        state.integral,
+        state.angles or None,
+        state.rates or None,
+        state.tip_deflections or None,
+    )
+    ct = state.computed_torque
+    return js._replace(computed_torque=math.nan if ct is None else float(ct))
 
 
 LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table, PD, PID)}

@@ -60,6 +60,14 @@ def test_plain_python_law_is_still_refused_by_the_compiled_kernel():
 
 
 def _jit_pd(gain):
+    if gain is None:  # no moment term at all (the rigid baseline's moment is nan)
+
+        @numba.njit
+        def pd(t, s):
+            return KP * (0.3 - s.angle) + KD * (0.0 - s.rate), -KP, -KD
+
+        return UserLaw(pd, label="jit-pd")
+
     @numba.njit
     def law(t, s):
         return KP * (0.3 - s.angle) + KD * (0.0 - s.rate) - gain * s.moment, -KP, -KD
@@ -170,3 +178,22 @@ def test_non_finite_torque_stops_the_run_at_that_step():
 
     with pytest.raises(dttmm.SimulationError, match=r"non-finite.*t = 0\.011 s"):
         dttmm.simulate(rotor(UserLaw(bad), duration=0.05, step=1e-3), elements_per_link=2, h=1e-3)
+
+
+@pytest.mark.parametrize("engine", ["global-numpy", "exudyn-ancf", "pinocchio-rigid"])
+def test_a_jitted_law_runs_in_the_other_engines(engine):
+    """Engines that call a law from Python give a jitted one a JitState (UserLaw.evaluate): the
+    same run as law="pd" (without the moment term: the rigid baseline's moment is nan)."""
+    if engine == "global-numpy":
+        gn = pytest.importorskip("reference_models.global_newmark")
+        run = lambda law: gn.simulate(
+            rotor(law, duration=0.05, EI=1e4), elements_per_link=2, h=1e-3, engine="numpy"
+        )
+    elif engine == "exudyn-ancf":
+        ex = pytest.importorskip("reference_models.exudyn_ancf")
+        run = lambda law: ex.simulate(rotor(law, duration=0.05, EI=1e4), elements_per_link=2, h=1e-3)
+    else:
+        pr = pytest.importorskip("reference_models.pinocchio_rigid")
+        run = lambda law: pr.simulate(rotor(law, duration=0.05, EI=1e4), h=1e-3, integrator="rk4")
+    a, b = run(_jit_pd(None)), run(PD(KP, KD, Constant(0.3)))
+    _close(a, b, 1e-10, 1e-8)
