@@ -226,8 +226,8 @@ def tracking_figure(s: pd.DataFrame):
         if not ref and own and np.isfinite(d.ee_diff).any():
             axes[2].semilogy(d.t, np.maximum(d.ee_diff, 1e-12), **kw)
     axes[0].set_ylabel("tip deflection of link 1 (mm)")
-    axes[1].set_ylabel("largest |α − α_ref| of the joints (rad)")
-    axes[2].set_ylabel("end-effector distance to reference (m)")
+    axes[1].set_ylabel("max joint |α − α_ref| (rad)")
+    axes[2].set_ylabel("end-effector error (m)")
     if axes[2].lines:  # four decades below the largest distance: the start from zero is not of interest
         top = max(float(np.nanmax(ln.get_ydata())) for ln in axes[2].lines)
         axes[2].set_ylim(bottom=max(1e-12, 1e-4 * top))
