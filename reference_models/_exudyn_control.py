@@ -53,7 +53,8 @@ import math
 
 import numpy as np
 
-from dttmm.drives import ComputedTorque, ControlState, UserLaw
+from dttmm.control import time_tables
+from dttmm.drives import ControlState, UserLaw
 
 __all__ = ["ClosedLoop"]
 
@@ -83,8 +84,7 @@ class ClosedLoop:
         self.e_n = np.zeros(self.n)  # α_ref − α at t_n
         self.tau_last = np.zeros(self.n)
         self.error: BaseException | None = None  # first exception raised in a user function
-        self._cache: dict[int, tuple] = {}
-        self._ct_cache: tuple | None = None
+        self._cache: tuple | None = None  # ((t, left), ff (n,), ref (n, 2)) of the last time
         self.hub_idx = self.tip_idx = None
 
     # --- building ----------------------------------------------------------------------------
@@ -169,31 +169,13 @@ class ClosedLoop:
 
     # --- laws of time ------------------------------------------------------------------------
     def _time_laws(self, i: int, t: float, left: bool) -> tuple[float, float, float]:
-        """(α_ref, α̇_ref, τ_ff) of pd/pid joint i at t, cached per (t, left)."""
-        hit = self._cache.get(i)
-        if hit is not None and hit[0] == t and hit[1] == left:
-            return hit[2]
-        law = self.drives[i].law
-        a_ref, r_ref, _ = law.reference.motion(t, left)
-        ff = law.feedforward
-        if ff is None:
-            tff = 0.0
-        elif isinstance(ff, ComputedTorque):
-            tff = float(self._computed_torque(t, left)[i])
-        else:
-            tff = float(ff(t, left))
-        val = (float(a_ref), float(r_ref), tff)
-        self._cache[i] = (t, left, val)
-        return val
-
-    def _computed_torque(self, t: float, left: bool) -> np.ndarray:
-        if self._ct_cache is not None and self._ct_cache[0] == t and self._ct_cache[1] == left:
-            return self._ct_cache[2]
-        from dttmm.control import computed_torque
-
-        val = np.asarray(computed_torque(self.case, t, left), float)
-        self._ct_cache = (t, left, val)
-        return val
+        """(α_ref, α̇_ref, τ_ff) of pd/pid joint i at t (:func:`dttmm.control.time_tables`, the
+        feedforward incl. the computed torque), cached per (t, left)."""
+        if self._cache is None or self._cache[0] != (t, left):
+            ff, ref = time_tables(self.case, [t], left)
+            self._cache = ((t, left), ff[0], ref[0])
+        _, ff, ref = self._cache
+        return float(ref[i, 0]), float(ref[i, 1]), float(ff[i])
 
     # --- the laws ----------------------------------------------------------------------------
     def _mass_coupled(self, i: int) -> bool:

@@ -66,39 +66,16 @@ def test_pd_torque_solves_the_moment_loop_of_the_law(angle, omega_dot):
     law = PID(10.0, 2.0, Sine(0.4, 0.7), Constant(0.3), moment_gain=0.8, limit=12.0, ki=3.0)
     j_hub, t, rate, z = 0.05, 0.3, -0.4, 0.2
     a_ref, r_ref, _ = law.reference.motion(t)
-    tau, da, dr, dz, dw = control.pd_torque(
-        law.kp,
-        law.kd,
-        law.ki,
-        law.moment_gain,
-        law.limit,
-        j_hub,
-        0.3,
-        a_ref,
-        r_ref,
-        z,
-        angle,
-        rate,
-        omega_dot,
-    )
+
+    def torque(z=z, angle=angle, rate=rate, w=omega_dot):
+        args = (law.kp, law.kd, law.ki, law.moment_gain, law.limit, j_hub, 0.3, a_ref, r_ref)
+        return control.pd_torque(*args, z, angle, rate, w)
+
+    tau, da, dr, dz, dw = torque()
     state = ControlState(joint=0, angle=angle, rate=rate, moment=tau - j_hub * omega_dot, integral=z)
     assert law.evaluate(t, state)[0] == pytest.approx(tau, rel=1e-14, abs=1e-14)
     # the slopes against central differences of the closed form
-    f = lambda **kw: control.pd_torque(
-        law.kp,
-        law.kd,
-        law.ki,
-        law.moment_gain,
-        law.limit,
-        j_hub,
-        0.3,
-        a_ref,
-        r_ref,
-        kw.get("z", z),
-        kw.get("angle", angle),
-        kw.get("rate", rate),
-        kw.get("w", omega_dot),
-    )[0]
+    f = lambda **kw: torque(**kw)[0]
     eps = 1e-6
     for name, slope, x in (("angle", da, angle), ("rate", dr, rate), ("z", dz, z), ("w", dw, omega_dot)):
         num = (f(**{name: x + eps}) - f(**{name: x - eps})) / (2 * eps)
