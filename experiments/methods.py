@@ -1,40 +1,84 @@
-"""The methods the studies compare: one registry for how each runs and how it is shown.
+"""The methods the studies compare: one record per method, every trait the harness reads.
 
-Every method is called the same way, ``run(method, case, k, h, **options) -> dttmm.Result``;
-a method whose engine does not import, or whose ``simulate`` raises ``NotImplementedError``,
-is *unavailable*: :func:`available` reports it with the reason instead of crashing.
+A :class:`Method` holds where the method's ``simulate`` lives and the options it always gets,
+the physics it solves (element and strain: like-for-like pairs are derived from it), its
+discretisation parameter and what that means, what it supports (:data:`CAPABILITIES`), its
+libraries (for the cache key), its role, the settings it is run with and their sources (the
+report's "Peer configuration" section), the studies it sits out with the reason, and its label
+and plot style. Studies, figures, tables and the cache read these records; no other module
+keeps a list of method names (``tests/test_registry.py`` checks it).
 
-Each entry also carries its legend label and plot style (colour, marker, line style, marker
-size); figures, tables and sentences of the report take them from here (:func:`label`,
-:func:`style`). To add a method, append one ``Method(...)`` line to ``_BUILTIN``, e.g.
-``Method("mujoco-chain", "reference_models.mujoco_chain", label="MuJoCo chain", style=Style("C5", "X"))``.
-Names that are shown but not run (the reference curve, benchmark variants) live in ``_SHOWN``.
+Every method is called the same way, ``simulate(case, *, elements_per_link, h, **options) ->
+dttmm.Result``; :func:`run` and :func:`resolve` do that with the record's fixed options. A
+method whose engine does not import, or whose ``simulate`` raises ``NotImplementedError``, is
+*unavailable*: :func:`available` reports it with the reason instead of crashing.
+
+Methods from outside the package come in through :func:`register` (a record or a bare
+function), :func:`load_spec` (``my_pkg.my_solver:simulate`` or ``path/to/solver.py:simulate``,
+the ``--method`` option of ``dttmm report`` and ``dttmm validate``) or the entry-point group
+``dttmm.methods`` (:func:`entry_points`); see docs/methods.md.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
+import importlib.util
+import math
+import sys
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 __all__ = [
+    "CAPABILITIES",
     "METHODS",
+    "ROLES",
     "Method",
     "MethodUnavailable",
+    "Physics",
+    "Setting",
     "Style",
     "available",
+    "base_of",
+    "by_role",
+    "entry_points",
+    "get",
     "label",
+    "load_spec",
     "names",
     "register",
     "resolve",
     "run",
     "style",
+    "takes_part",
     "uses_k",
 ]
 
 
 class MethodUnavailable(RuntimeError):
     """The method cannot run here (engine missing or not implemented); the message says why."""
+
+
+#: What a method may support; a study or check that needs one skips a method without it, with
+#: the reason ("<label> has no <capability>").
+CAPABILITIES = {
+    "torque": "torque drives",
+    "motion": "prescribed-motion drives",
+    "closed_loop": "closed-loop drives (pd, pid, user laws)",
+    "moment_feedback": "root bending-moment feedback",
+    "gravity": "gravity",
+    "damping": "structural damping",
+    "payload": "hubs and payloads",
+    "energy": "total energy as an output",
+    "cut_loads": "cut loads (root bending moment) as an output",
+    "modes": "natural modes from its own linearisation",
+}
+#: subject: the DT-TMM runs the suite is about; reference: computes the converged references;
+#: peer: another flexible model; baseline: a deliberately simpler model (its error is a floor).
+ROLES = ("subject", "reference", "peer", "baseline")
+#: What the common ``elements_per_link`` argument means, per discretisation.
+DISCRETISATIONS = ("elements per link", "modes per link", "pieces per link", None)
 
 
 @dataclass(frozen=True)
@@ -52,36 +96,215 @@ class Style:
 
 
 @dataclass(frozen=True)
+class Physics:
+    """What a method solves. ``element``: the link model (``hermite-fe``, ``ancf-cable``,
+    ``ge-beam``, ``hinge-chain``, ``modal``, ``rigid``, or any name of an outside method);
+    ``strain``: ``linear`` or ``nonlinear`` (the axial strain's quadratic term and beyond), or
+    ``rigid``. Runs are compared like for like only within one strain class."""
+
+    element: str = "unknown"
+    strain: str = "unknown"
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One documented setting a method is run with: value, why (the measurement behind it) and
+    its documentation source."""
+
+    setting: str
+    value: str
+    why: str
+    source: str
+
+
+_ALL_CAPS = frozenset(CAPABILITIES)
+
+
+@dataclass(frozen=True)
 class Method:
-    """A registered method: where its ``simulate`` lives, the options it always gets, and how
-    it is shown (``label``, ``style``). ``uses_k`` is False for the rigid baseline (it gets
-    ``elements_per_link=None``); ``module`` None marks a name that is shown but never run."""
+    """A registered method (see the module docstring).
+
+    name, module : registry name; module of ``simulate`` (None: a name shown but never run)
+    entry : the function's name in ``module`` (default ``simulate``)
+    options : (name, value) pairs every call gets
+    role : one of :data:`ROLES`
+    physics : :class:`Physics`
+    discretisation : what ``elements_per_link`` means, or None (it gets ``None``)
+    capabilities : subset of :data:`CAPABILITIES`
+    libraries : distributions whose version changes its numbers (part of the cache key)
+    settings : :class:`Setting` rows for the report's "Peer configuration" section
+    explicit : explicit in time (a stable step limit): studies that refine k at a fixed h, or h
+        at a fixed k on the implicit grid, use the plan's explicit steps or ``max_step``
+    max_step : f(k) -> the largest step (s) the studies use at k (explicit methods)
+    skip : study name -> why the method sits that study out
+    base : the DT-TMM method its costs are measured against (default: the subject of its strain)
+    label, style : legend label and plot style
+    """
 
     name: str
     module: str | None
     options: tuple[tuple[str, object], ...] = ()
-    uses_k: bool = True
+    role: str = "peer"
+    physics: Physics = field(default_factory=Physics)
+    discretisation: str | None = "elements per link"
+    capabilities: frozenset = _ALL_CAPS
+    libraries: tuple[str, ...] = ()
+    settings: tuple[Setting, ...] = ()
+    explicit: bool = False
+    max_step: Callable[[int], float] | None = None
+    skip: tuple[tuple[str, str], ...] = ()
+    base: str = ""
     label: str = ""
     style: Style = field(default_factory=Style)
+    entry: str = "simulate"
+    simulate: Callable | None = None  # a function given directly (outside methods)
+    timeout: float = math.inf  # s per call; a run past it is an omission
+
+    def __post_init__(self):
+        from dttmm.errors import InputError
+
+        if self.role not in ROLES:
+            raise InputError(f"method {self.name}: role", self.role, f"must be one of {', '.join(ROLES)}")
+        if self.discretisation not in DISCRETISATIONS:
+            raise InputError(
+                f"method {self.name}: discretisation",
+                self.discretisation,
+                "must be one of " + ", ".join(map(repr, DISCRETISATIONS)),
+            )
+        unknown = set(self.capabilities) - _ALL_CAPS
+        if unknown:
+            raise InputError(
+                f"method {self.name}: capabilities", sorted(unknown), f"known: {', '.join(CAPABILITIES)}"
+            )
+        object.__setattr__(self, "capabilities", frozenset(self.capabilities))
+        object.__setattr__(self, "skip", tuple(dict(self.skip).items()))
+
+    @property
+    def uses_k(self) -> bool:
+        """Whether the method discretises the links (False: ``elements_per_link=None``)."""
+        return self.discretisation is not None
+
+    def has(self, capability: str) -> bool:
+        return capability in self.capabilities
+
+    def why_not(self, study: str) -> str:
+        """Why the method sits out ``study`` ('' when it takes part)."""
+        return dict(self.skip).get(study, "")
 
 
-# DT-TMM and the global solver often agree to round-off: their markers differ in shape and size
-# (DT-TMM large and hollow) so both stay visible.
+# ----------------------------------------------------------------------------- built-in records
+_EXUDYN_DOC = "Exudyn 1.13 reference manual (exudyn.readthedocs.io)"
+_EXUDYN_SHARED = (
+    Setting(
+        "drive torques",
+        "plain LoadTorqueVector values set once per step in a PreStepUserFunction",
+        "the load user function was called ~35 times per step (5-15 % of the time at k ≤ 16); "
+        "results equal to 5e-13 m",
+        "MainSystem.SetPreStepUserFunction docstring: 'recommended e.g. for prescribing forces or set "
+        "values of actuators'; the time argument is the step end",
+    ),
+    Setting(
+        "prescribed joint angles",
+        "ObjectConnectorCoordinate offset set once per step (PreStep)",
+        "same mechanism as the torques",
+        f"{_EXUDYN_DOC}: ObjectConnectorCoordinate.offset",
+    ),
+    Setting(
+        "integrator",
+        "generalized-α, spectralRadius 0.8, fixed step (adaptiveStep False)",
+        "the suite's common integrator setting; a Newton failure must be visible, not a silent step halving",
+        f"{_EXUDYN_DOC}: SimulationSettings.timeIntegration.generalizedAlpha / adaptiveStep",
+    ),
+    Setting(
+        "Newton",
+        "modified Newton with modifiedNewtonJacUpdatePerStep = True",
+        "default reuse across steps thrashes at h ≥ 2e-3 (7.4 iterations, 1.2 Jacobians per step "
+        "at k = 4, h = 2e-3); per step 4.5 and 1.0",
+        f"{_EXUDYN_DOC}: TimeIntegrationSettings.newton.modifiedNewtonJacUpdatePerStep ('compute Jacobian at "
+        "every time step, but not in every Newton iteration')",
+    ),
+    Setting(
+        "Newton tolerances",
+        "relative 1e-8; absolute 1e3·eps·max(EA·k/L)·(chain length), ≥ 1e-8",
+        "the absolute test is on the residual (force units) and cannot go below its round-off floor; "
+        "a relaxed relative 1e-5 is part of the work-precision grid and wins only where its error "
+        "is as small (rule: cheapest run at equal accuracy)",
+        f"{_EXUDYN_DOC}: NewtonSettings.relativeTolerance / absoluteTolerance",
+    ),
+    Setting(
+        "linear solver",
+        "EigenSparse",
+        "EigenDense is 3.5× slower at k = 16, 22× at k = 64",
+        f"{_EXUDYN_DOC}: SimulationSettings.linearSolverType",
+    ),
+    Setting(
+        "threads, output",
+        "parallel.numberOfThreads = 1; no solution file; sensors stored in memory",
+        "same scope as DT-TMM (one thread, no file output)",
+        f"{_EXUDYN_DOC}: SimulationSettings.parallel / solutionSettings.writeSolutionToFile",
+    ),
+    Setting(
+        "timing scope",
+        "CPU time (time.process_time) of the whole simulate call; repeats by the suite's timing rule; "
+        "solve-only times kept beside it",
+        "the same scope for every method",
+        "this suite",
+    ),
+)
+_DTTMM_LIBS = ("numpy", "scipy", "numba")
+_NO_MODES = _ALL_CAPS - {"modes"}
+_SAME_DISCRETISATION = "the same discretisation as {0}, equal to it to round-off (the cross-checks show it)"
+_EXPLICIT_K = (
+    "explicit in time: its stable step falls with k, so k is not refined at the common step "
+    "(its order in k shows on the work-precision path)"
+)
+
+
+def _mujoco_step(k: int) -> float:
+    """Largest step the studies give the MuJoCo chain at k pieces per link: its joint springs are
+    explicit and the stable step ∝ 1/k² (h_stable ≈ 0.02/k² s on the suite's arms, measured;
+    docs/mujoco.md), with 20 % margin, and at most 2 ms."""
+    return min(2e-3, 0.016 / max(int(k), 1) ** 2)
+
+
 _BUILTIN = (
+    # DT-TMM and the global solver often agree to round-off: their markers differ in shape and
+    # size (DT-TMM large and hollow) so both stay visible.
     Method(
         "dttmm",
         "dttmm",
         (("integrator", "newmark"),),
+        role="subject",
+        physics=Physics("hermite-fe", "linear"),
+        libraries=_DTTMM_LIBS,
         label="DT-TMM (Newmark)",
         style=Style("C0", "o", "-", 7, hollow=True),
     ),
     Method(
-        "dttmm-rk4", "dttmm", (("integrator", "rk4"),), label="DT-TMM (RK4)", style=Style("C4", "v", "-", 5)
+        "dttmm-rk4",
+        "dttmm",
+        (("integrator", "rk4"),),
+        role="subject",
+        physics=Physics("hermite-fe", "linear"),
+        libraries=_DTTMM_LIBS,
+        explicit=True,
+        skip=(
+            ("convergence_k", _EXPLICIT_K),
+            ("work_precision", "explicit: its stable step is far below the implicit methods' steps"),
+            ("cost", "explicit: its cost per step is in the pytest-benchmark scaling"),
+            ("control", "the stiff element modes' damping limits RK4 to h ≈ 2.5e-7 s on this arm"),
+        ),
+        base="dttmm",
+        label="DT-TMM (RK4)",
+        style=Style("C4", "v", "-", 5),
     ),
     Method(
         "dttmm-2nd",
         "dttmm",
         (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
+        role="subject",
+        physics=Physics("hermite-fe", "nonlinear"),
+        libraries=_DTTMM_LIBS,
         label="DT-TMM (2nd-order strain, gen-α 0.8)",
         style=Style("C9", "P", "-", 6),
     ),
@@ -89,11 +312,12 @@ _BUILTIN = (
         "global",
         "reference_models.global_newmark",
         (("integrator", "newmark"), ("engine", "numba")),
+        role="reference",
+        physics=Physics("hermite-fe", "linear"),
+        libraries=_DTTMM_LIBS,
+        capabilities=_NO_MODES,
         label="global equations (Newmark, compiled)",
         style=Style("C3", "^", "--", 4),
-    ),
-    Method(
-        "exudyn-ancf", "reference_models.exudyn_ancf", label="Exudyn ANCF", style=Style("C1", "s", "-", 5)
     ),
     Method(
         "global-2nd",
@@ -104,14 +328,67 @@ _BUILTIN = (
             ("rho_inf", 0.8),
             ("engine", "numba"),
         ),
+        role="reference",
+        physics=Physics("hermite-fe", "nonlinear"),
+        libraries=_DTTMM_LIBS,
+        capabilities=_NO_MODES,
+        skip=tuple(
+            (s, _SAME_DISCRETISATION.format("DT-TMM with the second-order strain"))
+            for s in ("convergence_k", "convergence_h", "paper", "cost", "benchmarks")
+        ),
         label="global equations (2nd-order strain, gen-α 0.8, compiled)",
         style=Style("C6", "<", "--", 5),
+    ),
+    Method(
+        "exudyn-ancf",
+        "reference_models.exudyn_ancf",
+        role="reference",
+        physics=Physics("ancf-cable", "nonlinear"),
+        libraries=("numpy", "exudyn"),
+        capabilities=_ALL_CAPS - {"energy", "cut_loads"},
+        settings=(
+            Setting(
+                "element",
+                "ObjectANCFCable2D, k per link, slope nodes clamped to hub/tip bodies",
+                "Euler-Bernoulli cable with nonlinear strain",
+                f"{_EXUDYN_DOC}: ObjectANCFCable2D",
+            ),
+            *_EXUDYN_SHARED,
+        ),
+        label="Exudyn ANCF",
+        style=Style("C1", "s", "-", 5),
     ),
     # physical rotary inertia: measured to run on the suite's cases (see docs/peers.md)
     Method(
         "exudyn-beam",
         "reference_models.exudyn_beam",
         (("cross_section_inertia", "physical"),),
+        role="peer",
+        physics=Physics("ge-beam", "nonlinear"),
+        libraries=("numpy", "exudyn"),
+        capabilities=_ALL_CAPS - {"energy", "cut_loads", "modes"},
+        settings=(
+            Setting(
+                "element",
+                "ObjectBeamGeometricallyExact2D, hub/tip bodies on the end nodes",
+                "Reissner beam; Exudyn has no 2D Euler-Bernoulli beam",
+                f"{_EXUDYN_DOC}: ObjectBeamGeometricallyExact2D",
+            ),
+            Setting(
+                "shearStiffness",
+                "κGA = 0.32·EA (κ = 5/6, ν = 0.3)",
+                "physical value; 1e3·EA made Newton fail",
+                f"{_EXUDYN_DOC}: ObjectBeamGeometricallyExact2D.shearStiffness",
+            ),
+            Setting(
+                "crossSectionInertia",
+                "physical ρI = ρA·EI/EA (9e-8 kg·m for the strips) in the studies; adapter default 1e-5",
+                "physical runs on single_link and three_link for k = 1…64, h = 5e-4…4e-3; on a two-link arm "
+                "with a step torque it fails Newton at h = 1e-3 (1e-5 runs), so 1e-5 stays the safe default",
+                f"{_EXUDYN_DOC}: ObjectBeamGeometricallyExact2D.crossSectionInertia",
+            ),
+            *_EXUDYN_SHARED,
+        ),
         label="Exudyn GE beam",
         style=Style("C2", "D", "-", 5),
     ),
@@ -119,6 +396,20 @@ _BUILTIN = (
         "mujoco-chain",
         "reference_models.mujoco_chain",
         (("integrator", "implicitfast"),),
+        role="peer",
+        physics=Physics("hinge-chain", "linear"),
+        discretisation="pieces per link",
+        libraries=("numpy", "mujoco"),
+        capabilities=_ALL_CAPS - {"energy", "modes"},
+        explicit=True,
+        max_step=_mujoco_step,
+        skip=(
+            ("convergence_k", _EXPLICIT_K),
+            ("convergence_h", "explicit in its springs: the step is tied to k (stable step ∝ 1/k²)"),
+            ("cost", "its cost is on the work-precision path (the step falls with k)"),
+            ("benchmarks", "a lumped chain: its order in k is shown on the shipped cases"),
+        ),
+        base="dttmm",
         label="MuJoCo hinge chain",
         style=Style("C5", "X", "-.", 6),
     ),
@@ -126,87 +417,295 @@ _BUILTIN = (
         "pinocchio-rigid",
         "reference_models.pinocchio_rigid",
         (("integrator", "rk4"),),
-        uses_k=False,
+        role="baseline",
+        physics=Physics("rigid", "rigid"),
+        discretisation=None,
+        libraries=("numpy", "pin"),
+        capabilities=_ALL_CAPS - {"moment_feedback", "energy", "cut_loads", "modes", "damping"},
+        skip=(
+            ("convergence_k", "rigid links: nothing to refine in k"),
+            ("convergence_h", "rigid links: its error is the floor of ignoring flexibility"),
+            ("cost", "rigid links: no elements"),
+        ),
         label="Pinocchio rigid",
         style=Style("k", "*", ":", 9),
     ),
 )
 
-# Shown in figures and text but not run by the studies.
+# Shown in figures and text but not run by the studies (the reference curve, benchmark variants).
 _SHOWN = (
     Method("reference", None, label="reference", style=Style("0.3", "", "-", 0)),
-    Method("dttmm-converged", None, label="DT-TMM (Newmark), converged", style=Style("C0", "o")),
-    Method("dttmm-one-shot", None, label="DT-TMM (Newmark), one sweep per step", style=Style("C9", "v")),
+    Method(
+        "dttmm-converged",
+        None,
+        role="subject",
+        physics=Physics("hermite-fe", "linear"),
+        label="DT-TMM (Newmark), converged",
+        style=Style("C0", "o"),
+    ),
+    Method(
+        "dttmm-one-shot",
+        None,
+        role="subject",
+        physics=Physics("hermite-fe", "linear"),
+        label="DT-TMM (Newmark), one sweep per step",
+        style=Style("C9", "v"),
+    ),
 )
 
 METHODS: dict[str, Method] = {m.name: m for m in _BUILTIN}
 _LOOKS: dict[str, Method] = {m.name: m for m in (*_BUILTIN, *_SHOWN)}
 _FALLBACK_MARKERS = "osD^v<>ph*"
-
-# Methods registered at run time (user or test methods): name -> (simulate, uses_k).
-_EXTRA: dict[str, tuple[Callable, bool]] = {}
+_EXTRA: dict[str, Method] = {}  # registered at run time (outside, user or test methods)
 
 
-def register(
-    name: str, simulate: Callable, *, uses_k: bool = True, label: str = "", style: Style | None = None
-) -> None:
-    """Add a method ``simulate(case, *, elements_per_link, h, **options) -> Result`` under ``name``."""
-    _EXTRA[name] = (simulate, uses_k)
-    if label or style:
-        _LOOKS[name] = Method(name, None, label=label or name, style=style or Style())
+# ----------------------------------------------------------------------------- lookups
+def get(name: str) -> Method:
+    """The record of ``name`` (built-in, shown or registered); raises MethodUnavailable."""
+    m = _EXTRA.get(name) or METHODS.get(name) or _LOOKS.get(name)
+    if m is None:
+        raise MethodUnavailable(f"unknown method {name!r} (known: {', '.join(names())})")
+    return m
 
 
 def names() -> list[str]:
-    """Every registered method name (built-in first)."""
+    """Every method that runs: built-in first, then registered ones, in registration order."""
     return list(METHODS) + [n for n in _EXTRA if n not in METHODS]
+
+
+def by_role(*roles: str) -> list[str]:
+    """The runnable methods of the given roles, in registry order."""
+    return [n for n in names() if get(n).role in roles]
+
+
+def takes_part(study: str, *, flexible: bool | None = None, implicit: bool | None = None) -> list[str]:
+    """The runnable methods that take part in ``study`` (no ``skip`` entry for it), optionally
+    only the flexible ones (a discretisation parameter) or only the implicit ones."""
+    out = []
+    for n in names():
+        m = get(n)
+        if m.why_not(study):
+            continue
+        if flexible is not None and m.uses_k != flexible:
+            continue
+        if implicit is not None and m.explicit == implicit:
+            continue
+        out.append(n)
+    return out
+
+
+def sitting_out(study: str) -> dict[str, str]:
+    """method -> why it sits out ``study``, for the report's omissions."""
+    return {n: get(n).why_not(study) for n in names() if get(n).why_not(study)}
+
+
+def base_of(name: str) -> str:
+    """The DT-TMM method ``name``'s costs are compared with: its record's ``base``, else the first
+    subject of the same strain class ('' when there is none, or for the subject itself)."""
+    try:
+        m = get(name)
+    except MethodUnavailable:
+        return ""
+    if m.base:
+        return m.base if m.base != name else ""
+    for n in (*names(), *(s.name for s in _SHOWN)):
+        s = get(n)
+        if s.role == "subject" and not s.explicit and s.physics.strain == m.physics.strain:
+            return n if n != name else ""
+    return ""
 
 
 def uses_k(name: str) -> bool:
     """Whether the method discretises the links (False: rigid baseline, k is ignored)."""
-    if name in _EXTRA:
-        return _EXTRA[name][1]
-    return METHODS[name].uses_k if name in METHODS else True
+    try:
+        return get(name).uses_k
+    except MethodUnavailable:
+        return True
 
 
 def label(name: str) -> str:
     """Human-readable name for legends, tables and sentences (the name itself if unknown)."""
-    m = _LOOKS.get(name)
+    m = _EXTRA.get(name) or _LOOKS.get(name)
     return m.label if m and m.label else name
+
+
+def style(name: str, index: int = 0) -> Style:
+    """Plot style of ``name``; an unknown name gets a colour and marker picked by ``index``."""
+    m = _EXTRA.get(name) or _LOOKS.get(name)
+    if m is not None and (m.name in _LOOKS or m.style != Style()):
+        return m.style
+    return Style(f"C{index % 10}", _FALLBACK_MARKERS[index % len(_FALLBACK_MARKERS)])
 
 
 def source_of(name: str) -> tuple[tuple[str, ...], tuple]:
     """(modules whose code makes the method's runs, options it always gets), for cache keys;
     ((), ()) for an unknown name."""
-    if name in _EXTRA:
-        return (_EXTRA[name][0].__module__,), ()
-    if name in METHODS:
-        return (METHODS[name].module,), METHODS[name].options
-    return (), ()
+    m = _EXTRA.get(name) or METHODS.get(name)
+    if m is None:
+        return (), ()
+    if m.simulate is not None:
+        return (m.simulate.__module__,), m.options
+    return ((m.module,) if m.module else ()), m.options
 
 
-def style(name: str, index: int = 0) -> Style:
-    """Plot style of ``name``; an unknown name gets a colour and marker picked by ``index``."""
-    m = _LOOKS.get(name)
-    if m is not None:
-        return m.style
-    return Style(f"C{index % 10}", _FALLBACK_MARKERS[index % len(_FALLBACK_MARKERS)])
+def libraries() -> tuple[str, ...]:
+    """Every library any registered method names (the cache key's library versions)."""
+    out = {}
+    for n in names():
+        out.update(dict.fromkeys(get(n).libraries))
+    return tuple(out)
 
 
+# ----------------------------------------------------------------------------- outside methods
+def register(
+    name: str | Method,
+    simulate: Callable | None = None,
+    *,
+    uses_k: bool = True,
+    label: str = "",
+    style: Style | None = None,
+    **traits,
+) -> Method:
+    """Add a method and return its record.
+
+    Either a :class:`Method` record (with ``module`` or ``simulate``), or a name and a function
+    ``simulate(case, *, elements_per_link, h, **options) -> Result`` with the stated defaults
+    (role "peer", physics unknown, elements per link, every capability assumed; the studies'
+    runs show what it really supports), optionally with record fields as keywords.
+    """
+    if isinstance(name, Method):
+        rec = name
+    else:
+        if simulate is None or not callable(simulate):
+            from dttmm.errors import InputError
+
+            raise InputError(
+                f"method {name}", simulate, "needs a callable simulate(case, *, elements_per_link, h)"
+            )
+        if not uses_k:
+            traits.setdefault("discretisation", None)
+        rec = Method(name, None, label=label or name, style=style or Style(), simulate=simulate, **traits)
+    _EXTRA[rec.name] = rec
+    return rec
+
+
+def unregister(name: str) -> None:
+    """Remove a method added with :func:`register` (tests)."""
+    _EXTRA.pop(name, None)
+
+
+def _bad_spec(spec, why):
+    from dttmm.errors import InputError
+
+    return InputError("--method", spec, why)
+
+
+def load_spec(spec: str) -> Method:
+    """The method named by ``spec``, registered and returned.
+
+    ``spec`` is a registered name, an entry point of the group ``dttmm.methods``, or
+    ``module.path:function`` / ``path/to/file.py:function`` (function default ``simulate``). The
+    object found may be a :class:`Method` record or a function; a function may carry its traits
+    as a ``method`` attribute (a Method, or a dict of Method fields). Raises InputError with one
+    line for a bad spec (no such module or file, no such function, not callable, bad traits).
+    """
+    spec = str(spec).strip()
+    if spec in names():
+        return get(spec)
+    eps = entry_points()
+    if spec in eps:
+        return _from_object(spec, eps[spec].load, spec)
+    target, _, attr = spec.partition(":")
+    attr = attr or "simulate"
+    if target.endswith(".py") or "/" in target or "\\" in target:
+        path = Path(target)
+        if not path.is_file():
+            raise _bad_spec(spec, f"no such file: {path}")
+        modname = f"dttmm_outside_{path.stem}"
+        loader_spec = importlib.util.spec_from_file_location(modname, path.resolve())
+        module = importlib.util.module_from_spec(loader_spec)
+        sys.modules[modname] = module
+        try:
+            loader_spec.loader.exec_module(module)
+        except Exception as exc:  # noqa: BLE001 - any failure to load the file is a bad spec
+            sys.modules.pop(modname, None)
+            raise _bad_spec(spec, f"cannot load {path}: {type(exc).__name__}: {exc}") from None
+        default_name = path.stem.replace("_", "-")
+    else:
+        try:
+            module = importlib.import_module(target)
+        except ModuleNotFoundError as exc:
+            raise _bad_spec(spec, f"no such module: {exc.name}") from None
+        except Exception as exc:  # noqa: BLE001
+            raise _bad_spec(spec, f"cannot import {target}: {type(exc).__name__}: {exc}") from None
+        default_name = target.rsplit(".", 1)[-1].replace("_", "-")
+    if not hasattr(module, attr):
+        raise _bad_spec(spec, f"{target} has no {attr!r}")
+    return _from_object(
+        default_name if attr == "simulate" else attr.replace("_", "-"), lambda: getattr(module, attr), spec
+    )
+
+
+def _from_object(name, get_obj, spec) -> Method:
+    try:
+        obj = get_obj()
+    except Exception as exc:  # noqa: BLE001 - an entry point that fails to load
+        raise _bad_spec(spec, f"cannot load: {type(exc).__name__}: {exc}") from None
+    if isinstance(obj, Method):
+        rec = obj
+    elif callable(obj):
+        traits = getattr(obj, "method", None)
+        try:
+            if isinstance(traits, Method):
+                rec = replace(traits, simulate=obj, module=None)
+            elif isinstance(traits, dict):
+                t = dict(traits)
+                for k in ("physics", "style"):
+                    if isinstance(t.get(k), dict):
+                        t[k] = (Physics if k == "physics" else Style)(**t[k])
+                if "settings" in t:
+                    t["settings"] = tuple(
+                        Setting(*s) if not isinstance(s, Setting) else s for s in t["settings"]
+                    )
+                rec = Method(t.pop("name", name), None, simulate=obj, **{"label": name, **t})
+            elif traits is None:
+                rec = Method(name, None, simulate=obj, label=name)
+            else:
+                raise TypeError(f"its 'method' attribute is a {type(traits).__name__}, not a Method or dict")
+        except TypeError as exc:
+            raise _bad_spec(spec, f"bad traits: {exc}") from None
+    else:
+        raise _bad_spec(spec, f"{type(obj).__name__} object is not callable")
+    if rec.module is None and rec.simulate is None:
+        raise _bad_spec(spec, "the record names neither a module nor a function")
+    if rec.name in METHODS and METHODS[rec.name] is not rec:
+        raise _bad_spec(spec, f"the name {rec.name!r} is a built-in method's")
+    return register(rec)
+
+
+def entry_points() -> dict:
+    """Entry points of the group ``dttmm.methods`` declared by installed packages: name -> EntryPoint."""
+    try:
+        return {ep.name: ep for ep in importlib.metadata.entry_points(group="dttmm.methods")}
+    except Exception:  # noqa: BLE001 - a broken distribution must not break the suite
+        return {}
+
+
+# ----------------------------------------------------------------------------- running
 def resolve(name: str) -> Callable:
     """The method as ``f(case, k, h, **options) -> Result``; raises MethodUnavailable."""
-    if name in _EXTRA:
-        sim, k_used = _EXTRA[name]
-        return _Bound(sim, (), k_used)
-    if name not in METHODS:
-        raise MethodUnavailable(f"unknown method {name!r} (known: {', '.join(names())})")
-    m = METHODS[name]
+    m = get(name)
+    if m.simulate is not None:
+        return _Bound(m.simulate, m.options, m.uses_k)
+    if m.module is None:
+        raise MethodUnavailable(f"{name!r} is shown in figures but not run")
     try:
         module = importlib.import_module(m.module)
     except Exception as exc:  # noqa: BLE001 - any import failure makes the method unavailable, with the reason
         raise MethodUnavailable(f"cannot import {m.module}: {type(exc).__name__}: {exc}") from None
-    sim = getattr(module, "simulate", None)
+    sim = getattr(module, m.entry, None)
     if sim is None:
-        raise MethodUnavailable(f"{m.module} has no simulate()")
+        raise MethodUnavailable(f"{m.module} has no {m.entry}()")
     return _Bound(sim, m.options, m.uses_k)
 
 
