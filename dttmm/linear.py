@@ -426,3 +426,9 @@ def modes(
         linearization=lin,
         warnings=warn,
     )
+
+
+def frequencies(case: Case, elements_per_link: int, n: int | None = None) -> np.ndarray:
+    """Lowest ``n`` natural frequencies (Hz, ascending) of ``case`` at rest: :func:`modes`'s
+    frequencies, the common natural-frequency call of the suite's methods."""
+    return np.asarray(modes(case, elements_per_link, n=n).frequencies, float)

@@ -25,9 +25,6 @@ from pathlib import Path
 
 __all__ = ["canonical_json", "case_digest", "code_version", "digest", "file_sha256", "tree_hash"]
 
-# Libraries whose version changes numbers (engines are listed even when absent: None).
-_LIBRARIES = ("numpy", "scipy", "numba", "exudyn", "pin")
-
 
 def _plain(v):
     """JSON-able, canonical form: floats by repr (exact), tuples as lists, NaN/inf as text."""
@@ -102,15 +99,26 @@ def _source_root(module_name: str) -> Path | None:
     return Path(spec.origin) if spec.origin and spec.origin.endswith(".py") else None
 
 
+#: Libraries every run depends on (through dttmm's model and metrics), whatever the method.
+_ALWAYS = ("numpy", "scipy")
+
+
 @functools.cache
-def _library_versions() -> dict:
+def _library_versions(names: tuple) -> dict:
     out = {}
-    for name in _LIBRARIES:
+    for name in names:  # an engine that is absent is listed as None
         try:
             out[name] = importlib.metadata.version(name)
         except importlib.metadata.PackageNotFoundError:
             out[name] = None
     return out
+
+
+def _distribution_of(module: str) -> str | None:
+    """The installed distribution that provides ``module``'s top-level package (None: not installed)."""
+    top = module.split(".")[0]
+    dists = importlib.metadata.packages_distributions().get(top) or []
+    return dists[0] if dists else None
 
 
 @functools.cache
@@ -127,18 +135,24 @@ def code_version(method: str) -> dict:
     Sources hashed: the ``dttmm`` package and the top-level package (or module) of the
     method's ``simulate`` (``reference_models`` for the reference engines; the defining
     module for a method added with ``methods.register``). The method's registered options
-    are part of it, as is every numerical library's version.
+    are part of it, as are the versions of the libraries its registry record names (and numpy,
+    scipy), and, for a method from an installed package, that package's version.
     """
     import dttmm
 
     from . import methods
 
     modules, fixed = methods.source_of(method)
+    try:
+        libs = methods.get(method).libraries
+    except methods.MethodUnavailable:
+        libs = ()
+    dists = [d for m in modules if (d := _distribution_of(m)) and d != "dttmm"]
     return {
         "method": method,
         "method_options": [list(x) for x in fixed],
         "dttmm": dttmm.__version__,
         "python": f"{sys.version_info[0]}.{sys.version_info[1]}",
-        "libraries": dict(_library_versions()),
+        "libraries": dict(_library_versions(tuple(dict.fromkeys((*_ALWAYS, *libs, *dists))))),
         "sources": _roots_hash(tuple(modules)),
     }

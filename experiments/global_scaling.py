@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 import dttmm
+from experiments import methods
 from experiments.fit import slope
 from reference_models import global_newmark as gn
 
@@ -107,7 +108,7 @@ def scaling(sizes, make_for, k_for, repeats, budget, label) -> list[dict]:
     rows = []
     for size in sizes:
         row = {"study": label, "size": size}
-        for method in ("dttmm", "global"):
+        for method in methods.same_equations()[0]:  # DT-TMM and the global solver, linear strain
             m = cost_per_step(method, make_for(size), k_for(size), repeats, budget)
             row.update(
                 {

@@ -136,8 +136,18 @@ class Method:
     explicit : explicit in time (a stable step limit): studies that refine k at a fixed h, or h
         at a fixed k on the implicit grid, use the plan's explicit steps or ``max_step``
     max_step : f(k) -> the largest step (s) the studies use at k (explicit methods)
-    skip : study name -> why the method sits that study out
+    skip : study -> why the method sits that study out; a key ``study:kind`` names one kind of
+        problem of a study, ``study@size`` one plan size ("quick" or "full")
+    max_k : ``study@size`` or ``study`` -> the largest k it runs there (cost)
+    study_options : study -> extra (name, value) options its runs get there
     base : the DT-TMM method its costs are measured against (default: the subject of its strain)
+    reference_rank, check_rank : its place (1, 2, ...) among the candidates of the converged
+        references and among their cross-checks (0: not one); ``check_refine`` multiplies the
+        reference's k when it checks
+    scans : the pytest-benchmark scans (benchmarks/) it is timed in: "elements", "links"
+    alias_of : for a name shown but not run, the method it is a variant of (benchmark variants)
+    frequencies : ``module:function`` with ``f(case, k, n) -> Hz`` (lowest n natural frequencies at
+        rest, held joints clamped), for methods with the "modes" capability
     label, style : legend label and plot style
     """
 
@@ -153,7 +163,15 @@ class Method:
     explicit: bool = False
     max_step: Callable[[int], float] | None = None
     skip: tuple[tuple[str, str], ...] = ()
+    max_k: tuple[tuple[str, int], ...] = ()
+    study_options: tuple[tuple[str, tuple], ...] = ()
     base: str = ""
+    reference_rank: int = 0
+    check_rank: int = 0
+    check_refine: int = 1
+    frequencies: str = ""
+    scans: tuple[str, ...] = ()
+    alias_of: str = ""
     label: str = ""
     style: Style = field(default_factory=Style)
     entry: str = "simulate"
@@ -179,6 +197,15 @@ class Method:
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
         object.__setattr__(self, "skip", tuple(dict(self.skip).items()))
 
+    def options_for(self, study: str) -> tuple:
+        """Extra options the method's runs get in ``study``."""
+        return tuple(dict(self.study_options).get(study, ()))
+
+    def k_limit(self, study: str, size: str | None = None) -> float:
+        """Largest k the method runs in ``study`` at ``size`` (inf: no limit)."""
+        lim = dict(self.max_k)
+        return float(lim.get(f"{study}@{size}", lim.get(study, math.inf)))
+
     @property
     def uses_k(self) -> bool:
         """Whether the method discretises the links (False: ``elements_per_link=None``)."""
@@ -187,9 +214,12 @@ class Method:
     def has(self, capability: str) -> bool:
         return capability in self.capabilities
 
-    def why_not(self, study: str) -> str:
-        """Why the method sits out ``study`` ('' when it takes part)."""
-        return dict(self.skip).get(study, "")
+    def why_not(self, study: str, kind: str | None = None, size: str | None = None) -> str:
+        """Why the method sits out ``study`` (of a ``kind`` of problem, at a plan ``size``); ''
+        when it takes part."""
+        skip = dict(self.skip)
+        keys = [study, *([f"{study}:{kind}"] if kind else []), *([f"{study}@{size}"] if size else [])]
+        return next((skip[k] for k in keys if k in skip), "")
 
 
 # ----------------------------------------------------------------------------- built-in records
@@ -277,6 +307,10 @@ _BUILTIN = (
         role="subject",
         physics=Physics("hermite-fe", "linear"),
         libraries=_DTTMM_LIBS,
+        reference_rank=2,
+        check_rank=1,
+        frequencies="dttmm.linear:frequencies",
+        scans=("links",),  # its element scans are the converged and one-shot variants below
         label="DT-TMM (Newmark)",
         style=Style("C0", "o", "-", 7, hollow=True),
     ),
@@ -293,8 +327,10 @@ _BUILTIN = (
             ("work_precision", "explicit: its stable step is far below the implicit methods' steps"),
             ("cost", "explicit: its cost per step is in the pytest-benchmark scaling"),
             ("control", "the stiff element modes' damping limits RK4 to h ≈ 2.5e-7 s on this arm"),
+            ("benchmarks", "explicit: the problems' stiff links need steps of ~1e-6 s"),
         ),
         base="dttmm",
+        scans=("elements",),
         label="DT-TMM (RK4)",
         style=Style("C4", "v", "-", 5),
     ),
@@ -305,6 +341,17 @@ _BUILTIN = (
         role="subject",
         physics=Physics("hermite-fe", "nonlinear"),
         libraries=_DTTMM_LIBS,
+        # measured on three_link, k = 2…16, h = 2.5e-4…4e-3: with iterations="auto" the runs reach
+        # the same end-effector error (within 3 %, most points equal to 3 digits) at 0.5-0.6× the CPU time
+        study_options=(("work_precision", (("iterations", "auto"),)),),
+        skip=(
+            (
+                "benchmarks:static_tip_displacement",
+                "its Kelvin-Voigt damping acts on the linear element coordinates, so a damped run to rest "
+                "with the second-order strain creeps",
+            ),
+        ),
+        scans=("elements",),
         label="DT-TMM (2nd-order strain, gen-α 0.8)",
         style=Style("C9", "P", "-", 6),
     ),
@@ -315,7 +362,17 @@ _BUILTIN = (
         role="reference",
         physics=Physics("hermite-fe", "linear"),
         libraries=_DTTMM_LIBS,
-        capabilities=_NO_MODES,
+        reference_rank=3,
+        frequencies="reference_models.global_modes:frequencies",
+        max_k=(("cost@quick", 16),),
+        skip=(
+            (
+                "benchmarks@quick",
+                "it repeats DT-TMM's discretisation to round-off and costs ~90 % of the problems' runs",
+            ),
+            ("control:gains", _SAME_DISCRETISATION.format("DT-TMM")),
+        ),
+        scans=("elements", "links"),
         label="global equations (Newmark, compiled)",
         style=Style("C3", "^", "--", 4),
     ),
@@ -334,7 +391,7 @@ _BUILTIN = (
         capabilities=_NO_MODES,
         skip=tuple(
             (s, _SAME_DISCRETISATION.format("DT-TMM with the second-order strain"))
-            for s in ("convergence_k", "convergence_h", "paper", "cost", "benchmarks")
+            for s in ("convergence_k", "convergence_h", "paper", "cost", "benchmarks", "control:gains")
         ),
         label="global equations (2nd-order strain, gen-α 0.8, compiled)",
         style=Style("C6", "<", "--", 5),
@@ -346,6 +403,8 @@ _BUILTIN = (
         physics=Physics("ancf-cable", "nonlinear"),
         libraries=("numpy", "exudyn"),
         capabilities=_ALL_CAPS - {"energy", "cut_loads"},
+        reference_rank=1,
+        frequencies="reference_models.exudyn_modes:frequencies",
         settings=(
             Setting(
                 "element",
@@ -355,6 +414,7 @@ _BUILTIN = (
             ),
             *_EXUDYN_SHARED,
         ),
+        scans=("elements", "links"),
         label="Exudyn ANCF",
         style=Style("C1", "s", "-", 5),
     ),
@@ -367,6 +427,8 @@ _BUILTIN = (
         physics=Physics("ge-beam", "nonlinear"),
         libraries=("numpy", "exudyn"),
         capabilities=_ALL_CAPS - {"energy", "cut_loads", "modes"},
+        check_rank=2,
+        check_refine=2,  # a shear-flexible Reissner element: it checks at twice the reference's k
         settings=(
             Setting(
                 "element",
@@ -389,6 +451,7 @@ _BUILTIN = (
             ),
             *_EXUDYN_SHARED,
         ),
+        scans=("elements",),
         label="Exudyn GE beam",
         style=Style("C2", "D", "-", 5),
     ),
@@ -407,7 +470,10 @@ _BUILTIN = (
             ("convergence_k", _EXPLICIT_K),
             ("convergence_h", "explicit in its springs: the step is tied to k (stable step ∝ 1/k²)"),
             ("cost", "its cost is on the work-precision path (the step falls with k)"),
-            ("benchmarks", "a lumped chain: its order in k is shown on the shipped cases"),
+            (
+                "benchmarks",
+                "explicit: the spin-up problems at k = 32 need h ≈ 1.6e-5 s for 8 s (~100 s a run)",
+            ),
         ),
         base="dttmm",
         label="MuJoCo hinge chain",
@@ -426,7 +492,10 @@ _BUILTIN = (
             ("convergence_k", "rigid links: nothing to refine in k"),
             ("convergence_h", "rigid links: its error is the floor of ignoring flexibility"),
             ("cost", "rigid links: no elements"),
+            ("benchmarks:peak_tip_deflection", "rigid links: no tip deflection"),
+            ("benchmarks:static_tip_displacement", "rigid links: no deflection"),
         ),
+        scans=("elements",),
         label="Pinocchio rigid",
         style=Style("k", "*", ":", 9),
     ),
@@ -438,6 +507,8 @@ _SHOWN = (
     Method(
         "dttmm-converged",
         None,
+        alias_of="dttmm",
+        scans=("elements",),
         role="subject",
         physics=Physics("hermite-fe", "linear"),
         label="DT-TMM (Newmark), converged",
@@ -446,6 +517,8 @@ _SHOWN = (
     Method(
         "dttmm-one-shot",
         None,
+        alias_of="dttmm",
+        scans=("elements",),
         role="subject",
         physics=Physics("hermite-fe", "linear"),
         label="DT-TMM (Newmark), one sweep per step",
@@ -478,13 +551,22 @@ def by_role(*roles: str) -> list[str]:
     return [n for n in names() if get(n).role in roles]
 
 
-def takes_part(study: str, *, flexible: bool | None = None, implicit: bool | None = None) -> list[str]:
-    """The runnable methods that take part in ``study`` (no ``skip`` entry for it), optionally
-    only the flexible ones (a discretisation parameter) or only the implicit ones."""
+def takes_part(
+    study: str,
+    *,
+    kind: str | None = None,
+    size: str | None = None,
+    flexible: bool | None = None,
+    implicit: bool | None = None,
+    needs: tuple[str, ...] = (),
+) -> list[str]:
+    """The runnable methods that take part in ``study`` (no ``skip`` entry for it, its ``kind``
+    or ``size``), optionally only the flexible ones (a discretisation parameter), only the
+    implicit ones, or only those with every capability in ``needs``."""
     out = []
     for n in names():
         m = get(n)
-        if m.why_not(study):
+        if m.why_not(study, kind, size) or not all(m.has(c) for c in needs):
             continue
         if flexible is not None and m.uses_k != flexible:
             continue
@@ -494,9 +576,33 @@ def takes_part(study: str, *, flexible: bool | None = None, implicit: bool | Non
     return out
 
 
-def sitting_out(study: str) -> dict[str, str]:
+def sitting_out(study: str, kind: str | None = None, size: str | None = None) -> dict[str, str]:
     """method -> why it sits out ``study``, for the report's omissions."""
-    return {n: get(n).why_not(study) for n in names() if get(n).why_not(study)}
+    return {n: w for n in names() if (w := get(n).why_not(study, kind, size))}
+
+
+def reference_candidates() -> list[str]:
+    """Methods that compute converged references, in the order they are tried."""
+    ranked = [n for n in names() if get(n).reference_rank > 0]
+    return sorted(ranked, key=lambda n: get(n).reference_rank)
+
+
+def cross_checks() -> list[str]:
+    """Methods that cross-check a reference, in order."""
+    ranked = [n for n in names() if get(n).check_rank > 0]
+    return sorted(ranked, key=lambda n: get(n).check_rank)
+
+
+def frequencies_of(name: str) -> Callable | None:
+    """The method's ``f(case, k, n) -> Hz`` natural-frequency function, or None."""
+    try:
+        m = get(name)
+    except MethodUnavailable:
+        return None
+    if not m.has("modes") or not m.frequencies:
+        return None
+    mod, _, fn = m.frequencies.partition(":")
+    return getattr(importlib.import_module(mod), fn)
 
 
 def base_of(name: str) -> str:
@@ -513,6 +619,45 @@ def base_of(name: str) -> str:
         if s.role == "subject" and not s.explicit and s.physics.strain == m.physics.strain:
             return n if n != name else ""
     return ""
+
+
+def shown_order() -> list[str]:
+    """Every name in the order figures and tables list methods: each method followed by the
+    variants shown for it (``alias_of``), then registered outside methods."""
+    out = []
+    for m in _BUILTIN:
+        out += [s.name for s in _SHOWN if s.alias_of == m.name] + [m.name]
+    return [*out, *(n for n in _EXTRA if n not in out)]
+
+
+def in_scan(scan: str) -> list[str]:
+    """The names timed in a pytest-benchmark scan ("elements", "links"), in :func:`shown_order`."""
+    return [n for n in shown_order() if scan in (_EXTRA.get(n) or _LOOKS[n]).scans]
+
+
+def ratio_pairs() -> list[tuple[str, tuple[str, ...]]]:
+    """Like-for-like speed ratios: (method, the names of its DT-TMM partner, most specific first)
+    for every reference and peer method with a partner of its strain class."""
+    out = []
+    for n in names():
+        m = get(n)
+        base = base_of(n)
+        if m.role in ("reference", "peer") and base:
+            out.append((n, (*[s.name for s in _SHOWN if s.alias_of == base][:1], base)))
+    return out
+
+
+def same_equations() -> list[tuple[str, str]]:
+    """(DT-TMM method, reference method) pairs that solve the same discrete equations (same
+    element and strain, both implicit): they must agree to round-off."""
+    out = []
+    for s in by_role("subject"):
+        a = get(s)
+        for r in by_role("reference"):
+            b = get(r)
+            if not a.explicit and not b.explicit and a.physics == b.physics:
+                out.append((s, r))
+    return out
 
 
 def uses_k(name: str) -> bool:

@@ -142,8 +142,6 @@ def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
     )
 
 
-_FLEX = ["dttmm", "dttmm-2nd", "global", "exudyn-ancf", "exudyn-beam"]
-_ALL = ["dttmm", "dttmm-2nd", "dttmm-rk4", "global", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"]
 # The plain sweep with iterations=None spends up to max_iterations sweeps per step once it has
 # lost its digits, so the quick size runs it with 0 and 1 corrections only.
 _VARIANTS_QUICK = [
@@ -156,16 +154,19 @@ _VARIANTS_QUICK = [
 _VARIANTS_FULL = _VARIANTS_QUICK + [{"sweep": "plain", "iterations": None}]
 
 
-def _refs(k, h, check):
-    ref = [RefSpec("exudyn-ancf", k, h), RefSpec("dttmm", k, h), RefSpec("global", k, h)]
-    return ref, [RefSpec(m, kc, hc) for m, kc, hc in check]
+def _refs(k, h):
+    """Reference candidates and cross-checks at (k, h), in the registry's order."""
+    from . import methods
+
+    ref = [RefSpec(m, k, h) for m in methods.reference_candidates()]
+    chk = [RefSpec(m, k * methods.get(m).check_refine, h) for m in methods.cross_checks()]
+    return ref, chk
 
 
 def _plan(
     name,
     durations,
     ref_kh,
-    check,
     ks,
     hs,
     k_h,
@@ -175,10 +176,9 @@ def _plan(
     scheme_ks,
     note,
     variants,
-    cost_cap=None,
     cost_case="three_link",
 ):
-    ref, chk = _refs(*ref_kh, check)
+    ref, chk = _refs(*ref_kh)
     cases = list(durations)
     return Plan(
         name,
@@ -186,34 +186,22 @@ def _plan(
         dict.fromkeys(cases, ref),
         dict.fromkeys(cases, chk),
         {
-            "convergence_k": {"cases": cases, "methods": _FLEX, "ks": ks, "h": 1e-3},
-            "convergence_h": {
-                "cases": cases,
-                "methods": ["dttmm", "global", "exudyn-ancf"],
-                "hs": hs,
-                "k": k_h,
-                "hs_by_method": {"dttmm-rk4": rk4_h},
-            },
-            "work_precision": {
-                "cases": cases,
-                "methods": _FLEX + ["global-2nd"],  # like-for-like partner of dttmm-2nd
-                "path": path,
-                "rigid": {"method": "pinocchio-rigid", "h": [1e-3]},
-                # MuJoCo chain: explicit joint springs, stable step ∝ 1/k² (h_stable ≈ 0.02/k² s here)
-                "mujoco_path": [(2, 2e-3), (4, 1e-3), (8, 2.5e-4), (16, 6.25e-5), (32, 1.5625e-5)],
-            },
+            # methods: every registered method that takes part (experiments/methods.py); explicit
+            # methods use the explicit steps, or their record's max_step along the path
+            "convergence_k": {"cases": cases, "ks": ks, "h": 1e-3},
+            "convergence_h": {"cases": cases, "hs": hs, "k": k_h, "explicit_hs": rk4_h},
+            "work_precision": {"cases": cases, "path": path, "rigid_h": [1e-3]},
             "scheme": {"cases": cases, "variants": variants, "ks": scheme_ks, "h": 1e-3, "hs": hs, "k": k_h},
             "paper": {
                 "cases": cases,
-                "methods": _ALL,
                 "k": 8,
                 "h": 1e-3,
-                "h_by_method": {"dttmm-rk4": rk4_h[-1]},
+                "explicit_h": rk4_h[-1],
                 # Exudyn records no energy: the energy errors are taken against DT-TMM at the
                 # reference's k and h (also the reference's cross-check)
-                "energy_reference": {"method": "dttmm", "k": ref_kh[0], "h": ref_kh[1]},
+                "energy_reference": {"k": ref_kh[0], "h": ref_kh[1]},
             },
-            "cost": {"case": cost_case, "methods": _FLEX, "ks": cost_ks, "h": 1e-3, "max_k": cost_cap or {}},
+            "cost": {"case": cost_case, "ks": cost_ks, "h": 1e-3},
         },
         note,
         output_step=max(max(hs), max(h for _, h in path)),
@@ -231,7 +219,6 @@ PLANS = {
         "quick",
         durations={"single_link": None, "three_link": None, "spin_up": QUICK_MAX_DURATION},
         ref_kh=(32, 2.5e-4),
-        check=[("dttmm", 32, 2.5e-4), ("exudyn-beam", 64, 2.5e-4)],
         ks=[1, 2, 4, 8, 16],
         hs=[4e-3, 2e-3, 1e-3, 5e-4],
         k_h=4,
@@ -242,13 +229,11 @@ PLANS = {
         note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; "
         + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
-        cost_cap={"global": 16},
     ),
     "full": _plan(
         "full",
         durations={"single_link": None, "three_link": None, "spin_up": None},
         ref_kh=(32, 1e-4),
-        check=[("dttmm", 32, 1e-4), ("exudyn-beam", 64, 1e-4)],
         ks=[1, 2, 4, 8, 16, 32],
         hs=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4],
         k_h=8,
@@ -261,13 +246,12 @@ PLANS = {
     ),
 }
 
-# Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak (8 s),
-# no global solver (it repeats DT-TMM's discretisation to round-off and costs ~90 % of the runs).
+# Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak
+# (8 s); methods that sit a size out say why in their registry record.
 _BENCH = {
     "quick": {
         "ks": [2, 4, 8, 16, 32],
         "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
-        "methods": ["dttmm", "dttmm-2nd", "exudyn-ancf", "exudyn-beam", "pinocchio-rigid"],
     },
     "full": {"ks": [2, 4, 8, 16, 32]},
 }
@@ -275,30 +259,17 @@ for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured:
     _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
 PLANS = {n: replace(p, studies={**p.studies, "benchmarks": _BENCH[n]}) for n, p in PLANS.items()}
 
-# Closed loop (experiments/studies/control.py) on its own case: every method at the report's
-# k = 8, h = 1 ms (MuJoCo at its stable step), the rigid baseline on the variant without moment
-# feedback, a moment-gain sweep. No explicit RK4: the structural damping of the stiff element modes
-# limits it to h ≈ 2.5e-7 s on this arm (diverges at 5e-7 s), 12 million steps for the 3 s.
-_CL_RUNS = [
-    ("dttmm", 8, 1e-3),
-    ("dttmm-2nd", 8, 1e-3),
-    ("global", 8, 1e-3),
-    ("global-2nd", 8, 1e-3),
-    ("exudyn-ancf", 8, 1e-3),
-    ("exudyn-beam", 8, 1e-3),
-    ("mujoco-chain", 8, 1e-4),
-    ("pinocchio-rigid", 0, 1e-3),
-]
+# Closed loop (experiments/studies/control.py) on its own case: every method that takes part at
+# the report's k = 8, h = 1 ms (an explicit method at its record's max_step), the rigid baseline
+# on the variant without moment feedback, a moment-gain sweep, references at k = 32, h = 2.5e-4.
 _CONTROL = {
-    "runs": _CL_RUNS,
-    "rigid_runs": [("pinocchio-rigid", 1e-3)],
-    "reference": [("exudyn-ancf", 32, 2.5e-4), ("dttmm", 32, 2.5e-4)],
+    "k": 8,
+    "h": 1e-3,
+    "rigid_h": 1e-3,
+    "reference": (32, 2.5e-4),
     "gains": [0.0, 0.5, 1.0, 2.0],
-    "gain_runs": [("dttmm", 8, 1e-3), ("mujoco-chain", 8, 1e-4)],
     # equal k for both: DT-TMM's frequencies agree with Exudyn's to 1e-7 at k = 16 (measured)
     "modes": {"k": 16, "exudyn_k": 16, "n": 4},
 }
 _CONTROL_SIZES = {"quick": _CONTROL, "full": {**_CONTROL, "modes": {"k": 32, "exudyn_k": 32, "n": 4}}}
-for _c in _CONTROL_SIZES.values():  # what the report's availability probe lists
-    _c["methods"] = list(dict.fromkeys(m for m, *_ in _c["runs"] + _c["reference"] + _c["gain_runs"]))
 PLANS = {n: replace(p, studies={**p.studies, "control": _CONTROL_SIZES[n]}) for n, p in PLANS.items()}

@@ -93,27 +93,32 @@ def exponents(table: pd.DataFrame) -> pd.DataFrame:
 # "one-step:k=<k>". Times are the solve-only time per step from extra_info (model build and
 # the benchmark's own overhead excluded), not the pytest-benchmark mean.
 
-ELEMENT_METHODS = (
-    "dttmm-converged",
-    "dttmm-one-shot",
-    "dttmm-2nd",
-    "global",
-    "exudyn-ancf",
-    "exudyn-beam",
-    "dttmm-rk4",
-)
-LINK_METHODS = ("dttmm", "global", "exudyn-ancf")
-# Like-for-like ratios only (same element strain): (method, the DT-TMM run it is divided by).
-# The linear element: global solver against DT-TMM (converged Newmark); the nonlinear strain:
-# Exudyn's geometrically exact elements and the global solver with the second-order element
-# against DT-TMM with the second-order element.
-RATIO_PAIRS = (
-    ("global", ("dttmm-converged", "dttmm")),
-    ("global-2nd", ("dttmm-2nd",)),
-    ("exudyn-ancf", ("dttmm-2nd",)),
-    ("exudyn-beam", ("dttmm-2nd",)),
-)
-RATIO_COLUMNS = tuple(f"{m}/{bases[-1]}" for m, bases in RATIO_PAIRS)
+
+# Which names each scan times, and the like-for-like ratio pairs (same element strain: a method
+# over its DT-TMM partner), come from the method registry (experiments/methods.py: ``scans``,
+# ``physics.strain``, ``base``).
+def _element_methods() -> list[str]:
+    from experiments import methods
+
+    return methods.in_scan("elements")
+
+
+def _link_methods() -> list[str]:
+    from experiments import methods
+
+    return methods.in_scan("links")
+
+
+def _ratio_pairs() -> list:
+    from experiments import methods
+
+    return methods.ratio_pairs()
+
+
+def _ratio_columns() -> list[str]:
+    return [f"{m}/{bases[-1]}" for m, bases in _ratio_pairs()]
+
+
 K_MIN = 8  # exponents in k are fitted over k ≥ K_MIN: below it per-step overhead dominates
 N_MIN = 2  # exponents in the number of links: n ≥ N_MIN
 _RECORD_COLS = [
@@ -255,7 +260,8 @@ def element_step_table(records: pd.DataFrame, case: str = "three_link") -> pd.Da
     if d.empty:
         return pd.DataFrame(columns=["k"])
     w = d.pivot_table(index="k", columns="method", values="time_per_element_step", aggfunc="first") * 1e6
-    order = [m for m in ELEMENT_METHODS if m in w] + [m for m in w if m not in ELEMENT_METHODS]
+    known = _element_methods()
+    order = [m for m in known if m in w] + [m for m in w if m not in known]
     w = w[order].reset_index()
     w["k"] = w.k.astype(int)
     w.columns.name = None
@@ -265,7 +271,7 @@ def element_step_table(records: pd.DataFrame, case: str = "three_link") -> pd.Da
 def _ratio_row(basis, case, k, times, target=np.nan) -> dict:
     """One ratio row: each like-for-like pair's time over its DT-TMM partner's (NaN if absent)."""
     row = {"basis": basis, "case": case, "k": k, "target_error_m": target}
-    for (m, bases), col in zip(RATIO_PAIRS, RATIO_COLUMNS):
+    for (m, bases), col in zip(_ratio_pairs(), _ratio_columns()):
         base = next((b for b in bases if b in times), None)
         t0 = times.get(base, np.nan) if base else np.nan
         row[col] = times.get(m, np.nan) / t0 if np.isfinite(t0) and t0 > 0 else np.nan
@@ -273,7 +279,7 @@ def _ratio_row(basis, case, k, times, target=np.nan) -> dict:
 
 
 def ratios(records: pd.DataFrame, equal_accuracy=None, ks=(4, 16, 64)) -> pd.DataFrame:
-    """Speed ratios between runs of the same element strain (:data:`RATIO_PAIRS`): each column
+    """Speed ratios between runs of the same element strain (the registry's ``ratio_pairs``): each column
     ``<method>/<dttmm run>`` is that method's time over DT-TMM's, > 1 when DT-TMM is faster.
     Rows: equal model size (time per step at the same k) from the "elements" scans (k in
     ``ks``) and the "one-step" groups; equal accuracy (CPU time to reach each target error on
@@ -305,7 +311,7 @@ def ratios(records: pd.DataFrame, equal_accuracy=None, ks=(4, 16, 64)) -> pd.Dat
             rows.append(
                 _ratio_row("equal accuracy: CPU time to target (work-precision)", case, np.nan, times, tgt)
             )
-    cols = ["basis", "case", "k", "target_error_m", *RATIO_COLUMNS]
+    cols = ["basis", "case", "k", "target_error_m", *_ratio_columns()]
     return pd.DataFrame(rows, columns=cols)
 
 
@@ -344,12 +350,12 @@ def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case
         out.append(
             f"Cost per element-step at each method's largest k ({case}, solve only): " + ", ".join(bits) + "."
         )
-    pairs = " ; ".join(RATIO_COLUMNS)
+    pairs = " ; ".join(_ratio_columns())
     size = ratios[ratios.basis.str.startswith("equal size") & (ratios.case == case) & ratios.k.notna()]
     if len(size):
         kmax = size.k.max()
         for _, r in size[size.k == kmax].iterrows():
-            shown = [f"{c} = {_sig2(r[c])}" for c in RATIO_COLUMNS if np.isfinite(r[c])]
+            shown = [f"{c} = {_sig2(r[c])}" for c in _ratio_columns() if np.isfinite(r[c])]
             out.append(
                 f"At equal model size ({case}, k = {int(kmax)}, time per step, {r.basis.split('(')[-1].rstrip(')')}; "
                 f"same element strain only): "
@@ -360,7 +366,7 @@ def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case
     if len(acc):
         parts = []
         for _, r in acc.iterrows():
-            shown = [f"{c} = {_sig2(r[c])}" for c in RATIO_COLUMNS if np.isfinite(r[c])]
+            shown = [f"{c} = {_sig2(r[c])}" for c in _ratio_columns() if np.isfinite(r[c])]
             parts.append(f"{r['case']} at {r['target_error_m']:.0e} m: " + (", ".join(shown) or "n/a"))
         out.append(
             "At equal accuracy (work-precision study, CPU time to reach the error): " + "; ".join(parts) + "."
@@ -449,7 +455,7 @@ def absent(records: pd.DataFrame) -> list[str]:
     out = [
         f"{m} ({c})"
         for c in dict.fromkeys(list(el.case) or ["three_link", "single_link"])
-        for m in ELEMENT_METHODS
+        for m in _element_methods()
         if el[(el.case == c) & (el.method == m)].empty
     ]
-    return out + [f"{m} (links scan)" for m in LINK_METHODS if ln[ln.method == m].empty]
+    return out + [f"{m} (links scan)" for m in _link_methods() if ln[ln.method == m].empty]

@@ -87,12 +87,11 @@ def overview_table(res: pd.DataFrame, orders: pd.DataFrame) -> pd.DataFrame:
             row[method] = f"{_g(_measure(g).iloc[-1], 2)} ({where}, p={p})"
         rows.append(row)
     out = pd.DataFrame(rows)
-    first = [m for m in METHOD_ORDER if m in out.columns]
+    from experiments.methods import shown_order
+
+    first = [m for m in shown_order() if m in out.columns]
     out = out[["problem", "quantity", *first, *[c for c in out.columns[2:] if c not in first]]]
     return out.fillna("not run")  # the method does not model the problem or records no such quantity
-
-
-METHOD_ORDER = ("dttmm", "dttmm-2nd", "global", "exudyn-ancf", "exudyn-beam")
 
 
 def _kcol(k) -> str:
@@ -235,7 +234,9 @@ def sections(tables: dict, fig_dir) -> list:
 def headline(res: pd.DataFrame) -> str:
     """One summary sentence: how many compared quantities DT-TMM (either strain element) gets
     within tolerance at the largest k, and which it does not."""
-    d = res[res.method.isin(["dttmm", "dttmm-2nd"])]
+    from experiments.methods import by_role
+
+    d = res[res.method.isin(by_role("subject"))]
     ok, bad = [], []
     for (problem, quantity), g in d.groupby(["problem", "quantity"], sort=False):
         last = g[g.k == g.k.max()]

@@ -20,13 +20,13 @@ __all__ = ["main", "run_report"]
 
 
 def _methods_in(plan) -> list:
+    """Every method the plan's studies run: those a study names, else every registered method
+    that takes part in it (experiments/methods.py)."""
+    from experiments import methods
+
     names = []
-    for p in plan.studies.values():
-        names += list(p.get("methods", [])) + list(p.get("hs_by_method", {})) + list(p.get("h_by_method", {}))
-        if p.get("rigid"):
-            names.append(p["rigid"]["method"])
-        if "variants" in p:
-            names.append(p.get("method", "dttmm"))
+    for study, p in plan.studies.items():
+        names += list(p["methods"]) if "methods" in p else methods.takes_part(study, size=plan.name)
     return list(dict.fromkeys(names))
 
 

@@ -275,20 +275,13 @@ def save(fig: Figure, path) -> None:
 
 # --- Benchmark scaling (pytest-benchmark groups "elements:<case>:<method>", "links:<method>") ---
 
-_BENCH_ORDER = (
-    "dttmm-converged",
-    "dttmm-one-shot",
-    "dttmm",
-    "global",
-    "exudyn-ancf",
-    "exudyn-beam",
-    "dttmm-rk4",
-)
-
 
 def _bench_curves(ax, d, x, exps, fit_note):
     """One log-log curve of time per step per method, the fitted exponent in its label."""
-    names = [m for m in _BENCH_ORDER if m in set(d.method)] + sorted(set(d.method) - set(_BENCH_ORDER))
+    from experiments.methods import shown_order
+
+    order = shown_order()
+    names = [m for m in order if m in set(d.method)] + sorted(set(d.method) - set(order))
     for i, m in enumerate(names):
         g = d[(d.method == m) & (d[x] > 0) & np.isfinite(d.time_per_step)].sort_values(x)
         if g.empty:

@@ -12,131 +12,35 @@ from .figures import _legend, _style
 from .render import Section
 
 __all__ = [
-    "PEER_SETTINGS",
     "configuration_section",
     "cost_figure",
     "cost_text",
     "equal_accuracy_text",
+    "peer_settings",
     "sig2",
     "work_precision_figure",
     "work_precision_text",
 ]
 
-_DOC = "Exudyn 1.13 reference manual (exudyn.readthedocs.io)"
-#: (peer, setting, value used, why — measured on three_link unless said, documentation source)
-PEER_SETTINGS = (
-    (
-        "ANCF",
-        "element",
-        "ObjectANCFCable2D, k per link, slope nodes clamped to hub/tip bodies",
-        "Euler-Bernoulli cable with nonlinear strain",
-        f"{_DOC}: ObjectANCFCable2D",
-    ),
-    (
-        "GE beam",
-        "element",
-        "ObjectBeamGeometricallyExact2D, hub/tip bodies on the end nodes",
-        "Reissner beam; Exudyn has no 2D Euler-Bernoulli beam",
-        f"{_DOC}: ObjectBeamGeometricallyExact2D",
-    ),
-    (
-        "GE beam",
-        "shearStiffness",
-        "κGA = 0.32·EA (κ = 5/6, ν = 0.3)",
-        "physical value; 1e3·EA made Newton fail",
-        f"{_DOC}: ObjectBeamGeometricallyExact2D.shearStiffness",
-    ),
-    (
-        "GE beam",
-        "crossSectionInertia",
-        "physical ρI = ρA·EI/EA (9e-8 kg·m for the strips) in the studies; adapter default 1e-5",
-        (
-            "physical runs on single_link and three_link for k = 1…64, h = 5e-4…4e-3; on a two-link arm "
-            "with a step torque it fails Newton at h = 1e-3 (1e-5 runs), so 1e-5 stays the safe default"
-        ),
-        f"{_DOC}: ObjectBeamGeometricallyExact2D.crossSectionInertia",
-    ),
-    (
-        "both",
-        "drive torques",
-        "plain LoadTorqueVector values set once per step in a PreStepUserFunction",
-        (
-            "the load user function was called ~35 times per step (5-15 % of the time at k ≤ 16); "
-            "results equal to 5e-13 m"
-        ),
-        (
-            "MainSystem.SetPreStepUserFunction docstring: 'recommended e.g. for prescribing forces or set "
-            "values of actuators'; the time argument is the step end"
-        ),
-    ),
-    (
-        "both",
-        "prescribed joint angles",
-        "ObjectConnectorCoordinate offset set once per step (PreStep)",
-        "same mechanism as the torques",
-        f"{_DOC}: ObjectConnectorCoordinate.offset",
-    ),
-    (
-        "both",
-        "integrator",
-        "generalized-α, spectralRadius 0.8, fixed step (adaptiveStep False)",
-        "the suite's common integrator setting; a Newton failure must be visible, not a silent step halving",
-        f"{_DOC}: SimulationSettings.timeIntegration.generalizedAlpha / adaptiveStep",
-    ),
-    (
-        "both",
-        "Newton",
-        "modified Newton with modifiedNewtonJacUpdatePerStep = True",
-        (
-            "default reuse across steps thrashes at h ≥ 2e-3 (7.4 iterations, 1.2 Jacobians per step "
-            "at k = 4, h = 2e-3); per step 4.5 and 1.0"
-        ),
-        (
-            f"{_DOC}: TimeIntegrationSettings.newton.modifiedNewtonJacUpdatePerStep ('compute Jacobian at "
-            "every time step, but not in every Newton iteration')"
-        ),
-    ),
-    (
-        "both",
-        "Newton tolerances",
-        "relative 1e-8; absolute 1e3·eps·max(EA·k/L)·(chain length), ≥ 1e-8",
-        (
-            "the absolute test is on the residual (force units) and cannot go below its round-off floor; "
-            "a relaxed relative 1e-5 is part of the work-precision grid and wins only where its error "
-            "is as small (rule: cheapest run at equal accuracy)"
-        ),
-        f"{_DOC}: NewtonSettings.relativeTolerance / absoluteTolerance",
-    ),
-    (
-        "both",
-        "linear solver",
-        "EigenSparse",
-        "EigenDense is 3.5× slower at k = 16, 22× at k = 64",
-        f"{_DOC}: SimulationSettings.linearSolverType",
-    ),
-    (
-        "both",
-        "threads, output",
-        "parallel.numberOfThreads = 1; no solution file; sensors stored in memory",
-        "same scope as DT-TMM (one thread, no file output)",
-        f"{_DOC}: SimulationSettings.parallel / solutionSettings.writeSolutionToFile",
-    ),
-    (
-        "both",
-        "timing scope",
-        (
-            "CPU time (time.process_time) of the whole simulate call, least of ≥ 3 "
-            "repeats; solve-only times kept beside it"
-        ),
-        "the same scope for every method",
-        "this suite",
-    ),
-)
+
+def peer_settings() -> list[tuple]:
+    """(peers, setting, value used, why — measured on three_link unless said, documentation
+    source) of every method's documented settings (its registry record), a setting shared by
+    several methods listed once with all their labels."""
+    from experiments import methods
+
+    rows: dict = {}
+    for n in methods.names():
+        for st in methods.get(n).settings:
+            rows.setdefault(st, []).append(methods.label(n))
+    return [(", ".join(who), st.setting, st.value, st.why, st.source) for st, who in rows.items()]
 
 
 def configuration_section() -> Section:
     """The "Peer configuration" section: every setting of the Exudyn peers, why, and its source."""
-    df = pd.DataFrame(PEER_SETTINGS, columns=["peer", "setting", "value", "why (measured)", "documentation"])
+    df = pd.DataFrame(
+        peer_settings(), columns=["peer", "setting", "value", "why (measured)", "documentation"]
+    )
     text = [
         (
             "The Exudyn models are run as Exudyn's documentation recommends for speed: drive values set "
@@ -240,11 +144,13 @@ def crossover_text(ok: pd.DataFrame, scaling_csv="data/bench/global_scaling.csv"
     """Where DT-TMM overtakes the compiled global solver: in k from the cost table (same linear
     element, same h), and in k and n from ``python -m experiments.global_scaling`` when its table
     is there."""
+    from experiments.methods import same_equations
+
     out = []
-    if {"dttmm", "global"} <= set(ok.method):
+    subject, glob = same_equations()[0]  # DT-TMM and the global solver, linear strain
+    if {subject, glob} <= set(ok.method):
         ratio = (
-            ok[ok.method == "global"].set_index("k").cpu_time
-            / ok[ok.method == "dttmm"].set_index("k").cpu_time
+            ok[ok.method == glob].set_index("k").cpu_time / ok[ok.method == subject].set_index("k").cpu_time
         )
         ratio = ratio.dropna().sort_index()
         if len(ratio):

@@ -48,3 +48,35 @@ def with_task_columns(table: pd.DataFrame) -> pd.DataFrame:
     if table.empty:
         return table
     return table.sort_values(["case", "method", "options", "k", "h"]).reset_index(drop=True)
+
+
+def study_methods(ctx, study: str, **filters) -> list[str]:
+    """The methods a study runs: the plan's ``methods`` when it names some (tests), else every
+    registered method that takes part (``experiments.methods.takes_part``, at the plan's size)."""
+    from .. import methods
+
+    chosen = ctx.plan.studies[study].get("methods")
+    if chosen is not None:
+        return list(chosen)
+    return methods.takes_part(study, size=ctx.plan.name, **filters)
+
+
+def step_for(method: str, k: int, h: float) -> float:
+    """The step a method runs at in place of ``h``: at most its record's ``max_step(k)``."""
+    from .. import methods
+
+    try:
+        rule = methods.get(method).max_step
+    except methods.MethodUnavailable:
+        return h
+    return min(h, rule(k)) if rule is not None else h
+
+
+def k_limit(method: str, study: str, size: str) -> float:
+    """Largest k a method runs in ``study`` at the plan ``size`` (inf: no limit)."""
+    from .. import methods
+
+    try:
+        return methods.get(method).k_limit(study, size)
+    except methods.MethodUnavailable:
+        return float("inf")

@@ -18,22 +18,22 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..methods import uses_k
 from ..runs import Task
 from ._common import fit_orders
 
 NAME = "benchmarks"
 CASE_DIR = Path(__file__).resolve().parents[1] / "cases" / "benchmarks"
 
-FLEX = ["dttmm", "dttmm-2nd", "global", "exudyn-ancf", "exudyn-beam"]
-# Damped runs to rest leave out the second-order element: its Kelvin-Voigt damping acts on the
-# linear element coordinates, so a damped static run with that strain creeps.
-STATIC = ["dttmm", "global", "exudyn-ancf", "exudyn-beam"]
+#: The step of each kind of problem. Which methods run a kind comes from their registry records
+#: (a method sits a kind out with the reason: ``skip`` entries ``benchmarks:<kind>``); the
+#: frequencies need a method's own linearisation (the "modes" capability).
 SETTINGS = {
-    "peak_tip_deflection": {"methods": FLEX, "h": 2e-3},
-    "static_tip_displacement": {"methods": STATIC, "h": 1e-2},
-    "tip_deflection_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
-    "tip_path_rms": {"methods": FLEX + ["pinocchio-rigid"], "h": 1e-3},
-    "frequencies": {"methods": ["dttmm", "global", "exudyn-ancf"]},
+    "peak_tip_deflection": {"h": 2e-3},
+    "static_tip_displacement": {"h": 1e-2},
+    "tip_deflection_rms": {"h": 1e-3},
+    "tip_path_rms": {"h": 1e-3},
+    "frequencies": {},
 }
 REQUIRED = (
     "source",
@@ -109,11 +109,17 @@ def _ref_task(name, case, prov):
 
 
 # ----------------------------------------------------------------------------- tasks
-def _methods(params: dict, kind: str) -> list:
-    """The methods run on a problem of this kind: SETTINGS, narrowed to the plan's ``methods``
-    when it names some."""
+def _methods(params: dict, kind: str, size: str | None = None) -> list:
+    """The methods run on a problem of this kind (every registered method that takes part,
+    :func:`experiments.methods.takes_part`), narrowed to the plan's ``methods`` when it names some."""
+    from .. import methods
+
+    if kind == "frequencies":
+        every = [m for m in methods.takes_part(NAME, kind=kind, size=size) if methods.frequencies_of(m)]
+    else:
+        every = methods.takes_part(NAME, kind=kind, size=size)
     chosen = params.get("methods")
-    return [m for m in SETTINGS[kind]["methods"] if chosen is None or m in chosen]
+    return [m for m in every if chosen is None or m in chosen]
 
 
 def _active(ctx) -> bool:
@@ -144,8 +150,8 @@ def tasks(ctx) -> list:
             raise ValueError(f"benchmark problem {name!r} clashes with a different case of the same name")
         ctx.cases[name] = case
         T, h = case.scenario.duration, SETTINGS[kind]["h"]
-        for m in _methods(p, kind):
-            ks = [0] if m == "pinocchio-rigid" else p.get("ks_by_problem", {}).get(name, p["ks"])
+        for m in _methods(p, kind, ctx.plan.name):
+            ks = [0] if not uses_k(m) else p.get("ks_by_problem", {}).get(name, p["ks"])
             out += [Task(name, m, k, h, T) for k in ks]
         ref = _ref_task(name, case, prov)
         if ref is not None:
@@ -239,50 +245,15 @@ def energy_drift(res, case) -> float:
 
 
 def frequencies(case, k: int, method: str = "dttmm", n: int = 2) -> np.ndarray:
-    """Lowest ``n`` natural frequencies (Hz) of a case at rest, held joints clamped.
+    """Lowest ``n`` natural frequencies (Hz) of a case at rest, held joints clamped, by the
+    method's own linearisation (its registry record's ``frequencies`` function: DT-TMM's
+    :func:`dttmm.linear.frequencies`, the global solver's M and K, Exudyn's eigenvalues)."""
+    from .. import methods
 
-    "dttmm": :func:`dttmm.modes` (M from the sweep's response to unit forces, K its 8th-order
-    difference tangent); "global": K φ = ω² M φ with the global solver's mass and stiffness
-    matrices over the free coordinates (at rest without gravity, the exact linearisation);
-    "exudyn-ancf": Exudyn's eigenvalues of an ANCF cable model (:mod:`reference_models.exudyn_modes`).
-    """
-    if method == "dttmm":
-        import dttmm
-
-        return dttmm.modes(case, k, n=n).frequencies
-    if method == "global":
-        return _global_frequencies(case, k, n)
-    if method == "exudyn-ancf":
-        from reference_models.exudyn_modes import frequencies as exudyn_frequencies
-
-        return exudyn_frequencies(case, k, n=n)
-    raise ValueError(f"frequencies: no linearisation for method {method!r}")
-
-
-def _global_frequencies(case, k, n) -> np.ndarray:
-    """Frequencies from the global solver's M and K (at rest; gravity would add stiffness terms
-    that its constant K leaves out, so a case with gravity is refused)."""
-    import scipy.linalg
-
-    from reference_models import global_newmark as gm
-
-    if any(case.model.gravity):
-        raise ValueError("frequencies: the global solver's K is the elastic stiffness only (no gravity)")
-    names = gm.coordinate_names(case, k)
-    q = np.zeros(len(names))
-    alpha = [i for i, nm in enumerate(names) if nm.startswith("alpha_")]
-    for i, d in zip(alpha, case.scenario.drives):
-        q[i] = d.initial_angle
-    held = [i for i, d in zip(alpha, case.scenario.drives) if d.kind == "motion"]
-    free = np.setdiff1d(np.arange(len(names)), held)
-    M = gm.mass_matrix(case, k, q)[np.ix_(free, free)]
-    K = gm.stiffness_matrix(case, k)[np.ix_(free, free)]
-    try:  # flexibility form: the lowest ω² are the largest 1/ω², computed to full accuracy
-        lam = 1.0 / scipy.linalg.eigh(M, K, eigvals_only=True)[::-1]
-    except np.linalg.LinAlgError:  # K singular (a free joint)
-        lam = scipy.linalg.eigh(K, M, eigvals_only=True)
-        lam = np.where(np.abs(lam) <= 1e-13 * np.abs(lam).max(), 0.0, lam)
-    return np.sqrt(np.maximum(lam[:n], 0.0)) / (2 * np.pi)
+    fn = methods.frequencies_of(method)
+    if fn is None:
+        raise ValueError(f"frequencies: no linearisation for method {method!r}")
+    return np.asarray(fn(case, int(k), n), float)
 
 
 # ----------------------------------------------------------------------------- analysis
@@ -360,10 +331,10 @@ def _task_of(r):
 _FAILS = (ImportError, ValueError, ArithmeticError, np.linalg.LinAlgError)
 
 
-def frequency_rows(name, case, prov, ks, plan_params=None) -> list:
-    """Rows of the clamped-link frequency problems: every method with forward dynamics, each k."""
+def frequency_rows(name, case, prov, ks, plan_params=None, size=None) -> list:
+    """Rows of the clamped-link frequency problems: every method with its own linearisation, each k."""
     rows, n = [], len(prov["values"])
-    for m in _methods(plan_params or {}, "frequencies"):
+    for m in _methods(plan_params or {}, "frequencies", size):
         fine = _fine_frequencies(case, m, n)
         for k in ks:
             r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
@@ -404,7 +375,7 @@ def analyse(ctx, table):
     for name, (case, prov) in problems(p.get("problems")).items():
         info.append(_problem_info(name, prov))
         if prov["quantity"] == "frequencies":
-            rows += frequency_rows(name, case, prov, p["ks"], p)
+            rows += frequency_rows(name, case, prov, p["ks"], p, ctx.plan.name)
             continue
         runs = table[table.case == name] if len(table) else table
         rows += _run_rows(ctx, name, ctx.cases.get(name, case), prov, runs)
@@ -419,7 +390,13 @@ MAX_POINTS = 800  # time samples kept per curve in the stored series
 
 def _series(ctx, table) -> pd.DataFrame:
     """Tip-deflection histories of the spin-up problems: DT-TMM (linear strain) at every k, and
-    the second-order element and Exudyn ANCF at the largest k."""
+    the second-order element and the first reference method (Exudyn ANCF) at the largest k."""
+    from .. import methods
+
+    subjects = methods.by_role("subject")
+    every_k = subjects[:1]
+    at_kmax = [m for m in subjects if methods.get(m).physics.strain == "nonlinear"][:1]
+    at_kmax += [m for m in methods.reference_candidates() if m not in subjects][:1]
     cols = ["problem", "method", "k", "t", "tip_deflection"]
     if table is None or table.empty:
         return pd.DataFrame(columns=cols)
@@ -428,7 +405,7 @@ def _series(ctx, table) -> pd.DataFrame:
         if not str(name).startswith("spin_up"):
             continue
         kmax = g.k.max()
-        keep = g[(g.method == "dttmm") | (g.method.isin(["dttmm-2nd", "exudyn-ancf"]) & (g.k == kmax))]
+        keep = g[g.method.isin(every_k) | (g.method.isin(at_kmax) & (g.k == kmax))]
         for _, r in keep.iterrows():
             res = ctx.store.history(_task_of(r))
             step = max(1, len(res.t) // MAX_POINTS)
@@ -453,7 +430,7 @@ def _orders(res: pd.DataFrame) -> pd.DataFrame:
     cols = ["problem", "quantity", "method", "order", "n_points", "k_min", "k_max"]
     if res.empty:
         return pd.DataFrame(columns=cols)
-    flex = res[res.method != "pinocchio-rigid"].rename(columns={"quantity": "compared"})
+    flex = res[res.method.map(uses_k)].rename(columns={"quantity": "compared"})
     o = fit_orders(flex, "k", "order_error", ["problem", "compared", "method"], refine_descending=False)
     o = o.drop(columns="quantity").rename(
         columns={"compared": "quantity", "x_min": "k_min", "x_max": "k_max"}

@@ -14,11 +14,15 @@ Plan parameters (``ctx.plan.studies["control"]``):
 
 * ``case_file``: the case file, relative to ``experiments/cases`` (default the three-link arm);
   ``duration``: s, None keeps the file's value (the move and at least 1.5 s after it must fit);
-* ``runs``: [(method, k, h)] on the case as written; ``rigid_runs``: [(method, h)] run on the
-  variant without moment feedback (a rigid link has no root moment to feed back);
-* ``reference``: [(method, k, h)] candidates, the first that finishes "ok" is the reference of
-  the tip-position differences;
-* ``gains``: the moment gains of the gain sweep; ``gain_runs``: [(method, k, h)] run at each;
+* ``k``, ``h``: every method that takes part (its registry record) runs on the case as written
+  at k and h (an explicit method at its record's ``max_step``); the rigid methods also run on
+  the variant without moment feedback at ``rigid_h`` (a rigid link has no root moment to feed
+  back). ``runs`` [(method, k, h)] and ``rigid_runs`` [(method, h)] name the runs instead (tests);
+* ``reference``: (k, h) of the reference of the tip-position differences, computed and cached
+  by ``experiments.references`` with the registry's reference candidates; or [(method, k, h)]
+  candidates;
+* ``gains``: the moment gains of the gain sweep, run by every method taking part in
+  ``control:gains`` at k and h (or ``gain_runs`` [(method, k, h)]);
 * ``window``: s, length of the residual-vibration windows (default 1 s);
 * ``modes``: {"k": elements per link, "exudyn_k": Exudyn's, "n": modes per system,
   "systems": case files relative to ``experiments/cases``}.
@@ -127,17 +131,51 @@ def planned(ctx) -> dict:
     p, cases = ctx.plan.studies[NAME], _cases(ctx)
     base = next(iter(cases.values()))
     T = base.scenario.duration
-    runs = [Task(base.name, m, k, h, T) for m, k, h in p.get("runs", ())]
-    rigid = [Task(cases["rigid"].name, m, 0, h, T) for m, h in p.get("rigid_runs", ())]
+    run_specs = p["runs"] if "runs" in p else _derived(p, ctx.plan.name)
+    rigid_specs = p["rigid_runs"] if "rigid_runs" in p else _derived_rigid(p, ctx.plan.name)
+    gain_specs = p["gain_runs"] if "gain_runs" in p else _derived(p, ctx.plan.name, "gains")
+    runs = [Task(base.name, m, k, h, T) for m, k, h in run_specs]
+    rigid = [Task(cases["rigid"].name, m, 0, h, T) for m, h in rigid_specs]
     return {
         "runs": runs,
         "rigid": [t for t in rigid if t not in runs],  # a case without moment feedback has no variant
-        "reference": [Task(base.name, m, k, h, T) for m, k, h in p.get("reference", ())],
         "gains": {
-            float(g): [Task(cases[f"gain {g:g}"].name, m, k, h, T) for m, k, h in p.get("gain_runs", ())]
+            float(g): [Task(cases[f"gain {g:g}"].name, m, k, h, T) for m, k, h in gain_specs]
             for g in p.get("gains", ())
         },
     }
+
+
+def _derived(p, size, kind=None) -> list:
+    """(method, k, h) of every method taking part (explicit ones at their max_step; rigid ones
+    at ``rigid_h``, k = 0)."""
+    from .. import methods
+    from ._common import step_for
+
+    out = []
+    for m in methods.takes_part(NAME, kind=kind, size=size):
+        if methods.uses_k(m):
+            out.append((m, p["k"], step_for(m, p["k"], p["h"])))
+        elif kind is None:
+            out.append((m, 0, p.get("rigid_h", p["h"])))
+    return out
+
+
+def _derived_rigid(p, size) -> list:
+    from .. import methods
+
+    return [(m, p.get("rigid_h", p["h"])) for m in methods.takes_part(NAME, size=size, flexible=False)]
+
+
+def reference_specs(p) -> list:
+    """RefSpec candidates of the study's reference (see the module docstring)."""
+    from .. import methods
+    from ..references import RefSpec
+
+    ref = p.get("reference", ())
+    if len(ref) == 2 and all(isinstance(x, (int, float)) for x in ref):
+        return [RefSpec(m, int(ref[0]), float(ref[1])) for m in methods.reference_candidates()]
+    return [RefSpec(m, int(k), float(h)) for m, k, h in ref]
 
 
 def tasks(ctx) -> list:
@@ -145,7 +183,7 @@ def tasks(ctx) -> list:
     if not _active(ctx):
         return []
     by = planned(ctx)
-    out = by["runs"] + by["rigid"] + by["reference"] + [t for ts in by["gains"].values() for t in ts]
+    out = by["runs"] + by["rigid"] + [t for ts in by["gains"].values() for t in ts]
     return list(dict.fromkeys(out))
 
 
@@ -249,14 +287,18 @@ def _history(ctx, r):
     return ctx.store.history(_task(r)) if r["status"] in WITH_HISTORY else None
 
 
-def _reference(ctx, table, candidates):
-    """(Result, its name) of the first candidate run that finished "ok", else (None, why)."""
-    for t in candidates:
-        hit = _select(table, [t])
-        if len(hit) and hit.status.iloc[0] == "ok":
-            return ctx.store.history(t), f"{t.method} k={t.k} h={t.h:g}"
-    tried = ", ".join(f"{t.method} k={t.k} h={t.h:g}" for t in candidates) or "none planned"
-    return None, f"no reference run finished ({tried})"
+def _reference(ctx, case, specs):
+    """(Result, its name) of the study's reference, computed and cached like every reference
+    (``experiments.references``: the first candidate that finishes "ok"), else (None, why)."""
+    from ..references import reference
+
+    if not specs:
+        return None, "no reference run finished (none planned)"
+    folder = Path(ctx.data) / "references" / ctx.plan.name
+    res, prov = reference(case, specs, folder, size=ctx.plan.name)
+    if res is None:
+        return None, "no reference run finished (" + "; ".join(prov.get("failures", [])) + ")"
+    return res, f"{prov['method']} k={prov['k']} h={prov['h']:g}"
 
 
 def run_metrics(res, case, t_move: float, window: float) -> dict:
@@ -315,7 +357,7 @@ def analyse(ctx, table):
     tip-position difference to the reference (m, NaN on the variant), least CPU time of
     REPEATS calls), ``control_gains`` (the same measures over the gain sweep),
     ``control_series`` (histories for the figures), ``control_pairs`` (DT-TMM against the
-    global solver, see PAIRS), ``control_modes`` (natural frequencies) and ``control_info``
+    global solver: methods.same_equations), ``control_modes`` (natural frequencies) and ``control_info``
     (move end, windows, reference)."""
     if not _active(ctx):
         return {}
@@ -323,7 +365,7 @@ def analyse(ctx, table):
     base, rigid = next(iter(cases.values())), cases["rigid"]
     window = float(p.get("window", WINDOW))
     t_move, T = move_end(base), base.scenario.duration
-    ref, ref_name = _reference(ctx, table, by["reference"])
+    ref, ref_name = _reference(ctx, base, reference_specs(p))
     rows = _measured(ctx, _select(table, by["runs"]), base, moment_gain(base), t_move, window, ref)
     rows += _measured(ctx, _select(table, by["rigid"]), rigid, 0.0, t_move, window)
     gain_rows = []
@@ -355,15 +397,15 @@ def analyse(ctx, table):
     }
 
 
-PAIRS = (("dttmm", "global"), ("dttmm-2nd", "global-2nd"))  # the same discrete equations
-
-
 def pair_differences(ctx, rows) -> pd.DataFrame:
     """Largest end-effector distance (m) and joint-angle difference (rad) between the runs of
-    each pair in PAIRS that both finished (same case, k and h)."""
+    each pair solving the same discrete equations (``methods.same_equations``) that both
+    finished (same case, k and h)."""
+    from .. import methods
+
     out = []
     ok = rows[rows.status == "ok"] if len(rows) else rows
-    for a, b in PAIRS:
+    for a, b in methods.same_equations():
         ra, rb = ok[ok.method == a], ok[ok.method == b]
         for _, x in ra.iterrows():
             y = rb[(rb.case == x["case"]) & (rb.k == x["k"]) & np.isclose(rb.h.astype(float), x["h"])]

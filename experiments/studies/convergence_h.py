@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .. import metrics
+from .. import methods, metrics
 from ..runs import Task, task_from_row
-from ._common import MAIN_ERROR, fit_orders, with_task_columns
+from ._common import MAIN_ERROR, fit_orders, study_methods, with_task_columns
 
 NAME = "convergence_h"
 
@@ -23,8 +23,9 @@ def tasks(ctx) -> list[Task]:
     out = []
     for c in p["cases"]:
         T = ctx.cases[c].scenario.duration
-        out += [Task(c, m, p["k"], h, T) for m in p["methods"] for h in p["hs"]]
-        out += [Task(c, m, p["k"], h, T) for m, hs in p.get("hs_by_method", {}).items() for h in hs]
+        for m in study_methods(ctx, NAME, flexible=True):
+            hs = p.get("explicit_hs", p["hs"]) if methods.get(m).explicit else p["hs"]
+            out += [Task(c, m, p["k"], h, T) for h in hs]
     return out
 
 

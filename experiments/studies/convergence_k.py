@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..runs import Task
-from ._common import MAIN_ERROR, fit_orders, with_task_columns
+from ._common import MAIN_ERROR, fit_orders, study_methods, with_task_columns
 
 NAME = "convergence_k"
 
@@ -14,7 +14,7 @@ def tasks(ctx) -> list[Task]:
     return [
         Task(c, m, k, p["h"], ctx.cases[c].scenario.duration)
         for c in p["cases"]
-        for m in p["methods"]
+        for m in study_methods(ctx, NAME, flexible=True)
         for k in p["ks"]
     ]
 

@@ -13,7 +13,7 @@ import pandas as pd
 from ..fit import slope
 from ..runs import Task
 from ..timing import COST_REPEATS
-from ._common import with_task_columns
+from ._common import k_limit, study_methods, with_task_columns
 
 NAME = "cost"
 REPEATS = COST_REPEATS  # timed calls per run (the sweep gives every run of this study that many)
@@ -23,8 +23,12 @@ def tasks(ctx) -> list[Task]:
     """Each method at every k of the plan, one case, one step."""
     p = ctx.plan.studies[NAME]
     T = ctx.cases[p["case"]].scenario.duration
-    cap = p.get("max_k", {})  # per-method largest k (the global solver's cost grows fastest)
-    return [Task(p["case"], m, k, p["h"], T) for m in p["methods"] for k in p["ks"] if k <= cap.get(m, k)]
+    return [
+        Task(p["case"], m, k, p["h"], T)
+        for m in study_methods(ctx, NAME, flexible=True)
+        for k in p["ks"]
+        if k <= k_limit(m, NAME, ctx.plan.name)  # e.g. the global solver's cost grows fastest
+    ]
 
 
 def timing_columns(table: pd.DataFrame) -> pd.DataFrame:

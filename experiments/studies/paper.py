@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .. import metrics
+from .. import methods, metrics
 from ..runs import Task, task_from_row
-from ._common import MAIN_ERROR, tip_col, with_task_columns
+from ._common import MAIN_ERROR, step_for, study_methods, tip_col, with_task_columns
 
 NAME = "paper"
 MAX_POINTS = 1000  # time samples kept per curve in the stored series
@@ -23,16 +23,24 @@ COMPARED, ENERGY_REF = "compared", "energy reference"
 
 def _energy_task(p, case, T) -> Task | None:
     e = p.get("energy_reference")
-    return Task(case, e["method"], e["k"], e["h"], T) if e else None
+    if not e:
+        return None
+    method = e.get("method") or next(iter(methods.takes_part(NAME, needs=("energy",))), None)
+    return Task(case, method, e["k"], e["h"], T) if method else None
 
 
 def _compared(ctx) -> list[Task]:
     p = ctx.plan.studies[NAME]
-    hb = p.get("h_by_method", {})
+    steps = {}
+    for m in study_methods(ctx, NAME):
+        rec = methods.get(m)
+        steps[m] = (
+            p.get("explicit_h", p["h"])
+            if rec.explicit and rec.max_step is None
+            else step_for(m, p["k"], p["h"])
+        )
     return [
-        Task(c, m, p["k"], hb.get(m, p["h"]), ctx.cases[c].scenario.duration)
-        for c in p["cases"]
-        for m in p["methods"]
+        Task(c, m, p["k"], h, ctx.cases[c].scenario.duration) for c in p["cases"] for m, h in steps.items()
     ]
 
 

@@ -4,7 +4,8 @@ Each method is refined along a diagonal path of (k, h) pairs; the rigid baseline
 (or a few steps) whose error is the floor of ignoring flexibility. Every run is timed with
 :data:`REPEATS` calls (least CPU time used, see :mod:`experiments.timing`). Costs at equal
 accuracy are read off each method's lower envelope (:func:`cost_at`), and ratios are formed
-only between methods of the same strain physics (:data:`PHYSICS`).
+only between methods of the same strain physics (each method's registry record, ``physics.strain``;
+its DT-TMM partner is ``methods.base_of``).
 """
 
 from __future__ import annotations
@@ -14,46 +15,40 @@ import math
 import numpy as np
 import pandas as pd
 
+from .. import methods
 from ..runs import Task
 from ..timing import COST_REPEATS
-from ._common import MAIN_ERROR, with_task_columns
+from ._common import MAIN_ERROR, step_for, study_methods, with_task_columns
 from .cost import timing_columns
 
 NAME = "work_precision"
 REPEATS = COST_REPEATS
 TARGETS = (1e-3, 1e-4, 1e-5)  # end-effector RMS accuracies (m) at which costs are compared
-#: Element strain of each method: ratios are formed only within one class. Exudyn's elements
-#: are geometrically exact (full nonlinear strain); the second-order element keeps the
-#: quadratic term of the axial strain, which is what the nonlinear elements add to the linear one.
-PHYSICS = {
-    "dttmm": "linear",
-    "dttmm-rk4": "linear",
-    "global": "linear",
-    "dttmm-2nd": "nonlinear",
-    "global-2nd": "nonlinear",
-    "exudyn-ancf": "nonlinear",
-    "exudyn-beam": "nonlinear",
-}
-#: The DT-TMM method each class is measured against.
-BASE = {"linear": "dttmm", "nonlinear": "dttmm-2nd"}
-#: Options this study gives a method, chosen by measurement (three_link, k = 2…16,
-#: h = 2.5e-4…4e-3): with ``iterations="auto"`` the second-order DT-TMM run reaches the same
-#: end-effector error (within 3 %, most points equal to 3 digits) at 0.5-0.6 times the CPU time.
-METHOD_OPTIONS = {"dttmm-2nd": (("iterations", "auto"),)}
 
 
 def tasks(ctx) -> list[Task]:
-    """Each flexible method along the (k, h) path, plus the rigid baseline at its steps."""
+    """Each flexible method along the (k, h) path (an explicit one at its record's ``max_step`` at
+    each k), plus every rigid method at the plan's ``rigid_h`` steps."""
     p = ctx.plan.studies[NAME]
     out = []
+    flex = study_methods(ctx, NAME, flexible=True)
+    rigid = study_methods(ctx, NAME, flexible=False)
     for c in p["cases"]:
         T = ctx.cases[c].scenario.duration
-        out += [Task(c, m, k, h, T, METHOD_OPTIONS.get(m, ())) for m in p["methods"] for k, h in p["path"]]
-        out += [Task(c, "mujoco-chain", k, h, T) for k, h in p.get("mujoco_path", ())]  # own (k, h) path
-        rigid = p.get("rigid")
-        if rigid:
-            out += [Task(c, rigid["method"], 0, h, T) for h in rigid["h"]]
+        for m in flex:
+            out += [
+                Task(c, m, k, step_for(m, k, h), T, methods.get(m).options_for(NAME)) for k, h in p["path"]
+            ]
+        out += [Task(c, m, 0, h, T) for m in rigid for h in p.get("rigid_h", ())]
     return out
+
+
+def _strain(name: str) -> str:
+    """The method's strain class (its registry record), 'unknown' for an unregistered name."""
+    try:
+        return methods.get(name).physics.strain
+    except methods.MethodUnavailable:
+        return "unknown"
 
 
 def envelope(cost, error) -> list[tuple[float, float]]:
@@ -94,8 +89,8 @@ def equal_accuracy(table: pd.DataFrame, targets=TARGETS) -> pd.DataFrame:
         }
         for i, t in enumerate(targets):
             for m, c in cost.items():
-                phys = PHYSICS.get(m, "unknown")
-                base = BASE.get(phys)
+                phys = _strain(m)
+                base = methods.base_of(m) or (m if _strain(m) != "unknown" else "")
                 b = cost.get(base, [math.nan] * len(targets))[i] if base else math.nan
                 rows.append(
                     {
