@@ -823,9 +823,27 @@ def _from_object(name, get_obj, spec) -> Method:
         raise _bad_spec(spec, f"{type(obj).__name__} object is not callable")
     if rec.module is None and rec.simulate is None:
         raise _bad_spec(spec, "the record names neither a module nor a function")
+    if not math.isfinite(rec.timeout):
+        rec = replace(rec, timeout=OUTSIDE_TIMEOUT)  # an outside method gets a stated time limit
+    if rec.simulate is not None:
+        _pickle_by_value(rec.simulate)
     if rec.name in METHODS and METHODS[rec.name] is not rec:
         raise _bad_spec(spec, f"the name {rec.name!r} is a built-in method's")
     return register(rec)
+
+
+#: s per call: an outside method's default time limit (``dttmm report --method-timeout``).
+OUTSIDE_TIMEOUT = 600.0
+
+
+def _pickle_by_value(fn) -> None:
+    """Let Dask ship a function defined in a file that workers cannot import (a ``path.py:fn``
+    spec) by value."""
+    mod = sys.modules.get(getattr(fn, "__module__", ""))
+    if mod is not None and mod.__name__.startswith("dttmm_outside_"):
+        import cloudpickle
+
+        cloudpickle.register_pickle_by_value(mod)
 
 
 def entry_points() -> dict:
@@ -841,7 +859,7 @@ def resolve(name: str) -> Callable:
     """The method as ``f(case, k, h, **options) -> Result``; raises MethodUnavailable."""
     m = get(name)
     if m.simulate is not None:
-        return _Bound(m.simulate, m.options, m.uses_k)
+        return _Bound(m.simulate, m.options, m.uses_k, m.timeout)
     if m.module is None:
         raise MethodUnavailable(f"{name!r} is shown in figures but not run")
     try:
@@ -851,16 +869,18 @@ def resolve(name: str) -> Callable:
     sim = getattr(module, m.entry, None)
     if sim is None:
         raise MethodUnavailable(f"{m.module} has no {m.entry}()")
-    return _Bound(sim, m.options, m.uses_k)
+    return _Bound(sim, m.options, m.uses_k, m.timeout)
 
 
 @dataclass(frozen=True)
 class _Bound:
-    """A resolved method; picklable when ``simulate`` is a module-level function."""
+    """A resolved method; picklable when ``simulate`` is a module-level function. ``timeout``:
+    seconds a call may take before the sweep records it as an omission (inf: no limit)."""
 
     simulate: Callable
     options: tuple
     uses_k: bool
+    timeout: float = math.inf
 
     def __call__(self, case, k, h, **options):
         opts = dict(self.options)

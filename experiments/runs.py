@@ -78,12 +78,50 @@ class Outcome:
     timing: dict = field(default_factory=dict)
 
 
-def _check(result) -> str:
+_SHAPES = {  # Result field -> its shape, from (nt, n joints)
+    "joint_angle": lambda nt, n: (nt, n),
+    "joint_rate": lambda nt, n: (nt, n),
+    "joint_torque": lambda nt, n: (nt, n),
+    "link_root": lambda nt, n: (nt, n, 2),
+    "link_tip": lambda nt, n: (nt, n, 2),
+    "tip_deflection": lambda nt, n: (nt, n),
+    "end_effector": lambda nt, n: (nt, 2),
+}
+
+
+def malformed(result, case) -> str:
+    """Why a method's return value is not a Result of ``case`` ('' when it is): not a
+    ``dttmm.Result``, a field of the wrong shape, or a time grid other than the case's output
+    grid (times in other units than seconds show up here)."""
+    from dttmm.result import Result
+
+    if not isinstance(result, Result):
+        return f"returned a {type(result).__name__}, not a dttmm.Result"
+    t = np.asarray(result.t, float)
+    grid = np.asarray(case.scenario.output_times, float)
+    if t.shape != grid.shape or not np.allclose(t, grid, rtol=1e-9, atol=1e-9 * case.scenario.duration):
+        span = f"{t[0]:g}…{t[-1]:g} s, {t.size} samples" if t.size else "empty"
+        return (
+            f"time grid {span} is not the case's output grid "
+            f"(0…{grid[-1]:g} s every {case.scenario.output_step:g} s, {grid.size} samples)"
+        )
+    n = case.n_joints
+    for name, shape in _SHAPES.items():
+        got = np.shape(getattr(result, name))
+        if got != shape(t.size, n):
+            return f"{name} has shape {got}, expected {shape(t.size, n)}"
+    return ""
+
+
+def _check(result, case=None) -> str:
     """Why a returned Result is not usable ('' when it is).
 
-    A Result with status "failed" or with non-finite output is not; "unconverged" and
-    "ill-conditioned" ones are kept (their errors are measured) and marked by their status.
+    A value that is not a Result of the case (:func:`malformed`), a Result with status "failed"
+    or with non-finite output is not; "unconverged" and "ill-conditioned" ones are kept (their
+    errors are measured) and marked by their status.
     """
+    if case is not None and getattr(result, "status", "ok") != "failed" and (why := malformed(result, case)):
+        return f"malformed result: {why}"
     if getattr(result, "status", "ok") == "failed":
         meta = result.meta or {}
         why = "; ".join(result.warnings) or meta.get("reason") or meta.get("message") or "no reason given"
@@ -94,29 +132,96 @@ def _check(result) -> str:
     return ""
 
 
+_WARM: set = set()  # (method, options, case) already run in this process
+_RUNAWAY: list = []  # calls that ran past their time limit and still run in this process
+
+
+class RunTimeout(RuntimeError):
+    """A call ran past its method's time limit."""
+
+
+def _call(simulate, limit: float, *args, **kwargs):
+    """``simulate(*args, **kwargs)``, or RunTimeout once it has run ``limit`` s (wall).
+
+    A call with a limit runs in a daemon thread; one that does not return in time is left
+    running (Python cannot stop a thread) and the process's later timings are marked noisy.
+    """
+    if not math.isfinite(limit):
+        return simulate(*args, **kwargs)
+    import threading
+
+    box: dict = {}
+
+    def target():
+        try:
+            box["value"] = simulate(*args, **kwargs)
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
+            box["error"] = exc
+
+    th = threading.Thread(target=target, daemon=True, name="dttmm-run")
+    th.start()
+    th.join(limit)
+    if th.is_alive():
+        _RUNAWAY.append(th)
+        raise RunTimeout(f"ran past its time limit of {limit:g} s")
+    if "error" in box:
+        raise box["error"]
+    return box["value"]
+
+
+def _warm_up(simulate, case, task: Task) -> None:
+    """Run the task's method once, untimed, on the first few steps of its case, the first time
+    this process times it: JIT compilation (or loading cached machine code) and first-call
+    imports stay out of a long run that is timed once. Failures are left to the timed call."""
+    key = (task.method, task.options, task.case)
+    if key in _WARM:
+        return
+    _WARM.add(key)
+    from dataclasses import replace
+
+    sc = case.scenario
+    T = min(sc.duration, max(20 * task.h, 2 * sc.output_step))
+    short = replace(case, scenario=replace(sc, duration=T))
+    with contextlib.suppress(Exception):
+        simulate(short, task.k, task.h, **dict(task.options))
+
+
 def execute(simulate, case, task: Task, repeats: int = 1) -> Outcome:
     """Run one task with a resolved method; never raises for a failing run.
 
     ``repeats`` ≥ 1 calls (one BLAS thread, CPU and wall time each, see
     :func:`experiments.timing.measure`); the first call's Result is kept. Studies that report
     cost ask for ≥ 3, accuracy-only studies for 1; with more than one, a short run is called
-    again until calls × least CPU time reach ``timing.MIN_CPU``. ``KeyboardInterrupt`` and
+    again until calls × least CPU time reach ``timing.MIN_CPU`` (and its spread is small), and a
+    run of ≥ ``timing.LONG_CPU`` is timed once, after an untimed warm-up (:func:`_warm_up`). ``KeyboardInterrupt`` and
     ``SystemExit`` still propagate (they stop the sweep).
     """
     from . import timing as tm
 
     t0 = time.perf_counter()
     min_cpu = tm.MIN_CPU if repeats > 1 else 0.0
+    limit = float(getattr(simulate, "timeout", math.inf))
+    if repeats > 1:
+        _warm_up(simulate, case, task)
     try:
         res, timing = tm.measure(
-            lambda: simulate(case, task.k, task.h, **dict(task.options)), repeats, min_cpu=min_cpu
+            lambda: _call(simulate, limit, case, task.k, task.h, **dict(task.options)),
+            repeats,
+            min_cpu=min_cpu,
         )
     except methods.MethodUnavailable as exc:
         return Outcome("unavailable", str(exc), run_time=time.perf_counter() - t0)
     except Exception as exc:  # recorded with its reason, never dropped
         msg = str(exc).splitlines()[0][:300] if str(exc) else ""
         return Outcome("failed", f"{type(exc).__name__}: {msg}", run_time=time.perf_counter() - t0)
-    why = _check(res)
+    if _RUNAWAY and any(th.is_alive() for th in _RUNAWAY):
+        from dataclasses import replace
+
+        noise = "; ".join(filter(None, [timing.noise, "a timed-out run still runs in this worker"]))
+        timing = replace(timing, noisy=True, noise=noise)
+    why = _check(res, case)
+    if why.startswith("malformed"):
+        res = None  # nothing of it can be stored or scored
     return Outcome("failed" if why else "ok", why, res, timing.wall_min, timing=timing.columns())
 
 

@@ -15,7 +15,7 @@ import os
 from collections.abc import Iterable
 from contextlib import contextmanager
 
-from . import methods
+from . import estimate, methods
 from .runs import Outcome, RunStore, Task, execute
 
 __all__ = ["run_sweep", "pending"]
@@ -117,13 +117,25 @@ def run_sweep(
                 f"{cases[t.case].scenario.duration}"
             )
     resolved = _resolved(todo)
-    bar = _bar(len(tasks), len(tasks) - len(todo), desc, progress)
+    costs = estimate.load_costs()
+    est = {t: estimate.estimate(t, cases[t.case], costs, repeats.get(t, 1)) for t in todo}
+    n_workers = 1 if scheduler == "serial" else (workers or os.cpu_count() or 1)
+    by_method: dict = {}
+    for t, s in est.items():
+        by_method[t.method] = by_method.get(t.method, 0.0) + s
+    if progress:
+        print(estimate.plan_text(len(tasks), len(todo), sum(est.values()), n_workers, by_method), flush=True)
+    bar = _bar(sum(est.values()), desc, progress)
+    done = [0]
 
     def finish(task, outcome):
         ref, ref_id = references.get(task.case, (None, ""))
         store.write(task, outcome, cases[task.case].n_joints, ref, ref_id)
-        bar.update(1)
-        bar.set_postfix_str(f"{task.case} {task.method} k={task.k} h={task.h:g}: {outcome.status}")
+        done[0] += 1
+        bar.update(est.get(task, 0.0))
+        bar.set_postfix_str(
+            f"{done[0]}/{len(todo)} runs; {task.case} {task.method} k={task.k} h={task.h:g}: {outcome.status}"
+        )
 
     runnable = []
     for t in todo:
@@ -132,18 +144,19 @@ def run_sweep(
             finish(t, Outcome("unavailable", str(f)))
         else:
             runnable.append(t)
+    runnable.sort(key=lambda t: -est[t])  # longest first: no worker is left with one long run at the end
     try:
         if scheduler == "serial":
             for t in runnable:
                 finish(t, execute(resolved[t.method], cases[t.case], t, repeats.get(t, 1)))
         elif runnable:
-            _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats)
+            _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats, est)
     finally:
         bar.close()
     return store.table(tasks, references if references else None)
 
 
-def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats):
+def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats, est):
     from dask.distributed import as_completed
 
     with _client(scheduler, workers) as client:
@@ -153,7 +166,8 @@ def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, r
             for name, c in cases.items()
             if any(t.case == name for t in runnable)
         }
-        # Longest runs first (higher priority), so no worker is left with one long run at the end.
+        # Longest runs first (higher priority: the estimated CPU time in ms), so no worker is left
+        # with one long run at the end.
         fut = {
             client.submit(
                 execute,
@@ -164,7 +178,7 @@ def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, r
                 pure=False,
                 # the entry key: a shared scheduler never confuses two versions of a run
                 key=f"run-{t.case}-{t.key}-{store.entry_key(t)[:16]}",
-                priority=_cost(t, cases[t.case]),
+                priority=int(1e3 * est[t]),
             ): t
             for t in runnable
         }
@@ -175,11 +189,6 @@ def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, r
             except Exception as exc:  # a worker died under the run
                 outcome = Outcome("failed", f"worker error: {type(exc).__name__}: {exc}")
             finish(task, outcome)
-
-
-def _cost(task: Task, case) -> int:
-    """Rough relative cost of a run (steps × joints × elements), for scheduling order only."""
-    return int(task.duration / task.h * case.n_joints * (max(task.k, 1) + 4))
 
 
 class _NoBar:
@@ -193,9 +202,18 @@ class _NoBar:
         pass
 
 
-def _bar(total, done, desc, progress):
+def _bar(seconds, desc, progress):
+    """A bar over the estimated CPU seconds of the runs to compute (its rate and time to go are
+    in estimated work, not in run counts, so longest-first ordering does not fool it)."""
     if not progress:
         return _NoBar()
     from tqdm import tqdm
 
-    return tqdm(total=total, initial=done, desc=desc, unit="run", dynamic_ncols=True)
+    return tqdm(
+        total=round(seconds, 1),
+        desc=desc,
+        unit="s",
+        unit_scale=False,
+        dynamic_ncols=True,
+        bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s of est. CPU [{elapsed}<{remaining}{postfix}]",
+    )

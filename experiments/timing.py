@@ -9,10 +9,16 @@ the median is kept beside it. The 1-minute load average is sampled before and af
 repeat; a measurement is marked *noisy* when that load exceeded the number of cores or when
 the median CPU time lies more than ``SPREAD_MAX`` above the minimum.
 
-A run of a few milliseconds is disturbed alike in all of a few calls on a busy machine, so a
-measurement may also ask for ``min_cpu``: it then keeps calling (up to ``MAX_REPEATS`` calls)
-until the number of calls times the least CPU time of a call reaches that; the sweep asks for :data:`MIN_CPU` wherever it asks
-for more than one call.
+Repeats are spent where they matter. A run of a few milliseconds is disturbed alike in all of
+a few calls on a busy machine, so a measurement may also ask for ``min_cpu``: it then keeps
+calling (up to ``MAX_REPEATS`` calls) until the number of calls times the least CPU time of a
+call reaches that, and while the median CPU time lies more than ``SPREAD_MAX`` above the
+minimum; the sweep asks for :data:`MIN_CPU` wherever it asks for more than one call. A call of
+at least :data:`LONG_CPU` CPU seconds is timed once: its CPU time varies between repeats by
+less than :data:`LONG_NOISE` (measured, see the constant), well inside the spread the protocol
+accepts, so further calls would buy nothing. The sweep runs such a method once, untimed, on a
+few steps of the same case before timing it in a worker (JIT compilation or loading of cached
+machine code would otherwise land in the one timed call).
 
 The first repeat's return value is the one kept (every repeat computes the same result), so
 accuracy-only studies run with ``repeats=1`` and pay nothing extra.
@@ -51,6 +57,12 @@ COST_REPEATS = 3
 MIN_CPU = 0.1
 #: Most calls of one measurement when ``min_cpu`` asks for more than ``repeats``.
 MAX_REPEATS = 50
+#: CPU time (s) from which one call is timed once.
+LONG_CPU = 2.0
+#: Largest (median − min)/min of the CPU times of calls of ≥ LONG_CPU seen over the quick report's
+#: cost runs timed 3 times each (2 workers on this 2-core machine, other jobs running; see
+#: docs/peers.md "Timing rule"), rounded up.
+LONG_NOISE = 0.05
 
 
 def cores() -> int:
@@ -111,13 +123,18 @@ def _noise(load: float, n_cores: int, spread: float) -> str:
     return "; ".join(why)
 
 
-def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS, min_cpu: float = 0.0) -> tuple[Any, Timing]:
+def measure(
+    fn: Callable[[], Any], repeats: int = COST_REPEATS, min_cpu: float = 0.0, long_cpu: float | None = None
+) -> tuple[Any, Timing]:
     """Call ``fn()`` ``repeats`` times (≥ 1) under one BLAS thread, and more (at most
-    ``MAX_REPEATS`` in all) until calls × least CPU time reaches ``min_cpu`` (s); return
-    (first value, Timing).
+    ``MAX_REPEATS`` in all) until calls × least CPU time reaches ``min_cpu`` (s) and the median
+    lies within ``SPREAD_MAX`` of the least; return (first value, Timing).
 
-    An exception in any repeat propagates (the run failed; nothing is timed).
+    A first call of at least ``long_cpu`` CPU seconds (default :data:`LONG_CPU`; ``math.inf``:
+    never) ends the measurement when more than one call was asked for: it is timed once, and its
+    ``noise`` says so. An exception in any repeat propagates (the run failed; nothing is timed).
     """
+    long_cpu = LONG_CPU if long_cpu is None else long_cpu
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         from dttmm import InputError
 
@@ -126,8 +143,7 @@ def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS, min_cpu: float =
     first = None
     with one_blas_thread() as threads:
         i = 0
-        # calls × least CPU time, not the sum: a first call that compiles (JIT) must not end it
-        while i < repeats or (i * min(cpu) < min_cpu and i < max(repeats, MAX_REPEATS)):
+        while _more(i, cpu, repeats, min_cpu, long_cpu):
             c0, w0 = time.process_time(), time.perf_counter()
             value = fn()
             wall.append(time.perf_counter() - w0)
@@ -154,4 +170,28 @@ def measure(fn: Callable[[], Any], repeats: int = COST_REPEATS, min_cpu: float =
         "",
     )
     why = _noise(load, n, t.spread)
+    if repeats > 1 and len(cpu) == 1:
+        once = (
+            f"timed once: a call of ≥ {long_cpu:g} s CPU varies by < {100 * LONG_NOISE:.0f} % between repeats"
+        )
+        return first, Timing(
+            **{**asdict(t), "noisy": bool(why), "noise": "; ".join(filter(None, [once, why]))}
+        )
     return first, Timing(**{**asdict(t), "noisy": bool(why), "noise": why})
+
+
+def _more(i: int, cpu: list, repeats: int, min_cpu: float, long_cpu: float) -> bool:
+    """Whether a measurement makes another call after ``i`` calls of CPU times ``cpu``."""
+    if i == 0:
+        return True
+    if repeats > 1 and i == 1 and cpu[0] >= long_cpu:
+        return False  # a long run: timed once
+    if i < repeats:
+        return True
+    if i >= max(repeats, MAX_REPEATS):
+        return False
+    # calls × least CPU time, not the sum: a first call that compiles (JIT) must not end it
+    if i * min(cpu) < min_cpu:
+        return True
+    # short runs asked to add up (min_cpu): also until the spread is small
+    return repeats > 1 and min_cpu > 0 and statistics.median(cpu) > (1 + SPREAD_MAX) * min(cpu)

@@ -1,9 +1,11 @@
-"""``dttmm report [--quick|--full] [--case PATH ...] [--out DIR] [--scheduler ADDR] [--from-data] [--recompute]``.
+"""``dttmm report [--quick|--full] [--case PATH ...] [--method SPEC ...] [--out DIR] [--scheduler ADDR] [--from-data] [--recompute]``.
 
 Runs every study (one resumable sweep on Dask), stores the tables under ``<out>/data/`` and
 writes ``<out>/index.html`` and ``<out>/REPORT.md``. ``--case`` (repeatable) runs the studies on
 the given case files instead of the shipped ones; their references are computed and cached
-like those of the shipped cases. ``--from-data`` only rebuilds the figures and pages from the
+like those of the shipped cases. ``--method`` (repeatable) adds a method of one's own to every
+study: ``my_pkg.my_solver:simulate``, ``path/to/solver.py:simulate`` or the name of an entry
+point of the group ``dttmm.methods`` (docs/methods.md). ``--from-data`` only rebuilds the figures and pages from the
 stored tables.
 """
 
@@ -114,6 +116,26 @@ def _from_data(out, command, bench_dir, log=print):
     return paths
 
 
+def add_methods(specs, timeout=None) -> list[str]:
+    """Register the outside methods named by ``specs`` (``experiments.methods.load_spec``), with
+    a time limit per call of ``timeout`` s when given; returns their names. InputError (one
+    line) for a bad spec or timeout."""
+    from dataclasses import replace
+
+    from dttmm.errors import InputError
+    from experiments import methods
+
+    if timeout is not None and not timeout > 0:
+        raise InputError("--method-timeout", timeout, "must be a positive number of seconds")
+    out = []
+    for spec in specs:
+        rec = methods.load_spec(spec)
+        if timeout is not None and rec.name not in methods.METHODS:
+            rec = methods.register(replace(rec, timeout=float(timeout)))
+        out.append(rec.name)
+    return out
+
+
 def main(argv=None) -> int:
     """Entry point of ``dttmm report``."""
     from experiments.plan import plan_for
@@ -155,6 +177,20 @@ def main(argv=None) -> int:
         metavar="PATH",
         help="case TOML file to report on instead of the shipped cases (repeat for several)",
     )
+    ap.add_argument(
+        "--method",
+        action="append",
+        default=[],
+        metavar="SPEC",
+        help="a method of one's own in every study: module:function, file.py:function or an entry-point name",
+    )
+    ap.add_argument(
+        "--method-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds one call of an outside method may take (default 600); a run past it is an omission",
+    )
     a = ap.parse_args(argv)
     command = "dttmm report " + shlex.join(argv)
     if a.from_data and a.recompute:
@@ -168,6 +204,7 @@ def main(argv=None) -> int:
 
     try:
         plan = plan_for(a.size or "quick", a.case)
+        add_methods(a.method, a.method_timeout)
     except InputError as exc:
         ap.error(str(exc))
     run_report(

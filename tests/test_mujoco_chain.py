@@ -266,8 +266,9 @@ def test_converges_to_ancf_reference(name, h, ks, min_order):
 
 
 def test_work_precision_study_runs_the_mujoco_path():
-    """The work-precision study adds the plan's ``mujoco_path`` for mujoco-chain; a task of it
-    runs through the sweep's executor to an 'ok' outcome."""
+    """The work-precision study runs mujoco-chain along the plan's path at its record's stable
+    step (max_step: 0.016/k² s, at most 2 ms); a task of it runs through the sweep's executor to an
+    'ok' outcome."""
     from types import SimpleNamespace
 
     from experiments import methods
@@ -277,10 +278,11 @@ def test_work_precision_study_runs_the_mujoco_path():
 
     p = PLANS["quick"].studies["work_precision"]
     c = shortened(case("three_link"), 0.02, 4e-3)
-    plan = SimpleNamespace(studies={"work_precision": {**p, "cases": ["three_link"]}})
+    plan = SimpleNamespace(name="quick", studies={"work_precision": {**p, "cases": ["three_link"]}})
     tasks = work_precision.tasks(SimpleNamespace(plan=plan, cases={"three_link": c}))
     mine = [t for t in tasks if t.method == "mujoco-chain"]
-    assert [(t.k, t.h) for t in mine] == [tuple(x) for x in p["mujoco_path"]]
+    assert [(t.k, t.h) for t in mine] == [(k, min(h, 0.016 / k**2)) for k, h in p["path"]]
+    assert [t.h for t in mine] == [2e-3, 1e-3, 2.5e-4, 6.25e-5]  # the quick path's k = 2, 4, 8, 16
     out = execute(methods.resolve("mujoco-chain"), c, mine[2])
     assert out.status == "ok", out.reason
     assert out.result.meta["h"] <= out.result.meta["h_stable"]

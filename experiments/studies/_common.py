@@ -56,9 +56,10 @@ def study_methods(ctx, study: str, **filters) -> list[str]:
     from .. import methods
 
     chosen = ctx.plan.studies[study].get("methods")
-    if chosen is not None:
-        return list(chosen)
-    return methods.takes_part(study, size=ctx.plan.name, **filters)
+    if chosen is None:
+        return methods.takes_part(study, size=ctx.plan.name, **filters)
+    flexible = filters.get("flexible")
+    return [m for m in chosen if flexible is None or methods.uses_k(m) == flexible]
 
 
 def step_for(method: str, k: int, h: float) -> float:
