@@ -52,19 +52,27 @@ def fit(rows) -> dict:
     out = {}
     for m, pts in sorted(by.items()):
         x = np.array(pts)
-        y = x[:, 2] - x[:, 0]  # log(cpu / steps)
-        if len(pts) >= 3 and np.ptp(x[:, 1]) > 0:
-            p, la = np.polyfit(x[:, 1], y, 1)
-        else:
-            p, la = 1.0, float(np.mean(y - x[:, 1]))
-        res = y - (la + p * x[:, 1])
+        keep = np.ones(len(x), bool)
+        for _ in range(5):  # refit without the slow outliers (a first call that compiled, a loaded moment)
+            la, p = _line(x[keep, 1], x[keep, 2] - x[keep, 0])
+            res = x[:, 2] - x[:, 0] - (la + p * x[:, 1])
+            keep = res <= 0.7  # at most 2× slower than the fit
         out[m] = {
             "a": math.exp(la),
             "p": float(p),
-            "runs": len(pts),
-            "rms_log": float(np.sqrt(np.mean(res**2))),
+            "runs": int(keep.sum()),
+            "left_out": int((~keep).sum()),
+            "rms_log": float(np.sqrt(np.mean(res[keep] ** 2))) if keep.any() else math.nan,
         }
     return out
+
+
+def _line(logsize, y) -> tuple[float, float]:
+    """(intercept, slope) of y against log size; slope 1 with too few sizes to fit one."""
+    if len(y) >= 3 and np.ptp(logsize) > 0:
+        p, la = np.polyfit(logsize, y, 1)
+        return float(la), float(p)
+    return float(np.mean(y - logsize)) if len(y) else 0.0, 1.0
 
 
 def load_costs(path=COSTS_FILE) -> dict:

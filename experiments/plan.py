@@ -176,6 +176,8 @@ def _plan(
     scheme_ks,
     note,
     variants,
+    bench,
+    control,
     cost_case="three_link",
 ):
     ref, chk = _refs(*ref_kh)
@@ -202,15 +204,46 @@ def _plan(
                 "energy_reference": {"k": ref_kh[0], "h": ref_kh[1]},
             },
             "cost": {"case": cost_case, "ks": cost_ks, "h": 1e-3},
+            "benchmarks": bench,
+            "control": control,
         },
         note,
         output_step=max(max(hs), max(h for _, h in path)),
     )
 
 
+# Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak
+# (8 s); methods that sit a size out say why in their registry record.
+_BENCH = {
+    "quick": {
+        "ks": [2, 4, 8, 16, 32],
+        "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
+    },
+    "full": {"ks": [2, 4, 8, 16, 32]},
+}
+for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured: 2nd-order element)
+    _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
+
+# Closed loop (experiments/studies/control.py) on its own case: every method that takes part at
+# the report's k = 8, h = 1 ms (an explicit method at its record's max_step), the rigid baseline
+# on the variant without moment feedback, a moment-gain sweep, references at k = 32, h = 2.5e-4.
+_CONTROL = {
+    "k": 8,
+    "h": 1e-3,
+    "rigid_h": 1e-3,
+    "reference": (32, 2.5e-4),
+    "gains": [0.0, 0.5, 1.0, 2.0],
+    # equal k for both: DT-TMM's frequencies agree with Exudyn's to 1e-7 at k = 16 (measured)
+    "modes": {"k": 16, "exudyn_k": 16, "n": 4},
+}
+_CONTROL_SIZES = {"quick": _CONTROL, "full": {**_CONTROL, "modes": {"k": 32, "exudyn_k": 32, "n": 4}}}
+
+
 _GRID_NOTE = {
     "quick": "references at h = 2.5e-4 instead of 1e-4; h down to 5e-4 and k up to 16 (32 for cost); errors "
-    "on a 4 ms output grid (a multiple of every step studied); the global solver's cost curve stops at k = 16.",
+    "on a 4 ms output grid (a multiple of every step studied); the global solver's cost curve stops at k = 16; "
+    "the explicit MuJoCo chain follows the work-precision path to k = 16 only (its k = 32 points, 2.5 min of "
+    "CPU with spin_up's 1.9 min, are in --full); runs of 2 s CPU or more are timed once.",
     "full": "errors on a 4 ms output grid.",
 }
 
@@ -229,6 +262,8 @@ PLANS = {
         note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; "
         + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
+        bench=_BENCH["quick"],
+        control=_CONTROL_SIZES["quick"],
     ),
     "full": _plan(
         "full",
@@ -243,33 +278,7 @@ PLANS = {
         scheme_ks=[1, 2, 4, 8, 16, 32],
         note="full size: the cases as written; " + _GRID_NOTE["full"],
         variants=_VARIANTS_FULL,
+        bench=_BENCH["full"],
+        control=_CONTROL_SIZES["full"],
     ),
 }
-
-# Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak
-# (8 s); methods that sit a size out say why in their registry record.
-_BENCH = {
-    "quick": {
-        "ks": [2, 4, 8, 16, 32],
-        "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
-    },
-    "full": {"ks": [2, 4, 8, 16, 32]},
-}
-for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured: 2nd-order element)
-    _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
-PLANS = {n: replace(p, studies={**p.studies, "benchmarks": _BENCH[n]}) for n, p in PLANS.items()}
-
-# Closed loop (experiments/studies/control.py) on its own case: every method that takes part at
-# the report's k = 8, h = 1 ms (an explicit method at its record's max_step), the rigid baseline
-# on the variant without moment feedback, a moment-gain sweep, references at k = 32, h = 2.5e-4.
-_CONTROL = {
-    "k": 8,
-    "h": 1e-3,
-    "rigid_h": 1e-3,
-    "reference": (32, 2.5e-4),
-    "gains": [0.0, 0.5, 1.0, 2.0],
-    # equal k for both: DT-TMM's frequencies agree with Exudyn's to 1e-7 at k = 16 (measured)
-    "modes": {"k": 16, "exudyn_k": 16, "n": 4},
-}
-_CONTROL_SIZES = {"quick": _CONTROL, "full": {**_CONTROL, "modes": {"k": 32, "exudyn_k": 32, "n": 4}}}
-PLANS = {n: replace(p, studies={**p.studies, "control": _CONTROL_SIZES[n]}) for n, p in PLANS.items()}

@@ -60,9 +60,9 @@ MAX_REPEATS = 50
 #: CPU time (s) from which one call is timed once.
 LONG_CPU = 2.0
 #: Largest (median − min)/min of the CPU times of calls of ≥ LONG_CPU seen over the quick report's
-#: cost runs timed 3 times each (2 workers on this 2-core machine, other jobs running; see
-#: docs/peers.md "Timing rule"), rounded up.
-LONG_NOISE = 0.05
+#: cost runs timed 3 times each: 3-15 %, 8 % at the longest (114 s), with 2 workers on this 2-core
+#: machine under a load of 7-12 (docs/peers.md "Timing rule"). Within the 20 % the report calls noise.
+LONG_NOISE = 0.15
 
 
 def cores() -> int:

@@ -176,3 +176,52 @@ def test_execute_asks_for_min_cpu_only_where_cost_is_reported(_rotor, monkeypatc
     assert execute(methods.resolve("rotor"), c, task, repeats=3).timing["timing_repeats"] == 5
     assert execute(methods.resolve("rotor"), c, task, repeats=1).timing["timing_repeats"] == 1
     assert rotor.CALLS["n"] == 6
+
+
+def test_a_long_call_is_timed_once_and_says_so():
+    calls = []
+
+    def f():
+        calls.append(1)
+        return _burn(0.06)
+
+    _, t = timing.measure(f, 3, min_cpu=0.1, long_cpu=0.05)
+    assert len(calls) == 1 and t.repeats == 1 and "timed once" in t.noise
+    calls.clear()
+    _, t = timing.measure(f, 3, min_cpu=0.1, long_cpu=1.0)  # not long: the repeats asked for (and min_cpu)
+    assert len(calls) == 3 and "timed once" not in t.noise
+    calls.clear()
+    _, t = timing.measure(f, 1, long_cpu=0.05)  # one call asked for: no note
+    assert len(calls) == 1 and t.noise == "" or "load" in t.noise
+
+
+def test_short_calls_with_a_wide_spread_are_called_again():
+    durations = iter([0.03, 0.01, 0.02, 0.02] + [0.01] * 60)
+    _, t = timing.measure(lambda: _burn(next(durations)), 3, min_cpu=0.03)
+    # after 3 calls the median lies 100 % above the least: called until it is within SPREAD_MAX
+    assert t.repeats > 3 and t.spread <= timing.SPREAD_MAX
+
+
+def test_the_estimate_counts_the_calls_of_the_timing_rule():
+    from experiments import estimate
+
+    assert estimate.calls(5.0, 3) == 1  # long: once
+    assert estimate.calls(0.05, 3) == 3
+    assert estimate.calls(0.004, 3) == 25  # 25 × 4 ms reach MIN_CPU = 0.1 s
+    assert estimate.calls(0.05, 1) == 1
+    rows = [
+        {
+            "method": "m",
+            "status": "ok",
+            "k": k,
+            "h": 1e-3,
+            "duration": 1.0,
+            "n_joints": 1,
+            "timing_cpu_min": c,
+        }
+        for k, c in [(1, 0.1), (3, 0.2), (7, 0.4), (15, 0.8), (15, 30.0)]  # the last one compiled
+    ]
+    fit = estimate.fit(rows)["m"]
+    assert fit["p"] == pytest.approx(1.0, abs=1e-6) and fit["left_out"] == 1  # cpu ∝ k + 1
+    task = Task("c", "m", 31, 1e-3, 1.0)
+    assert estimate.one_call(task, case("single_link"), {"m": fit}) == pytest.approx(1.6, rel=1e-6)
