@@ -14,10 +14,12 @@ from conftest import case, shortened
 
 from dttmm import InputError
 from dttmm.threads import blas_threads, one_blas_thread
-from experiments import methods, timing
+from experiments import methods, runs, timing
 from experiments.runs import RunStore, Task, execute
 from experiments.studies import work_precision as wp
 from experiments.sweep import pending, run_sweep
+
+_REAL_WARM_UP = runs._warm_up
 
 
 def _burn(seconds):
@@ -79,6 +81,8 @@ def test_one_blas_thread_inside_the_block():
 @pytest.fixture
 def _rotor(monkeypatch):
     monkeypatch.setattr(timing, "MIN_CPU", 0.0)  # these tests count the calls a study asks for
+    monkeypatch.setattr(runs, "_WARM", set())
+    monkeypatch.setattr(runs, "_warm_up", lambda *a: None)  # counted in its own test below
     methods.register("rotor", rotor.simulate)
     rotor.CALLS["n"] = 0
     rotor.FAIL_AFTER["n"] = None
@@ -86,11 +90,15 @@ def _rotor(monkeypatch):
     rotor.FAIL_AFTER["n"] = None
 
 
-def test_execute_repeats_and_records_the_timing(_rotor):
+def test_execute_repeats_and_records_the_timing(_rotor, monkeypatch):
+    monkeypatch.setattr(runs, "_warm_up", _REAL_WARM_UP)
     c = shortened(case("single_link"), 0.1, 0.01)
     task = Task("single_link", "rotor", 1, 1e-2, 0.1)
     out = execute(methods.resolve("rotor"), c, task, repeats=3)
-    assert out.status == "ok" and rotor.CALLS["n"] == 3
+    # one untimed warm-up call on the case's first steps (the first time this process times it), then 3
+    assert out.status == "ok" and rotor.CALLS["n"] == 4
+    execute(methods.resolve("rotor"), c, task, repeats=3)
+    assert rotor.CALLS["n"] == 7  # warmed up already: the 3 timed calls only
     assert (
         out.timing["timing_repeats"] == 3 and out.timing["timing_cpu_min"] <= out.timing["timing_cpu_median"]
     )
