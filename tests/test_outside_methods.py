@@ -239,7 +239,6 @@ def test_an_entry_point_of_an_installed_package_is_found(tmp_path):
             "install",
             "-q",
             "--no-deps",
-            "--no-build-isolation",
             "--target",
             site,
             str(pkg),

@@ -208,6 +208,12 @@ def test_old_benchmark_file_is_skipped_with_the_reason(report):
     assert "bench-1.json has no scaling-suite groups" in md
 
 
+def methods_label(name):
+    from experiments.methods import label
+
+    return label(name)
+
+
 def test_front_page_scoreboard_and_contents(report):
     import pandas as pd
 
@@ -220,8 +226,16 @@ def test_front_page_scoreboard_and_contents(report):
     row = board.set_index("method").loc["DT-TMM (Newmark)"]
     paper = pd.read_csv(report / "out" / "data" / "paper_summary.csv")
     ee = paper[(paper.case == "three_link") & (paper.method == "dttmm")].ee_l2.iloc[0]
-    assert row["end-effector error (m)"] == pytest.approx(ee, rel=1e-6)
+    assert float(row["end-effector error (m)"]) == pytest.approx(ee, rel=1e-6)
     assert row["status"] == "ok"
+    # no bare NaN: a missing number says why
+    assert not board.isna().any().any()
+    rigid = board.set_index("method").loc["Pinocchio rigid"]
+    assert rigid["order in k"].startswith("not run: rigid links")
+    # the front page opens with one verdict sentence per case, computed from the numbers
+    wp = pd.read_csv(report / "out" / "data" / "work_precision_summary.csv")
+    first = wp[wp.case == "three_link"].sort_values("cpu_time_to_target").iloc[0]
+    assert f"three_link: {methods_label(first.method)} reaches the common end-effector error" in md
     html = (report / "out" / "index.html").read_text()
     assert "<nav id='contents'>" in html and "href='report.css'" in html
     assert (report / "out" / "report.css").exists()

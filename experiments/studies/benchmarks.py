@@ -101,6 +101,16 @@ def _shortened(case, duration):
     return replace(case, scenario=replace(case.scenario, duration=float(duration)))
 
 
+def _reference(ctx, case, task):
+    """The problem's reference run, computed and cached like every reference
+    (``experiments.references``, under ``<data>/references/<size>/``); None when it fails."""
+    from ..references import RefSpec, reference
+
+    folder = Path(ctx.data) / "references" / ctx.plan.name
+    res, _ = reference(case, [RefSpec(task.method, task.k, task.h)], folder, size=ctx.plan.name)
+    return res
+
+
 def _ref_task(name, case, prov):
     r = prov.get("reference")
     if not r:
@@ -153,9 +163,6 @@ def tasks(ctx) -> list:
         for m in _methods(p, kind, ctx.plan.name):
             ks = [0] if not uses_k(m) else p.get("ks_by_problem", {}).get(name, p["ks"])
             out += [Task(name, m, k, h, T) for k in ks]
-        ref = _ref_task(name, case, prov)
-        if ref is not None:
-            out.append(ref)
     return list(dict.fromkeys(out))
 
 
@@ -307,7 +314,7 @@ def _values(name, case, prov, res, ref) -> list:
 
 def _run_rows(ctx, name, case, prov, runs) -> list:
     ref_task = _ref_task(name, case, prov)
-    ref = ctx.store.history(ref_task) if ref_task is not None and ctx.store.has(ref_task) else None
+    ref = _reference(ctx, case, ref_task) if ref_task is not None else None
     rows = []
     for _, r in runs.iterrows():
         if ref_task is not None and (r["method"], r["k"], r["h"]) == (
