@@ -13,12 +13,25 @@ from .plan import PLANS
 from .studies import STUDIES
 from .sweep import run_sweep
 
-__all__ = ["run_studies", "save_tables", "load_tables", "study_main"]
+__all__ = ["add_cases", "run_studies", "save_tables", "load_tables", "study_main"]
+
+
+def add_cases(ctx, names=None) -> None:
+    """Put the studies' own cases (a study module's ``cases(ctx)``: benchmark problems, the
+    closed-loop arm and its variants) into ``ctx.cases``; a different case of the same name is an
+    error. Listing a study's tasks afterwards changes nothing."""
+    for n in names or STUDIES:
+        fn = getattr(STUDIES[n], "cases", None) if n in ctx.plan.studies else None
+        for name, case in (fn(ctx) if fn else {}).items():
+            if ctx.cases.get(name, case) != case:
+                raise ValueError(f"{n} study: case {name!r} clashes with a different case of that name")
+            ctx.cases[name] = case
 
 
 def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True) -> dict:
     """Run the studies ``names`` (default: every study of the plan) and return their tables."""
     names = [n for n in (names or STUDIES) if n in ctx.plan.studies]
+    add_cases(ctx, names)
     per_study = {n: STUDIES[n].tasks(ctx) for n in names}
     every = [t for ts in per_study.values() for t in ts]
     repeats = {}  # timed calls per run: the most any study that reports cost asks for

@@ -190,13 +190,17 @@ def _small_study(tmp_path, problems, ks):
     from experiments.context import Context
     from experiments.plan import Plan
     from experiments.runs import RunStore
+    from experiments.study import add_cases
     from experiments.sweep import run_sweep
 
     plan = Plan(
         "t", {}, {}, {}, {B.NAME: {"problems": problems, "ks": ks, "methods": ["dttmm", "exudyn-ancf"]}}
     )
     ctx = Context(plan, {}, {}, {}, RunStore(tmp_path / "runs"), tmp_path)
+    add_cases(ctx, [B.NAME])
+    before = dict(ctx.cases)
     tasks = B.tasks(ctx)
+    assert ctx.cases == before  # listing the tasks changes nothing
     table = run_sweep(tasks, ctx.cases, ctx.store, scheduler="serial", progress=False)
     return B.analyse(ctx, table)
 

@@ -115,6 +115,7 @@ def tables(tmp_path_factory):
     from experiments.context import Context
     from experiments.plan import Plan
     from experiments.runs import RunStore
+    from experiments.study import add_cases
     from experiments.sweep import run_sweep
 
     methods.register("open-loop-only", _refuses)
@@ -129,6 +130,7 @@ def tables(tmp_path_factory):
         "modes": {"k": 2, "exudyn_k": 2, "n": 2, "systems": []},
     }
     ctx = Context(Plan("t", {}, {}, {}, {C.NAME: params}), {}, {}, {}, RunStore(root / "runs"), root)
+    add_cases(ctx, [C.NAME])
     table = run_sweep(C.tasks(ctx), ctx.cases, ctx.store, scheduler="serial", progress=False)
     return C.analyse(ctx, table), root
 

@@ -138,10 +138,22 @@ def _active(ctx) -> bool:
     return not getattr(ctx.plan, "case_files", None)
 
 
+def cases(ctx) -> dict:
+    """The problems' cases (shortened to the plan's durations), by problem name: the study's own
+    cases, which ``experiments.study.add_cases`` puts into ``ctx.cases`` before tasks are listed."""
+    if not _active(ctx):
+        return {}
+    p = ctx.plan.studies[NAME]
+    return {
+        name: _shortened(case, p.get("durations", {}).get(name))
+        for name, (case, prov) in problems(p.get("problems")).items()
+        if prov["quantity"] != "frequencies"
+    }
+
+
 def tasks(ctx) -> list:
-    """Every applicable method at every k of the plan (one run for the rigid baseline), plus
-    the reference run of the problems compared against one. The benchmark cases are added to
-    ``ctx.cases`` under their own names.
+    """Every applicable method at every k of the plan (one run for the rigid baseline) on the
+    problems' cases (:func:`cases`, in ``ctx.cases``); listing them changes nothing.
 
     Plan parameters (``ctx.plan.studies["benchmarks"]``): ``ks`` (elements per link),
     ``problems`` (case-file names, default all), ``durations`` (name -> shortened duration, s),
@@ -151,15 +163,11 @@ def tasks(ctx) -> list:
         return []
     p = ctx.plan.studies[NAME]
     out = []
-    for name, (case, prov) in problems(p.get("problems")).items():
+    for name, (_case, prov) in problems(p.get("problems")).items():
         kind = prov["quantity"]
         if kind == "frequencies":
             continue
-        case = _shortened(case, p.get("durations", {}).get(name))
-        if ctx.cases.get(name, case) != case:
-            raise ValueError(f"benchmark problem {name!r} clashes with a different case of the same name")
-        ctx.cases[name] = case
-        T, h = case.scenario.duration, SETTINGS[kind]["h"]
+        T, h = ctx.cases[name].scenario.duration, SETTINGS[kind]["h"]
         for m in _methods(p, kind, ctx.plan.name):
             ks = [0] if not uses_k(m) else p.get("ks_by_problem", {}).get(name, p["ks"])
             out += [Task(name, m, k, h, T) for k in ks]

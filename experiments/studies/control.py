@@ -111,18 +111,22 @@ def _active(ctx) -> bool:
 
 
 def _cases(ctx) -> dict:
-    """name -> Case of the study: the case, its variant without moment feedback and the gain
-    variants; each added to ``ctx.cases`` (an existing different case of that name is an error)."""
+    """role -> Case of the study: the case, its variant without moment feedback ("rigid") and
+    the gain variants ("gain <g>"). Nothing is changed."""
     p = ctx.plan.studies[NAME]
     base = load(p)
     out = {base.name: base, "rigid": with_gain(base, 0.0)}
     for g in p.get("gains", ()):
         out[f"gain {g:g}"] = with_gain(base, g)
-    for c in out.values():
-        if ctx.cases.get(c.name, c) != c:
-            raise ValueError(f"control study: case {c.name!r} clashes with a different case of that name")
-        ctx.cases[c.name] = c
     return out
+
+
+def cases(ctx) -> dict:
+    """The study's own cases by case name, which ``experiments.study.add_cases`` puts into
+    ``ctx.cases`` before tasks are listed."""
+    if not _active(ctx):
+        return {}
+    return {c.name: c for c in _cases(ctx).values()}
 
 
 def planned(ctx) -> dict:
