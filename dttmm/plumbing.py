@@ -1,6 +1,7 @@
-"""Plumbing shared by the solvers of the suite: option validation, the Newmark-family
-coefficients and predictor, cubic Hermite sampling, failures with a partial result, and
-provenance. Public names, so that other solvers can use the same definitions."""
+"""Plumbing shared by the solvers of the suite: option validation (the one check of the common
+call's ``elements_per_link`` and ``h``, :func:`discretisation`, used by every method), the
+Newmark-family coefficients, failures with a partial result, and provenance. Public names, so
+that other solvers can use the same definitions."""
 
 from __future__ import annotations
 
@@ -11,23 +12,23 @@ import scipy
 
 from . import _validate
 from ._version import __version__
+from .case import Case
 from .errors import InputError, SimulationError
 from .integrators import NewmarkFamily, newmark_family
-from .kernel.loop import predict
-from .kernel.recorder import hermite_weights
 
 __all__ = [
     "NewmarkFamily",
+    "check_case",
     "choice",
+    "discretisation",
     "elements_per_link",
-    "hermite_sample",
     "iterations_setting",
     "newmark_family",
     "open_fraction",
     "positive_integer",
     "positive_number",
-    "predict",
     "simulation_failure",
+    "step_size",
     "versions",
 ]
 
@@ -40,8 +41,35 @@ def positive_integer(field: str, value, minimum: int = 1) -> int:
 
 
 def elements_per_link(value) -> int:
-    """The mesh size k (integer ≥ 1); the same rule as the case schema's validators."""
+    """The mesh size k: an integer ≥ 1 (a bool, a float such as 4.0 or a string is refused)."""
     return _validate.elements_per_link(value)
+
+
+def step_size(value, duration: float | None = None) -> float:
+    """The step h (s): a positive finite real number (a bool or a string is refused), at most
+    ``duration`` when given."""
+    h = _validate.step_size(value)
+    if duration is not None and h > duration * (1 + 1e-12):
+        raise InputError("h", value, f"must not exceed the duration {duration}")
+    return h
+
+
+def check_case(value) -> Case:
+    """``value`` if it is a :class:`dttmm.Case`, else InputError."""
+    if not isinstance(value, Case):
+        raise InputError("case", value, "must be a dttmm.Case")
+    return value
+
+
+def discretisation(case: Case, k, h, *, uses_k: bool = True) -> tuple[int | None, float]:
+    """The common call's checks, the same in every method: ``case`` a Case, k =
+    ``elements_per_link`` (:func:`elements_per_link`; with ``uses_k`` False, None or a valid k is
+    accepted and None returned) and h (:func:`step_size`, at most the case's duration).
+    Returns (k, h)."""
+    check_case(case)
+    if uses_k or k is not None:
+        k = elements_per_link(k)
+    return (k if uses_k else None), step_size(h, case.scenario.duration)
 
 
 def positive_number(field: str, value) -> float:
@@ -70,21 +98,6 @@ def iterations_setting(value):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
         raise InputError("iterations", value, 'must be None, "auto" or an integer ≥ 0')
     return int(value)
-
-
-def hermite_sample(t, t0: float, t1: float, y0, yd0, y1, yd1):
-    """Cubic Hermite value and derivative at times ``t`` (scalar or (m,)) in [t0, t1] from the
-    values and derivatives at both ends (arrays (...)). Returns (y, ẏ), shapes (m, ...) or
-    (...) for a scalar t — the interpolation the DT-TMM recorder uses."""
-    h = t1 - t0
-    ts = np.atleast_1d(np.asarray(t, float))
-    y = np.empty((ts.size, *np.shape(y0)))
-    yd = np.empty_like(y)
-    for j, tj in enumerate(ts):
-        w0, w1, w2, w3, v0, v1, v2, v3 = hermite_weights((tj - t0) / h, h)
-        y[j] = w0 * np.asarray(y0) + w1 * np.asarray(yd0) + w2 * np.asarray(y1) + w3 * np.asarray(yd1)
-        yd[j] = v0 * np.asarray(y0) + v1 * np.asarray(yd0) + v2 * np.asarray(y1) + v3 * np.asarray(yd1)
-    return (y[0], yd[0]) if np.ndim(t) == 0 else (y, yd)
 
 
 def simulation_failure(

@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
+from dttmm import plumbing
 from dttmm.drives import ComputedTorque, ControlState, reference_of
 from dttmm.errors import InputError, SimulationError
 from dttmm.plumbing import versions
@@ -536,6 +537,7 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
         non-finite state or failed Newton iteration; ``partial`` holds the output samples
         up to the last good step.
     """
+    _, h = plumbing.discretisation(case, elements_per_link, h, uses_k=False)
     scen = case.scenario
     opts = _check_options(integrator, options)
     T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
