@@ -1,6 +1,7 @@
 """Plumbing shared by the solvers of the suite: option validation (the one check of the common
 call's ``elements_per_link`` and ``h``, :func:`discretisation`, used by every method), the
-Newmark-family coefficients, failures with a partial result, and provenance. Public names, so
+Newmark-family coefficients, cubic Hermite output sampling of the uncompiled solvers
+(:func:`hermite_sample`), failures with a partial result, and provenance. Public names, so
 that other solvers can use the same definitions."""
 
 from __future__ import annotations
@@ -9,6 +10,7 @@ import platform
 
 import numpy as np
 import scipy
+from scipy.interpolate import CubicHermiteSpline
 
 from . import _validate
 from ._version import __version__
@@ -22,6 +24,7 @@ __all__ = [
     "choice",
     "discretisation",
     "elements_per_link",
+    "hermite_sample",
     "iterations_setting",
     "newmark_family",
     "open_fraction",
@@ -98,6 +101,49 @@ def iterations_setting(value):
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
         raise InputError("iterations", value, 'must be None, "auto" or an integer ≥ 0')
     return int(value)
+
+
+def hermite_sample(t, nodes, y, dy, dy_end=None, *, snap: float = 0.0, derivative: bool = False):
+    """Cubic Hermite interpolation through step nodes (scipy's ``CubicHermiteSpline``): the
+    output sampler of the solvers that are not compiled (the compiled loops use
+    :func:`dttmm.kernel.recorder.hermite_weights`).
+
+    t (m,) times (s); nodes (N,) strictly increasing times; y, dy (N, ...) values and their
+    time derivatives at the nodes. ``dy_end`` (N, ...), optional: the derivative at the end of
+    the interval that ends at each node where it differs from the one at the start of the next
+    (a restart at a drive jump); the spline is cut there. A time within ``snap`` of a node gets
+    the node's value exactly. Returns y(t) (m, ...), and ẏ(t) with ``derivative``."""
+    t = np.atleast_1d(np.asarray(t, float))
+    nodes = np.asarray(nodes, float)
+    y, dy = np.asarray(y, float), np.asarray(dy, float)
+    out = np.empty((t.size, *y.shape[1:]))
+    dout = np.empty_like(out)
+    cuts = (
+        []
+        if dy_end is None
+        else [j for j in range(1, nodes.size - 1) if not np.array_equal(dy_end[j], dy[j])]
+    )
+    bounds = [0, *cuts, nodes.size - 1]
+    piece = np.clip(np.searchsorted(nodes, t, side="right") - 1, 0, nodes.size - 2)
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        sel = (piece >= a) & (piece < b)
+        if not sel.any() or not out[0].size:
+            continue
+        d = dy[a : b + 1].copy()
+        if dy_end is not None:
+            d[-1] = dy_end[b]
+        spline = CubicHermiteSpline(nodes[a : b + 1], y[a : b + 1], d, axis=0)
+        out[sel] = spline(t[sel])
+        if derivative:
+            dout[sel] = spline(t[sel], 1)
+    if snap > 0.0:
+        j = np.clip(np.searchsorted(nodes, t), 0, nodes.size - 1)
+        for jj in (j, np.maximum(j - 1, 0)):
+            hit = np.abs(nodes[jj] - t) <= snap
+            out[hit] = y[jj[hit]]
+            if derivative:
+                dout[hit] = (dy if dy_end is None else dy_end)[jj[hit]]
+    return (out, dout) if derivative else out
 
 
 def simulation_failure(

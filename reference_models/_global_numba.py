@@ -37,12 +37,14 @@ import numpy as np
 from dttmm import control, iteration
 from dttmm.control import gains, pd_torque
 from dttmm.iteration import stop_rule
+from dttmm.kernel import recorder
+from dttmm.kernel.recorder import hermite_weights
 
 from ._global_control import omega_rows
 
 # numba's cache notices edits to this file only, not to the compiled functions it takes from
 # elsewhere: the cache lives in a folder named by a hash of all of them
-_SOURCES = (Path(__file__), Path(control.__file__), Path(iteration.__file__))
+_SOURCES = (Path(__file__), Path(control.__file__), Path(iteration.__file__), Path(recorder.__file__))
 _CACHE_DIR = str(
     Path(__file__).resolve().parent
     / "__pycache__"
@@ -793,12 +795,9 @@ def _emit(P, C, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_m
             continue
         H = t1 - t0
         s = (t - t0) / H
-        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-        d00, d10 = (6 * s**2 - 6 * s) / H, 3 * s**2 - 4 * s + 1
-        d01, d11 = (-6 * s**2 + 6 * s) / H, 3 * s**2 - 2 * s
-        q = h00 * q0 + h10 * H * qd0 + h01 * q1 + h11 * H * qd1
-        qd = d00 * q0 + d10 * qd0 + d01 * q1 + d11 * qd1
+        w0, w1, w2, w3, v0, v1, v2, v3 = hermite_weights(s, H)  # the DT-TMM recorder's weights
+        q = w0 * q0 + w1 * qd0 + w2 * q1 + w3 * qd1
+        qd = v0 * q0 + v1 * qd0 + v2 * q1 + v3 * qd1
         tau = np.zeros(tau0.size)
         for r in range(Pp.size):
             q[Pp[r]], qd[Pp[r]] = out_mo[c, r, 0], out_mo[c, r, 1]

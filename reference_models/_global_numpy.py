@@ -1040,15 +1040,9 @@ def _joint_torques(case, lay, t, left, tau_p, loop=None, tau_c=None) -> np.ndarr
 
 
 def _hermite(t, t0, t1, y0, v0, y1, v1):
-    """Cubic Hermite value and derivative at t from (y, y') at t0 and t1."""
-    H = t1 - t0
-    s = (t - t0) / H
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    y = h00 * y0 + h10 * H * v0 + h01 * y1 + h11 * H * v1
-    d00, d10 = (6 * s**2 - 6 * s) / H, 3 * s**2 - 4 * s + 1
-    d01, d11 = (-6 * s**2 + 6 * s) / H, 3 * s**2 - 2 * s
-    return y, d00 * y0 + d10 * v0 + d01 * y1 + d11 * v1
+    """Cubic Hermite value and derivative at t in [t0, t1] from the end values and rates."""
+    y, yd = plumbing.hermite_sample(t, [t0, t1], [y0, y1], [v0, v1], derivative=True)
+    return y[0], yd[0]
 
 
 def _base_meta(lay, k, h, integrator, opt) -> dict:
