@@ -17,7 +17,7 @@ venv: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q --durations=15
 	OPENBLAS_NUM_THREADS=1 DTTMM_BENCH_QUICK=1 $(BIN)/python -m pytest -q benchmarks --benchmark-disable
 
 lint: $(STAMP)

@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 from pydantic import BaseModel, ValidationError
 
+from .control_state import ControlState, JitState, is_jitted, jit_state
 from .errors import InputError
-from .kernel.userlaw import JitState as JitState  # the state of a numba-jitted user law
 from .schema import LAW_FIELDS, DriveFields, PDGainFields, PIDGainFields, _short, check_fields
 
 __all__ = [
@@ -36,6 +36,7 @@ __all__ = [
     "Constant",
     "ControlState",
     "Drive",
+    "JitState",
     "Sine",
     "SpinUp",
     "Table",
@@ -269,33 +270,6 @@ class Table:
 
 # --- closed-loop laws ---------------------------------------------------------------------------
 @dataclass(frozen=True)
-class ControlState:
-    """What a closed-loop law sees of the arm at time t (SI units, angles CCW).
-
-    joint : 0-based index of the driven joint.
-    angle, rate : α (rad) and α̇ (rad/s) of the driven joint.
-    moment : root bending moment of the driven link (N·m): the moment the inboard side (joint and
-        hub) exerts on the beam at its root cross-section, CCW positive — positive while the hub
-        drags a lagging beam forward.
-    integral : ∫₀ᵗ (α_ref − α) dt (rad·s), the integrator state of a ``pid`` law (0 at t = 0).
-    angles, rates : (n,) every joint's angle and rate.
-    tip_deflections : (n,) transverse tip deflection of every link in its clamped-root frame (m).
-    computed_torque : rigid inverse-dynamics torque of the reference motion at this joint (N·m),
-        filled only by engines that compute the ``computed_torque`` feedforward; else None.
-    """
-
-    joint: int
-    angle: float
-    rate: float
-    moment: float = 0.0
-    integral: float = 0.0
-    angles: tuple = ()
-    rates: tuple = ()
-    tip_deflections: tuple = ()
-    computed_torque: float | None = None
-
-
-@dataclass(frozen=True)
 class ComputedTorque:
     """Feedforward of the rigid-model inverse dynamics of the reference motion of all joints.
 
@@ -497,8 +471,8 @@ class UserLaw:
     def evaluate(self, t: float, state: ControlState, left: bool = False):
         """(τ, ∂τ/∂α, ∂τ/∂α̇, 0.0) from the user's function (a numba-jitted one is given the
         state as a :class:`JitState`, in every engine)."""
-        if isinstance(state, ControlState) and _is_jitted(self.fn):
-            state = _jit_state(state)
+        if isinstance(state, ControlState) and is_jitted(self.fn):
+            state = jit_state(state)
         out = self.fn(t, state)
         try:
             tau, da, dr = (float(x) for x in out)
@@ -518,30 +492,6 @@ class UserLaw:
 
     def params(self) -> dict:
         raise InputError("law", self.label, "a user law (Python callable) cannot be written to a case file")
-
-
-def _is_jitted(fn) -> bool:
-    from .kernel.userlaw import is_jitted
-
-    return is_jitted(fn)
-
-
-def _jit_state(state: ControlState) -> JitState:
-    """The :class:`JitState` of a :class:`ControlState` (computed_torque None → nan)."""
-    from .kernel.userlaw import make_state
-
-    js = make_state(
-        state.joint,
-        state.angle,
-        state.rate,
-        state.moment,
-        state.integral,
-        state.angles or None,
-        state.rates or None,
-        state.tip_deflections or None,
-    )
-    ct = state.computed_torque
-    return js._replace(computed_torque=math.nan if ct is None else float(ct))
 
 
 LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table, PD, PID)}

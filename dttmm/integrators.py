@@ -15,11 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from ._validate import finite
 from .errors import InputError
-from .kernel.loop import predict
 
 __all__ = ["NewmarkFamily", "newmark_family"]
 
@@ -30,14 +27,6 @@ class NewmarkFamily:
     gamma: float
     alpha_m: float = 0.0
     alpha_f: float = 0.0
-
-    def predict(self, h: float, q, qd, qdd, a):
-        """Return (q̃, q̃', c_q, c_v) for a step of size h from (q, q̇, q̈, a) (arrays (n_dof,)):
-        q_{n+1} = q̃ + c_q q̈_{n+1}, q̇_{n+1} = q̃' + c_v q̈_{n+1}. The kernel's predictor."""
-        qt, qdt = np.empty(np.shape(q)), np.empty(np.shape(q))
-        args = [np.ascontiguousarray(x, dtype=float) for x in (q, qd, qdd, a)]
-        cq, cv = predict(self.beta, self.gamma, self.alpha_m, self.alpha_f, float(h), *args, qt, qdt)
-        return qt, qdt, cq, cv
 
 
 def newmark_family(integrator: str, *, beta=None, gamma=None, rho_inf=None) -> NewmarkFamily:

@@ -13,10 +13,10 @@ import numpy as np
 
 from . import plumbing
 from .case import Case
+from .control_state import is_jitted
 from .drives import UserLaw, require_open_loop
 from .errors import InputError
 from .kernel import driver
-from .kernel.userlaw import is_jitted
 from .resources import check_run_size
 from .structure import STRAINS, build_structure
 from .sweeps import SWEEPS
@@ -136,15 +136,14 @@ def simulate(
     ------
     InputError for bad settings; SimulationError (with ``.partial``) when the run diverges.
     """
-    if not isinstance(case, Case):
-        raise InputError("case", case, "must be a dttmm.Case")
+    elements_per_link, h = plumbing.discretisation(case, elements_per_link, h)
     plumbing.choice("integrator", integrator, INTEGRATORS)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
     plumbing.choice("strain", strain, STRAINS)
     _check_closed_loop(case, sweep, driver.resolve_engine(engine))
     check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy)
     s = driver.Settings(
-        h=plumbing.positive_number("h", h),
+        h=h,
         integrator=integrator,
         sweep=sweep,
         iterations=plumbing.iterations_setting(iterations),

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _validate
 from .case import Case
 from .element import ElementType, element_terms, element_type, outboard_maps, rot, strain_energy
 from .errors import InputError
@@ -68,11 +69,7 @@ def build_structure(case: Case, elements_per_link, strain: str = "linear") -> St
     element's axial strain measure (see :func:`dttmm.element.elastic_forces`)."""
     if strain not in STRAINS:
         raise InputError("strain", strain, f"unknown (one of: {', '.join(STRAINS)})")
-    if isinstance(elements_per_link, bool) or not isinstance(elements_per_link, (int, np.integer)):
-        raise InputError("elements_per_link", elements_per_link, "must be an integer ≥ 1")
-    k = int(elements_per_link)
-    if k < 1:
-        raise InputError("elements_per_link", elements_per_link, "must be an integer ≥ 1")
+    k = _validate.elements_per_link(elements_per_link)
     links, off = [], 0
     for link in case.model.links:
         b = link.beam

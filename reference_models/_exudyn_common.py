@@ -73,7 +73,7 @@ import time
 
 import numpy as np
 
-from dttmm import InputError, SimulationError, make_result
+from dttmm import InputError, SimulationError, make_result, plumbing
 from dttmm.case import Case
 
 from ._exudyn_control import ClosedLoop
@@ -107,28 +107,8 @@ def stiff_axial_stiffness(beam, ratio: float = INEXTENSIBLE_AXIAL_RATIO) -> floa
 
 def check_discretisation(case, elements_per_link, h) -> tuple[int, float, int, int]:
     """Validate (k, h) against the case. Returns (k, h, n_steps, steps_per_output)."""
-    if not isinstance(case, Case):
-        raise InputError("case", case, "must be a dttmm.Case")
-    if isinstance(elements_per_link, bool):
-        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
-    try:
-        integral = float(elements_per_link).is_integer()
-    except (TypeError, ValueError):
-        integral = False
-    if not integral:
-        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
-    k = int(elements_per_link)
-    if k < 1:
-        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
-    try:
-        h = float(h)
-    except (TypeError, ValueError):
-        raise InputError("h", h, "must be a real number") from None
-    if not math.isfinite(h) or h <= 0.0:
-        raise InputError("h", h, "must be positive and finite")
+    k, h = plumbing.discretisation(case, elements_per_link, h)
     sc = case.scenario
-    if h > sc.duration * (1 + 1e-12):
-        raise InputError("h", h, f"must not exceed the duration {sc.duration}")
     ratio = sc.output_step / h
     per_out = int(round(ratio))
     if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:

@@ -52,9 +52,10 @@ def _law_tables(case, C, times, left: bool, rows=None):
     return ff, ref
 
 
-def _initial(case, lay, P, C, maxit):
+def _initial(case, lay, P, C, tol, maxit):
     """State at t = 0 (right limits of the drives), q̈ from the equations (with the closed-loop
-    laws, integral states 0), joint torques, and the closed-loop joints' z and α_ref − α."""
+    laws, integral states 0), joint torques, the closed-loop joints' z and α_ref − α, and
+    whether the closed-loop solve converged."""
     q, qd = gn._initial_state(case, lay)
     pres = gn._prescribed(case, lay, 0.0, False)
     q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
@@ -63,12 +64,12 @@ def _initial(case, lay, P, C, maxit):
     z = np.zeros(nc)
     if not nc:
         qdd, tau_p = G.forward(P, q, qd, Q, pres[:, 2].copy())
-        return q, qd, qdd, gn._joint_torques(case, lay, 0.0, False, tau_p), z, z.copy()
+        return q, qd, qdd, gn._joint_torques(case, lay, 0.0, False, tau_p), z, z.copy(), True
     ff, ref = _law_tables(case, C, [0.0], False)
-    qdd, tau_p, tau_c = G.forward_closed(P, C, q, qd, Q, pres[:, 2].copy(), ff[0], ref[0], z, 1e-14, maxit)
+    qdd, tau_p, tau_c, ok = G.forward_closed(P, C, q, qd, Q, pres[:, 2].copy(), ff[0], ref[0], z, tol, maxit)
     tau = gn._joint_torques(case, lay, 0.0, False, tau_p)
     tau[C.joint] = tau_c
-    return q, qd, qdd, tau, z, ref[0, :, 0] - q[C.row]
+    return q, qd, qdd, tau, z, ref[0, :, 0] - q[C.row], ok
 
 
 def _component(lay, bad: int) -> str:
@@ -90,7 +91,7 @@ def run(case, lay, k, h, integrator, opt):
     meta.update(dict(zip(("beta", "gamma", "alpha_m", "alpha_f"), coef)))
     meta["engine"] = "numba"
     tol_t = 1e-9 * h
-    q, qd, qdd, tau, z, err = _initial(case, lay, P, C, int(opt["max_iterations"]))
+    q, qd, qdd, tau, z, err, ok0 = _initial(case, lay, P, C, float(opt["tol"]), int(opt["max_iterations"]))
     if rec.next_time <= tol_t:
         rec.add(q, qd, tau)
     tq_l, mo_l = _tables(case, t_end, True)
@@ -100,7 +101,7 @@ def run(case, lay, k, h, integrator, opt):
     ff_r, ref_r = _law_tables(case, C, t_end, False, np.flatnonzero(restart))
     itmode = G.IT_TOL if opt["iterations"] is None else G.IT_FIXED
     nfix = 0 if opt["iterations"] is None else int(opt["iterations"])
-    stats = np.zeros(6)
+    stats = np.zeros(7)
     stats[5] = -1
     stats[4] = rec.count
     uncon = np.zeros(t_end.size, np.bool_)
@@ -136,7 +137,7 @@ def run(case, lay, k, h, integrator, opt):
         rec.qd[:0],
         rec.tau[:0],
         uncon[:0],
-        np.zeros(6),
+        np.zeros(7),
         ff_l[:0],
         ref_l[:0],
         ff_r[:0],
@@ -200,5 +201,6 @@ def run(case, lay, k, h, integrator, opt):
             "time_per_step": wall / n_steps,
         }
     )
-    status, warn = gn._convergence(meta, [int(i) for i in np.flatnonzero(uncon)], t_end, opt)
+    fd = int(stats[6]) + (not ok0)
+    status, warn = gn._convergence(meta, [int(i) for i in np.flatnonzero(uncon)], t_end, opt, fd)
     return rec.result(lay, wall, n_steps, meta, status=status, warnings=warn, kinetic=kinetic)

@@ -27,17 +27,49 @@ makes the iteration matrix unsymmetric. Open-loop runs keep the Cholesky solve.
 
 from __future__ import annotations
 
+import hashlib
 from collections import namedtuple
+from pathlib import Path
 
+import numba
 import numpy as np
-from numba import njit
 
+from dttmm import control, iteration
 from dttmm.control import gains, pd_torque
+from dttmm.iteration import stop_rule
+from dttmm.kernel import recorder
+from dttmm.kernel.recorder import hermite_weights
 
 from ._global_control import omega_rows
 
+# numba's cache notices edits to this file only, not to the compiled functions it takes from
+# elsewhere: the cache lives in a folder named by a hash of all of them
+_SOURCES = (Path(__file__), Path(control.__file__), Path(iteration.__file__), Path(recorder.__file__))
+_CACHE_DIR = str(
+    Path(__file__).resolve().parent
+    / "__pycache__"
+    / ("global-numba-" + hashlib.sha256(b"".join(p.read_bytes() for p in _SOURCES)).hexdigest()[:16])
+)
+
+
+def njit(**options):
+    """``numba.njit(**options)`` with its cache (``cache=True``) in the per-hash folder."""
+
+    def deco(f):
+        old = numba.config.CACHE_DIR
+        numba.config.CACHE_DIR = _CACHE_DIR
+        try:
+            return numba.njit(**options)(f)
+        finally:
+            numba.config.CACHE_DIR = old
+
+    return deco
+
+
 # the pd/pid law τ = clip((L0 + g_M J_hub ω̇)/(1 + g_M), ±limit) and its slopes, inlined
 _pd = njit(inline="always")(pd_torque)
+# the suite's one stop rule of a tolerance-driven iteration, inlined
+_stop_rule = njit(inline="always")(stop_rule)
 
 # status codes of the time loop
 OK, NONFINITE = 0, 1
@@ -641,8 +673,9 @@ def _laws(C, q, qd, x, ff, ref, zc, dz, cq, cv, M, rhs, tau):
 @njit(cache=True)
 def forward_closed(P, C, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
     """:func:`forward` with the closed-loop laws (integral states z): the laws' dependence on
-    ω̇ is iterated until q̈ stops changing. Returns (q̈, τ of prescribed joints, τ of the
-    closed-loop joints)."""
+    ω̇ is iterated until :func:`dttmm.iteration.stop_rule` holds (relative tolerance ``tol``, at
+    most ``maxit`` solves). Returns (q̈, τ of prescribed joints, τ of the closed-loop joints,
+    converged)."""
     N = q.size
     M0 = np.empty((N, N))
     f = np.empty(N)
@@ -656,7 +689,9 @@ def forward_closed(P, C, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
     tau_c = np.zeros(nc)
     dz = np.zeros(nc)
     tau = np.zeros(P.presc.size)
-    for _ in range(maxit):
+    prev = np.inf
+    converged = False
+    for it in range(maxit):
         M = M0.copy()
         rhs = rhs0.copy()
         _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M, rhs, tau_c)
@@ -664,10 +699,12 @@ def forward_closed(P, C, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
         tau = solve_partitioned(P, M, rhs, new, True)
         dx = np.max(np.abs(new - x))
         x = new
-        if not dx > tol * max(1.0, np.max(np.abs(x))):
+        stop, converged = _stop_rule(it, dx, prev, np.max(np.abs(x)), tol)
+        if stop:
             break
+        prev = dx
     _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M0[:0], rhs0[:0], tau_c)
-    return x, tau, tau_c
+    return x, tau, tau_c, converged
 
 
 @njit(cache=True)
@@ -699,9 +736,8 @@ def _load_drives(P, tq, mo, Q, tau_link):
 @njit(cache=True)
 def _iterate(P, C, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, ff, ref, zc, dz, tau_c):
     """Iterate one step's q̈ (in place in x); returns (τ of the prescribed joints, solves,
-    converged); the closed-loop torques at the final iterate go into tau_c. Stopping rule as
-    DT-TMM: max|Δq̈| ≤ tol·max(1, max|q̈|), or stagnation at the round-off floor (from the 4th
-    solve on, Δ ≥ 0.9 Δ_prev and Δ ≤ 1e3·tol·scale)."""
+    converged); the closed-loop torques at the final iterate go into tau_c. Stopping rule:
+    :func:`dttmm.iteration.stop_rule`, as in DT-TMM."""
     N = x.size
     Pp = P.presc
     nsolve = maxit if itmode == IT_TOL else nfix + 1
@@ -727,14 +763,8 @@ def _iterate(P, C, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f
         dx = np.max(np.abs(new - x)) if N else 0.0
         x[:] = new
         if itmode == IT_TOL:
-            scale = max(1.0, np.max(np.abs(x)))
-            if dx <= tol * scale:
-                converged = True
-                break
-            if it >= 3 and dx >= 0.9 * prev and dx <= 1e3 * tol * scale:
-                converged = True  # stagnation at the round-off floor
-                break
-            if not np.isfinite(dx):
+            stop, converged = _stop_rule(it, dx, prev, np.max(np.abs(x)), tol)
+            if stop:
                 break
             prev = dx
     if tau_c.size:
@@ -765,12 +795,9 @@ def _emit(P, C, t0, q0, qd0, tau0, t1, q1, qd1, tau1, tol_t, outt, out_tq, out_m
             continue
         H = t1 - t0
         s = (t - t0) / H
-        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-        d00, d10 = (6 * s**2 - 6 * s) / H, 3 * s**2 - 4 * s + 1
-        d01, d11 = (-6 * s**2 + 6 * s) / H, 3 * s**2 - 2 * s
-        q = h00 * q0 + h10 * H * qd0 + h01 * q1 + h11 * H * qd1
-        qd = d00 * q0 + d10 * qd0 + d01 * q1 + d11 * qd1
+        w0, w1, w2, w3, v0, v1, v2, v3 = hermite_weights(s, H)  # the DT-TMM recorder's weights
+        q = w0 * q0 + w1 * qd0 + w2 * q1 + w3 * qd1
+        qd = v0 * q0 + v1 * qd0 + v2 * q1 + v3 * qd1
         tau = np.zeros(tau0.size)
         for r in range(Pp.size):
             q[Pp[r]], qd[Pp[r]] = out_mo[c, r, 0], out_mo[c, r, 1]
@@ -843,7 +870,8 @@ def run(
     states z (nc,) and err = α_ref − α (nc,) at t = 0 (both updated in place).
 
     stats: [0] solves, [1] max solves per step, [2] unconverged steps, [3] steps done,
-    [4] outputs recorded (in: those at t = 0), [5] first non-finite entry of [q, q̇, q̈]. Returns OK or NONFINITE (the failed step is
+    [4] outputs recorded (in: those at t = 0), [5] first non-finite entry of [q, q̇, q̈],
+    [6] forward-dynamics solves with closed-loop laws (restarts) left unconverged. Returns OK or NONFINITE (the failed step is
     stats[3]; outputs up to the step before it are recorded)."""
     beta, gamma, am, af = coef[0], coef[1], coef[2], coef[3]
     N = q.size
@@ -927,9 +955,11 @@ def run(
         if restart[n]:
             _load_drives(P, tq_r[n], mo_r[n], Q, tau1.copy())
             if nc:
-                qdd, _, _ = forward_closed(
-                    P, C, q, qd, Q, mo_r[n, :, 2].copy(), ff_r[n], ref_r[n], z, 1e-14, maxit
+                qdd, _, _, fd_ok = forward_closed(
+                    P, C, q, qd, Q, mo_r[n, :, 2].copy(), ff_r[n], ref_r[n], z, tol, maxit
                 )
+                if not fd_ok:
+                    stats[6] += 1
             else:
                 qdd, _ = forward(P, q, qd, Q, mo_r[n, :, 2].copy())
             a = qdd.copy()

@@ -8,10 +8,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dttmm import make_result
+from dttmm import make_result, plumbing
 from dttmm.case import Case
 from dttmm.drives import Constant, Drive
 from dttmm.errors import InputError, SimulationError
+from dttmm.iteration import stop_rule
 from dttmm.model import Link, Manipulator, Section
 from dttmm.plumbing import versions
 from dttmm.result import tip_deflection
@@ -127,17 +128,11 @@ def _element_stiffness(beam, l: float) -> np.ndarray:
 
 
 def _check_k(k) -> int:
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
-        raise InputError("elements_per_link", k, "must be an integer >= 1")
-    if k < 1:
-        raise InputError("elements_per_link", k, "must be an integer >= 1")
-    return int(k)
+    return plumbing.elements_per_link(k)
 
 
 def _check_case(case) -> Case:
-    if not isinstance(case, Case):
-        raise InputError("case", case, "must be a dttmm.Case")
-    return case
+    return plumbing.check_case(case)
 
 
 def _coordinates(links, k) -> dict:
@@ -976,18 +971,6 @@ def _coefficients(integrator: str, opt: dict) -> tuple[float, float, float, floa
     return 0.25 * (gamma + 0.5) ** 2, gamma, am, af
 
 
-def _check_h(case, h) -> float:
-    try:
-        x = float(h)
-    except (TypeError, ValueError):
-        raise InputError("h", h, "must be a positive number") from None
-    if not (math.isfinite(x) and x > 0):
-        raise InputError("h", h, "must be a positive number")
-    if x > case.scenario.duration * (1 + 1e-12):
-        raise InputError("h", h, f"must not exceed the duration {case.scenario.duration}")
-    return x
-
-
 # ----------------------------------------------------------------------------------------------
 # Output recording
 # ----------------------------------------------------------------------------------------------
@@ -1057,15 +1040,9 @@ def _joint_torques(case, lay, t, left, tau_p, loop=None, tau_c=None) -> np.ndarr
 
 
 def _hermite(t, t0, t1, y0, v0, y1, v1):
-    """Cubic Hermite value and derivative at t from (y, y') at t0 and t1."""
-    H = t1 - t0
-    s = (t - t0) / H
-    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
-    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
-    y = h00 * y0 + h10 * H * v0 + h01 * y1 + h11 * H * v1
-    d00, d10 = (6 * s**2 - 6 * s) / H, 3 * s**2 - 4 * s + 1
-    d01, d11 = (-6 * s**2 + 6 * s) / H, 3 * s**2 - 2 * s
-    return y, d00 * y0 + d10 * v0 + d01 * y1 + d11 * v1
+    """Cubic Hermite value and derivative at t in [t0, t1] from the end values and rates."""
+    y, yd = plumbing.hermite_sample(t, [t0, t1], [y0, y1], [v0, v1], derivative=True)
+    return y[0], yd[0]
 
 
 def _base_meta(lay, k, h, integrator, opt) -> dict:
@@ -1106,9 +1083,7 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv, cl=None):
     z = zc + dz·α of the step) add their law and its linearisation at the iterate
     (:func:`_global_control.linearise`).
 
-    Stopping rule (the one of :func:`dttmm.simulate`): converged when
-    max|Δq̈| ≤ tol·max(1, max|q̈|), or when from the 4th solve on the change stagnates at the
-    round-off floor (Δ ≥ 0.9 Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)); at most
+    Stopping rule: :func:`dttmm.iteration.stop_rule`, the one of :func:`dttmm.simulate`; at most
     ``max_iterations`` solves. ``iterations = m`` makes exactly m + 1 solves.
 
     Returns (q̈, τ of motion joints, number of solves, converged flag, τ of closed-loop joints
@@ -1156,12 +1131,8 @@ def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv, cl=None):
             break
         if m is not None:
             continue
-        scale = max(1.0, np.max(np.abs(new)))
-        if delta <= ctx["tol"] * scale:
-            converged = True
-            break
-        if i >= 3 and delta >= 0.9 * prev and delta <= 1e3 * ctx["tol"] * scale:
-            converged = True  # stagnation at the round-off floor
+        stop, converged = stop_rule(i, delta, prev, np.max(np.abs(new)), ctx["tol"])
+        if stop:
             break
         prev = delta
     tau_p = A[P] @ qdd - rhs[P]
@@ -1195,8 +1166,9 @@ class _State:
 def _forward_closed(case, lay, ctx, q, qd, t, left, z, tau0):
     """:func:`_forward` with the closed-loop laws at the state (q, q̇) and integral states z:
     M q̈ = Q − h − f_int − f_d + Σ τ_i(q̈) e_{α_i}, solved by iterating the laws' linearisation
-    (their dependence on ω̇ is the only one at a fixed state). Returns (q̈, τ of motion joints,
-    τ of closed-loop joints)."""
+    (their dependence on ω̇ is the only one at a fixed state) until
+    :func:`dttmm.iteration.stop_rule` holds; a solve left unconverged counts in
+    ``ctx["unconverged_solves"]``. Returns (q̈, τ of motion joints, τ of closed-loop joints)."""
     P, F = lay.presc, lay.free
     loop = ctx["loop"]
     cl = {"loop": loop, "zc": z, "dz": np.zeros(z.size), "tau_used": tau0}
@@ -1205,7 +1177,9 @@ def _forward_closed(case, lay, ctx, q, qd, t, left, z, tau0):
     rhs0 = f + _torques(case, lay, t, left) - _internal(lay, q)[0] - _damping(lay, q, qd)[0]
     x = np.zeros(lay.n_dof)
     x[P] = pres[:, 2]
-    for _ in range(ctx["max_iterations"]):
+    prev = math.inf
+    converged = False
+    for it in range(ctx["max_iterations"]):
         A, rhs = M.copy(), rhs0.copy()
         laws = _laws_at(cl, t, left, q, qd, x)
         gc.linearise(loop, A, rhs, x, laws, 0.0, 0.0, cl["dz"])
@@ -1214,8 +1188,12 @@ def _forward_closed(case, lay, ctx, q, qd, t, left, z, tau0):
         cl["tau_used"] = gc.applied(loop, laws, new - x, 0.0, 0.0, cl["dz"])
         delta = np.max(np.abs(new - x))
         x = new
-        if not delta > 1e-14 * max(1.0, np.max(np.abs(x))):
+        stop, converged = stop_rule(it, delta, prev, np.max(np.abs(x)), ctx["tol"])
+        if stop:
             break
+        prev = delta
+    if not converged:
+        ctx["unconverged_solves"] = ctx.get("unconverged_solves", 0) + 1
     tau_p = A[P] @ x - rhs[P]
     return x, tau_p, _laws_at(cl, t, left, q, qd, x)[0]
 
@@ -1333,21 +1311,28 @@ def _newmark_run(case, lay, k, h, integrator, opt):
             "time_per_step": wall / len(t_end),
         }
     )
-    status, warn = _convergence(meta, unconverged, t_end, opt)
+    status, warn = _convergence(meta, unconverged, t_end, opt, ctx.get("unconverged_solves", 0))
     return rec.result(lay, wall, len(t_end), meta, status=status, warnings=warn)
 
 
-def _convergence(meta: dict, unconverged, t_end, opt):
-    """Record the unconverged steps in ``meta``; status and warning for the Result."""
+def _convergence(meta: dict, unconverged, t_end, opt, unconverged_solves: int = 0):
+    """Record the unconverged steps (and forward-dynamics solves with closed-loop laws, at t = 0
+    and restarts) in ``meta``; status and warnings for the Result."""
     meta.update({"unconverged_steps": len(unconverged), "unconverged_step_indices": list(unconverged[:20])})
-    if not unconverged:
-        return "ok", ()
-    first = float(t_end[unconverged[0]])
-    msg = (
-        f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
-        f"{len(unconverged)} step(s), first at t = {first:.6g} s"
-    )
-    return "unconverged", (msg,)
+    warns = []
+    if unconverged:
+        first = float(t_end[unconverged[0]])
+        warns.append(
+            f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
+            f"{len(unconverged)} step(s), first at t = {first:.6g} s"
+        )
+    if unconverged_solves:
+        meta["unconverged_solves"] = int(unconverged_solves)
+        warns.append(
+            f"{unconverged_solves} forward-dynamics solves with closed-loop laws (t = 0, restarts) "
+            f"not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves"
+        )
+    return ("unconverged" if warns else "ok"), tuple(warns)
 
 
 def _emit_outputs(case, lay, rec, start: _State, end: _State, tol_t, loop=None):

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from dttmm import plumbing
 from dttmm.case import Case
 from dttmm.errors import InputError
 
@@ -33,10 +34,7 @@ METHOD = "exudyn-ancf"
 def _check(case, elements_per_link, n) -> int:
     if not isinstance(case, Case):
         raise InputError("case", case, "must be a dttmm.Case")
-    if isinstance(elements_per_link, bool) or not isinstance(elements_per_link, (int, np.integer)):
-        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
-    if elements_per_link < 1:
-        raise InputError("elements_per_link", elements_per_link, "must be an integer >= 1")
+    plumbing.elements_per_link(elements_per_link)
     if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1):
         raise InputError("n", n, "must be an integer >= 1 (number of modes)")
     if any(case.model.gravity):

@@ -23,10 +23,12 @@ Cholesky, and runs the whole time loop compiled. Both agree to round-off. Either
 cost per solve grows like N³ in the number N of coordinates.
 
 Each step of Newmark / generalized-α iterates the accelerations with the elastic and
-damping forces linearised at the iterate, and stops by the same rule as
-:func:`dttmm.simulate`: max|Δq̈| ≤ tol·max(1, max|q̈|), or, from the 4th solve on, a change
-that stagnates at the round-off floor (Δ ≥ 0.9·Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)).
-A step that exhausts ``max_iterations`` makes the Result's status "unconverged".
+damping forces linearised at the iterate, and stops by the rule of :func:`dttmm.simulate`,
+:func:`dttmm.iteration.stop_rule`: max|Δq̈| ≤ tol·max(1, max|q̈|), or, from the 4th solve on, a
+change that stagnates at the round-off floor (Δ ≥ 0.9·Δ_prev and Δ ≤ 1e3·tol·max(1, max|q̈|)).
+A step that exhausts ``max_iterations`` makes the Result's status "unconverged"; so does a
+forward-dynamics solve with closed-loop laws (t = 0, restarts) that does
+(``meta["unconverged_solves"]``).
 
 Closed-loop drive laws (``pd``, ``pid``, user laws; docs/control.md, "Global solver") are
 solved implicitly at every step end with the stepped integrators: the law's torque enters the
@@ -34,7 +36,8 @@ generalized force of its joint, its linearisation the iteration matrix, with the
 moment M_root = τ − J_hub ω̇ (ω̇ a fixed row of q̈). See :mod:`reference_models._global_control`.
 
 This module is an independent implementation: it shares with :mod:`dttmm` only the model,
-scenario and result classes, the step schedule and the errors.
+scenario and result classes, the step schedule, the option checks, the stop rule of the
+iteration and the errors.
 
 Element kinematics (floating frame at the inboard node I, angle θ of the cross-section at I):
 material point ξ ∈ [0, 1], x = ξl, local position s(ξ) = (x + ξu, N3 v + N4 φ),
@@ -44,16 +47,15 @@ r_O = r_I + A(θ)(l + u, v), θ_O = θ + φ; a joint adds α to the angle.
 
 from __future__ import annotations
 
+from dttmm import plumbing
+
 from . import _global_control
 from ._global_numpy import (
     _STEPPED,
     ENGINES,
     INTEGRATORS,
     STRAINS,
-    _check_case,
     _check_engine,
-    _check_h,
-    _check_k,
     _check_options,
     _ivp_run,
     _layout,
@@ -134,9 +136,7 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     dttmm.SimulationError
         Non-finite state or failed adaptive integration; ``partial`` holds the outputs so far.
     """
-    case = _check_case(case)
-    k = _check_k(elements_per_link)
-    h = _check_h(case, h)
+    k, h = plumbing.discretisation(case, elements_per_link, h)
     opt = _check_options(integrator, options)
     engine = _check_engine(engine, integrator, opt)
     if integrator not in _STEPPED:

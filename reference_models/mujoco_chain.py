@@ -49,7 +49,7 @@ import mujoco
 import mujoco.rollout
 import numpy as np
 
-from dttmm.case import Case
+from dttmm import plumbing
 from dttmm.drives import ControlState, require_no_computed_torque
 from dttmm.errors import InputError, SimulationError
 from dttmm.plumbing import versions
@@ -66,16 +66,7 @@ _BLOCK_BYTES = 8 << 20  # state rows returned per rollout call, at most this man
 
 def _check(case, k, h, integrator, options):
     """Validated (k, h, opts); raises InputError naming the field."""
-    if not isinstance(case, Case):
-        raise InputError("case", case, "must be a dttmm.Case")
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
-        raise InputError("elements_per_link", k, "must be an integer >= 1")
-    try:
-        h = float(h)
-    except (TypeError, ValueError):
-        raise InputError("h", h, "must be a real number") from None
-    if not (math.isfinite(h) and h > 0):
-        raise InputError("h", h, "must be positive and finite")
+    k, h = plumbing.discretisation(case, k, h)
     if integrator not in INTEGRATORS:
         raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
     for key in options:

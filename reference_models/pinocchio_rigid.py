@@ -34,6 +34,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.integrate import solve_ivp
 
+from dttmm import plumbing
 from dttmm.drives import ComputedTorque, ControlState, reference_of
 from dttmm.errors import InputError, SimulationError
 from dttmm.plumbing import versions
@@ -383,29 +384,14 @@ def _newmark(arm, q, v, T, restart, opts, stats):
 def _hermite(T, Q, V, Ar, Al, t, h):
     """States at times t from the step nodes: node values where t hits a node, otherwise
     cubic Hermite on (q, q̇) and on (q̇, q̈) with the one-sided accelerations of the step."""
-    k = np.clip(np.searchsorted(T, t, side="right") - 1, 0, T.size - 2)
-    dt = T[k + 1] - T[k]
-    s = ((t - T[k]) / dt)[:, None]
-    d = dt[:, None]
-    h00, h10, h01, h11 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2, s * s * (3 - 2 * s), s * s * (s - 1)
-    q = h00 * Q[k] + h10 * d * V[k] + h01 * Q[k + 1] + h11 * d * V[k + 1]
-    v = h00 * V[k] + h10 * d * Ar[k] + h01 * V[k + 1] + h11 * d * Al[k + 1]
-    j = np.clip(np.searchsorted(T, t), 0, T.size - 1)
-    for jj in (j, np.maximum(j - 1, 0)):
-        hit = np.abs(T[jj] - t) <= 1e-9 * h
-        q[hit], v[hit] = Q[jj[hit]], V[jj[hit]]
-    return q, v
+    snap = 1e-9 * h
+    q = plumbing.hermite_sample(t, T, Q, V, snap=snap)
+    return q, plumbing.hermite_sample(t, T, V, Ar, Al, snap=snap)
 
 
 def _hermite_z(T, Z, E, t, h):
     """Integral states at times t: cubic Hermite on (z, ż) between the nodes."""
-    if Z.shape[1] == 0:
-        return np.zeros((t.size, 0))
-    k = np.clip(np.searchsorted(T, t, side="right") - 1, 0, T.size - 2)
-    d = (T[k + 1] - T[k])[:, None]
-    s = (t[:, None] - T[k][:, None]) / d
-    h00, h10, h01, h11 = (1 + 2 * s) * (1 - s) ** 2, s * (1 - s) ** 2, s * s * (3 - 2 * s), s * s * (s - 1)
-    return h00 * Z[k] + h10 * d * E[k] + h01 * Z[k + 1] + h11 * d * E[k + 1]
+    return plumbing.hermite_sample(t, T, Z, E)
 
 
 def _dop853(arm, q, v, T_out, duration, h, breakpoints, opts, stats):
@@ -536,6 +522,7 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
         non-finite state or failed Newton iteration; ``partial`` holds the output samples
         up to the last good step.
     """
+    _, h = plumbing.discretisation(case, elements_per_link, h, uses_k=False)
     scen = case.scenario
     opts = _check_options(integrator, options)
     T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)

@@ -20,11 +20,6 @@ def _l(m):
     return label(m)
 
 
-def _sig(x, n: int = 3) -> str:
-    """``x`` rounded to ``n`` significant digits, without exponent notation for ordinary sizes."""
-    return "n/a" if x is None or not np.isfinite(x) else f"{float(f'{x:.{n}g}'):g}"
-
-
 def _e(x) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{x:.2g}"
 

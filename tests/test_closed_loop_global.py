@@ -23,6 +23,7 @@ from dttmm.drives import PD, PID, Constant, ControlState, Drive, Table, UserLaw
 from dttmm.errors import InputError
 from reference_models import _global_numpy as gnp
 from reference_models import global_newmark as gn
+from tests.golden import value as golden
 
 pytest.importorskip("numba")
 
@@ -299,8 +300,7 @@ def _with_moment_gain(case, gm, duration):
 
 
 def test_moment_feedback_lowers_the_deflection_as_in_the_mujoco_chain():
-    # docs/control.md, mujoco-chain (k = 8, h = 1e-4): peak |w₁| 14.7 mm at g_M = 0 and 6.4 mm
-    # at g_M = 4; decay rate of the residual vibration 1.49 and 0.50 1/s
+    # peak |w₁| and decay rate of the residual vibration of the MuJoCo chain (tests/golden.py)
     base = load_case(THREE_LINK)
     out = {}
     for gm in (0.0, 4.0):
@@ -308,10 +308,10 @@ def test_moment_feedback_lowers_the_deflection_as_in_the_mujoco_chain():
         t, w = res.t, res.tip_deflection[:, 0]
         decay = math.log(np.abs(w[(t >= 1) & (t <= 2)]).max() / np.abs(w[(t >= 3) & (t <= 4)]).max()) / 2
         out[gm] = (np.abs(w).max(), decay)
-    assert out[0.0][0] == pytest.approx(14.7e-3, rel=0.05)
-    assert out[4.0][0] == pytest.approx(6.4e-3, rel=0.05)
-    assert out[0.0][1] == pytest.approx(1.49, rel=0.1)
-    assert out[4.0][1] == pytest.approx(0.50, rel=0.2)
+    assert out[0.0][0] == pytest.approx(golden("closed_loop.peak_w1_gain0"), rel=0.05)
+    assert out[4.0][0] == pytest.approx(golden("closed_loop.peak_w1_gain4"), rel=0.05)
+    assert out[0.0][1] == pytest.approx(golden("closed_loop.decay_gain0"), rel=0.1)
+    assert out[4.0][1] == pytest.approx(golden("closed_loop.decay_gain4"), rel=0.2)
 
 
 # --------------------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ from conftest import case, shortened
 
 import dttmm
 from dttmm.element import elastic_forces, element_type, strain_energy
+from tests.golden import value as golden
 
 
 def test_forces_are_the_energy_gradient_and_tangent_its_jacobian():
@@ -77,7 +78,7 @@ def test_spin_up_second_order_bounded_and_at_the_benchmark_peak(spin_up):
         spin_up, elements_per_link=8, h=1e-2, strain="second-order", cut_loads=False, energy=False
     )
     v = res.tip_deflection[:, 0]
-    assert np.max(np.abs(v)) == pytest.approx(0.40015, rel=3e-3)  # Exudyn ANCF k = 64 (notes §4.1)
+    assert np.max(np.abs(v)) == pytest.approx(golden("spin_up.peak_tip_deflection"), rel=3e-3)
 
 
 @pytest.mark.slow
@@ -106,4 +107,6 @@ def test_second_order_with_generalized_alpha_survives_large_steps(single_link, k
         cut_loads=False,
         energy=False,
     )
-    assert np.max(np.abs(res.tip_deflection)) == pytest.approx(0.341, abs=0.01)  # ANCF: 0.34097
+    assert np.max(np.abs(res.tip_deflection)) == pytest.approx(
+        golden("single_link.peak_tip_deflection"), abs=0.01
+    )

@@ -32,6 +32,7 @@ from dttmm import (
     SpinUp,
 )
 from reference_models import exudyn_ancf, exudyn_beam  # noqa: E402
+from tests.golden import value as golden  # noqa: E402
 
 CASES = os.path.join(os.path.dirname(__file__), "..", "experiments", "cases")
 METHODS = [pytest.param(exudyn_ancf, id="ancf"), pytest.param(exudyn_beam, id="beam")]
@@ -341,11 +342,12 @@ def test_three_link_converges_in_k(three_link_runs, method):
 
 @pytest.mark.slow
 def test_spin_up_ancf_is_bounded_with_the_known_peak():
-    """Kane-Ryan-Banerjee spin-up: peak |v| ≈ 0.400 m during spin-up, small and bounded after."""
+    """Kane-Ryan-Banerjee spin-up at k = 8: the peak |v| of ANCF k = 64 (tests/golden.py), small
+    and bounded after."""
     case = dttmm.load_case(os.path.join(CASES, "spin_up.toml"))
     res = exudyn_ancf.simulate(case, elements_per_link=8, h=5e-3)
     v = res.tip_deflection[:, 0]
-    assert np.max(np.abs(v)) == pytest.approx(0.400, abs=2e-3)
+    assert np.max(np.abs(v)) == pytest.approx(golden("spin_up.peak_tip_deflection"), abs=2e-3)
     assert np.max(np.abs(v[res.t > 15.0])) < 1e-2
 
 

@@ -153,6 +153,28 @@ def test_dttmm_imports_neither_experiments_nor_reports():
     assert out.stdout.strip() == "[]"
 
 
+# The DT-TMM entry point that runs the kernel; every other module of dttmm is the model layer,
+# which the kernel builds on and which never reaches back into it.
+KERNEL_ENTRY = {"dttmm.solver"}
+
+
+def _in_kernel(module: str) -> bool:
+    return module.split(".")[:2] in (["dttmm", "kernel"], ["dttmm", "kernel_python"])
+
+
+def test_the_model_layer_never_imports_the_kernel():
+    graph = import_graph()
+    bad = sorted(
+        (a, b)
+        for a, bs in graph.items()
+        if a.split(".")[0] == "dttmm" and not _in_kernel(a) and a not in KERNEL_ENTRY
+        for b in bs
+        if _in_kernel(b)
+    )
+    assert bad == [], f"model-layer modules importing the kernel: {bad}"
+    assert any(_in_kernel(b) for b in graph["dttmm.solver"])  # the entry point does
+
+
 def _env():
     return {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
 

@@ -15,17 +15,13 @@ import numpy as np
 import pytest
 
 import dttmm
-from dttmm.drives import PD, Constant, ControlState, Drive, JitState, UserLaw
+from dttmm.control_state import make_state
+from dttmm.drives import PD, Constant, Drive, UserLaw
 from dttmm.errors import InputError
-from dttmm.kernel.userlaw import make_state
 
 numba = pytest.importorskip("numba")
 
 from tests.test_closed_loop_dttmm import KD, KP, rotor, three_link  # noqa: E402
-
-
-def test_state_type_has_the_fields_of_control_state():
-    assert JitState._fields == tuple(f.name for f in dc.fields(ControlState))
 
 
 def test_a_law_can_be_tried_by_hand():

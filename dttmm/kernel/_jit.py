@@ -38,8 +38,9 @@ KERNEL_DIR = Path(__file__).resolve().parent
 NOT_COMPILED = ("__init__.py", "driver.py")
 
 
-#: compiled sources outside the kernel folder (the closed-loop law of dttmm/control.py)
-OUTSIDE = (KERNEL_DIR.parent / "control.py",)
+#: compiled sources outside the kernel folder: the closed-loop law (dttmm/control.py), the stop
+#: rule of the iteration (dttmm/iteration.py) and the state a user law sees (dttmm/control_state.py)
+OUTSIDE = tuple(KERNEL_DIR.parent / name for name in ("control.py", "iteration.py", "control_state.py"))
 
 
 def source_hash() -> str:

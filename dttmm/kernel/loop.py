@@ -4,7 +4,8 @@ compiled by numba or run as plain Python (see :mod:`dttmm.kernel._jit`).
 
 Each Newmark step solves the equations of motion at t_{n+1} with q = q̃ + c_q q̈ and
 q̇ = q̃' + c_v q̈ (:func:`predict`): sweeps at the latest iterate until the stop rule of
-:func:`_stop` holds (or a fixed number of sweeps).
+:func:`_stop` holds (or a fixed number of sweeps): the suite's one stop rule,
+:func:`dttmm.iteration.stop_rule`, and for ``iterations="auto"`` the contraction test.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .. import iteration
 from ._jit import njit
 
 # The loop's functions allocate nothing and are compiled without reference counting
@@ -36,6 +38,9 @@ from .layout import (
 from .plain import plain
 from .recorder import record
 from .riccati import riccati, riccati_loads
+
+# the suite's one stop rule of a tolerance-driven iteration, inlined
+_stop_rule = njit(nrt=False, inline="always")(iteration.stop_rule)
 
 
 class Options(NamedTuple):
@@ -294,8 +299,8 @@ def accel_closed(
     """:func:`accel` with closed-loop joints: their laws at (q, q̇) and time t, integral states z (n,),
     feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
     ω̇ of its link root, itself a result of the sweep: the sweeps repeat, each with the laws
-    linearised in α̈ at the last one, until max|Δq̈| ≤ tol·max(1, max|q̈|) or the change stagnates
-    at the round-off floor, as in a step (at most ``max_iterations``; a solve that stops there
+    linearised in α̈ at the last one, until :func:`dttmm.iteration.stop_rule` holds, as in a
+    step (at most ``max_iterations``; a solve that stops there
     counts in ws.fd_unconverged). With moment
     feedback past the first joint the sensitivity A is measured anew if ``fresh``, else the
     last one serves. The torques of closed-loop joints are the laws' τ. Returns (ok, cond)."""
@@ -336,14 +341,8 @@ def accel_closed(
             for r in range(xout.shape[0]):
                 dx = max(dx, abs(xout[r] - ws.xc[r]))
                 xmax = max(xmax, abs(xout[r]))
-            scale = max(1.0, xmax)
-            if dx <= opts.tol * scale:
-                converged = True
-                break
-            if it >= 3 and dx >= 0.9 * prev_dx and dx <= 1e3 * opts.tol * scale:
-                converged = True  # stagnation at the round-off floor (the rule of a step's sweeps)
-                break
-            if not math.isfinite(dx):
+            stop, converged = _stop_rule(it, dx, prev_dx, xmax, opts.tol)
+            if stop:
                 break
             prev_dx = dx
         copy(xout, ws.xc)
@@ -377,14 +376,11 @@ def predict(beta, gamma, alpha_m, alpha_f, h, q, qd, qdd, a, qt, qdt):
 @njit(nrt=False, inline="always")
 def _stop(opts, it, dx, prev_dx, xmax, dq):
     """Stop rule of the tolerance-driven iteration after sweep ``it``: returns (stop,
-    converged). dx = max|Δq̈|, xmax = max|q̈|, dq = max|q̈_{n+1} − q̈_n| ("auto" only)."""
-    scale = max(1.0, xmax)
-    if dx <= opts.tol * scale:
-        return True, True
-    if it >= 3 and dx >= 0.9 * prev_dx and dx <= 1e3 * opts.tol * scale:
-        return True, True  # stagnation at the round-off floor
-    if not math.isfinite(dx):
-        return True, False
+    converged). dx = max|Δq̈|, xmax = max|q̈|, dq = max|q̈_{n+1} − q̈_n| ("auto" only).
+    The rule of :func:`dttmm.iteration.stop_rule`, then for "auto" the contraction test."""
+    stop, converged = _stop_rule(it, dx, prev_dx, xmax, opts.tol)
+    if stop:
+        return stop, converged
     if opts.iteration == IT_AUTO and it >= 1 and dx < prev_dx:
         # the contraction ρ = dx/prev_dx predicts the remaining iteration error dx·ρ/(1 − ρ);
         # stop once it is below auto_fraction × the local truncation error estimate

@@ -1,8 +1,8 @@
 """User laws compiled by numba: the state type they see and the tables the kernel passes them.
 
 A user law ``fn(t, state) -> (τ, ∂τ/∂α, ∂τ/∂α̇)`` that is a numba-jitted function runs inside
-the compiled kernel. ``state`` is a :class:`JitState` (the fields of
-:class:`dttmm.drives.ControlState`, the tuples as 1-d float64 arrays). The kernel calls the
+the compiled kernel. ``state`` is a :class:`dttmm.control_state.JitState` (declared from
+:class:`dttmm.control_state.ControlState`, the tuples as 1-d float64 arrays). The kernel calls the
 law through a numba first-class function type of the one signature :func:`signature`, so the
 kernel is compiled once for all laws (per number of distinct user-law joints, and cached on
 disk like the rest of the kernel); each law is compiled once for that signature.
@@ -18,45 +18,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..control_state import JitState, is_jitted, make_state
 from ..errors import InputError
 
-
-class JitState(NamedTuple):
-    """What a numba-jitted user law sees of the arm at time t (SI units, angles CCW).
-
-    Same fields as :class:`dttmm.drives.ControlState`: ``joint`` (0-based), ``angle``,
-    ``rate``, ``moment`` (root bending moment of the driven link, N·m, of the last sweep),
-    ``integral`` (always 0.0 for a user law), ``angles``, ``rates``, ``tip_deflections``
-    ((n,) float64 arrays, C-contiguous; the kernel reuses them: read them, do not keep or
-    write them) and ``computed_torque`` (nan: not computed for a user law).
-    """
-
-    joint: int
-    angle: float
-    rate: float
-    moment: float
-    integral: float
-    angles: np.ndarray
-    rates: np.ndarray
-    tip_deflections: np.ndarray
-    computed_torque: float
-
-
-def make_state(joint, angle, rate, moment=0.0, integral=0.0, angles=None, rates=None, tips=None) -> JitState:
-    """A :class:`JitState` from Python numbers and sequences (to call or test a law by hand);
-    ``angles``, ``rates``, ``tips`` default to the single joint's values / 0."""
-    arr = lambda v, d: np.ascontiguousarray(np.atleast_1d(d if v is None else v), np.float64)
-    return JitState(
-        int(joint),
-        float(angle),
-        float(rate),
-        float(moment),
-        float(integral),
-        arr(angles, angle),
-        arr(rates, rate),
-        arr(tips, 0.0),
-        float("nan"),
-    )
+__all__ = ["JitState", "UserTables", "compiled", "is_jitted", "make_state", "signature", "tables"]
 
 
 @cache
@@ -64,21 +29,9 @@ def signature():
     """numba signature of a compiled user law: UniTuple(float64, 3)(float64, JitState type)."""
     from numba import types
 
-    arr = types.Array(types.float64, 1, "C")
-    state = types.NamedTuple(
-        [types.int64] + [types.float64] * 4 + [arr] * 3 + [types.float64],
-        JitState,
-    )
+    kinds = {int: types.int64, float: types.float64, np.ndarray: types.Array(types.float64, 1, "C")}
+    state = types.NamedTuple([kinds[tp] for tp in JitState.__annotations__.values()], JitState)
     return types.UniTuple(types.float64, 3)(types.float64, state)
-
-
-def is_jitted(fn) -> bool:
-    """Whether ``fn`` is a numba-jitted function (a CPU dispatcher)."""
-    try:
-        from numba.core.registry import CPUDispatcher
-    except ImportError:  # pragma: no cover - without numba
-        return False
-    return isinstance(fn, CPUDispatcher)
 
 
 def compiled(fn, where: str):
