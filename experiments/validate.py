@@ -1179,6 +1179,16 @@ def scorecard_links(out_dir) -> list:
 
 
 # ----------------------------------------------------------------------------- command line
+def _seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"--timeout = {text!r}: must be a positive number of seconds")
+    return v
+
+
 def parser() -> argparse.ArgumentParser:
     from dttmm.cli import OneLineParser
 
@@ -1198,6 +1208,13 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="the quick size (about two minutes per method)")
     p.add_argument("--out", default="out/validate", help="output folder (default out/validate)")
     p.add_argument(
+        "--timeout",
+        type=_seconds,
+        default=None,
+        metavar="S",
+        help="per-run timeout in s (default 60 with --quick, 600 without)",
+    )
+    p.add_argument(
         "--only", action="append", default=None, metavar="CHECK", help="run only these checks (repeatable)"
     )
     return p
@@ -1211,6 +1228,8 @@ def main(argv=None) -> int:
 
     args = parser().parse_args(argv)
     size = SIZES["quick" if args.quick else "full"]
+    if args.timeout is not None:
+        size = replace(size, timeout=args.timeout)
     try:
         specs = {methods.load_spec(s).name: s for s in args.method} if args.method else {}
     except InputError as exc:
