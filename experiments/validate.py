@@ -109,11 +109,15 @@ class Size:
     order_h_fine: float = 1.25e-4
     order_h_k: int = 4
     timeout: float = 600.0
+    durations: tuple = ()
+    explicit_ks: tuple = (8, 16, 32)
 
 
 #: The quick size drops the spin-up problems at ω_s = 6 and 10 rad/s and shortens the one at
-#: 4 rad/s to 8 s (its peak comes before 7 s), halves the rigid-limit, energy and order runs,
-#: and refines h only to 2.5e-4 s; the per-run timeout is 60 s.
+#: 4 rad/s to 8 s (its peak comes before 7 s), runs the self-weight cantilever 10 s (its quick
+#: size, see its provenance), halves the rigid-limit, energy and order runs, refines h only to
+#: 2.5e-4 s, gives explicit methods with a ``max_step`` the k ladder 4, 8, 16 instead of 8, 16,
+#: 32; the per-run timeout is 60 s.
 SIZES = {
     "full": Size(),
     "quick": Size(
@@ -124,6 +128,8 @@ SIZES = {
         order_duration=0.5,
         order_h_fine=2.5e-4,
         timeout=60.0,
+        durations=(("cantilever_self_weight", 10.0),),
+        explicit_ks=(4, 8, 16),
     ),
 }
 
@@ -299,6 +305,22 @@ class Runner:
         self.worker = Worker(spec or name, size.timeout)
         self._memo: dict = {}
 
+    @property
+    def step_unknown(self) -> str:
+        """Why the method cannot be given a fixed step ('' when it can): explicit with no
+        ``max_step`` in its record, so no step is known to be stable for it."""
+        if self.rec.explicit and self.rec.max_step is None:
+            return (
+                "explicit in time with no max_step in its record: no step is known to be stable for it "
+                "(this check runs at a fixed h)"
+            )
+        return ""
+
+    @property
+    def ks(self) -> tuple:
+        """The k ladder of the benchmark, static and frequency checks for this method."""
+        return self.size.explicit_ks if self.rec.explicit and self.rec.max_step else self.size.ks
+
     def step(self, k, h):
         """h, lowered to the record's ``max_step(k)`` for an explicit method."""
         if self.rec.explicit and self.rec.max_step is not None:
@@ -430,7 +452,7 @@ def _published(prov) -> bool:
 def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
     """Rows of one benchmark problem: each compared quantity at the largest k of the ladder,
     pass/fail by the benchmarks study's rule, observed order in k over the ladder."""
-    rec, ks = run.rec, run.size.ks
+    rec, ks = run.rec, run.ks
     src = prov.get("source", "")
     check = "benchmark"
     quantities = targets = B.targets(prov)
@@ -471,7 +493,7 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
             )
             rows[-1]["order"] = _nan_none(order_in_k(ks[:-1], diffs))
         return rows
-    why = _missing(rec, _needs(case))
+    why = _missing(rec, _needs(case)) or run.step_unknown
     if why:
         return _not_run(rec.name, check, problem, kind, why, reference=targets[0][1], **kw)
     h = B.SETTINGS[kind]["h"]
@@ -685,10 +707,10 @@ def static_deflection(run: Runner) -> list:
 
 
 def _static_like(run, check, case, prov):
-    rec, ks = run.rec, run.size.ks
+    rec, ks = run.rec, run.ks
     target = float(prov["value"])
     kw = dict(source=prov["source"], tolerance=prov["tolerance"], tolerance_kind=prov["tolerance_kind"])
-    why = _missing(rec, _needs(case))
+    why = _missing(rec, _needs(case)) or run.step_unknown
     if why:
         return _not_run(rec.name, check, case.name, "tip deflection at rest (m)", why, reference=target, **kw)
     vals, cpu, reason = [], 0.0, ""
@@ -754,7 +776,7 @@ def clamped_closed_form(case) -> list:
 def clamped_frequencies(run: Runner) -> list:
     """Lowest three frequencies of :func:`clamped_case` from the method's own linearisation
     against the β_nL closed form, relative 1e-4 at the largest k; order in k over the ladder."""
-    rec, ks = run.rec, run.size.ks
+    rec, ks = run.rec, run.ks
     case = clamped_case()
     ref = clamped_closed_form(case)
     src = (
@@ -816,7 +838,7 @@ def energy_balance(run: Runner) -> list:
         reference=0.0,
     )
     q = "max |E(t) − E(0)| / (m g L/2)"
-    why = _missing(rec, ["energy", *_needs(case)])
+    why = _missing(rec, ["energy", *_needs(case)]) or run.step_unknown
     if why:
         return _not_run(rec.name, "energy balance", ENERGY_PROBLEM, q, why, **kw)
     h = run.step(ENERGY_K, ENERGY_H)
@@ -983,7 +1005,7 @@ def order_k(run: Runner) -> list:
 
 def order_h(run: Runner) -> list:
     """Observed order in h: the order case at k = 4 and h = 4, 2, 1 ms (explicit methods: from
-    their ``max_step(k)``, or 1/8 of those without one) against h/8 of the smallest (quick: h/4)."""
+    their ``max_step(k)``, or 1/4 of those without one) against h/8 of the smallest (quick: h/4)."""
     rec, s = run.rec, run.size
     case = order_case(s.order_duration)
     k = s.order_h_k
@@ -997,7 +1019,7 @@ def order_h(run: Runner) -> list:
     hs = list(s.order_hs)
     fine_h = s.order_h_fine
     if rec.explicit:
-        top = float(rec.max_step(k)) if rec.max_step is not None else hs[0] / 8
+        top = float(rec.max_step(k)) if rec.max_step is not None else hs[0] / 4
         scale = top / hs[0]
         hs, fine_h = [x * scale for x in hs], fine_h * scale
     # every step must divide the output step
@@ -1021,6 +1043,7 @@ def _bench_checks(size: Size) -> dict:
             if name not in size.spin_up:
                 continue
             case = B._shortened(case, size.spin_duration)
+        case = B._shortened(case, dict(size.durations).get(name))
         out[name] = functools.partial(_bench, problem=name, case=case, prov=prov)
     return out
 
