@@ -1,4 +1,4 @@
-"""Command line: ``dttmm simulate``, ``dttmm modes``, ``dttmm urdf``, ``dttmm report``.
+"""Command line: ``dttmm simulate``, ``dttmm modes``, ``dttmm urdf``, ``dttmm report``, ``dttmm validate``.
 
 Exit codes: 0 — done, status "ok"; 1 — the simulation failed (the partial result is written);
 2 — bad input (one line on stderr naming the field or option); 3 — the run finished but its
@@ -137,6 +137,8 @@ def _report(argv: list[str]) -> int:
 def _dispatch(argv: list[str]) -> int:
     if argv and argv[0] == "report":
         return _report(argv[1:])
+    if argv and argv[0] == "validate":  # the validation suite (experiments.validate), from a checkout
+        return importlib.import_module("experiments.validate").main(argv[1:])
     if argv and argv[0] == "urdf":
         from .urdf import main as urdf_main
 
@@ -155,6 +157,7 @@ def _dispatch(argv: list[str]) -> int:
     sub.add_parser("modes", help="natural frequencies and mode shapes of a case")
     sub.add_parser("urdf", help="print the rigid arm of a case as URDF")
     sub.add_parser("report", help="run the studies and build the report")
+    sub.add_parser("validate", help="check methods against published, closed-form and independent values")
     p.parse_args(argv)
     return EXIT_INPUT
 
