@@ -43,13 +43,12 @@ laws (Python callables) are refused.
 
 from __future__ import annotations
 
-import math
 import time
 from collections import namedtuple
 
 import numpy as np
 
-from dttmm.control import CODE_PD, CODE_USER, gains, time_tables
+from dttmm.control import CODE_USER, gains, time_tables
 from dttmm.errors import InputError
 from dttmm.plumbing import (
     choice,
@@ -429,6 +428,3 @@ def simulate(
             "non-finite state", t=float(T[last + 1]), step=last, component=comp, meta=meta, partial=result
         )
     return result(meta)
-
-
-_ = math  # math kept for the option checks' readers
