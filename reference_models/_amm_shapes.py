@@ -143,7 +143,12 @@ def link_modes(beam, n_modes: int, tip_mass: float = 0.0, tip_inertia: float = 0
     M = M_link.copy()
     M[-2, -2] += tip_mass
     M[-1, -1] += tip_inertia
-    lam, vec = scipy.linalg.eigh(K, M, subset_by_index=[0, n_modes - 1])
+    # flexibility form M φ = (1/ω²) K φ: the lowest ω² are the largest 1/ω², to full accuracy
+    # (K φ = ω² M φ loses digits of the lowest ω² as the mesh is refined: λ_max/λ_min ~ ne⁴)
+    nd = K.shape[0]
+    mu, vec = scipy.linalg.eigh(M, K, subset_by_index=[nd - n_modes, nd - 1])
+    vec = vec[:, ::-1]
+    lam = np.einsum("ij,ik,kj->j", vec, K, vec) / np.einsum("ij,ik,kj->j", vec, M, vec)
     full = np.zeros((2 * (ne + 1), n_modes))
     full[2:] = vec
     # scale: ∫ρA φ_j² = link mass, sign: positive tip deflection (positive tip slope if it is 0)
