@@ -290,6 +290,13 @@ def _solve(par, tab, s, qt, qdt, cq, cv, x, z_old, e_old, hz, tol, max_iter, Mq,
                     S[j, k] -= slopes[a, 3] * par.Wrow[a, fr[k]]
                     if fr[k] == a:
                         S[j, k] -= sl
+        fin = True
+        for j in range(nf):
+            if not math.isfinite(r[j]):
+                fin = False
+        if not fin:
+            x[:] = np.nan  # a non-finite iterate: the caller sees a non-finite state
+            break
         dx = np.linalg.solve(S, r)
         big, step = 0.0, 0.0
         for j in range(nf):
