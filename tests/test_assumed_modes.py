@@ -46,7 +46,9 @@ def test_deluca_link_frequencies_published():
     case, prov = _problem("deluca_bang_bang")
     # link 1's tip carries m_h2 + m_2 + m_p and J_h2 + ρ l³/3 + J_p + m_p l² (from the paper's data)
     mo, jo = outboard_inertia(case.model, 0)
-    assert mo == pytest.approx(1.0 + 0.2 * 0.5 + 0.1) and jo == pytest.approx(0.1 + 0.2 * 0.5**3 / 3 + 5e-4 + 0.1 * 0.25)
+    assert mo == pytest.approx(1.0 + 0.2 * 0.5 + 0.1) and jo == pytest.approx(
+        0.1 + 0.2 * 0.5**3 / 3 + 5e-4 + 0.1 * 0.25
+    )
     f = am.link_frequencies(case, 2).ravel()
     published = np.array(prov["mode_frequencies"])
     assert np.all(np.abs(f - published) <= prov["mode_frequencies_tolerance"]), f
@@ -60,7 +62,9 @@ def test_clamped_free_frequencies_closed_form():
     exact = bl**2 * np.sqrt(beam.EI / (beam.rhoA * beam.length**4)) / (2 * np.pi)
     assert np.allclose(lm.freq, exact, rtol=2e-6)
     # modal mass normalised to the link mass; modal stiffness ω² × (modal mass)
-    assert np.allclose(np.diag(lm.M), beam.mass) and np.allclose(np.diag(lm.K), (2 * np.pi * exact) ** 2 * beam.mass)
+    assert np.allclose(np.diag(lm.M), beam.mass) and np.allclose(
+        np.diag(lm.K), (2 * np.pi * exact) ** 2 * beam.mass
+    )
 
 
 def test_southwell_coefficient_of_the_geometric_stiffness():
@@ -152,7 +156,13 @@ def test_single_link_nominal_torque_is_beyond_every_variant():
     by more than 20 mm from the stored reference (Exudyn ANCF, k = 32): the method's limit."""
     import pandas as pd
 
-    path = Path(__file__).resolve().parents[1] / "data" / "references" / "quick" / "single_link_T2_dt0.004.parquet"
+    path = (
+        Path(__file__).resolve().parents[1]
+        / "data"
+        / "references"
+        / "quick"
+        / "single_link_T2_dt0.004.parquet"
+    )
     if not path.exists():
         pytest.skip("no stored single_link reference")
     ref = dttmm.Result.from_frame(pd.read_parquet(path))
@@ -191,7 +201,9 @@ def test_energy_is_conserved_without_damping(variant):
     rule keeps it up to O(h²): the swing is < 1e-3 of the initial energy at h = 1e-3 and falls
     about fourfold when h is halved (a modelling error in the forces would not)."""
     case = _free_three_link(gravity=(0.0, -9.81))
-    swing = [np.ptp(am.simulate(case, elements_per_link=3, h=h, variant=variant).energy) for h in (1e-3, 5e-4)]
+    swing = [
+        np.ptp(am.simulate(case, elements_per_link=3, h=h, variant=variant).energy) for h in (1e-3, 5e-4)
+    ]
     e0 = am.simulate(case, elements_per_link=3, h=1e-3, variant=variant).energy[0]
     assert swing[0] <= 1e-3 * e0 and 3.5 <= swing[0] / swing[1] <= 4.5, swing
 
@@ -209,7 +221,9 @@ def test_observed_order_two_in_h(integrator):
     ref = am.simulate(case, elements_per_link=2, h=1.25e-4, integrator=integrator)
     hs = [2e-3, 1e-3, 5e-4]
     errs = [
-        np.abs(am.simulate(case, elements_per_link=2, h=h, integrator=integrator).end_effector - ref.end_effector).max()
+        np.abs(
+            am.simulate(case, elements_per_link=2, h=h, integrator=integrator).end_effector - ref.end_effector
+        ).max()
         for h in hs
     ]
     assert slope(hs, errs)[0] == pytest.approx(2.0, abs=0.25), errs
