@@ -144,7 +144,7 @@ def _pack(case, N: int, variant: str, boundary: str) -> tuple[Pack, list[LinkMod
         D=arr(mu[:, None, None] * K),
         Hc=stack(lambda s: s.H) if cons else zero,
         A=arr(A),
-        Gc=stack(lambda s: s.G_L) if cons else zero,
+        Gc=_tip_foreshortening(sh, links, variant),
         phiL=stack(lambda s: s.phi_L),
         dphiL=stack(lambda s: s.dphi_L),
         hub_m=arr([lk.hub_mass for lk in links]),
@@ -164,6 +164,23 @@ def _pack(case, N: int, variant: str, boundary: str) -> tuple[Pack, list[LinkMod
         Dfull=Df,
     )
     return pack, sh
+
+
+def _tip_foreshortening(sh, links, variant: str) -> np.ndarray:
+    """G of the tip lever ℓ = (L − ½ δᵀGδ, φ_Lᵀδ) per link, (n, N, N).
+
+    consistent: G_L = ∫φ'φ'ᵀ, the foreshortening of the beam (the outboard arm's axial loads
+    stiffen the link); premature: 0 (the tip moves transversely: the outboard arm's centrifugal
+    force softens it); ruthless: φ_Lφ_Lᵀ/L, the tip keeps its distance L from the root to second
+    order, so the outboard arm's centrifugal potential does not depend on δ (neither term).
+    """
+    if variant == "consistent":
+        return np.ascontiguousarray(np.array([s.G_L for s in sh]))
+    if variant == "ruthless":
+        return np.ascontiguousarray(
+            np.array([np.outer(s.phi_L, s.phi_L) / lk.beam.length for s, lk in zip(sh, links)])
+        )
+    return np.zeros((len(sh), sh[0].M.shape[0], sh[0].M.shape[0]))
 
 
 def _tables(case, times, left: bool) -> tuple:
