@@ -19,7 +19,7 @@ F_θ = (R E S)·a + I ω̇ + dᵀδ̈ + 2ω δᵀAδ̇,  F_δ = d ω̇ + M δ̈ 
 with gravity as a base acceleration (a → a − g), which is exactly the gradient of the
 gravitational potential −g·(m p + R S).
 
-Tip frame: p_t = p + R ℓ, ℓ = (L − ½ δᵀ G δ, φ_Lᵀδ) (G = G_L for consistent, 0 otherwise),
+Tip frame: p_t = p + R ℓ, ℓ = (L − ½ δᵀ G δ, φ_Lᵀδ) (G per variant, set by the caller),
 θ_t = θ + φ'_Lᵀδ; the next link's frame is the tip frame turned by its joint angle.
 """
 
@@ -434,3 +434,32 @@ def _full_acc(par, tab, s, x, out):
     for i in range(par.n):
         if par.code[i] == 3:
             out[i] = tab.mot[s, i, 2]
+
+
+@njit(cache=True)
+def outputs(par, tab, q, v, a, z, tau, frames_out, energy):
+    """At every output sample s: joint torques tau[s] (laws; motion joints from the equations
+    of their α rows), the link frames frames_out[s] (n, 6) and the energy (J)."""
+    nt, nq = q.shape
+    n = par.n
+    Mq = np.zeros((nq, nq))
+    fq = np.zeros(nq)
+    frames = np.zeros((n, 6))
+    t = np.zeros(n)
+    slopes = np.zeros((n, 4))
+    for s in range(nt):
+        assemble(q[s], v[s], par, Mq, fq, frames)
+        _torques(par, tab, s, q[s], v[s], a[s], z[s], t, slopes)
+        for i in range(n):
+            tau[s, i] = t[i]
+            if par.code[i] == 3:
+                r = fq[i]
+                for b in range(nq):
+                    r += Mq[i, b] * a[s, b]
+                tau[s, i] = r
+        frames_out[s] = frames
+        ke = 0.0
+        for b in range(nq):
+            for c in range(nq):
+                ke += 0.5 * v[s, b] * Mq[b, c] * v[s, c]
+        energy[s] = ke + potential(q[s], par, frames)

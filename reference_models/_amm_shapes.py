@@ -15,6 +15,7 @@ so that ∫ρA φ_j² dx equals the link mass.
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
@@ -122,7 +123,8 @@ def _assemble(L, EI, rhoA, ne):
 
 
 def link_modes(beam, n_modes: int, tip_mass: float = 0.0, tip_inertia: float = 0.0) -> LinkModes:
-    """The ``n_modes`` lowest clamped-root modes of a uniform beam with a tip mass and inertia.
+    """The ``n_modes`` lowest clamped-root modes of a uniform beam with a tip mass and inertia
+    (cached: a repeated call with the same data returns the same arrays).
 
     Parameters
     ----------
@@ -137,7 +139,12 @@ def link_modes(beam, n_modes: int, tip_mass: float = 0.0, tip_inertia: float = 0
     -------
     LinkModes
     """
-    L, EI, rhoA = beam.length, beam.EI, beam.rhoA
+    return _link_modes(beam.length, beam.EI, beam.rhoA, int(n_modes), float(tip_mass), float(tip_inertia))
+
+
+@functools.lru_cache(maxsize=256)
+def _link_modes(L, EI, rhoA, n_modes, tip_mass, tip_inertia) -> LinkModes:
+    """Uncached :func:`link_modes` on plain numbers."""
     ne = max(N_ELEMENTS, 20 * n_modes)
     K, M_link, le = _assemble(L, EI, rhoA, ne)
     M = M_link.copy()

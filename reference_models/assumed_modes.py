@@ -256,27 +256,15 @@ def _hermite(T, Q, V, Ar, Al, t, h):
     return q, v, a
 
 
-def _outputs(case, pack, sh, t, q, v, a, z):
-    """Joint angles, rates, torques, link frames and energy at the output samples."""
-    n, nt, nq = pack.n, t.size, q.shape[1]
-    ff, ref, mot = _tables(case, t, False)
-    tab = Tables(ff, ref, mot)
-    Mq, fq, frames = np.zeros((nq, nq)), np.zeros(nq), np.zeros((n, 6))
-    tau, slopes = np.zeros(n), np.zeros((n, 4))
-    out_tau = np.zeros((nt, n))
-    root, tip, ang = np.zeros((nt, n, 2)), np.zeros((nt, n, 2)), np.zeros((nt, n))
-    energy = np.zeros(nt)
-    for s in range(nt):
-        qs, vs, as_ = q[s].copy(), v[s].copy(), a[s].copy()
-        _k.assemble(qs, vs, pack, Mq, fq, frames)
-        _k._torques(pack, tab, s, qs, vs, as_, z[s], tau, slopes)
-        out_tau[s] = tau
-        motion = pack.code == CODE_MOTION
-        if motion.any():
-            out_tau[s, motion] = (Mq @ as_ + fq)[:n][motion]
-        root[s], ang[s], tip[s] = frames[:, 0:2], frames[:, 2], frames[:, 3:5]
-        energy[s] = 0.5 * vs @ Mq @ vs + _k.potential(qs, pack, frames)
-    return out_tau, root, ang, tip, energy
+def _outputs(case, pack, t, q, v, a, z):
+    """Joint torques (nt, n), link roots (nt, n, 2), root angles (nt, n), tips (nt, n, 2) and
+    energy (nt,) at the output samples."""
+    n, nt = pack.n, t.size
+    tab = Tables(*_tables(case, t, False))
+    tau, frames, energy = np.zeros((nt, n)), np.zeros((nt, n, 6)), np.zeros(nt)
+    c = np.ascontiguousarray
+    _k.outputs(pack, tab, c(q), c(v), c(a), c(z), tau, frames, energy)
+    return tau, frames[..., 0:2], frames[..., 2], frames[..., 3:5], energy
 
 
 # ----------------------------------------------------------------------------- public API
@@ -423,7 +411,7 @@ def simulate(
     def result(m):
         q, v, a = _hermite(T[:good], Q[:good], V[:good], Ar[:good], Al[:good], tg, h)
         z = _hermite(T[:good], Z[:good], Z[:good], Z[:good], Z[:good], tg, h)[0]
-        tau, root, ang, tip, energy = _outputs(case, pack, sh, tg, q, v, a, z)
+        tau, root, ang, tip, energy = _outputs(case, pack, tg, q, v, a, z)
         return make_result(
             t=tg,
             joint_angle=q[:, :n],
