@@ -306,3 +306,15 @@ def test_three_link_converges_in_modes_to_dttmm():
         for n in (1, 2, 4)
     ]
     assert errs[2] < errs[0] and errs[2] <= 1e-3, errs
+
+
+@pytest.mark.slow
+def test_deluca_bang_bang_within_benchmark_tolerance():
+    """De Luca & Siciliano's arm, open loop: the link-2 tip deflection's relative RMS difference
+    to the benchmark's reference run (Exudyn ANCF, k = 32, h = 2.5e-4) within its tolerance."""
+    ancf = pytest.importorskip("reference_models.exudyn_ancf")
+    case, prov = _problem("deluca_bang_bang")
+    r = prov["reference"]
+    ref = ancf.simulate(case, elements_per_link=r["k"], h=r["h"])
+    res = am.simulate(case, elements_per_link=2, h=1e-3)
+    assert B.tip_deflection_rms(res, ref) <= prov["tolerance"]
