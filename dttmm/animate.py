@@ -219,8 +219,9 @@ def arm_animation(
 
 
 def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12.0, points: int = 17, dpi=80):
-    """Mode shapes oscillating: q(τ) = q₀ + a sin(2πτ) φ over one period τ ∈ [0, 1), one panel
-    per mode, a scaled so that the largest deflection is 15 % of the arm's reach.
+    """Mode shapes oscillating, linearised: r(x, τ) = r₀(x) + a sin(2πτ) (∂r/∂q) φ over one period
+    τ ∈ [0, 1), one panel per mode, a scaled so that the largest displacement is 8 % of the
+    arm's reach; the dashed line is the arm at the linearisation point.
 
     Parameters
     ----------
@@ -249,14 +250,15 @@ def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12
         raise InputError("modes", "none", "has no elastic mode to animate")
     reach = sum(lk.beam.length for lk in case.model.links)
     tau = np.arange(frames) / frames
+    ref = element_shapes(st, lin.q[None], points)[0]
     curves = []
     for i in which:
         phi = np.zeros(st.n_dof)
         phi[lin.free] = modes.shapes[:, i]
-        unit = element_shapes(st, (lin.q + phi)[None], points) - element_shapes(st, lin.q[None], points)
-        a = 0.15 * reach / max(np.abs(unit).max(), 1e-300)
-        q = lin.q[None] + a * np.sin(2 * np.pi * tau)[:, None] * phi[None]
-        curves.append(element_shapes(st, q, points))
+        eps = 1e-7 / max(np.abs(phi).max(), 1e-300)
+        unit = (element_shapes(st, (lin.q + eps * phi)[None], points)[0] - ref) / eps  # ∂r/∂q φ
+        a = 0.08 * reach / max(np.abs(unit).max(), 1e-300)
+        curves.append(ref + a * np.sin(2 * np.pi * tau)[:, None, None, None] * unit)
     ncol = min(len(which), 2)
     nrow = -(-len(which) // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 3.2 * nrow), dpi=dpi, squeeze=False)
@@ -268,7 +270,6 @@ def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12
         ax.set_aspect("equal")
         ax.grid(alpha=0.25)
         ax.set_title(f"mode {i + 1}: {modes.frequencies[i]:.4g} Hz", fontsize=9)
-        ref = element_shapes(st, lin.q[None], points)[0]
         for lk in ref:
             ax.plot(lk[:, 0], lk[:, 1], color="0.7", lw=1, ls="--")
         lines.append([ax.plot([], [], color="C0", lw=2, marker=".", ms=3)[0] for _ in range(st.n_links)])
@@ -287,6 +288,7 @@ def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12
 
     anim = FuncAnimation(fig, draw, frames=frames, interval=1000.0 / fps, blit=False)
     anim.fig, anim.draw_frame, anim.fps = fig, draw, fps
+    anim.frame_times = tau  # fractions of the period
     return anim
 
 

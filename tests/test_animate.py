@@ -47,10 +47,12 @@ def test_frames_cover_the_run_at_the_asked_rate():
     assert animate.frame_indices(t, fps=20, max_frames=10).size == 10
 
 
-def _frames(anim, tag: str):
+def _frames(anim, tag: str, at=(0.0, 0.5, 1.0)):
+    """Three frames (at these fractions of the animation) as PNGs in FRAMES; they must differ."""
     FRAMES.mkdir(parents=True, exist_ok=True)
-    n = len(anim.frame_times) if hasattr(anim, "frame_times") else 24
-    paths = [animate.save_frame(anim, i, FRAMES / f"{tag}_{j}.png") for j, i in enumerate((0, n // 2, n - 1))]
+    n = len(anim.frame_times)
+    idx = [round(a * (n - 1)) for a in at]
+    paths = [animate.save_frame(anim, i, FRAMES / f"{tag}_{j}.png") for j, i in enumerate(idx)]
     imgs = [mpimg.imread(p) for p in paths]
     assert all(im.shape == imgs[0].shape and im.shape[0] > 100 for im in imgs)
     assert not np.array_equal(imgs[0], imgs[1]) and not np.array_equal(imgs[1], imgs[2])
@@ -90,7 +92,7 @@ def test_mode_animation_oscillates_and_writes_frames():
     m = dttmm.modes(c, 4, n=6)
     anim = animate.mode_animation(m, c, frames=12)
     assert len(anim.fig.axes) >= 4
-    paths = _frames(anim, "three_link_modes")
+    paths = _frames(anim, "three_link_modes", at=(3 / 11, 9 / 11, 1 / 11))  # sin(2πτ) = 1, −1, ½
     assert all(p.exists() for p in paths)
     import matplotlib.pyplot as plt
 
@@ -117,8 +119,8 @@ def test_cli_animates_a_case_and_a_stored_result(tmp_path, capsys):
     args = ["simulate", str(src), "-k", "2", "--h", "1e-3", "--format", "parquet", "--out", str(folder)]
     assert main([*args, "--shape-points", "5"]) == 0
     table = next(folder.glob("*.parquet"))
-    capsys.readouterr()
     assert main(["animate", str(table), "--case", str(src), "--out", str(tmp_path / "b.gif")]) == 0
+    capsys.readouterr()
     assert main(["animate", str(table), "--case", str(CASES / "single_link.toml"), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "does not match the case" in err

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses as dc
 
 import numpy as np
+import pandas as pd
 import pytest
 from conftest import case, shortened
 
@@ -68,7 +69,11 @@ def test_shapes_survive_the_parquet_round_trip(dttmm_pair):
     res = dttmm_pair[1]
     back = result_from_bytes(result_bytes(res))
     assert np.array_equal(back.link_shapes, res.link_shapes)
-    assert result_bytes(dttmm_pair[0]) == result_bytes(dc.replace(res, link_shapes=None))
+    # without shapes the table is the one of a run that did not ask for them (times in attrs aside)
+    plain = dttmm_pair[0].to_frame()
+    pd.testing.assert_frame_equal(plain, dc.replace(res, link_shapes=None).to_frame(), check_exact=True)
+    extra = [c for c in res.to_frame().columns if c not in plain.columns]
+    assert len(extra) == 3 * P * 2 and extra[0] == "link_shape_x_1_1"
 
 
 def test_rigid_links_are_straight(three):
@@ -95,27 +100,31 @@ def test_exudyn_shapes_end_at_root_and_tip(three, name):
 
 
 def test_dttmm_and_exudyn_ancf_shapes_agree_at_a_converged_mesh():
-    """single_link for 0.3 s at k = 8: the deflection of the shape points from the rigid
-    chord agrees within 1 % of its largest value (measured 0.3 %)."""
+    """single_link for 0.3 s: the bending of the shape points (their deviation from the root–tip
+    chord) of the two methods converges together as k grows — measured 8.3 %, 0.74 %, 0.11 % of
+    its largest value (39 mm) at k = 4, 8, 16 — and at k = 16 they agree within 0.5 %, the
+    positions themselves too (measured 0.23 %)."""
     pytest.importorskip("exudyn")
     c = shortened(case("single_link"), 0.3)
-    a = dttmm.simulate(c, elements_per_link=8, h=1e-3, shape_points=P, progress=False)
-    b = methods.run("exudyn-ancf", c, 8, 1e-3, shape_points=P)
 
     def bend(r):
-        chord = shapes.straight_shapes(r.link_root, r.link_tip, P)
-        return r.link_shapes - chord
+        return r.link_shapes - shapes.straight_shapes(r.link_root, r.link_tip, P)
 
-    da, db = bend(a), bend(b)
-    scale = np.abs(da).max()
-    assert scale > 1e-4
-    assert np.abs(da - db).max() <= 0.01 * scale, np.abs(da - db).max() / scale
-    assert np.abs(a.link_shapes - b.link_shapes).max() <= 0.01 * scale
+    gap = {}
+    for k in (8, 16):
+        a = dttmm.simulate(c, elements_per_link=k, h=1e-3, shape_points=P, progress=False)
+        b = methods.run("exudyn-ancf", c, k, 1e-3, shape_points=P)
+        scale = np.abs(bend(a)).max()
+        assert scale > 1e-2
+        gap[k] = np.abs(bend(a) - bend(b)).max() / scale
+    assert gap[16] <= 0.005 and gap[16] <= gap[8] / 4, gap
+    assert np.abs(a.link_shapes - b.link_shapes).max() <= 0.005 * scale
 
 
 def test_static_cantilever_shape_matches_the_closed_form_curve():
     """Clamped beam under its own weight, damped to rest: w(x) = q x²(6L² − 4Lx + x²)/(24 EI),
-    q = ρA g (small deflection: w_tip/L = 1.2 %); within 0.5 % of w_tip at every point."""
+    q = ρA g (small deflection: w_tip/L = 1.2 %); within 0.1 % of w_tip at every point
+    (measured 0.012 %)."""
     L, EI, rhoA, g = 1.0, 100.0, 1.0, 9.81
     link = dttmm.Link(dttmm.Section(L, EI, rhoA, None, damping=0.05))
     drive = dttmm.Drive("motion", dttmm.Constant(0.0))
@@ -124,7 +133,7 @@ def test_static_cantilever_shape_matches_the_closed_form_curve():
     x = np.linspace(0, L, P)
     w = -rhoA * g * x**2 * (6 * L**2 - 4 * L * x + x**2) / (24 * EI)
     y = res.link_shapes[-1, 0, :, 1]
-    assert np.abs(y - w).max() <= 5e-3 * abs(w[-1]), (y, w)
+    assert np.abs(y - w).max() <= 1e-3 * abs(w[-1]), (y, w)
     np.testing.assert_allclose(res.link_shapes[-1, 0, :, 0], x, atol=1e-3 * L)
 
 
