@@ -1,4 +1,5 @@
-"""Command line: ``dttmm simulate``, ``dttmm modes``, ``dttmm urdf``, ``dttmm report``, ``dttmm validate``.
+"""Command line: ``dttmm simulate``, ``dttmm modes``, ``dttmm animate``, ``dttmm urdf``,
+``dttmm report``, ``dttmm validate``.
 
 Exit codes: 0 — done, status "ok"; 1 — the simulation failed (the partial result is written);
 2 — bad input (one line on stderr naming the field or option); 3 — the run finished but its
@@ -72,6 +73,12 @@ def simulate_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--engine", default=None, choices=["numba", "python"], help="default: numba when installed"
+    )
+    p.add_argument(
+        "--shape-points",
+        type=int,
+        default=0,
+        help="record the link shapes at P points per link (for dttmm animate; default 0: none)",
     )
     p.add_argument("--format", default="csv", choices=["csv", "parquet"])
     p.add_argument("--out", default="out/simulate", help="output folder (created before the run)")
@@ -147,6 +154,10 @@ def _dispatch(argv: list[str]) -> int:
         from .modes_cli import modes_parser, run_modes
 
         return run_modes(modes_parser().parse_args(argv[1:]))
+    if argv and argv[0] == "animate":
+        from .animate_cli import animate_parser, run_animate
+
+        return run_animate(animate_parser().parse_args(argv[1:]))
     if argv and argv[0] == "simulate":
         from .simulate_cli import run_simulate
 
@@ -156,6 +167,7 @@ def _dispatch(argv: list[str]) -> int:
     sub.add_parser("simulate", help="simulate a case with DT-TMM and write its results")
     sub.add_parser("modes", help="natural frequencies and mode shapes of a case")
     sub.add_parser("urdf", help="print the rigid arm of a case as URDF")
+    sub.add_parser("animate", help="animate a case (one or more methods) or a stored Result")
     sub.add_parser("report", help="run the studies and build the report")
     sub.add_parser("validate", help="check methods against published, closed-form and independent values")
     p.parse_args(argv)

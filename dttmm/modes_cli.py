@@ -3,7 +3,8 @@
 Prints the frequencies (Hz), writes ``<case>_modes.csv`` (frequency and damping ratio of each
 mode), ``<case>_shapes.csv`` (M-normalised shapes over the free coordinates),
 ``<case>_deflections.csv`` (transverse node deflections of each link per mode) and
-``<case>_modes.png`` (the first elastic modes' deflections along the arm).
+``<case>_modes.png`` (the first elastic modes' deflections along the arm) and, with
+``--animate``, ``<case>_modes.mp4`` (the first elastic modes oscillating; a GIF without ffmpeg).
 Motion-driven joints are held, torque-driven joints free. Exit codes are those of
 :mod:`dttmm.cli`.
 """
@@ -50,6 +51,9 @@ def modes_parser() -> OneLineParser:
         help="axial strain of the elements (default linear)",
     )
     p.add_argument("--out", default="out/modes", help="output folder (created before the run)")
+    p.add_argument(
+        "--animate", action="store_true", help="also write the first elastic modes oscillating (.mp4 or .gif)"
+    )
     return p
 
 
@@ -140,5 +144,13 @@ def run_modes(a) -> int:
         print(f"warning: {w}", file=sys.stderr)
     paths = _write_csv(m, name, out)
     paths.append(plot_modes(m, out / f"{name}_modes.png", f"{name}: DT-TMM modes, k = {a.elements}"))
+    if getattr(a, "animate", False):
+        from .animate import mode_animation, save
+
+        try:
+            paths.append(save(mode_animation(m, case), out / f"{name}_modes.mp4"))
+        except InputError as exc:
+            print(f"dttmm: bad input: {exc}", file=sys.stderr)
+            return EXIT_INPUT
     print(f"wrote {', '.join(str(p) for p in paths)}")
     return EXIT_OK

@@ -53,6 +53,15 @@ class Result:
     status : one of :data:`STATUSES`; ``success`` is True only for "ok"
     warnings : tuple of str, human-readable reasons for a status other than "ok" (and other
         caveats worth reading)
+    link_shapes : (nt, n, p, 2) m or None
+        The deflected centre line of every link at every output time: the positions of p
+        material points per link at the reference arc lengths x_m = L·(m − 1)/(p − 1),
+        m = 1..p (so ``link_shapes[:, i, 0]`` is the link's root and ``link_shapes[:, i, -1]``
+        its tip). Asked for with the method option ``shape_points=p`` (p ≥ 2; default 0, none
+        recorded). DT-TMM and the global solver evaluate their element shape functions,
+        Exudyn interpolates its node positions and slopes (cubic Hermite), the MuJoCo chain
+        joins its pieces by straight lines, the rigid baseline draws straight links; see
+        :mod:`dttmm.shapes`.
     """
 
     t: np.ndarray
@@ -71,6 +80,7 @@ class Result:
     energy: np.ndarray | None = None
     status: str = "ok"
     warnings: tuple = ()
+    link_shapes: np.ndarray | None = None
 
     def __post_init__(self):
         if self.status not in STATUSES:
@@ -95,7 +105,8 @@ class Result:
 
         Columns: t, joint_angle_i, joint_rate_i, joint_torque_i, tip_deflection_i,
         link_root_x_i, link_root_y_i, link_tip_x_i, link_tip_y_i (i = 1..n), end_effector_x,
-        end_effector_y, energy (if computed). ``meta`` goes to ``DataFrame.attrs``.
+        end_effector_y, energy (if computed), and with link shapes link_shape_x_i_m,
+        link_shape_y_i_m (link i = 1..n, point m = 1..p). ``meta`` goes to ``DataFrame.attrs``.
         """
         import pandas as pd
 
@@ -113,6 +124,12 @@ class Result:
         cols["end_effector_y"] = self.end_effector[:, 1]
         if self.energy is not None:
             cols["energy"] = self.energy
+        if self.link_shapes is not None:
+            _, n, p, _ = self.link_shapes.shape
+            for i in range(n):
+                for m in range(p):
+                    cols[f"link_shape_x_{i + 1}_{m + 1}"] = self.link_shapes[:, i, m, 0]
+                    cols[f"link_shape_y_{i + 1}_{m + 1}"] = self.link_shapes[:, i, m, 1]
         df = pd.DataFrame(cols)
         df.attrs.update(
             {k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))}
@@ -134,6 +151,23 @@ class Result:
         status = m.pop("status", "ok" if m.get("success", True) else "failed")
         warns = m.pop("warnings", ())
         warns = tuple(w for w in warns.split("\n") if w) if isinstance(warns, str) else tuple(warns)
+        shapes = None
+        n_shape = sum(1 for c in df.columns if c.startswith("link_shape_x_"))
+        if n_shape:
+            p = n_shape // n
+            shapes = np.stack(
+                [
+                    np.stack(
+                        [
+                            np.column_stack([df[f"link_shape_{c}_{j}_{m}"].to_numpy() for c in "xy"])
+                            for m in range(1, p + 1)
+                        ],
+                        axis=1,
+                    )
+                    for j in range(1, n + 1)
+                ],
+                axis=1,
+            )
         return cls(
             t=df["t"].to_numpy(),
             joint_angle=get("joint_angle"),
@@ -149,6 +183,7 @@ class Result:
             energy=df["energy"].to_numpy() if "energy" in df else None,
             status=status,
             warnings=warns,
+            link_shapes=shapes,
         )
 
 
@@ -169,11 +204,12 @@ def make_result(
     energy=None,
     status=None,
     warnings=(),
+    link_shapes=None,
 ) -> Result:
     """Assemble a Result, deriving tip deflections and the end-effector from the link frames
     so every method uses the same definitions. ``link_root_angle`` (nt, n): absolute angle
     of each link's root cross-section (rad). ``status`` defaults to "ok", or "failed" when
-    ``meta["success"]`` is False."""
+    ``meta["success"]`` is False. ``link_shapes`` (nt, n, p, 2) m or None: see :class:`Result`."""
     if status is None:
         status = meta.get("status") or ("ok" if meta.get("success", True) is not False else "failed")
     link_root = np.asarray(link_root, float)
@@ -195,4 +231,5 @@ def make_result(
         energy=energy,
         status=status,
         warnings=tuple(warnings),
+        link_shapes=None if link_shapes is None else np.asarray(link_shapes, float),
     )

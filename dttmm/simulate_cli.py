@@ -113,6 +113,7 @@ def run_simulate(a) -> int:
             strain=a.strain,
             engine=a.engine,
             progress=True,
+            shape_points=getattr(a, "shape_points", 0),
         )
     except InputError as exc:
         _close_progress_bars()

@@ -11,7 +11,7 @@ import warnings
 
 import numpy as np
 
-from . import plumbing
+from . import plumbing, shapes
 from .case import Case
 from .control_state import is_jitted
 from .drives import UserLaw, require_open_loop
@@ -100,6 +100,7 @@ def simulate(
     engine: str | None = None,
     auto_fraction: float = 0.1,
     strain: str = "linear",
+    shape_points: int = 0,
 ):
     """Simulate ``case`` by DT-TMM with k = ``elements_per_link`` elements per link and step ``h``.
 
@@ -125,6 +126,9 @@ def simulate(
         h = 4e-3 diverged at k = 2 and 8, h ≤ 2e-3 ran; use generalised-α for large steps).
         See docs/method.md. Inextensible links are unaffected.
     cut_loads, energy : record the loads at every cut and the total energy on the output grid.
+    shape_points : p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2), the deflected centre
+        line of every link from the element shape functions (:mod:`dttmm.shapes`); 0 (default)
+        records none.
     progress : show a progress bar (tqdm, on stderr); default: on when the run time, estimated
         after its first 0.5 %, exceeds 2 s.
 
@@ -158,6 +162,7 @@ def simulate(
         progress=progress,
         engine=driver.resolve_engine(engine),
         strain=strain,
+        shape_points=shapes.shape_points(shape_points),
     )
     with warnings.catch_warnings():
         # numba flags its first-class function type (the calls of jitted user laws) as

@@ -75,6 +75,8 @@ import numpy as np
 
 from dttmm import InputError, SimulationError, make_result, plumbing
 from dttmm.case import Case
+from dttmm.shapes import hermite_shapes, stations
+from dttmm.shapes import shape_points as _shape_points
 
 from ._exudyn_control import ClosedLoop
 
@@ -190,6 +192,7 @@ def simulate_exudyn(
     drive_input="pre-step",
     inextensible_axial_ratio=INEXTENSIBLE_AXIAL_RATIO,
     element_options=None,
+    shape_points=0,
 ):
     """Build the Exudyn model of ``case`` with ``element`` meshing each link, solve, return a Result.
 
@@ -200,8 +203,12 @@ def simulate_exudyn(
     the beam objects (for gravity); ``clamps`` is None when those nodes are beam nodes, or the
     (root, tip) beam nodes to which the hub and tip bodies are clamped by an ObjectJointGeneric
     locking x, y and the rotation about z (MarkerNodeRigid on the beam node).
+
+    ``shape_points`` p ≥ 2 records ``Result.link_shapes`` from the beam nodes (see
+    :func:`link_shapes`); 0 (default) records none.
     """
     k, h, n_steps, per_out = check_discretisation(case, elements_per_link, h)
+    shape_points = _shape_points(shape_points)
     try:
         rho_inf = float(rho_inf)
     except (TypeError, ValueError):
@@ -262,10 +269,12 @@ def simulate_exudyn(
         return body
 
     hub_nodes, tip_nodes, hub_bodies, tip_bodies = [], [], [], []
+    link_elements = []
     for i, link in enumerate(model.links):
         hub_node, tip_node, elements, clamps = element.add_link(
             mbs, exu, ii, link, layout, i, k, axial[i], **(element_options or {})
         )
+        link_elements.append(elements)
         hub_nodes.append(hub_node)
         tip_nodes.append(tip_node)
         hub_bodies.append(add_body(hub_node, link.hub_mass, link.hub_inertia))
@@ -407,6 +416,9 @@ def simulate_exudyn(
     all_sensors = [x for tr in s_hub + s_tip for x in tr] + [x for x in s_force if x is not None]
     if closed is not None:
         all_sensors += list(closed.sensors.values()) + list(closed.acc_sensors.values())
+    s_shape = shape_sensors(mbs, ii, OV, link_elements) if shape_points else None
+    if s_shape is not None:
+        all_sensors += [x for link in s_shape for x in link]
 
     mbs.Assemble()
     if closed is not None:
@@ -590,12 +602,17 @@ def simulate_exudyn(
         )
 
     def build(ts, fields, success):
+        shapes = None
+        if s_shape is not None:
+            nodes = [[stored(x)[: len(ts), 1:] for x in link] for link in s_shape]
+            shapes = link_shapes(case, nodes, shape_points)
         return make_result(
             t=t_out[: len(ts)],
             **fields,
             wall_time=wall,
             n_steps=steps_done,
             meta={**meta, "success": success},
+            link_shapes=shapes,
         )
 
     def fail(reason, t_fail, component):
@@ -629,3 +646,50 @@ def simulate_exudyn(
             row, *rest = np.argwhere(bad)[0]
             fail(f"non-finite {name}", float(t_out[row]), f"{name}[{', '.join(map(str, rest))}]")
     return build(ts, fields, True)
+
+
+def shape_sensors(mbs, ii, OV, link_elements) -> list:
+    """Per link, one sensor of the total coordinates of every beam node, base to tip (the
+    nodes of the link's elements in order): (x, y, ∂x/∂s, ∂y/∂s) for an ANCF cable node,
+    (x, y, θ) for a rigid-body beam node."""
+    out = []
+    for elements in link_elements:
+        nodes = [int(mbs.GetObject(e)["nodeNumbers"][0]) for e in elements]
+        nodes.append(int(mbs.GetObject(elements[-1])["nodeNumbers"][1]))
+        out.append(
+            [
+                mbs.AddSensor(
+                    ii.SensorNode(
+                        nodeNumber=nd,
+                        outputVariableType=OV.CoordinatesTotal,
+                        storeInternal=True,
+                        writeToFile=False,
+                    )
+                )
+                for nd in nodes
+            ]
+        )
+    return out
+
+
+def link_shapes(case, nodes, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, 2) m from the beam nodes' total coordinates.
+
+    ``nodes[i][j]`` (nt, 4) or (nt, 3): node j of link i (at the reference arc length j·L/k).
+    The centre line between nodes is the cubic Hermite curve of the node positions and slopes
+    ∂r/∂s: an ANCF cable node carries its slope (the element's own interpolation); a beam
+    node's slope is taken as its cross-section direction (cos θ, sin θ) (shear and axial
+    strain neglected in the slope, both O(1e-6) on the suite's arms).
+    """
+    out = []
+    for link, nd in zip(case.model.links, nodes):
+        c = np.stack(nd, axis=1)  # (nt, k + 1, 3 or 4)
+        pos = c[..., :2]
+        if c.shape[-1] == 4:
+            slope = c[..., 2:4]
+        else:
+            slope = np.stack([np.cos(c[..., 2]), np.sin(c[..., 2])], axis=-1)
+        L = link.beam.length
+        x_nodes = np.linspace(0.0, L, c.shape[1])
+        out.append(hermite_shapes(x_nodes, pos, slope, stations(L, p)))
+    return np.stack(out, axis=1)

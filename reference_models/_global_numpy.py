@@ -82,6 +82,7 @@ class _Layout:
     EI: np.ndarray | None = None  # (Nel,)
     second: np.ndarray | None = None  # (Nel,) bool: element uses the second-order strain
     mu: np.ndarray | None = None  # (Nel,) Kelvin-Voigt damping coefficient μ (s)
+    shape_points: int = 0  # points per link of Result.link_shapes (0: none)
 
 
 def _shape_matrices(length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -1009,6 +1010,7 @@ class _Recorder:
             e = _energy(lay, self.q[i], self.qd[i], kinetic)
             en[i] = e["kinetic"] + e["elastic"] + e["gravity"]
         a = lay.alpha_idx
+        shapes = _link_shapes(lay, self.q[:n], lay.shape_points) if lay.shape_points else None
         return make_result(
             t=self.t[:n],
             joint_angle=self.q[:n, a],
@@ -1023,7 +1025,33 @@ class _Recorder:
             energy=en,
             status=status,
             warnings=warnings,
+            link_shapes=shapes,
         )
+
+
+def _link_shapes(lay: _Layout, q: np.ndarray, p: int) -> np.ndarray:
+    """Deflected centre lines (nt, n_links, p, 2) m at the states q (nt, N): p material points
+    per link at the reference arc lengths x = L·m/(p − 1), m = 0..p − 1, each placed in its
+    element by r = r_I + A(θ) s(ξ), s(ξ) = (ξ(l + u), N3 v + N4 φ)."""
+    k = lay.k
+    el, l, xi = [], [], []
+    for i in range(lay.n_links):
+        li = lay.length[lay.first_el[i]]
+        xs = np.linspace(0.0, k * li, p) / li  # in element lengths
+        jj = np.minimum(np.floor(xs).astype(int), k - 1)
+        el.append(lay.first_el[i] + jj)
+        l.append(np.full(p, li))
+        xi.append(xs - jj)
+    el, l, xi = np.concatenate(el), np.concatenate(l), np.concatenate(xi)
+    n3 = 3 * xi**2 - 2 * xi**3
+    n4 = l * (xi**3 - xi**2)
+    out = np.empty((q.shape[0], lay.n_links * p, 2))
+    for r in range(q.shape[0]):
+        fr = _frames(lay, q[r])
+        e = fr.e[el]
+        loc = np.stack([xi * (l + e[:, 0]), n3 * e[:, 1] + n4 * e[:, 2]], -1)
+        out[r] = fr.rI[el] + _matvec(fr.A[el], loc)
+    return out.reshape(q.shape[0], lay.n_links, p, 2)
 
 
 def _joint_torques(case, lay, t, left, tau_p, loop=None, tau_c=None) -> np.ndarray:

@@ -47,7 +47,10 @@ r_O = r_I + A(θ)(l + u, v), θ_O = θ + φ; a joint adds α to the angle.
 
 from __future__ import annotations
 
+import dataclasses
+
 from dttmm import plumbing
+from dttmm.shapes import shape_points as _shape_points
 
 from . import _global_control
 from ._global_numpy import (
@@ -114,6 +117,9 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
         stepped integrators linearise the elastic forces at every iterate (Newton), exactly
         as :func:`dttmm.simulate` does, and the Kelvin-Voigt damping acts on the rate of the
         same strain (see :func:`damping_forces`).
+    shape_points : int, option
+        p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2) m from the element shape functions;
+        0 (default) records none.
     engine : {"numba", "numpy", None}
         For ``"newmark"``/``"generalized-alpha"``: ``"numba"`` (compiled recursive assembly,
         Cholesky solve and time loop; the default when numba is installed) or ``"numpy"``
@@ -136,6 +142,7 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     dttmm.SimulationError
         Non-finite state or failed adaptive integration; ``partial`` holds the outputs so far.
     """
+    p = _shape_points(options.pop("shape_points", 0))
     k, h = plumbing.discretisation(case, elements_per_link, h)
     opt = _check_options(integrator, options)
     engine = _check_engine(engine, integrator, opt)
@@ -144,6 +151,8 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     elif engine == "numba":
         _global_control.require_python_engine(case)
     lay = _layout(case, k, strain)
+    if p:
+        lay = dataclasses.replace(lay, shape_points=p)
     if integrator in _STEPPED:
         if engine == "numba":
             from . import _global_compiled  # compiled on first use: numba is optional

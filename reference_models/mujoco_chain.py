@@ -54,6 +54,7 @@ from dttmm.drives import ControlState, require_no_computed_torque
 from dttmm.errors import InputError, SimulationError
 from dttmm.plumbing import versions
 from dttmm.result import make_result
+from dttmm.shapes import polyline_shapes, shape_points, stations
 from dttmm.timegrid import step_schedule
 
 from ._mujoco_model import INTEGRATORS, chain_xml, layout
@@ -407,7 +408,9 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     integrator : ``"implicitfast"`` (default) | ``"euler"`` | ``"implicit"`` | ``"rk4"``
         MuJoCo's integrator.
     **options
-        motion_tol (1e-12, relative angle tolerance of a motion drive), motion_max_iter (10).
+        motion_tol (1e-12, relative angle tolerance of a motion drive), motion_max_iter (10);
+        shape_points (0): p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2) m, the chain of
+        pieces as a polyline (:func:`piece_shapes`).
 
     Returns
     -------
@@ -424,6 +427,8 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
         non-finite state, MuJoCo's instability reset, or a motion drive that could not be
         imposed; ``partial`` holds the outputs up to the last good step.
     """
+    options = dict(options)
+    p = shape_points(options.pop("shape_points", 0))
     k, h, opts = _check(case, elements_per_link, h, integrator, options)
     scen = case.scenario
     T_end, _ = step_schedule(scen.duration, h, scen.breakpoints)
@@ -487,6 +492,7 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
         meta=meta,
         energy=energy,
         warnings=warnings + [f"MuJoCo: {w}" for w in st.messages],
+        link_shapes=piece_shapes(st, case, X[: tg.size], p) if p else None,
     )
     if "fail" in stats:
         j, tf, *why = stats["fail"]
@@ -495,3 +501,27 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
             f"mujoco-chain: {msg}", t=float(tf), step=int(j), component="state", partial=res
         )
     return res
+
+
+def piece_shapes(st, case, X, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, 2) m from the kept states X (rows): per link the polyline
+    through its root, its k elastic hinges (at the reference arc lengths (j − ½)·L/k) and its
+    tip — the rigid pieces themselves — sampled at the p shape points."""
+    mj, m, d, lay = st.mj, st.m, st.d, st.lay
+    nt, n, k = X.shape[0], st.n, st.k
+    bodies = np.array(
+        [[mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, f"link{i}_{j}") for j in range(1, k + 1)] for i in range(n)]
+    )
+    pts = np.empty((nt, n, k + 2, 2))
+    for s in range(nt):
+        mj.mj_setState(m, d, X[s], st.spec)
+        mj.mj_kinematics(m, d)
+        pts[s, :, 0] = d.xpos[lay.hub_body, :2]
+        pts[s, :, 1:-1] = d.xpos[bodies, :2]
+        pts[s, :, -1] = d.site_xpos[lay.tip_site, :2]
+    out = np.empty((nt, n, p, 2))
+    for i, link in enumerate(case.model.links):
+        L = link.beam.length
+        x_nodes = np.concatenate(([0.0], (np.arange(1, k + 1) - 0.5) * L / k, [L]))
+        out[:, i] = polyline_shapes(x_nodes, pts[:, i], stations(L, p))
+    return out

@@ -39,6 +39,7 @@ from dttmm.drives import ComputedTorque, ControlState, reference_of
 from dttmm.errors import InputError, SimulationError
 from dttmm.plumbing import versions
 from dttmm.result import make_result
+from dttmm.shapes import shape_points, straight_shapes
 from dttmm.timegrid import step_schedule
 
 __all__ = ["INTEGRATORS", "build_model", "simulate"]
@@ -506,7 +507,8 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     elements_per_link : ignored (rigid links); accepted for the common call.
     **options
         newmark: beta (¼), gamma (½), tol (1e-12, relative Newton correction), max_iter (25);
-        dop853: rtol (1e-12), atol (1e-12), max_step (inf).
+        dop853: rtol (1e-12), atol (1e-12), max_step (inf); every integrator: shape_points
+        (0): p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2) m, straight links.
 
     Returns
     -------
@@ -524,6 +526,8 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     """
     _, h = plumbing.discretisation(case, elements_per_link, h, uses_k=False)
     scen = case.scenario
+    options = dict(options)
+    p = shape_points(options.pop("shape_points", 0))
     opts = _check_options(integrator, options)
     T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     arm = _Arm(case)
@@ -563,6 +567,7 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
         n_steps=n_steps,
         meta=meta,
         energy=energy,
+        link_shapes=straight_shapes(root, tip, p) if p else None,
     )
     if "fail" in stats:
         msg, k, tf, comp = stats["fail"]

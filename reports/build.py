@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import bench, benchmarks, control, figures, interpret, peers
+from . import animations, bench, benchmarks, control, figures, interpret, peers
 from .render import Section, write
 from .scoreboard import scoreboard
 
@@ -332,6 +332,7 @@ def _bench_section(inp):
 
 SECTION_BUILDERS = [
     _cases_section,
+    animations.section,  # the arm moving, per case (table motion)
     _convergence_k,
     _convergence_h,
     _work_precision,

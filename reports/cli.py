@@ -66,6 +66,9 @@ def run_report(
             log(f"unavailable: {m}: {why}")
     ctx = prepare(plan, data, log=log, recompute=recompute)
     tables = run_studies(ctx, scheduler=scheduler, workers=workers, progress=progress)
+    from .animations import motion_table, report_cases
+
+    tables.update(motion_table(report_cases(ctx), log=log))
     save_tables(tables, out / "data")
     meta = {
         **provenance.collect(command),

@@ -22,7 +22,8 @@ CSS = Path(__file__).with_name("report.css")
 
 @dataclass
 class Section:
-    """One report section: figures (PNG path relative to the report, caption), sentences under
+    """One report section: figures (PNG path relative to the report, or an MP4 video with its still
+    frame beside it as ``<stem>.png``; caption), sentences under
     them, tables (name, DataFrame[, title]) shown inline and linked as CSV (``data/<name>.csv``), the
     HTML anchor, and an optional sentence for the report's summary."""
 
@@ -87,6 +88,15 @@ class _Page:
     def figure(self, png, caption):
         self.n_fig += 1
         cap = f"Figure {self.n_fig}. {caption}"
+        if png.endswith(".mp4"):  # a video: its still frame (same name, .png) is poster and fallback
+            still = png[: -len(".mp4")] + ".png"
+            self.md += [f"[![{cap}]({still})]({png})", "", f"*{cap}* ([video]({png}))", ""]
+            self.h.append(
+                f"<figure><video src='{png}' poster='{still}' controls loop muted autoplay playsinline "
+                f"preload='auto'><img src='{still}' alt='{html.escape(caption)}'></video>"
+                f"<figcaption>{html.escape(cap)}</figcaption></figure>"
+            )
+            return
         self.md += [f"![{cap}]({png})", "", f"*{cap}*", ""]
         self.h.append(
             f"<figure><img src='{png}' alt='{html.escape(caption)}'>"

@@ -100,11 +100,15 @@ EXPECTED_ROWS = {
     "paper_summary": 10,
     "paper_loads": 6,  # the two diverged RK4 runs have no histories
 }
-FIGURES = [
-    f"{s}_{c}.png"
-    for s in ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "loads")
-    for c in CASES
-] + ["cost.png"]
+FIGURES = (
+    [
+        f"{s}_{c}.png"
+        for s in ("convergence_k", "convergence_h", "work_precision", "scheme", "paper", "loads")
+        for c in CASES
+    ]
+    + ["cost.png"]
+    + [f"motion_{c}.png" for c in CASES]
+)  # the still frames of the Motion section's videos
 
 
 def _bench_json(folder):

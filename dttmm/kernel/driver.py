@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -94,6 +94,7 @@ class Settings:
     progress: bool | None
     engine: str
     strain: str
+    shape_points: int = 0
 
     def options(self, closed: bool = False, coupled: bool = False) -> loop.Options:
         """The kernel's run options (``closed``: the case has closed-loop joints; ``coupled``:
@@ -217,9 +218,9 @@ def drive_values(st: Structure, t: float, left: bool = False):
     return tau, mot
 
 
-def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Record:
+def new_record(st: Structure, times, want_loads: bool, want_energy: bool, want_q: bool = False) -> Record:
     """NaN-filled output arrays on the grid ``times``; cut loads every stride-th sample so
-    that they hold at most ~2e6 cut-samples."""
+    that they hold at most ~2e6 cut-samples; the coordinates when ``want_q`` (link shapes)."""
     nt, n = times.size, st.n_links
     ncuts = st.n_elements + n
     stride = max(1, math.ceil(nt * ncuts / 2.0e6)) if want_loads else 0
@@ -236,6 +237,7 @@ def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Rec
         energy=full() if want_energy else np.zeros(0),
         loads=loads,
         load_stride=stride,
+        q=full(st.n_dof) if want_q else np.zeros((0, st.n_dof)),
     )
 
 
@@ -370,7 +372,7 @@ def simulate_structure(st: Structure, s: Settings):
     meta = base_meta(st, s)
     if compile_time is not None:
         meta["compile_time"] = compile_time
-    rec = new_record(st, scen.output_times, s.cut_loads, s.energy)
+    rec = new_record(st, scen.output_times, s.cut_loads, s.energy, s.shape_points > 0)
     n_steps = t_end.size
     wall0 = time.perf_counter()
     ncuts = st.n_elements + st.n_links
@@ -470,7 +472,17 @@ def simulate_structure(st: Structure, s: Settings):
     if rec.energy.size and not any(st.motion):
         _energy_growth(meta, st, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
     status, warns = verdict(meta, s, n_steps)
-    return to_result(rec, upto, wall, n_steps, meta, status, warns)
+    return with_shapes(to_result(rec, upto, wall, n_steps, meta, status, warns), st, rec, s.shape_points)
+
+
+def with_shapes(res, st: Structure, rec: Record, p: int):
+    """``res`` with its link shapes (p points per link) from the recorded coordinates; ``res``
+    itself when none were asked for (p = 0)."""
+    if p == 0 or rec.q.shape[0] == 0:
+        return res
+    from ..shapes import element_shapes
+
+    return replace(res, link_shapes=element_shapes(st, rec.q[: res.t.size], p))
 
 
 #: equilibrated condition number of the plain sweep's final system above which a run is

@@ -17,7 +17,8 @@ class Record(NamedTuple):
 
     angle, rate, torque, root_angle (nt, n); root, tip (nt, n, 2); energy (nt,) or (0,) when
     not wanted; loads (nl, n_cuts, 3) every ``load_stride``-th sample as (M, Qx, Qy), or
-    (0, n_cuts, 3) with ``load_stride`` 0 when not wanted.
+    (0, n_cuts, 3) with ``load_stride`` 0 when not wanted; q (nt, n_dof) the coordinates at
+    the output times (for the link shapes), or (0, n_dof) when not wanted.
     """
 
     t: np.ndarray
@@ -30,6 +31,7 @@ class Record(NamedTuple):
     energy: np.ndarray
     loads: np.ndarray
     load_stride: int
+    q: np.ndarray
 
 
 @njit()
@@ -186,6 +188,9 @@ def record(md, t0, t1, s0, s1, scratch, ptr, rec):
             rec.rate[ptr, i] = vv[md.i_alpha[i]]
             rec.torque[ptr, i] = tau1[i] if exact else (1 - x) * tau0[i] + x * tau1[i]
         sample(md, qq, vv, ptr, rec)
+        if rec.q.shape[0] > 0:
+            for r in range(nd):
+                rec.q[ptr, r] = qq[r]
         if stride > 0 and ptr % stride == 0:
             jl = ptr // stride
             for c in range(ncuts):

@@ -1,0 +1,156 @@
+"""The report's "Motion" section: one animation per case of the report.
+
+Two halves, like the rest of the report: :func:`motion_table` runs DT-TMM (and the rigid
+baseline, for contrast) with link shapes on every case and keeps the frames as a tidy table
+(``motion``: case, method, frame, t, link, point, x, y), stored with the study tables;
+:func:`section` draws them from that table alone (``dttmm report --from-data`` redraws them).
+Each animation is an H.264 video with a still frame as its poster and fallback image, or an
+animated GIF where ffmpeg is absent; the section states how long the drawing took.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from .render import Section
+
+__all__ = ["MOTION", "motion_table", "report_cases", "section"]
+
+MOTION = dict(k=8, h=1e-3, points=13, fps=12.0, max_frames=48, methods=("dttmm", "pinocchio-rigid"))
+BEND_SHARE = 0.06  # the drawn bending peaks at this share of the arm's reach (see exaggeration)
+
+
+@dataclass
+class Motion:
+    """What the drawing needs of a Result: t (nt,), link_shapes (nt, n, p, 2), end_effector (nt, 2)."""
+
+    t: np.ndarray
+    link_shapes: np.ndarray
+    end_effector: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+
+def report_cases(ctx) -> dict:
+    """The cases to animate: the plan's own cases and the closed-loop study's case."""
+    names = list(ctx.plan.durations)
+    if "control" in ctx.plan.studies:
+        from experiments.studies import control
+
+        names.append(control.load(ctx.plan.studies["control"]).name)
+    return {n: ctx.cases[n] for n in dict.fromkeys(names) if n in ctx.cases}
+
+
+def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
+    """{"motion": table} of the frames of every case (see the module docstring); a method that
+    fails on a case is left out of that case with a log line."""
+    from dttmm.animate import frame_indices
+    from experiments import methods
+
+    s = {**MOTION, **(settings or {})}
+    rows = []
+    for name, case in cases.items():
+        for m in s["methods"]:
+            try:
+                r = methods.run(m, case, s["k"], s["h"], shape_points=s["points"])
+            except Exception as exc:  # noqa: BLE001 - one missing animation must not stop the report
+                log(f"motion: {m} on {name} skipped ({type(exc).__name__}: {exc})")
+                continue
+            idx = frame_indices(r.t, s["fps"], 1.0, s["max_frames"])
+            sh = r.link_shapes[idx]
+            f, i, j = np.meshgrid(
+                np.arange(idx.size), np.arange(sh.shape[1]), np.arange(sh.shape[2]), indexing="ij"
+            )
+            rows.append(
+                pd.DataFrame(
+                    {
+                        "case": name,
+                        "method": m,
+                        "k": int(s["k"]) if methods.uses_k(m) else -1,
+                        "h": float(s["h"]),
+                        "frame": f.ravel(),
+                        "t": r.t[idx][f.ravel()],
+                        "link": i.ravel() + 1,
+                        "point": j.ravel() + 1,
+                        "x": sh[..., 0].ravel(),
+                        "y": sh[..., 1].ravel(),
+                    }
+                )
+            )
+    cols = ["case", "method", "k", "h", "frame", "t", "link", "point", "x", "y"]
+    return {"motion": pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)}
+
+
+def _motions(df: pd.DataFrame) -> dict:
+    """{method: Motion} of one case's rows."""
+    out = {}
+    for m, g in df.groupby("method", sort=False):
+        g = g.sort_values(["frame", "link", "point"])
+        nf, n, p = g.frame.nunique(), g.link.nunique(), g.point.nunique()
+        sh = g[["x", "y"]].to_numpy().reshape(nf, n, p, 2)
+        out[m] = Motion(g.t.to_numpy()[:: n * p], sh, sh[:, -1, -1].copy(), {"method": m})
+    return out
+
+
+def exaggeration(motions: dict, reach: float) -> float:
+    """A round bending factor (1, 2, 5, 10, 20, …) that makes the largest deviation of a link
+    from its chord about ``BEND_SHARE`` of the reach, or 1 when it already is."""
+    from dttmm.animate import exaggerated
+
+    dev = max(float(np.abs(exaggerated(m.link_shapes, 2.0) - m.link_shapes).max()) for m in motions.values())
+    if dev <= 0:
+        return 1.0
+    want = BEND_SHARE * reach / dev
+    steps = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000]
+    return float(max([1] + [x for x in steps if x <= want]))
+
+
+def section(inp) -> Section | None:
+    """The "Motion" section from ``inp.tables["motion"]`` (None when there is no such table)."""
+    df = inp.tables.get("motion")
+    if df is None or not len(df):
+        return None
+    from dttmm import case_from_dict
+    from dttmm.animate import arm_animation, ffmpeg_path, save, save_frame
+    from experiments.methods import label
+
+    t0 = time.perf_counter()
+    cases = inp.meta.get("cases") or {}
+    figs, text = [], []
+    video = ffmpeg_path() is not None
+    for name, g in df.groupby("case", sort=False):
+        motions = _motions(g)
+        case = case_from_dict(cases[name]) if name in cases else None
+        if case is not None:
+            reach = sum(lk.beam.length for lk in case.model.links)
+        else:
+            first = next(iter(motions.values())).link_shapes[0]
+            reach = float(np.linalg.norm(first[:, -1] - first[:, 0], axis=-1).sum())
+        x = exaggeration(motions, reach)
+        fps = MOTION["fps"]
+        anim = arm_animation(motions, case, exaggerate=x, fps=fps, max_frames=None, title=name, dpi=72)
+        stem = f"motion_{name}"
+        inp.fig_dir.mkdir(parents=True, exist_ok=True)
+        save_frame(anim, len(anim.frame_times) - 1, inp.fig_dir / f"{stem}.png")
+        path = save(anim, inp.fig_dir / (f"{stem}.mp4" if video else f"{stem}.gif"), fps=fps)
+        d = g.iloc[0]
+        who = " and ".join(label(m) for m in motions)
+        figs.append(
+            (
+                f"figures/{path.name}",
+                f"{name}: {who} (DT-TMM k = {d.k}, h = {d.h:g} s), {g.frame.nunique()} frames in real time; "
+                f"bending between the joints drawn ×{x:g} (true scale: 1), joints and tips at their true "
+                "positions; thin line: end-effector trace.",
+            )
+        )
+    took = time.perf_counter() - t0
+    text.append(
+        f"Every case of the report animated from the stored frames (table motion): links as their "
+        f"deflected centre lines (Result.link_shapes), the rigid model's straight links for contrast. "
+        f"Drawn and encoded in {took:.1f} s ({'H.264 video' if video else 'animated GIF, no ffmpeg here'})."
+    )
+    inp.meta["motion_render_s"] = took
+    return Section("Motion", figs, text, [], "motion", "")
