@@ -138,7 +138,7 @@ class Method:
     max_step : f(k) -> the largest step (s) the studies use at k (explicit methods)
     skip : study -> why the method sits that study out; a key ``study:kind`` names one kind of
         problem of a study, ``study@size`` one plan size ("quick" or "full")
-    max_k : ``study@size`` or ``study`` -> the largest k it runs there (cost)
+    max_k : ``study@size``, ``study`` or ``*`` -> the largest k it runs there
     study_options : study -> extra (name, value) options its runs get there
     base : the DT-TMM method its costs are measured against (default: the subject of its strain)
     reference_rank, check_rank : its place (1, 2, ...) among the candidates of the converged
@@ -204,7 +204,7 @@ class Method:
     def k_limit(self, study: str, size: str | None = None) -> float:
         """Largest k the method runs in ``study`` at ``size`` (inf: no limit)."""
         lim = dict(self.max_k)
-        return float(lim.get(f"{study}@{size}", lim.get(study, math.inf)))
+        return float(lim.get(f"{study}@{size}", lim.get(study, lim.get("*", math.inf))))
 
     @property
     def uses_k(self) -> bool:
@@ -287,6 +287,16 @@ _SAME_DISCRETISATION = "the same discretisation as {0}, equal to it to round-off
 _EXPLICIT_K = (
     "explicit in time: its stable step falls with k, so k is not refined at the common step "
     "(its order in k shows on the work-precision path)"
+)
+
+
+_AMM_VARIANT = "a variant of the assumed modes method, shown where the variants part ways"
+_AMM_LARGE = tuple(
+    (
+        f"benchmarks:{kind}",
+        "large deflections: beyond a small-deflection modal model (off by up to 92 %, measured)",
+    )
+    for kind in ("static_tip_displacement", "tip_path_rms")
 )
 
 
@@ -478,6 +488,58 @@ _BUILTIN = (
         base="dttmm",
         label="MuJoCo hinge chain",
         style=Style("C5", "X", "-.", 6),
+    ),
+    # The assumed modes method (docs/assumed_modes.md): modes per link in the common argument. The
+    # consistent variant (the default: the only one that passes the spin-up benchmarks) runs in
+    # every study; the two others where the variants part ways.
+    *(
+        Method(
+            name,
+            "reference_models.assumed_modes",
+            (("variant", variant),),
+            role="peer",
+            physics=Physics("modal", strain),
+            discretisation="modes per link",
+            libraries=_DTTMM_LIBS,
+            capabilities=_ALL_CAPS - {"cut_loads"} - ({"modes"} if variant != "consistent" else set()),
+            frequencies="reference_models.assumed_modes:modes" if variant == "consistent" else "",
+            max_k=(("*", 16),),  # at most 30 modes per link; 16 is converged on every case (measured)
+            skip=skip,
+            label=label,
+            style=style,
+        )
+        for name, variant, strain, label, style, skip in (
+            (
+                "amm",
+                "consistent",
+                "nonlinear",
+                "assumed modes (consistent)",
+                Style("C8", "h", "-", 6),
+                _AMM_LARGE,
+            ),
+            (
+                "amm-ruthless",
+                "ruthless",
+                "linear",
+                "assumed modes (ruthless)",
+                Style("C8", "d", ":", 5, hollow=True),
+                (
+                    *((s, _AMM_VARIANT) for s in ("convergence_k", "convergence_h", "cost", "control")),
+                    *_AMM_LARGE,
+                ),
+            ),
+            (
+                "amm-premature",
+                "premature",
+                "linear",
+                "assumed modes (premature)",
+                Style("C8", "x", "--", 5),
+                (
+                    *((s, _AMM_VARIANT) for s in ("convergence_k", "convergence_h", "cost", "control")),
+                    *_AMM_LARGE,
+                ),
+            ),
+        )
     ),
     Method(
         "pinocchio-rigid",

@@ -20,7 +20,7 @@ import pandas as pd
 
 from ..methods import uses_k
 from ..runs import Task
-from ._common import fit_orders
+from ._common import fit_orders, k_limit
 
 NAME = "benchmarks"
 CASE_DIR = Path(__file__).resolve().parents[1] / "cases" / "benchmarks"
@@ -170,6 +170,7 @@ def tasks(ctx) -> list:
         T, h = ctx.cases[name].scenario.duration, SETTINGS[kind]["h"]
         for m in _methods(p, kind, ctx.plan.name):
             ks = [0] if not uses_k(m) else p.get("ks_by_problem", {}).get(name, p["ks"])
+            ks = [k for k in ks if k <= k_limit(m, NAME, ctx.plan.name)]
             out += [Task(name, m, k, h, T) for k in ks]
     return list(dict.fromkeys(out))
 
@@ -268,7 +269,7 @@ def frequencies(case, k: int, method: str = "dttmm", n: int = 2) -> np.ndarray:
     fn = methods.frequencies_of(method)
     if fn is None:
         raise ValueError(f"frequencies: no linearisation for method {method!r}")
-    return np.asarray(fn(case, int(k), n), float)
+    return np.asarray(fn(case, int(k), n=n), float)
 
 
 # ----------------------------------------------------------------------------- analysis

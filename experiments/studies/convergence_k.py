@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..runs import Task
-from ._common import MAIN_ERROR, fit_orders, study_methods, with_task_columns
+from ._common import MAIN_ERROR, fit_orders, k_limit, study_methods, with_task_columns
 
 NAME = "convergence_k"
 
@@ -16,6 +16,7 @@ def tasks(ctx) -> list[Task]:
         for c in p["cases"]
         for m in study_methods(ctx, NAME, flexible=True)
         for k in p["ks"]
+        if k <= k_limit(m, NAME, ctx.plan.name)
     ]
 
 

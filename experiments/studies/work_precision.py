@@ -18,7 +18,7 @@ import pandas as pd
 from .. import methods
 from ..runs import Task
 from ..timing import COST_REPEATS
-from ._common import MAIN_ERROR, step_for, study_methods, with_task_columns
+from ._common import MAIN_ERROR, k_limit, step_for, study_methods, with_task_columns
 from .cost import timing_columns
 
 NAME = "work_precision"
@@ -37,7 +37,9 @@ def tasks(ctx) -> list[Task]:
         T = ctx.cases[c].scenario.duration
         for m in flex:
             out += [
-                Task(c, m, k, step_for(m, k, h), T, methods.get(m).options_for(NAME)) for k, h in p["path"]
+                Task(c, m, k, step_for(m, k, h), T, methods.get(m).options_for(NAME))
+                for k, h in p["path"]
+                if k <= k_limit(m, NAME, ctx.plan.name)
             ]
         out += [Task(c, m, 0, h, T) for m in rigid for h in p.get("rigid_h", ())]
     return out
