@@ -20,7 +20,8 @@ from .render import Section
 
 __all__ = ["MOTION", "motion_table", "report_cases", "section"]
 
-MOTION = dict(k=8, h=1e-3, points=13, fps=12.0, max_frames=48, methods=("dttmm", "pinocchio-rigid"))
+# methods: None draws the first DT-TMM method and the rigid baseline(s) of the registry, for contrast
+MOTION = dict(k=8, h=1e-3, points=13, fps=12.0, max_frames=48, methods=None)
 BEND_SHARE = 0.06  # the drawn bending peaks at this share of the arm's reach (see exaggeration)
 
 
@@ -51,6 +52,8 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
     from experiments import methods
 
     s = {**MOTION, **(settings or {})}
+    if s["methods"] is None:
+        s["methods"] = (*methods.by_role("subject")[:1], *methods.by_role("baseline"))
     rows = []
     for name, case in cases.items():
         for m in s["methods"]:
