@@ -13,7 +13,7 @@ from pathlib import Path
 
 from .render import CSS, fmt
 
-__all__ = ["page_name", "write"]
+__all__ = ["links_section", "page_name", "write"]
 
 COLUMNS = (
     ("check", "check"),
@@ -112,3 +112,39 @@ def write(rows: list, out_dir) -> list:
         path.write_text(method_page(m, [r for r in rows if r["method"] == m]), encoding="utf-8")
         paths.append(path)
     return paths
+
+
+def links_section(validate_dir, report_dir):
+    """A report section linking each method's scorecard written by ``dttmm validate`` in
+    ``validate_dir``, paths relative to ``report_dir``; None when there are no scorecards.
+
+    For ``reports.build``: ``sec = links_section(validate_dir, out)`` and, when not None, append
+    it to the report's sections.
+    """
+    import os
+
+    import pandas as pd
+
+    from experiments.validate import scorecard_links
+
+    from .render import Section
+
+    links = scorecard_links(validate_dir)
+    if not links:
+        return None
+    rel = Path(os.path.relpath(Path(validate_dir), Path(report_dir)))
+    table = pd.DataFrame(
+        [
+            {"method": label, "passed": p, "failed": f, "not run": n, "scorecard": str(rel / page)}
+            for _, label, page, p, f, n in links
+        ]
+    )
+    failed = [label for _, label, _, _, f, _ in links if f]
+    text = [
+        f"Each method against the suite's published, closed-form and independent values (dttmm validate; "
+        f"index: {rel / 'index.html'}; checks and tolerances: docs/validate.md).",
+        ("Failed a check: " + ", ".join(failed) + ".") if failed else "Every check that ran passed.",
+    ]
+    return Section(
+        "Validation scorecards", [], text, [("validate_scorecards", table, "Scorecards")], "validate"
+    )

@@ -251,3 +251,18 @@ def test_quick_suite_planted_error(tmp_path, cleanup):
     decided = {"cantilever_self_weight", "elastica_tip_load", "static deflection", "rigid limit"}
     assert {c for c, ok in bad_v.items() if not ok} == decided
     assert set(good_v) == set(bad_v)
+
+
+def test_report_links_section(tmp_path):
+    from reports.validate_page import links_section
+
+    rows = [V._row("m-1", "energy balance", "p", "q", passed=True, label="M one")]
+    rows += [V._row("m-1", "order in h", "p", "q", passed=False, label="M one")]
+    V.write(rows, tmp_path / "validate")
+    sec = links_section(tmp_path / "validate", tmp_path / "report")
+    (_, table, _) = sec.tables[0]
+    assert table.to_dict("records") == [
+        {"method": "M one", "passed": 1, "failed": 1, "not run": 0, "scorecard": "../validate/m-1.html"}
+    ]
+    assert "Failed a check: M one." in sec.text
+    assert links_section(tmp_path / "nothing", tmp_path) is None
