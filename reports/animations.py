@@ -51,6 +51,7 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
     from experiments import methods
 
     s = {**MOTION, **(settings or {})}
+    t0 = time.perf_counter()
     rows = []
     for name, case in cases.items():
         for m in s["methods"]:
@@ -81,6 +82,7 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
                 )
             )
     cols = ["case", "method", "k", "h", "frame", "t", "link", "point", "x", "y"]
+    log(f"motion: {len(rows)} runs with link shapes in {time.perf_counter() - t0:.1f} s")
     return {"motion": pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)}
 
 
