@@ -4,7 +4,8 @@ a solver, and the solver never imports this module).
 :func:`arm_animation` draws one or more Results of the same case overlaid: every link as its
 deflected centre line, the joints, the hubs and payloads of the case, the end-effector trace, a
 clock and the exaggeration factor. :func:`mode_animation` draws mode shapes oscillating.
-:func:`save` writes either as .mp4 (ffmpeg from imageio-ffmpeg), .gif (pillow) or .html.
+:func:`save` writes either as .mp4 (ffmpeg from imageio-ffmpeg), .gif (pillow) or .html;
+:meth:`Animation.to_matplotlib` gives a matplotlib ``FuncAnimation`` for interactive use.
 
 Exaggeration: the drawn point at arc length x of a link is c(x) + X·(r(x) − c(x)), c the
 chord from the link's root to its tip, X the factor; roots, tips and the trace are drawn at
@@ -13,7 +14,8 @@ their true positions, so only the bending between joints is magnified.
 
 from __future__ import annotations
 
-import shutil
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +24,7 @@ from .errors import InputError
 
 __all__ = [
     "FORMATS",
+    "Animation",
     "arm_animation",
     "check_matches",
     "exaggerated",
@@ -36,13 +39,63 @@ FORMATS = (".mp4", ".gif", ".html")
 
 
 def ffmpeg_path() -> str | None:
-    """The ffmpeg executable: imageio-ffmpeg's when installed, else one on PATH, else None."""
+    """imageio-ffmpeg's ffmpeg executable, or None when imageio-ffmpeg is absent or has none."""
     try:
         import imageio_ffmpeg
 
         return imageio_ffmpeg.get_ffmpeg_exe()
     except (ImportError, RuntimeError):
-        return shutil.which("ffmpeg")
+        return None
+
+
+@dataclass
+class Animation:
+    """A drawn animation: its matplotlib figure, ``draw_frame(i)`` that updates the figure to
+    frame i and returns the artists it changed, ``frame_times`` (s, or fractions of a period for
+    mode shapes) and the frames per second of the video.
+
+    Frames are rendered by blitting: the axes, ticks and grid are drawn once, only the moving
+    artists every frame (about ten times faster than redrawing the figure).
+    """
+
+    fig: object
+    draw_frame: Callable
+    frame_times: np.ndarray
+    fps: float
+
+    def __len__(self) -> int:
+        return len(self.frame_times)
+
+    def _background(self):
+        canvas = self.fig.canvas
+        if getattr(self, "_bg", None) is None:
+            moving = self.draw_frame(0)
+            for a in moving:
+                a.set_animated(True)
+            canvas.draw()
+            self._bg = canvas.copy_from_bbox(self.fig.bbox)
+        return self._bg
+
+    def frame(self, index: int) -> np.ndarray:
+        """Frame ``index`` as RGB pixels (h, w, 3) uint8, h and w even."""
+        canvas = self.fig.canvas
+        canvas.restore_region(self._background())
+        for a in self.draw_frame(index):
+            self.fig.draw_artist(a)
+        rgb = np.asarray(canvas.buffer_rgba())[..., :3]
+        h, w = rgb.shape[0] // 2 * 2, rgb.shape[1] // 2 * 2
+        return rgb[:h, :w].copy()
+
+    def frames(self):
+        """Every frame in order (see :meth:`frame`)."""
+        for i in range(len(self)):
+            yield self.frame(i)
+
+    def to_matplotlib(self):
+        """The same animation as a ``matplotlib.animation.FuncAnimation`` (for interactive use)."""
+        from matplotlib.animation import FuncAnimation
+
+        return FuncAnimation(self.fig, self.draw_frame, frames=len(self), interval=1000.0 / self.fps)
 
 
 def exaggerated(shapes: np.ndarray, factor: float) -> np.ndarray:
@@ -134,13 +187,10 @@ def arm_animation(
 
     Returns
     -------
-    matplotlib.animation.FuncAnimation (its figure is ``.fig``; close it when done)
+    Animation (its figure is ``.fig``; :func:`save` closes it)
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     if not isinstance(results, dict):
         results = {results.meta.get("method", "result"): results}
@@ -155,7 +205,9 @@ def arm_animation(
             raise InputError(f"result of {name}", f"{r.t.size} samples", "is not on the first result's grid")
     idx = frame_indices(t, fps, speed, max_frames)
     drawn = {name: exaggerated(r.link_shapes, exaggerate) for name, r in results.items()}
-    fig, ax = plt.subplots(figsize=figsize, dpi=dpi)
+    fig = Figure(figsize=figsize, dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     xl, yl = _limits([d[idx] for d in drawn.values()])
     ax.set_xlim(*xl)
     ax.set_ylim(*yl)
@@ -212,10 +264,7 @@ def arm_animation(
             out += [*links, joints, hub, pay, trace]
         return out
 
-    anim = FuncAnimation(fig, draw, frames=len(idx), interval=1000.0 / fps, blit=False)
-    anim.fig, anim.draw_frame, anim.fps = fig, draw, fps
-    anim.frame_times = t[idx]
-    return anim
+    return Animation(fig, draw, t[idx], fps)
 
 
 def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12.0, points: int = 17, dpi=80):
@@ -231,13 +280,10 @@ def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12
 
     Returns
     -------
-    matplotlib.animation.FuncAnimation
+    Animation
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.animation import FuncAnimation
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     from .shapes import element_shapes
     from .structure import build_structure
@@ -261,7 +307,9 @@ def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12
         curves.append(ref + a * np.sin(2 * np.pi * tau)[:, None, None, None] * unit)
     ncol = min(len(which), 2)
     nrow = -(-len(which) // ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 3.2 * nrow), dpi=dpi, squeeze=False)
+    fig = Figure(figsize=(3.6 * ncol, 3.2 * nrow), dpi=dpi)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrow, ncol, squeeze=False)
     lines = []
     for ax, i, c in zip(axes.flat, which, curves):
         xl, yl = _limits([c])
@@ -286,65 +334,78 @@ def mode_animation(modes, case, which=None, *, frames: int = 24, fps: float = 12
                 out.append(ln)
         return out
 
-    anim = FuncAnimation(fig, draw, frames=frames, interval=1000.0 / fps, blit=False)
-    anim.fig, anim.draw_frame, anim.fps = fig, draw, fps
-    anim.frame_times = tau  # fractions of the period
-    return anim
+    return Animation(fig, draw, tau, fps)  # frame times: fractions of the period
 
 
-def save(anim, path, fps: float | None = None, progress: bool = False) -> Path:
-    """Write ``anim`` to ``path`` (.mp4, .gif or .html) and close its figure.
+def save(anim: Animation, path, fps: float | None = None, progress: bool = False) -> Path:
+    """Write ``anim`` to ``path`` (.mp4, .gif or .html).
 
-    .mp4 needs ffmpeg (:func:`ffmpeg_path`); without it the animation is written as a GIF
-    next to ``path`` (same name, .gif) and that path is returned. .html embeds an HTML5 video
-    (with ffmpeg) or matplotlib's JavaScript player (without). ``progress`` shows a tqdm bar
-    over the frames (on stderr).
+    .mp4: H.264 through imageio-ffmpeg's ffmpeg; without it the animation is written as a GIF
+    next to ``path`` (same name, .gif) and that path is returned. .gif: pillow. .html: one page
+    with the video embedded (an animated GIF without ffmpeg). ``progress`` shows a tqdm bar over
+    the frames (on stderr). Returns the path written.
     """
-    import matplotlib
-    import matplotlib.pyplot as plt
-    from matplotlib.animation import FFMpegWriter, PillowWriter
-
     path = Path(path)
     if path.suffix not in FORMATS:
         raise InputError("--out", str(path), f"must end in one of {', '.join(FORMATS)}")
-    fps = fps or anim.fps
-    ff = ffmpeg_path()
-    bar = None
+    fps = float(fps or anim.fps)
+    video = ffmpeg_path() is not None
+    frames = anim.frames()
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(anim.frame_times) if hasattr(anim, "frame_times") else None, desc="frames")
-    tick = (lambda i, n: bar.update(1)) if bar is not None else None
-    try:
-        if path.suffix == ".mp4" and ff is None:
-            path = path.with_suffix(".gif")
-        if path.suffix == ".mp4":
-            matplotlib.rcParams["animation.ffmpeg_path"] = ff
-            anim.save(
-                path,
-                writer=FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"]),
-                progress_callback=tick,
-            )
-        elif path.suffix == ".gif":
-            anim.save(path, writer=PillowWriter(fps=fps), progress_callback=tick)
-        else:
-            if ff is not None:
-                matplotlib.rcParams["animation.ffmpeg_path"] = ff
-                body = anim.to_html5_video()
-            else:
-                body = anim.to_jshtml(fps=fps)
-            path.write_text(
-                f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'></head><body>{body}</body></html>\n"
-            )
-    finally:
-        if bar is not None:
-            bar.close()
-        plt.close(anim.fig)
+        frames = tqdm(frames, total=len(anim), desc="frames")
+    if path.suffix == ".mp4" and not video:
+        path = path.with_suffix(".gif")
+    if path.suffix == ".mp4":
+        _write_mp4(frames, path, fps)
+    elif path.suffix == ".gif":
+        _write_gif(frames, path, fps)
+    else:
+        import base64
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:
+            media = Path(tmp) / ("a.mp4" if video else "a.gif")
+            (_write_mp4 if video else _write_gif)(frames, media, fps)
+            data = base64.b64encode(media.read_bytes()).decode()
+        tag = (
+            f"<video controls autoplay loop muted playsinline src='data:video/mp4;base64,{data}'></video>"
+            if video
+            else f"<img alt='animation' src='data:image/gif;base64,{data}'>"
+        )
+        path.write_text(
+            f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'></head><body>{tag}</body></html>\n"
+        )
     return path
 
 
-def save_frame(anim, index: int, path) -> Path:
-    """Draw frame ``index`` of ``anim`` and save it as a PNG (the figure stays open)."""
-    anim.draw_frame(index)
-    anim.fig.savefig(path)
+def _write_mp4(frames, path: Path, fps: float) -> None:
+    import imageio_ffmpeg
+
+    writer = None
+    for f in frames:
+        if writer is None:
+            h, w = f.shape[:2]
+            writer = imageio_ffmpeg.write_frames(
+                str(path), (w, h), fps=fps, codec="libx264", pix_fmt_out="yuv420p", macro_block_size=2
+            )
+            writer.send(None)
+        writer.send(np.ascontiguousarray(f).tobytes())
+    if writer is not None:
+        writer.close()
+
+
+def _write_gif(frames, path: Path, fps: float) -> None:
+    from PIL import Image
+
+    imgs = [Image.fromarray(f) for f in frames]
+    imgs[0].save(path, save_all=True, append_images=imgs[1:], duration=round(1000.0 / fps), loop=0)
+
+
+def save_frame(anim: Animation, index: int, path) -> Path:
+    """Frame ``index`` of ``anim`` as a PNG (the figure stays open)."""
+    from PIL import Image
+
+    Image.fromarray(anim.frame(index)).save(path)
     return Path(path)

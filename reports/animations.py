@@ -21,7 +21,7 @@ from .render import Section
 __all__ = ["MOTION", "motion_table", "report_cases", "section"]
 
 # methods: None draws the first DT-TMM method and the rigid baseline(s) of the registry, for contrast
-MOTION = dict(k=8, h=1e-3, points=13, fps=12.0, max_frames=48, methods=None)
+MOTION = dict(k=8, h=1e-3, points=13, fps=20.0, max_frames=120, methods=None)
 BEND_SHARE = 0.06  # the drawn bending peaks at this share of the arm's reach (see exaggeration)
 
 
@@ -54,6 +54,7 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
     s = {**MOTION, **(settings or {})}
     if s["methods"] is None:
         s["methods"] = (*methods.by_role("subject")[:1], *methods.by_role("baseline"))
+    t0 = time.perf_counter()
     rows = []
     for name, case in cases.items():
         for m in s["methods"]:
@@ -84,6 +85,7 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
                 )
             )
     cols = ["case", "method", "k", "h", "frame", "t", "link", "point", "x", "y"]
+    log(f"motion: {len(rows)} runs with link shapes in {time.perf_counter() - t0:.1f} s")
     return {"motion": pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)}
 
 
@@ -141,14 +143,12 @@ def section(inp) -> Section | None:
         path = save(anim, inp.fig_dir / (f"{stem}.mp4" if video else f"{stem}.gif"), fps=fps)
         d = g.iloc[0]
         who = " and ".join(label(m) for m in motions)
-        figs.append(
-            (
-                f"figures/{path.name}",
-                f"{name}: {who} (DT-TMM k = {d.k}, h = {d.h:g} s), {g.frame.nunique()} frames in real time; "
-                f"bending between the joints drawn ×{x:g} (true scale: 1), joints and tips at their true "
-                "positions; thin line: end-effector trace.",
-            )
+        scale = f"bending between the joints drawn ×{x:g}, joints and tips at their true positions"
+        cap = (
+            f"{name}: {who} (DT-TMM k = {d.k}, h = {d.h:g} s), {g.frame.nunique()} frames in real time; "
+            f"{scale if x != 1 else 'true scale'}; thin line: end-effector trace."
         )
+        figs.append((f"figures/{path.name}", cap))
     took = time.perf_counter() - t0
     text.append(
         f"Every case of the report animated from the stored frames (table motion): links as their "

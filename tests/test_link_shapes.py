@@ -146,3 +146,19 @@ def test_bad_shape_points_is_refused_naming_the_option(three, name, bad):
         pytest.importorskip("exudyn")
     with pytest.raises(dttmm.InputError, match="shape_points"):
         methods.run(name, three, None if name == "pinocchio-rigid" else 2, 1e-3, shape_points=bad)
+
+
+def test_a_failed_run_keeps_the_shapes_of_what_it_computed(tmp_path):
+    """A torque of 1e30 N·m from t = 0.06 s blows the run up: the partial Result carries the
+    shapes of the samples before the failure, ending at the recorded roots and tips."""
+    path = tmp_path / "blow.toml"
+    path.write_text(
+        "[model]\n[[model.links]]\nlength = 1.0\nEI = 2.0\nrhoA = 0.3\n[scenario]\nduration = 0.1\n"
+        'output_step = 0.01\n[[scenario.drives]]\nkind = "torque"\nlaw = "table"\n'
+        "times = [0.0, 0.05, 0.06]\nvalues = [0.0, 0.0, 1e30]\n"
+    )
+    with pytest.raises(dttmm.SimulationError) as err:
+        dttmm.simulate(dttmm.load_case(path), elements_per_link=1, h=1e-3, shape_points=P, progress=False)
+    part = err.value.partial
+    assert 0 < part.t.size < 11 and part.link_shapes.shape == (part.t.size, 1, P, 2)
+    np.testing.assert_allclose(part.link_shapes[:, :, -1], part.link_tip, rtol=0, atol=1e-12)

@@ -463,7 +463,9 @@ def simulate_structure(st: Structure, s: Settings):
             stats,
             t_end,
             meta,
-            lambda m: to_result(rec, upto, wall, int(stats.steps_done[0]), m),
+            lambda m: with_shapes(
+                to_result(rec, upto, wall, int(stats.steps_done[0]), m), st, rec, s.shape_points
+            ),
             float(rec.t[upto - 1]) if upto else 0.0,
         )
     _add_stats(meta, stats, s, n_steps, wall, t_end)
