@@ -270,6 +270,27 @@ def _cost(inp):
     )
 
 
+def _validation(inp):
+    """Links to the methods' scorecards of ``dttmm validate`` (its folder: the report meta's
+    ``validate_dir``, default ``out/validate``), or how to make them."""
+    from .validate_page import links_section
+
+    folder = Path(inp.meta.get("validate_dir") or "out/validate")
+    sec = links_section(folder, inp.fig_dir.parent)
+    if sec is not None:
+        return sec
+    return Section(
+        "Validation scorecards",
+        [],
+        [
+            f"No scorecards in {folder}: `dttmm validate --quick --out {folder}` checks every method against "
+            "the published, closed-form and independent values (docs/validate.md); the report then links them."
+        ],
+        [],
+        "validate",
+    )
+
+
 def _peer_configuration(inp):
     sec = peers.configuration_section()
     inp.tables["peer_configuration"] = sec.tables[0][1]
@@ -342,6 +363,7 @@ SECTION_BUILDERS = [
     _cost,
     benchmarks.section,  # benchmark problems (published single-case checks)
     control.section,  # closed-loop drives: tracking, moment feedback, natural frequencies
+    _validation,
     _peer_configuration,
     _bench_section,
 ]
