@@ -132,7 +132,7 @@ def run_sweep(
         ref, ref_id = references.get(task.case, (None, ""))
         store.write(task, outcome, cases[task.case].n_joints, ref, ref_id)
         done[0] += 1
-        bar.update(est.get(task, 0.0))
+        bar.update(min(est.get(task, 0.0), max(bar.total - bar.n, 0.0)))  # rounding never overshoots
         bar.set_postfix_str(
             f"{done[0]}/{len(todo)} runs; {task.case} {task.method} k={task.k} h={task.h:g}: {outcome.status}"
         )
@@ -192,6 +192,8 @@ def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, r
 
 
 class _NoBar:
+    total = n = 0.0
+
     def update(self, n):
         pass
 
@@ -210,7 +212,7 @@ def _bar(seconds, desc, progress):
     from tqdm import tqdm
 
     return tqdm(
-        total=round(seconds, 1),
+        total=float(seconds),
         desc=desc,
         unit="s",
         unit_scale=False,
