@@ -114,6 +114,12 @@ def test_cli_animates_a_case_and_a_stored_result(tmp_path, capsys):
     out = tmp_path / "a.gif"
     assert main(["animate", str(src), "-k", "2", "--exaggerate", "5", "--out", str(out)]) == 0
     assert out.exists()
+    methods_args = ["--method", "dttmm", "--method", "pinocchio-rigid@2e-3", "--method", "mujoco-chain@1e-4"]
+    assert main(["animate", str(src), "-k", "2", *methods_args, "--out", str(tmp_path / "m.html")]) == 0
+    assert "<video" in (tmp_path / "m.html").read_text() or "image/gif" in (tmp_path / "m.html").read_text()
+    capsys.readouterr()
+    assert main(["animate", str(src), "--method", "nosuch", "--out", str(out)]) == 2
+    assert "nosuch" in capsys.readouterr().err
     # a stored Result with shapes animates; one without is a one-line error
     folder = tmp_path / "sim"
     args = ["simulate", str(src), "-k", "2", "--h", "1e-3", "--format", "parquet", "--out", str(folder)]
