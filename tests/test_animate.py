@@ -61,7 +61,8 @@ def _frames(anim, tag: str, at=(0.0, 0.5, 1.0)):
 
 def test_arm_animation_overlays_methods_and_writes_frames_and_a_gif(three_runs, tmp_path):
     c, runs = three_runs
-    anim = animate.arm_animation(runs, c, exaggerate=10.0, fps=10, title="three_link")
+    looks = {n: (methods.label(n), methods.style(n).color, methods.style(n).linestyle) for n in runs}
+    anim = animate.arm_animation(runs, c, exaggerate=10.0, fps=10, title="three_link", styles=looks)
     assert len(anim.frame_times) == 7  # 0.6 s at 10 frames per second, ends included
     labels = [t.get_text() for t in anim.fig.axes[0].get_legend().get_texts()]
     assert labels == [methods.label("dttmm"), methods.label("pinocchio-rigid")]
