@@ -149,15 +149,12 @@ def _limits(arrays, pad: float = 0.08):
     return (c[0] - half, c[0] + half), (c[1] - half, c[1] + half)
 
 
-def _style(name: str, index: int):
-    """(label, colour, line style) of a method from the registry when it is importable."""
-    try:
-        from experiments.methods import label, style
-
-        st = style(name, index)
-        return label(name), st.color, st.linestyle
-    except ImportError:
-        return name, f"C{index % 10}", "-"
+def _style(name: str, index: int, styles):
+    """(label, colour, line style) of a method: from ``styles`` when it names it, else the name
+    and a colour of the default cycle."""
+    if styles and name in styles:
+        return tuple(styles[name])
+    return name, f"C{index % 10}", "-"
 
 
 def arm_animation(
@@ -171,6 +168,7 @@ def arm_animation(
     title: str = "",
     figsize=(5.0, 5.0),
     dpi: int = 80,
+    styles: dict | None = None,
 ):
     """The arm moving, one or more methods overlaid.
 
@@ -184,6 +182,9 @@ def arm_animation(
     exaggerate : factor X on the bending (see the module docstring), stated on every frame
     fps, speed, max_frames : frames per second of video, video speed relative to real time,
         most frames (see :func:`frame_indices`)
+    styles : {method name: (label, colour, line style)} for the legend and the curves (the
+        harness passes its method registry's, ``experiments.methods.label``/``style``); a name
+        not in it is drawn under its own name in a colour of the default cycle
 
     Returns
     -------
@@ -224,7 +225,7 @@ def arm_animation(
     pays = [] if case is None else [i for i, lk in enumerate(case.model.links) if lk.payload is not None]
     artists = []
     for j, (name, r) in enumerate(results.items()):
-        lab, color, ls = _style(name, j)
+        lab, color, ls = _style(name, j, styles)
         n = r.link_shapes.shape[1]
         links = [
             ax.plot([], [], color=color, ls=ls, lw=2.2, label=lab if i == 0 else None)[0] for i in range(n)

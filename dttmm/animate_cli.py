@@ -11,6 +11,7 @@ one-line error (exit 2).
 
 from __future__ import annotations
 
+import importlib
 import sys
 from pathlib import Path
 
@@ -63,6 +64,26 @@ def _method_spec(text: str, h: float):
         raise InputError("--method", text, "must be NAME or NAME@H with H a step in s") from None
 
 
+def _registry():
+    """The harness's method registry (``experiments.methods``), imported only now: the solver
+    package does not depend on the harness (as ``dttmm report``); None when it is absent."""
+    try:
+        return importlib.import_module("experiments.methods")
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.split(".")[0] == "experiments":
+            return None
+        raise
+
+
+def styles(names) -> dict:
+    """{name: (label, colour, line style)} from the registry, {} without it."""
+    methods = _registry()
+    if methods is None:
+        return {}
+    looks = {n: methods.style(n, i) for i, n in enumerate(names)}
+    return {n: (methods.label(n), st.color, st.linestyle) for n, st in looks.items()}
+
+
 def run_case(case, specs, k: int, points: int) -> dict:
     """{method: Result} of ``case`` for every (method, h) in ``specs``, with link shapes."""
     if [m for m, _ in specs] == ["dttmm"]:
@@ -71,10 +92,9 @@ def run_case(case, specs, k: int, points: int) -> dict:
         return {
             "dttmm": simulate(case, elements_per_link=k, h=specs[0][1], shape_points=points, progress=None)
         }
-    try:
-        from experiments import methods
-    except ImportError:
-        raise InputError("--method", specs, "needs the experiments package (run from a checkout)") from None
+    methods = _registry()
+    if methods is None:
+        raise InputError("--method", specs, "needs the experiments package (run from a checkout)")
     out = {}
     for name, h in specs:
         if name not in methods.names():
@@ -125,6 +145,7 @@ def run_animate(a) -> int:
             speed=a.speed,
             max_frames=a.max_frames,
             title=f"{name}{k_text}",
+            styles=styles(list(results)),
         )
         out = Path(a.out) if a.out else Path("out/animate") / f"{name}.mp4"
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -48,4 +48,6 @@ ax.set(xlabel="t [s]", ylabel="link-2 tip deflection [mm]")
 ax.legend(fontsize=7)
 fig.tight_layout()
 fig.savefig(figure_path("03_compare_methods.png"), dpi=100)
-print("wrote", save(arm_animation(runs, case, exaggerate=5, fps=10), figure_path("03_compare_methods.gif")))
+looks = {n: (methods.label(n), methods.style(n).color, methods.style(n).linestyle) for n in runs}
+anim = arm_animation(runs, case, exaggerate=5, fps=10, styles=looks)
+print("wrote", save(anim, figure_path("03_compare_methods.gif")))

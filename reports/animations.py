@@ -120,7 +120,7 @@ def section(inp) -> Section | None:
         return None
     from dttmm import case_from_dict
     from dttmm.animate import arm_animation, ffmpeg_path, save, save_frame
-    from experiments.methods import label
+    from experiments.methods import label, style
 
     t0 = time.perf_counter()
     cases = inp.meta.get("cases") or {}
@@ -136,7 +136,10 @@ def section(inp) -> Section | None:
             reach = float(np.linalg.norm(first[:, -1] - first[:, 0], axis=-1).sum())
         x = exaggeration(motions, reach)
         fps = MOTION["fps"]
-        anim = arm_animation(motions, case, exaggerate=x, fps=fps, max_frames=None, title=name, dpi=72)
+        looks = {m: (label(m), style(m, i).color, style(m, i).linestyle) for i, m in enumerate(motions)}
+        anim = arm_animation(
+            motions, case, exaggerate=x, fps=fps, max_frames=None, title=name, dpi=72, styles=looks
+        )
         stem = f"motion_{name}"
         inp.fig_dir.mkdir(parents=True, exist_ok=True)
         save_frame(anim, len(anim.frame_times) - 1, inp.fig_dir / f"{stem}.png")

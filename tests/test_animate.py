@@ -61,7 +61,8 @@ def _frames(anim, tag: str, at=(0.0, 0.5, 1.0)):
 
 def test_arm_animation_overlays_methods_and_writes_frames_and_a_gif(three_runs, tmp_path):
     c, runs = three_runs
-    anim = animate.arm_animation(runs, c, exaggerate=10.0, fps=10, title="three_link")
+    looks = {n: (methods.label(n), methods.style(n).color, methods.style(n).linestyle) for n in runs}
+    anim = animate.arm_animation(runs, c, exaggerate=10.0, fps=10, title="three_link", styles=looks)
     assert len(anim.frame_times) == 7  # 0.6 s at 10 frames per second, ends included
     labels = [t.get_text() for t in anim.fig.axes[0].get_legend().get_texts()]
     assert labels == [methods.label("dttmm"), methods.label("pinocchio-rigid")]
@@ -114,6 +115,12 @@ def test_cli_animates_a_case_and_a_stored_result(tmp_path, capsys):
     out = tmp_path / "a.gif"
     assert main(["animate", str(src), "-k", "2", "--exaggerate", "5", "--out", str(out)]) == 0
     assert out.exists()
+    methods_args = ["--method", "dttmm", "--method", "pinocchio-rigid@2e-3", "--method", "mujoco-chain@1e-4"]
+    assert main(["animate", str(src), "-k", "2", *methods_args, "--out", str(tmp_path / "m.html")]) == 0
+    assert "<video" in (tmp_path / "m.html").read_text() or "image/gif" in (tmp_path / "m.html").read_text()
+    capsys.readouterr()
+    assert main(["animate", str(src), "--method", "nosuch", "--out", str(out)]) == 2
+    assert "nosuch" in capsys.readouterr().err
     # a stored Result with shapes animates; one without is a one-line error
     folder = tmp_path / "sim"
     args = ["simulate", str(src), "-k", "2", "--h", "1e-3", "--format", "parquet", "--out", str(folder)]

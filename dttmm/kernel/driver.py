@@ -218,9 +218,9 @@ def drive_values(st: Structure, t: float, left: bool = False):
     return tau, mot
 
 
-def new_record(st: Structure, times, want_loads: bool, want_energy: bool, want_q: bool = False) -> Record:
+def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Record:
     """NaN-filled output arrays on the grid ``times``; cut loads every stride-th sample so
-    that they hold at most ~2e6 cut-samples; the coordinates when ``want_q`` (link shapes)."""
+    that they hold at most ~2e6 cut-samples; no coordinates (see :func:`with_coordinates`)."""
     nt, n = times.size, st.n_links
     ncuts = st.n_elements + n
     stride = max(1, math.ceil(nt * ncuts / 2.0e6)) if want_loads else 0
@@ -237,7 +237,7 @@ def new_record(st: Structure, times, want_loads: bool, want_energy: bool, want_q
         energy=full() if want_energy else np.zeros(0),
         loads=loads,
         load_stride=stride,
-        q=full(st.n_dof) if want_q else np.zeros((0, st.n_dof)),
+        q=np.zeros((0, st.n_dof)),
     )
 
 
@@ -372,7 +372,9 @@ def simulate_structure(st: Structure, s: Settings):
     meta = base_meta(st, s)
     if compile_time is not None:
         meta["compile_time"] = compile_time
-    rec = new_record(st, scen.output_times, s.cut_loads, s.energy, s.shape_points > 0)
+    rec = new_record(st, scen.output_times, s.cut_loads, s.energy)
+    if s.shape_points:
+        rec = with_coordinates(rec)
     n_steps = t_end.size
     wall0 = time.perf_counter()
     ncuts = st.n_elements + st.n_links
@@ -475,6 +477,11 @@ def simulate_structure(st: Structure, s: Settings):
         _energy_growth(meta, st, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
     status, warns = verdict(meta, s, n_steps)
     return with_shapes(to_result(rec, upto, wall, n_steps, meta, status, warns), st, rec, s.shape_points)
+
+
+def with_coordinates(rec: Record) -> Record:
+    """``rec`` recording the coordinates q (nt, n_dof) at the output times too (NaN-filled)."""
+    return rec._replace(q=np.full((rec.t.size, rec.q.shape[1]), np.nan))
 
 
 def with_shapes(res, st: Structure, rec: Record, p: int):
