@@ -42,8 +42,8 @@ def _cell(key, v) -> str:
         return {True: "pass", False: "<b>FAIL</b>", None: "not run"}[v]
     if v is None:
         return "—"
-    if isinstance(v, float):
-        return html.escape(fmt(v))
+    if isinstance(v, float):  # values and references to six digits: the tolerances are as fine as 1e-4
+        return html.escape(f"{v:.6g}" if key in ("value", "reference") else fmt(v))
     return html.escape(str(v))
 
 
