@@ -11,8 +11,10 @@ The model (docs/assumed_modes.md has the derivation and the measured facts):
 * **Modes.** Each link's own beam eigenproblem, clamped at the root (:mod:`._amm_shapes`). The
   default ``boundary="clamped-mass"`` loads the tip with the rigid mass and rotary inertia of
   everything outboard, arm straight (outboard joints at 0), static moment left out — De Luca &
-  Siciliano's choice: the shapes then already carry the outboard inertia, so few modes converge
-  (measured on ``three_link``: 2 clamped-mass modes match 4 clamped-free ones). ``"clamped-free"``
+  Siciliano's choice, kept as the default because it reproduces their published modal data.
+  It does not converge faster on the shipped cases: on ``three_link`` both bases reach the same
+  end-effector error (0.23–0.25 mm) by N = 3–4, and at N = 1 clamped-free is better (1.2 against
+  2.0 mm). ``"clamped-free"``
   is offered for comparison. Any choice is a basis; it changes the truncation error, not the
   equations.
 * **Equations.** Lagrange's equations of the whole arm in closed form per body, assembled
@@ -23,11 +25,14 @@ The model (docs/assumed_modes.md has the derivation and the measured facts):
   second order, which gives the geometric stiffening of every axial load — centrifugal, the
   axial acceleration of the link root, gravity along the link and the inertia of the outboard
   arm and payload pulling on the tip; ``"premature"`` keeps the centrifugal softening
-  (θ̇² ∫ρA w²) without the stiffening; ``"ruthless"`` drops both from the link's own energy (the
-  outboard bodies still ride on the deflected tip).
+  (θ̇² ∫ρA w²) without the stiffening; ``"ruthless"`` has neither (the link's own θ̇² δ² terms
+  dropped, and the tip kept at its distance L from the root, so the outboard arm neither softens
+  nor stiffens it). All three are Lagrangian (kinetic energy to second order in δ) and conserve
+  energy. On torque-driven links with slow hubs the consistent variant's second-order terms in
+  the hub equation are no better than the third-order terms it drops (see the doc).
 * **Default: "consistent".** Rule: the default must stay bounded and within the benchmark
   tolerance on every benchmark problem it can model; only the consistent variant passes the
-  spin-up benchmarks (ω_s = 4, 6: premature diverges, ruthless is 2–4 % off). Where the links
+  spin-up benchmarks (ω_s = 4, 6: premature diverges, ruthless is 5–10 % off). Where the links
   stay within a few percent of their length all variants agree; on the shipped ``single_link``
   at its nominal torque (deflections of 12–23 % of the length) no truncated variant is accurate
   and ruthless happens to be closest — see the doc's table.
