@@ -13,8 +13,8 @@ Repeats are spent where they matter. A run of a few milliseconds is disturbed al
 a few calls on a busy machine, so a measurement may also ask for ``min_cpu``: it then keeps
 calling (up to ``MAX_REPEATS`` calls) until the number of calls times the least CPU time of a
 call reaches that, and while the median CPU time lies more than ``SPREAD_MAX`` above the
-minimum; the sweep asks for :data:`MIN_CPU` wherever it asks for more than one call. A call of
-at least :data:`LONG_CPU` CPU seconds is timed once: its CPU time varies between repeats by
+minimum as long as calls × least CPU time stay below ``SPREAD_BUDGET`` (1 s); the sweep
+asks for :data:`MIN_CPU` wherever it asks for more than one call. A call of at least :data:`LONG_CPU` CPU seconds is timed once: its CPU time varies between repeats by
 less than :data:`LONG_NOISE` (measured, see the constant), well inside the spread the protocol
 accepts, so further calls would buy nothing. The sweep runs such a method once, untimed, on a
 few steps of the same case before timing it in a worker (JIT compilation or loading of cached
@@ -57,6 +57,9 @@ COST_REPEATS = 3
 MIN_CPU = 0.1
 #: Most calls of one measurement when ``min_cpu`` asks for more than ``repeats``.
 MAX_REPEATS = 50
+#: CPU time (s), calls × least CPU time, up to which a short run is called again while its spread
+#: is wide.
+SPREAD_BUDGET = 1.0
 #: CPU time (s) from which one call is timed once.
 LONG_CPU = 2.0
 #: Largest (median − min)/min of the CPU times of calls of ≥ LONG_CPU seen over the quick report's
@@ -193,5 +196,8 @@ def _more(i: int, cpu: list, repeats: int, min_cpu: float, long_cpu: float) -> b
     # calls × least CPU time, not the sum: a first call that compiles (JIT) must not end it
     if i * min(cpu) < min_cpu:
         return True
-    # short runs asked to add up (min_cpu): also until the spread is small
+    # short runs asked to add up (min_cpu): also until the spread is small, while the calls stay
+    # cheap (a loaded machine can keep the spread wide: a longer run is not called on and on)
+    if i * min(cpu) >= SPREAD_BUDGET:
+        return False
     return repeats > 1 and min_cpu > 0 and statistics.median(cpu) > (1 + SPREAD_MAX) * min(cpu)
