@@ -13,12 +13,13 @@ Repeats are spent where they matter. A run of a few milliseconds is disturbed al
 a few calls on a busy machine, so a measurement may also ask for ``min_cpu``: it then keeps
 calling (up to ``MAX_REPEATS`` calls) until the number of calls times the least CPU time of a
 call reaches that, and while the median CPU time lies more than ``SPREAD_MAX`` above the
-minimum as long as calls × least CPU time stay below ``SPREAD_BUDGET`` (1 s); the sweep
-asks for :data:`MIN_CPU` wherever it asks for more than one call. A call of at least :data:`LONG_CPU` CPU seconds is timed once: its CPU time varies between repeats by
-less than :data:`LONG_NOISE` (measured, see the constant), well inside the spread the protocol
-accepts, so further calls would buy nothing. The sweep runs such a method once, untimed, on a
-few steps of the same case before timing it in a worker (JIT compilation or loading of cached
-machine code would otherwise land in the one timed call).
+minimum as long as calls × least CPU time stay below ``SPREAD_BUDGET`` (1 s); the sweep asks
+for :data:`MIN_CPU` wherever it asks for more than one call. A call of at least
+:data:`LONG_CPU` CPU seconds is timed once: its CPU time varies between repeats by less than
+:data:`LONG_NOISE` (measured, see the constant), inside the spread the report calls noise, so
+further calls would buy nothing. The sweep runs such a method once, untimed, on a few steps of
+the same case before timing it in a worker (JIT compilation or loading of cached machine code
+would otherwise land in the one timed call).
 
 The first repeat's return value is the one kept (every repeat computes the same result), so
 accuracy-only studies run with ``repeats=1`` and pay nothing extra.
