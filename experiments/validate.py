@@ -1204,18 +1204,11 @@ def write(rows, out_dir) -> Path:
 
 def scorecard_links(out_dir) -> list:
     """[(method, label, page path relative to ``out_dir``, passed, failed, not run)] of the
-    scorecards written in ``out_dir`` by ``dttmm validate`` ([] when there are none)."""
-    path = Path(out_dir) / "scorecard.json"
-    if not path.is_file():
-        return []
-    try:
-        rows = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return []
-    from reports.validate_page import page_name
+    scorecards written in ``out_dir`` by ``dttmm validate`` ([] when there are none); see
+    :func:`reports.validate_page.scorecard_links`."""
+    from reports.validate_page import scorecard_links as links
 
-    labels = {r["method"]: r.get("label") or r["method"] for r in rows}
-    return [(m, labels[m], page_name(m), *c) for m, c in summary(rows).items()]
+    return links(out_dir)
 
 
 # ----------------------------------------------------------------------------- command line

@@ -114,6 +114,26 @@ def write(rows: list, out_dir) -> list:
     return paths
 
 
+def scorecard_links(out_dir) -> list:
+    """[(method, label, page path relative to ``out_dir``, passed, failed, not run)] of the
+    scorecards written in ``out_dir`` by ``dttmm validate`` ([] when there are none)."""
+    import json
+
+    path = Path(out_dir) / "scorecard.json"
+    if not path.is_file():
+        return []
+    try:
+        rows = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    counts: dict = {}
+    for r in rows:
+        p, f, n = counts.get(r["method"], (0, 0, 0))
+        counts[r["method"]] = (p + (r["passed"] is True), f + (r["passed"] is False), n + (r["passed"] is None))
+    labels = {r["method"]: r.get("label") or r["method"] for r in rows}
+    return [(m, labels[m], page_name(m), *c) for m, c in counts.items()]
+
+
 def links_section(validate_dir, report_dir):
     """A report section linking each method's scorecard written by ``dttmm validate`` in
     ``validate_dir``, paths relative to ``report_dir``; None when there are no scorecards.
@@ -124,8 +144,6 @@ def links_section(validate_dir, report_dir):
     import os
 
     import pandas as pd
-
-    from experiments.validate import scorecard_links
 
     from .render import Section
 
