@@ -129,7 +129,11 @@ def scorecard_links(out_dir) -> list:
     counts: dict = {}
     for r in rows:
         p, f, n = counts.get(r["method"], (0, 0, 0))
-        counts[r["method"]] = (p + (r["passed"] is True), f + (r["passed"] is False), n + (r["passed"] is None))
+        counts[r["method"]] = (
+            p + (r["passed"] is True),
+            f + (r["passed"] is False),
+            n + (r["passed"] is None),
+        )
     labels = {r["method"]: r.get("label") or r["method"] for r in rows}
     return [(m, labels[m], page_name(m), *c) for m, c in counts.items()]
 
