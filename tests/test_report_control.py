@@ -132,7 +132,8 @@ def tables(tmp_path_factory):
     ctx = Context(Plan("t", {}, {}, {}, {C.NAME: params}), {}, {}, {}, RunStore(root / "runs"), root)
     add_cases(ctx, [C.NAME])
     table = run_sweep(C.tasks(ctx), ctx.cases, ctx.store, scheduler="serial", progress=False)
-    return C.analyse(ctx, table), root
+    yield C.analyse(ctx, table), root
+    methods.unregister("open-loop-only")
 
 
 def test_study_tables(tables):
