@@ -476,33 +476,6 @@ MODES_COLUMNS = ["system", "mode", "dttmm_hz", "exudyn_hz", "rel_diff", "k", "ex
 ZERO_HZ = 1e-6  # frequencies below this (Hz) are the rigid-body modes of free joints
 
 
-def _dttmm_frequencies(case, k: int) -> np.ndarray:
-    import importlib
-
-    import dttmm
-
-    fn = getattr(dttmm, "modes", None)
-    if fn is None:
-        try:
-            fn = importlib.import_module("dttmm.linear").modes
-        except (ImportError, AttributeError):
-            raise LookupError("dttmm.modes is not in this version of dttmm") from None
-    return np.asarray(fn(case, elements_per_link=int(k)).frequencies, float)
-
-
-def _exudyn_frequencies(case, k: int, n: int) -> np.ndarray:
-    import importlib
-
-    try:
-        mod = importlib.import_module("reference_models.exudyn_modes")
-    except ImportError as exc:
-        raise LookupError(f"reference_models.exudyn_modes cannot be imported ({exc})") from None
-    fn = getattr(mod, "frequencies", None)
-    if fn is None:
-        raise LookupError("reference_models.exudyn_modes has no frequencies()")
-    return np.asarray(fn(case, elements_per_link=int(k), n=n), float)
-
-
 def elastic(freqs, n: int) -> np.ndarray:
     """The lowest ``n`` non-zero frequencies (Hz), ascending; rigid-body modes (< ZERO_HZ) dropped."""
     f = np.sort(np.asarray(freqs, float))
@@ -521,14 +494,14 @@ def modes_table(params: dict, case) -> pd.DataFrame:
     and elastic mode: DT-TMM's frequency (``dttmm.modes`` at ``k``), Exudyn's eigenvalue
     computation at ``exudyn_k``, their relative difference. A system whose frequencies cannot be
     computed gets one row with the reason in ``note``."""
-    from .benchmarks import load_problem
+    from .benchmarks import frequencies, load_problem
 
     k, ke, n = int(params.get("k", 8)), int(params.get("exudyn_k", 32)), int(params.get("n", 4))
     systems = [case] + [load_problem(CASES / f)[0] for f in params.get("systems", MODE_SYSTEMS)]
     rows = []
     for c in systems:
-        fd, why_d = _attempt(_dttmm_frequencies, c, k)
-        fe, why_e = _attempt(_exudyn_frequencies, c, ke, n + c.n_joints)
+        fd, why_d = _attempt(frequencies, c, k, "dttmm", None)  # each method's own linearisation
+        fe, why_e = _attempt(frequencies, c, ke, "exudyn-ancf", n + c.n_joints)
         if fd is None:
             rows.append(
                 dict.fromkeys(MODES_COLUMNS, math.nan) | {"system": c.name, "note": f"DT-TMM: {why_d}"}
