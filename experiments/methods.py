@@ -971,22 +971,67 @@ def _probe_case():
     return Case(Manipulator((link,)), Scenario(0.004, 0.002, (Drive("torque", Constant(0.1)),)), "probe")
 
 
-def available(methods=None, *, probe: bool = True) -> dict[str, str | None]:
+def _probe_one(name: str, case) -> str | None:
+    """None when ``name`` resolves and runs two steps of ``case``, else the reason."""
+    try:
+        f = resolve(name)
+        if case is not None:
+            f(case, 1, 0.002)
+        return None
+    except MethodUnavailable as exc:
+        return str(exc)
+    except Exception as exc:  # noqa: BLE001 - a crash on the probe is a reason too
+        return f"probe run failed: {type(exc).__name__}: {exc}"
+
+
+def _probe_group(names_, probe: bool) -> list[str | None]:
+    """:func:`_probe_one` for methods that share one engine module, in order (the first call
+    compiles or loads the engine, the rest reuse it)."""
+    case = _probe_case() if probe else None
+    return [_probe_one(n, case) for n in names_]
+
+
+def _fork_pool(workers: int):
+    """A process pool of ``workers`` forked from this process (which holds the registered
+    outside methods), or None where fork is not offered."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return None
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork"))
+
+
+def available(methods=None, *, probe: bool = True, workers: int | None = 1) -> dict[str, str | None]:
     """Which methods run here: name -> None when available, else the reason.
 
     With ``probe`` each importable method is run for two steps of a one-link arm, so one that
-    still raises ``NotImplementedError`` (or fails outright) is reported with the reason.
+    still raises ``NotImplementedError`` (or fails outright) is reported with the reason. The
+    first probe of a compiled engine compiles it (minutes on a fresh checkout) and fills its
+    on-disk cache, which later runs load from.
+
+    ``workers`` > 1 (None: this machine's cores) probes the engines in that many processes at
+    once: methods of one module go to one process, in order, so no engine is compiled twice;
+    the modules that take longest to compile go first (the DT-TMM kernel, then the global
+    solver and the assumed-modes engine).
     """
-    out = {}
-    case = _probe_case() if probe else None
-    for name in names() if methods is None else methods:
-        try:
-            f = resolve(name)
-            if probe:
-                f(case, 1, 0.002)
-            out[name] = None
-        except MethodUnavailable as exc:
-            out[name] = str(exc)
-        except Exception as exc:  # noqa: BLE001 - a crash on the probe is a reason too
-            out[name] = f"probe run failed: {type(exc).__name__}: {exc}"
-    return out
+    import os
+
+    wanted = list(names() if methods is None else methods)
+    groups: dict[str, list[str]] = {}
+    for name in wanted:
+        m = _EXTRA.get(name) or METHODS.get(name)
+        groups.setdefault(m.module if m is not None and m.module else name, []).append(name)
+    n_proc = min(len(groups), os.cpu_count() or 1) if workers is None else min(len(groups), workers)
+    pool = _fork_pool(n_proc) if probe and n_proc > 1 else None
+    if pool is None:
+        reasons = _probe_group(wanted, probe)
+        return dict(zip(wanted, reasons, strict=True))
+    first = ("dttmm", "reference_models.global_newmark", "reference_models.assumed_modes")
+    order = sorted(groups, key=lambda mod: first.index(mod) if mod in first else len(first))
+    with pool:
+        futures = {mod: pool.submit(_probe_group, groups[mod], probe) for mod in order}
+        by_name = {
+            n: why for mod, f in futures.items() for n, why in zip(groups[mod], f.result(), strict=True)
+        }
+    return {n: by_name[n] for n in wanted}

@@ -60,7 +60,7 @@ def run_report(
     t0 = time.perf_counter()
     mark = time.time()
     out = Path(out)
-    avail = methods.available(_methods_in(plan))
+    avail = methods.available(_methods_in(plan), workers=1 if scheduler == "serial" else workers)
     for m, why in avail.items():
         if why:
             log(f"unavailable: {m}: {why}")

@@ -291,7 +291,16 @@ def sensitivity(md, dt, opts, q, qd, drv, ws, columns):
     return ok
 
 
-# a real call: closed-loop runs only, and inlining it four times into `run` costs compile time
+@njit(nrt=False, inline="always")
+def _flag(value):
+    """``value`` as a run-time bool. numba types a literal ``False`` passed to a compiled call as
+    its own type and compiles one more version of the callee per combination of literal flags:
+    the callers of :func:`accel_closed` pass their flags through this, so one version serves all."""
+    return bool(value)
+
+
+# a real call: closed-loop runs only, and inlining it four times into `run` costs compile time;
+# its flags arrive as run-time bools (:func:`_flag`)
 @njit(nrt=False)
 def accel_closed(
     md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads, fresh
@@ -633,7 +642,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
         qdi[r] = qd[r] + hf * qdd[r]
         k2v[r] = qdi[r]
     fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])  # else the A of an earlier stage
-    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, ka, False, fresh)
+    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, ka, _flag(False), fresh)
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, hf)
@@ -641,14 +650,14 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
             qi[r] = q[r] + hf * k2v[r]
             qdi[r] = qd[r] + hf * ka[r]
             k3v[r] = qdi[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, x, False, False)
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, x, _flag(False), _flag(False))
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, h)
         for r in range(q.shape[0]):
             qi[r] = q[r] + h * k3v[r]
             qdi[r] = qd[r] + h * x[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 2, ws, xn, False, False)
+        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 2, ws, xn, _flag(False), _flag(False))
     if ok:
         if opts.closed:
             _rk4_z(md, drv, st, ws, drv.ref_left[s], qi, 1.0, 0.0)
@@ -661,7 +670,7 @@ def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
             q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
             qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
         apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
-        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, h, 2, ws, qdd, drv.need_loads[s], False)
+        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, h, 2, ws, qdd, drv.need_loads[s], _flag(False))
         if opts.closed:
             for i in range(md.n):
                 if drv.code[i] == CODE_PD:
@@ -718,8 +727,8 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
                 st.qdd,
                 ws.torque_r,
                 ws.loads_r,
-                False,
-                True,
+                _flag(False),
+                _flag(True),
             )
         else:
             ok, cond = accel(
