@@ -813,7 +813,30 @@ def _load_drives(P, tq, mo, Q, tau_link):
 
 @njit(cache=True)
 def _iterate(
-    P, C, Wk, itmode, nfix, tol, maxit, t, qt, qtd, cq, cv, x, Q, mo, M, f, ff, ref, zc, dz, tau_c, used, slope
+    P,
+    C,
+    Wk,
+    itmode,
+    nfix,
+    tol,
+    maxit,
+    t,
+    qt,
+    qtd,
+    cq,
+    cv,
+    x,
+    Q,
+    mo,
+    M,
+    f,
+    ff,
+    ref,
+    zc,
+    dz,
+    tau_c,
+    used,
+    slope,
 ):
     """Iterate the q̈ of the step ending at t (in place in x); returns (τ of the prescribed
     joints, solves, converged); the closed-loop torques at the final iterate go into tau_c.

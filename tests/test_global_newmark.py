@@ -11,13 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.linalg
+from _global_reference import adaptive_reference
 
 import dttmm
 from dttmm import Case, Constant, Drive, Link, Manipulator, Scenario, Section
 from reference_models import _global_numpy as gnp
 from reference_models import global_newmark as gn
-
-from _global_reference import adaptive_reference  # isort: skip (tests/ is on the path)
 
 CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
 
