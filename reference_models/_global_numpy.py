@@ -530,7 +530,7 @@ class _Bodies:
     fpay: list  # [(3,)] payload gravity − inertia of the bias acceleration
 
 
-def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None = None) -> _Bodies:
+def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> _Bodies:
     fr = _frames(lay, q)
     bI, bO, thd, ed = _bias(lay, fr, qd)
     nel = fr.theta.size
@@ -538,9 +538,7 @@ def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None 
     r_frame = np.concatenate([fr.rI, fr.rO[tips]]) if tips.size else fr.rI
     pos = np.concatenate([np.arange(nel, dtype=float), tips + 0.5])
     Jr, Jt = _jacobians(lay, fr, r_frame, pos)
-    if sel is None:
-        sel = _element_selector(lay)
-    J = np.concatenate([Jr[:nel], Jt[:nel, None, :], sel], axis=1)
+    J = np.concatenate([Jr[:nel], Jt[:nel, None, :], _element_selector(lay)], axis=1)
     Mel, hel, gel = _element_terms(lay, fr, thd, ed)
     fel = gel - hel - _matvec(Mel[:, :, 0:2], bI)
     Jpay, Mpay, fpay = [], [], []
@@ -551,12 +549,12 @@ def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None 
     return _Bodies(J, Mel, fel, Jpay, Mpay, fpay)
 
 
-def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None = None):
+def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
     """M(q) (N, N) and f = Q_gravity − h(q, q̇) (N,) (no joint torques, no elastic forces).
 
     M = Σ J_elᵀ M_el J_el, f = Σ J_elᵀ (g_el − h_el − M_el J̇_el q̇), payloads alike.
     """
-    b = _bodies(lay, q, qd, sel)
+    b = _bodies(lay, q, qd)
     nel = b.J.shape[0]
     Jf = b.J.reshape(nel * 6, -1)
     M = Jf.T @ (b.Mel @ b.J).reshape(nel * 6, -1)
