@@ -323,7 +323,7 @@ def _bias(P, Wk, qd):
 @njit(cache=True)
 def _element(P, el, e, c, s, thd, ed, bI, Mel, fel):
     """Mass matrix Mel (6, 6) and force fel (6,) = gravity − velocity terms − Mel·(bias of p)
-    of element el on p = (r_I, θ, u, v, φ), hub included (same formulas as the numpy engine,
+    of element el on p = (r_I, θ, u, v, φ), hub included (same formulas as the numpy mechanics,
     written out in scalars: these run once per element and iteration)."""
     ca, sa = c[el], s[el]
     Sb, SS, H, b0, c1 = P.Sbar[el], P.SS[el], P.H[el], P.b0[el], P.c1[el]
