@@ -1,5 +1,11 @@
-"""Compiled engine of the global-equation solver: recursive assembly of M(q) and of the
-generalized forces, Cholesky solve, and the whole fixed-step time loop.
+"""The engine of the global-equation solver: recursive assembly of M(q) and of the
+generalized forces, Cholesky solve, and the whole fixed-step time loop — one source, two
+engines. numba compiles this file (``engine="numba"``, the default when numba imports);
+:mod:`reference_models._global_python` imports the very same file a second time with ``njit``
+as the identity (``engine="python"``, alias ``"numpy"``): the same algorithm uncompiled, for
+debugging, for Python user laws and as the only engine without numba. The readable numpy
+mechanics of :mod:`reference_models._global_numpy` (dense Jacobian products, no time loop)
+are the independent one-step check of both.
 
 Assembly without dense Jacobian products. Every coordinate q_j moves the bodies outboard
 of it as a planar joint: an angle-type coordinate (α, φ) turns them about a pivot p_j, a
@@ -18,11 +24,13 @@ where j is the a_j-th elastic coordinate of el (the second term is absent for a 
 angle j). The generalized forces follow alike from the body wrenches Xᵀ f_rr. One column
 of M costs O(N) and the assembly O(N²); the solve is a Cholesky factorisation (O(N³/3)).
 The element data (moments, frames, velocity terms) are the same formulas as the numpy
-engine in :mod:`reference_models.global_newmark`; only the summation differs.
+mechanics in :mod:`reference_models._global_numpy`; only the summation differs.
 
 Closed-loop pd/pid joints (:class:`Loop`) add :func:`dttmm.control.pd_torque` at the iterate
 and its linearisation to each solve (:func:`_laws`); their solves use LU, as the exact ω̇ row
-makes the iteration matrix unsymmetric. Open-loop runs keep the Cholesky solve.
+makes the iteration matrix unsymmetric. Open-loop runs keep the Cholesky solve. User laws
+(Python callables, ``Loop.laws``) are called by the uncompiled engine only
+(:func:`_user_laws`); the compiled engine refuses them.
 """
 
 from __future__ import annotations
@@ -31,31 +39,52 @@ import hashlib
 from collections import namedtuple
 from pathlib import Path
 
-import numba
 import numpy as np
 
 from dttmm import control, iteration
 from dttmm.control import gains, pd_torque
 from dttmm.iteration import stop_rule
 from dttmm.kernel import recorder
-from dttmm.kernel.recorder import hermite_weights
 
 from ._global_control import omega_rows
+
+try:  # numba is an optional dependency (extra "fast")
+    import numba
+
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover - exercised without numba only
+    numba = None
+    HAVE_NUMBA = False
+
+#: True in the uncompiled copy (:mod:`reference_models._global_python`) or without numba
+PURE = not HAVE_NUMBA or __name__.endswith("._global_python")
+
+if PURE:  # the DT-TMM recorder's cubic Hermite weights, uncompiled
+    from dttmm.kernel_python.recorder import hermite_weights
+else:
+    from dttmm.kernel.recorder import hermite_weights
 
 # numba's cache notices edits to this file only, not to the compiled functions it takes from
 # elsewhere: the cache lives in a folder named by a hash of all of them
 _SOURCES = (Path(__file__), Path(control.__file__), Path(iteration.__file__), Path(recorder.__file__))
-_CACHE_DIR = str(
-    Path(__file__).resolve().parent
-    / "__pycache__"
-    / ("global-numba-" + hashlib.sha256(b"".join(p.read_bytes() for p in _SOURCES)).hexdigest()[:16])
+_CACHE_DIR = (
+    None
+    if PURE
+    else str(
+        Path(__file__).resolve().parent
+        / "__pycache__"
+        / ("global-numba-" + hashlib.sha256(b"".join(p.read_bytes() for p in _SOURCES)).hexdigest()[:16])
+    )
 )
 
 
 def njit(**options):
-    """``numba.njit(**options)`` with its cache (``cache=True``) in the per-hash folder."""
+    """``numba.njit(**options)`` with its cache (``cache=True``) in the per-hash folder; the
+    identity in the uncompiled copy."""
 
     def deco(f):
+        if PURE:
+            return f
         old = numba.config.CACHE_DIR
         numba.config.CACHE_DIR = _CACHE_DIR
         try:
@@ -114,7 +143,7 @@ Pack = namedtuple(
 
 # The closed-loop joints, apart from Pack: every compiled call passes its tuples field by field,
 # and the open-loop assembly should not pay for fields it never reads.
-Loop = namedtuple("Loop", ["joint", "row", "omega", "gains", "pid"])
+Loop = namedtuple("Loop", ["joint", "row", "omega", "gains", "pid", "user", "laws"])
 
 
 def pack(lay, case) -> Pack:
@@ -171,9 +200,12 @@ def pack(lay, case) -> Pack:
     )
 
 
-def pack_loop(lay, case) -> Loop:
+def pack_loop(lay, case, laws=None) -> Loop:
     """The closed-loop joints of ``case``: drive index, q index of α, ω̇ row (nc, N), gains
-    (nc, 6) = (kp, kd, ki, g_M, limit, J_hub) and 1.0 for a pid law (integral state)."""
+    (nc, 6) = (kp, kd, ki, g_M, limit, J_hub), 1.0 for a pid law (integral state), 1.0 for a
+    user law, and ``laws``: the user laws as one Python callable
+    (c, t, left, q, q̇, M_root) -> (τ, ∂τ/∂α, ∂τ/∂α̇) for closed-loop joint c (uncompiled engine
+    only; an empty array otherwise)."""
     drives = case.scenario.drives
     cl = np.array([i for i, d in enumerate(drives) if d.closed_loop], np.int64)
     g = gains(case)
@@ -184,6 +216,8 @@ def pack_loop(lay, case) -> Loop:
         omega=omega_rows(lay)[cl].astype(np.float64),
         gains=np.array(rows, np.float64).reshape(-1, 6),
         pid=np.array([float(drives[i].law.name == "pid") for i in cl], np.float64),
+        user=np.array([float(g.code[i] == control.CODE_USER) for i in cl], np.float64),
+        laws=np.zeros(0) if laws is None else laws,
     )
 
 
@@ -289,7 +323,7 @@ def _bias(P, Wk, qd):
 @njit(cache=True)
 def _element(P, el, e, c, s, thd, ed, bI, Mel, fel):
     """Mass matrix Mel (6, 6) and force fel (6,) = gravity − velocity terms − Mel·(bias of p)
-    of element el on p = (r_I, θ, u, v, φ), hub included (same formulas as the numpy engine,
+    of element el on p = (r_I, θ, u, v, φ), hub included (same formulas as the numpy mechanics,
     written out in scalars: these run once per element and iteration)."""
     ca, sa = c[el], s[el]
     Sb, SS, H, b0, c1 = P.Sbar[el], P.SS[el], P.H[el], P.b0[el], P.c1[el]
@@ -642,40 +676,82 @@ def forward(P, q, qd, Qtau, pres_acc):
 
 
 @njit(cache=True)
-def _laws(C, q, qd, x, ff, ref, zc, dz, cq, cv, M, rhs, tau):
-    """The closed-loop laws at the iterate x (q, q̇ its coordinates): torques into tau (nc,)
-    and, when M has rows, their linearisation added to M q̈ = rhs: the slope in the joint's
-    own α̈ (through α, α̇ and z = zc + dz·α) on the diagonal and the slope in ω̇ along its
-    exact row W_c, which makes M unsymmetric (solved by LU). Lagging the inboard part of ω̇
-    at the iterate instead keeps M symmetric, but that fixed point diverges where the
-    inertia felt by the joint with every other coordinate free is small (an inner joint
-    at t = 0), so the row is kept exact."""
+def _laws(C, t, left, q, qd, x, ff, ref, zc, dz, cq, cv, M, rhs, tau, used, slope):
+    """The closed-loop laws at the iterate x (q, q̇ its coordinates) at time t (left limit if
+    ``left``): torques into tau (nc,) and, when M has rows, their linearisation added to
+    M q̈ = rhs: the slope in the joint's own α̈ (through α, α̇ and z = zc + dz·α) on the diagonal
+    and the slope in ω̇ along its exact row W_c, which makes M unsymmetric (solved by LU).
+    Lagging the inboard part of ω̇ at the iterate instead keeps M symmetric, but that fixed
+    point diverges where the inertia felt by the joint with every other coordinate free is
+    small (an inner joint at t = 0), so the row is kept exact. User laws: :func:`_user_laws`
+    (``used``, ``slope``: their torques of the last solve and their slopes)."""
     N = x.size
     for c in range(C.row.size):
+        if C.user[c] != 0.0:
+            continue
         r = C.row[c]
         wd = 0.0
         for j in range(N):
             wd += C.omega[c, j] * x[j]
         g = C.gains[c]
         z = zc[c] + dz[c] * q[r]
-        t, da, dv, dzz, dw = _pd(
+        t_c, da, dv, dzz, dw = _pd(
             g[0], g[1], g[2], g[3], g[4], g[5], ff[c], ref[c, 0], ref[c, 1], z, q[r], qd[r], wd
         )
-        tau[c] = t
+        tau[c] = t_c
         if M.shape[0] > 0:
             s = da * cq + dv * cv + dzz * dz[c] * cq
             M[r, r] -= s
-            rhs[r] += t - s * x[r] - dw * wd
+            rhs[r] += t_c - s * x[r] - dw * wd
             for j in range(N):
                 M[r, j] -= dw * C.omega[c, j]
+    _user_laws(C, t, left, q, qd, x, cq, cv, M, rhs, tau, used, slope)
+
+
+def _user_laws_python(C, t, left, q, qd, x, cq, cv, M, rhs, tau, used, slope):
+    """The user laws (Python callables, ``C.laws``) at the iterate x: each sees the root
+    bending moment M_root = τ_used − J_hub ω̇ of the iterate, τ_used the torque its last solve
+    applied (``used``); torques into tau and, when M has rows, the slope s = ∂τ/∂α c_q +
+    ∂τ/∂α̇ c_v on the diagonal (into ``slope``); the dependence on M_root and on other joints is
+    resolved by the repeated solves."""
+    for c in range(C.row.size):
+        if C.user[c] == 0.0:
+            continue
+        r = C.row[c]
+        wd = C.omega[c] @ x
+        tau[c], da, dv = C.laws(c, t, left, q, qd, used[c] - C.gains[c, 5] * wd)
+        if M.shape[0] > 0:
+            s = da * cq + dv * cv
+            slope[c] = s
+            M[r, r] -= s
+            rhs[r] += tau[c] - s * x[r]
+
+
+if PURE:
+    _user_laws = _user_laws_python
+else:  # the compiled engine has no user laws (refused by the driver)
+
+    @njit(inline="always")
+    def _user_laws(C, t, left, q, qd, x, cq, cv, M, rhs, tau, used, slope):
+        return None
 
 
 @njit(cache=True)
-def forward_closed(P, C, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
-    """:func:`forward` with the closed-loop laws (integral states z): the laws' dependence on
-    ω̇ is iterated until :func:`dttmm.iteration.stop_rule` holds (relative tolerance ``tol``, at
-    most ``maxit`` solves). Returns (q̈, τ of prescribed joints, τ of the closed-loop joints,
-    converged)."""
+def _applied(C, tau_c, slope, new, x, used):
+    """The torques the user laws applied in a solve that moved the iterate from x to new:
+    τ + s (α̈_new − α̈_x), the τ_used of their next M_root."""
+    for c in range(C.row.size):
+        if C.user[c] != 0.0:
+            r = C.row[c]
+            used[c] = tau_c[c] + slope[c] * (new[r] - x[r])
+
+
+@njit(cache=True)
+def forward_closed(P, C, t, left, q, qd, Qtau, pres_acc, ff, ref, z, used, tol, maxit):
+    """:func:`forward` with the closed-loop laws at time t (integral states z; ``used``: the
+    user laws' torques, in and out): the laws' dependence on ω̇ is iterated until
+    :func:`dttmm.iteration.stop_rule` holds (relative tolerance ``tol``, at most ``maxit``
+    solves). Returns (q̈, τ of prescribed joints, τ of the closed-loop joints, converged)."""
     N = q.size
     M0 = np.empty((N, N))
     f = np.empty(N)
@@ -688,22 +764,24 @@ def forward_closed(P, C, q, qd, Qtau, pres_acc, ff, ref, z, tol, maxit):
     nc = C.row.size
     tau_c = np.zeros(nc)
     dz = np.zeros(nc)
+    slope = np.zeros(nc)
     tau = np.zeros(P.presc.size)
     prev = np.inf
     converged = False
     for it in range(maxit):
         M = M0.copy()
         rhs = rhs0.copy()
-        _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M, rhs, tau_c)
+        _laws(C, t, left, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M, rhs, tau_c, used, slope)
         new = x.copy()
         tau = solve_partitioned(P, M, rhs, new, True)
+        _applied(C, tau_c, slope, new, x, used)
         dx = np.max(np.abs(new - x))
         x = new
         stop, converged = _stop_rule(it, dx, prev, np.max(np.abs(x)), tol)
         if stop:
             break
         prev = dx
-    _laws(C, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M0[:0], rhs0[:0], tau_c)
+    _laws(C, t, left, q, qd, x, ff, ref, z, dz, 0.0, 0.0, M0[:0], rhs0[:0], tau_c, used, slope)
     return x, tau, tau_c, converged
 
 
@@ -734,10 +812,35 @@ def _load_drives(P, tq, mo, Q, tau_link):
 
 
 @njit(cache=True)
-def _iterate(P, C, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f, ff, ref, zc, dz, tau_c):
-    """Iterate one step's q̈ (in place in x); returns (τ of the prescribed joints, solves,
-    converged); the closed-loop torques at the final iterate go into tau_c. Stopping rule:
-    :func:`dttmm.iteration.stop_rule`, as in DT-TMM."""
+def _iterate(
+    P,
+    C,
+    Wk,
+    itmode,
+    nfix,
+    tol,
+    maxit,
+    t,
+    qt,
+    qtd,
+    cq,
+    cv,
+    x,
+    Q,
+    mo,
+    M,
+    f,
+    ff,
+    ref,
+    zc,
+    dz,
+    tau_c,
+    used,
+    slope,
+):
+    """Iterate the q̈ of the step ending at t (in place in x); returns (τ of the prescribed
+    joints, solves, converged); the closed-loop torques at the final iterate go into tau_c.
+    Stopping rule: :func:`dttmm.iteration.stop_rule`, as in DT-TMM."""
     N = x.size
     Pp = P.presc
     nsolve = maxit if itmode == IT_TOL else nfix + 1
@@ -757,9 +860,11 @@ def _iterate(P, C, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f
         rhs = f + Q
         add_elastic(P, qi, qdi, cq, cv, M, rhs, x)
         if tau_c.size:
-            _laws(C, qi, qdi, x, ff, ref, zc, dz, cq, cv, M, rhs, tau_c)
+            _laws(C, t, True, qi, qdi, x, ff, ref, zc, dz, cq, cv, M, rhs, tau_c, used, slope)
         new = x.copy()
         tau = solve_partitioned(P, M, rhs, new, tau_c.size > 0)
+        if tau_c.size:
+            _applied(C, tau_c, slope, new, x, used)
         dx = np.max(np.abs(new - x)) if N else 0.0
         x[:] = new
         if itmode == IT_TOL:
@@ -771,7 +876,7 @@ def _iterate(P, C, Wk, itmode, nfix, tol, maxit, qt, qtd, cq, cv, x, Q, mo, M, f
         for i in range(N):
             qi[i] = qt[i] + cq * x[i]
             qdi[i] = qtd[i] + cv * x[i]
-        _laws(C, qi, qdi, x, ff, ref, zc, dz, cq, cv, M[:0], f[:0], tau_c)
+        _laws(C, t, True, qi, qdi, x, ff, ref, zc, dz, cq, cv, M[:0], f[:0], tau_c, used, slope)
     return tau, it + 1, converged
 
 
@@ -887,6 +992,8 @@ def run(
     zc = np.zeros(nc)
     dz = np.zeros(nc)
     tau_c = np.zeros(nc)
+    used = np.zeros(nc)
+    slope = np.zeros(nc)
     for n in range(t_end.size):
         stats[3] = n
         t1 = t_end[n]
@@ -905,6 +1012,7 @@ def run(
             pid = C.pid[j]
             zc[j] = pid * (z[j] + 0.5 * dt * (err[j] + ref_l[n, j, 0]))
             dz[j] = -0.5 * dt * pid
+            used[j] = tau[C.joint[j]]  # a user law's first M_root: the torque of the last step
         tau_p, ns, ok = _iterate(
             P,
             C,
@@ -913,6 +1021,7 @@ def run(
             nfix,
             tol,
             maxit,
+            t1,
             qt,
             qtd,
             cq,
@@ -927,6 +1036,8 @@ def run(
             zc,
             dz,
             tau_c,
+            used,
+            slope,
         )
         stats[0] += ns
         stats[1] = max(stats[1], ns)
@@ -955,8 +1066,10 @@ def run(
         if restart[n]:
             _load_drives(P, tq_r[n], mo_r[n], Q, tau1.copy())
             if nc:
+                for j in range(nc):
+                    used[j] = tau[C.joint[j]]
                 qdd, _, _, fd_ok = forward_closed(
-                    P, C, q, qd, Q, mo_r[n, :, 2].copy(), ff_r[n], ref_r[n], z, tol, maxit
+                    P, C, t1, False, q, qd, Q, mo_r[n, :, 2].copy(), ff_r[n], ref_r[n], z, used, tol, maxit
                 )
                 if not fd_ok:
                     stats[6] += 1

@@ -1,33 +1,28 @@
-"""Numpy engine and the mechanics of the global-equation solver (see :mod:`reference_models.global_newmark`)."""
+"""The readable numpy mechanics of the global-equation solver (see
+:mod:`reference_models.global_newmark`): layout, mass matrix from dense recursive Jacobians,
+elastic and damping forces, kinematics, energy and the forward dynamics at one state. No time
+loop: the time loop is :mod:`reference_models._global_numba` (compiled, and uncompiled as
+:mod:`reference_models._global_python`), checked against these one-step quantities."""
 
 from __future__ import annotations
 
-import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from dttmm import make_result, plumbing
+from dttmm import plumbing
 from dttmm.case import Case
 from dttmm.drives import Constant, Drive
-from dttmm.errors import InputError, SimulationError
-from dttmm.iteration import stop_rule
+from dttmm.errors import InputError
 from dttmm.model import Link, Manipulator, Section
-from dttmm.plumbing import versions
 from dttmm.result import tip_deflection
 from dttmm.scenario import Scenario
-from dttmm.timegrid import step_schedule
 
 from . import _global_control as gc
 
 # The public names are re-exported by reference_models.global_newmark (the facade).
 
-INTEGRATORS = ("newmark", "generalized-alpha", "radau", "dop853")
 STRAINS = ("linear", "second-order")
-ENGINES = ("numba", "numpy")
-_STEPPED = ("newmark", "generalized-alpha")
-_MAX_SOLVES = 50
 _N_GAUSS = 4  # exact for the degree-6 polynomials of the mass matrix and velocity terms
 
 _XG, _WG = np.polynomial.legendre.leggauss(_N_GAUSS)
@@ -535,7 +530,7 @@ class _Bodies:
     fpay: list  # [(3,)] payload gravity − inertia of the bias acceleration
 
 
-def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None = None) -> _Bodies:
+def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> _Bodies:
     fr = _frames(lay, q)
     bI, bO, thd, ed = _bias(lay, fr, qd)
     nel = fr.theta.size
@@ -543,9 +538,7 @@ def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None 
     r_frame = np.concatenate([fr.rI, fr.rO[tips]]) if tips.size else fr.rI
     pos = np.concatenate([np.arange(nel, dtype=float), tips + 0.5])
     Jr, Jt = _jacobians(lay, fr, r_frame, pos)
-    if sel is None:
-        sel = _element_selector(lay)
-    J = np.concatenate([Jr[:nel], Jt[:nel, None, :], sel], axis=1)
+    J = np.concatenate([Jr[:nel], Jt[:nel, None, :], _element_selector(lay)], axis=1)
     Mel, hel, gel = _element_terms(lay, fr, thd, ed)
     fel = gel - hel - _matvec(Mel[:, :, 0:2], bI)
     Jpay, Mpay, fpay = [], [], []
@@ -556,12 +549,12 @@ def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None 
     return _Bodies(J, Mel, fel, Jpay, Mpay, fpay)
 
 
-def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray, sel: np.ndarray | None = None):
+def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
     """M(q) (N, N) and f = Q_gravity − h(q, q̇) (N,) (no joint torques, no elastic forces).
 
     M = Σ J_elᵀ M_el J_el, f = Σ J_elᵀ (g_el − h_el − M_el J̇_el q̇), payloads alike.
     """
-    b = _bodies(lay, q, qd, sel)
+    b = _bodies(lay, q, qd)
     nel = b.J.shape[0]
     Jf = b.J.reshape(nel * 6, -1)
     M = Jf.T @ (b.Mel @ b.J).reshape(nel * 6, -1)
@@ -618,29 +611,20 @@ def _initial_state(case, lay: _Layout):
 # ----------------------------------------------------------------------------------------------
 
 
-def _linear_solve(A: np.ndarray, b: np.ndarray, how: str) -> np.ndarray:
-    if how == "sparse":
-        import scipy.sparse
-        import scipy.sparse.linalg
-
-        return scipy.sparse.linalg.spsolve(scipy.sparse.csc_matrix(A), b)
-    return np.linalg.solve(A, b)
-
-
-def _forward(case, lay, q, qd, t, left, how="dense", sel=None):
+def _forward(case, lay, q, qd, t, left):
     """q̈ from M q̈ = Q − h − f_int(q) − Dq̇ (f_int = Kq for the linear element) with motion
     joints prescribed; also the joint torques of the motion-driven joints (n_motion,).
     ``q``, ``qd`` must hold the prescribed values."""
     P, F = lay.presc, lay.free
     pres = _prescribed(case, lay, t, left)
-    M, f = _assemble(lay, q, qd, sel)
+    M, f = _assemble(lay, q, qd)
     if lay.nonlinear:
         rhs = f + _torques(case, lay, t, left) - _internal(lay, q)[0] - _damping(lay, q, qd)[0]
     else:
         rhs = f + _torques(case, lay, t, left) - lay.K @ q - lay.D @ qd
     qdd = np.zeros(lay.n_dof)
     qdd[P] = pres[:, 2]
-    qdd[F] = _linear_solve(M[np.ix_(F, F)], rhs[F] - M[np.ix_(F, P)] @ qdd[P], how)
+    qdd[F] = np.linalg.solve(M[np.ix_(F, F)], rhs[F] - M[np.ix_(F, P)] @ qdd[P])
     tau_p = M[P] @ qdd - rhs[P]
     return qdd, tau_p
 
@@ -894,139 +878,8 @@ def element_mass(rhoA, length, theta=0.0, e=(0.0, 0.0, 0.0)) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------------------------
-# Options
+# Outputs (used by the driver's recorder)
 # ----------------------------------------------------------------------------------------------
-
-_OPTIONS = {
-    "newmark": {
-        "beta": 0.25,
-        "gamma": 0.5,
-        "iterations": None,
-        "tol": 1e-10,
-        "max_iterations": _MAX_SOLVES,
-        "linear_solver": "dense",
-    },
-    "generalized-alpha": {
-        "rho_inf": 0.9,
-        "iterations": None,
-        "tol": 1e-10,
-        "max_iterations": _MAX_SOLVES,
-        "linear_solver": "dense",
-    },
-    "radau": {"rtol": 1e-10, "atol": 1e-12},
-    "dop853": {"rtol": 1e-10, "atol": 1e-12},
-}
-
-
-def _positive_option(name, value) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise InputError(name, value, "must be a positive number") from None
-    if not (math.isfinite(x) and x > 0):
-        raise InputError(name, value, "must be a positive number")
-    return x
-
-
-def _check_options(integrator, options: dict) -> dict:
-    """Validate the integrator name and its options; return options with defaults filled."""
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
-    allowed = _OPTIONS[integrator]
-    for key in options:
-        if key not in allowed:
-            raise InputError(
-                key,
-                options[key],
-                f"unknown option for integrator {integrator!r} (allowed: {', '.join(allowed)})",
-            )
-    opt = {**allowed, **options}
-    for key in ("beta", "gamma", "tol", "rtol", "atol"):
-        if key in opt:
-            opt[key] = _positive_option(key, opt[key])
-    if "rho_inf" in opt:
-        r = opt["rho_inf"]
-        if isinstance(r, bool) or not isinstance(r, (int, float, np.floating)) or not 0.0 <= r <= 1.0:
-            raise InputError("rho_inf", r, "must be a number in [0, 1]")
-    if "iterations" in opt and opt["iterations"] is not None:
-        m = opt["iterations"]
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 0:
-            raise InputError("iterations", m, "must be None or an integer >= 0")
-    if "max_iterations" in opt:
-        m = opt["max_iterations"]
-        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
-            raise InputError("max_iterations", m, "must be an integer >= 1")
-    if "linear_solver" in opt and opt["linear_solver"] not in ("dense", "sparse"):
-        raise InputError("linear_solver", opt["linear_solver"], "must be 'dense' or 'sparse'")
-    return opt
-
-
-def _coefficients(integrator: str, opt: dict) -> tuple[float, float, float, float]:
-    """(β, γ, α_m, α_f)."""
-    if integrator == "newmark":
-        return opt["beta"], opt["gamma"], 0.0, 0.0
-    r = float(opt["rho_inf"])
-    am = (2 * r - 1) / (r + 1)
-    af = r / (r + 1)
-    gamma = 0.5 + af - am
-    return 0.25 * (gamma + 0.5) ** 2, gamma, am, af
-
-
-# ----------------------------------------------------------------------------------------------
-# Output recording
-# ----------------------------------------------------------------------------------------------
-
-
-class _Recorder:
-    """Stores (q, q̇, joint torques) at the output times; derived quantities come later."""
-
-    def __init__(self, lay: _Layout, times: np.ndarray):
-        self.t = times
-        nt = times.size
-        self.q = np.zeros((nt, lay.n_dof))
-        self.qd = np.zeros((nt, lay.n_dof))
-        self.tau = np.zeros((nt, lay.n_links))
-        self.count = 0
-
-    def add(self, q, qd, tau):
-        i = self.count
-        self.q[i], self.qd[i], self.tau[i] = q, qd, tau
-        self.count += 1
-
-    @property
-    def next_time(self) -> float:
-        return self.t[self.count] if self.count < self.t.size else math.inf
-
-    def result(self, lay, wall, n_steps, meta, status=None, warnings=(), kinetic=None) -> object:
-        n = self.count
-        nl = lay.n_links
-        root = np.zeros((n, nl, 2))
-        tip = np.zeros((n, nl, 2))
-        root_ang = np.zeros((n, nl))
-        en = np.zeros(n)
-        for i in range(n):
-            fr = _link_frames(lay, self.q[i])
-            root[i], tip[i], root_ang[i] = fr["root"], fr["tip"], fr["root_angle"]
-            e = _energy(lay, self.q[i], self.qd[i], kinetic)
-            en[i] = e["kinetic"] + e["elastic"] + e["gravity"]
-        a = lay.alpha_idx
-        shapes = _link_shapes(lay, self.q[:n], lay.shape_points) if lay.shape_points else None
-        return make_result(
-            t=self.t[:n],
-            joint_angle=self.q[:n, a],
-            joint_rate=self.qd[:n, a],
-            joint_torque=self.tau[:n],
-            link_root=root,
-            link_root_angle=root_ang,
-            link_tip=tip,
-            wall_time=wall,
-            n_steps=n_steps,
-            meta=meta,
-            energy=en,
-            status=status,
-            warnings=warnings,
-            link_shapes=shapes,
-        )
 
 
 def _link_shapes(lay: _Layout, q: np.ndarray, p: int) -> np.ndarray:
@@ -1054,439 +907,12 @@ def _link_shapes(lay: _Layout, q: np.ndarray, p: int) -> np.ndarray:
     return out.reshape(q.shape[0], lay.n_links, p, 2)
 
 
-def _joint_torques(case, lay, t, left, tau_p, loop=None, tau_c=None) -> np.ndarray:
-    """Joint torques (n,): the drive value of open-loop torque joints, the computed one of
-    motion joints and ``tau_c`` (the law's) of the closed-loop joints of ``loop``."""
+def _joint_torques(case, lay, t, left, tau_p) -> np.ndarray:
+    """Joint torques (n,): the drive value of open-loop torque joints and the computed one
+    ``tau_p`` of motion joints (0 for closed-loop joints: the driver sets them)."""
     tau = np.zeros(lay.n_links)
     for i, d in enumerate(case.scenario.drives):
         if d.kind == "torque" and not d.closed_loop:
             tau[i] = d.torque(t, left)
     tau[lay.motion] = tau_p
-    if loop is not None:
-        tau[loop.joints] = tau_c
     return tau
-
-
-def _hermite(t, t0, t1, y0, v0, y1, v1):
-    """Cubic Hermite value and derivative at t in [t0, t1] from the end values and rates."""
-    y, yd = plumbing.hermite_sample(t, [t0, t1], [y0, y1], [v0, v1], derivative=True)
-    return y[0], yd[0]
-
-
-def _base_meta(lay, k, h, integrator, opt) -> dict:
-    meta = {
-        "method": "global",
-        "elements_per_link": k,
-        "h": h,
-        "integrator": integrator,
-        "n_dof": lay.n_dof,
-        "strain": lay.strain,
-        "success": True,
-        "versions": versions(),
-    }
-    meta.update({key: val for key, val in opt.items()})
-    return meta
-
-
-def _fail(rec, lay, wall, n_steps, meta, q, t, step, names):
-    bad = np.flatnonzero(~np.isfinite(q))
-    comp = names[bad[0]] if bad.size else "state"
-    partial = rec.result(lay, wall, n_steps, {**meta, "success": False})
-    raise SimulationError("non-finite state", t=t, step=step, component=comp, partial=partial)
-
-
-# ----------------------------------------------------------------------------------------------
-# Fixed-step integration (Newmark / generalized-α) with the frozen-coefficient iteration
-# ----------------------------------------------------------------------------------------------
-
-
-def _iterate(case, lay, ctx, t1, qt, qtd, qdd0, cq, cv, cl=None):
-    """Frozen-coefficient iteration of one step ending at t1 (left-limit drive values).
-
-    Iterate i solves [M(q_i) + c_v D_t + c_q K_T] q̈^(i+1) = Q − h(q_i, q̇_i) − f_int(q_i)
-    − f_d(q_i, q̇_i) + (c_q K_T + c_v D_t) q̈^(i) with q_i = q̃ + c_q q̈^(i), q̇_i = q̃' + c_v q̈^(i):
-    the elastic and damping forces are linearised at the iterate (K_T, D_t at q_i). For the
-    linear element (f_int = Kq, f_d = Dq̇) this is [M + c_v D + c_q K] q̈ = Q − h − K q̃ − D q̃'.
-    Closed-loop joints (``cl``: the :class:`_global_control.Loop` with the integral states
-    z = zc + dz·α of the step) add their law and its linearisation at the iterate
-    (:func:`_global_control.linearise`).
-
-    Stopping rule: :func:`dttmm.iteration.stop_rule`, the one of :func:`dttmm.simulate`; at most
-    ``max_iterations`` solves. ``iterations = m`` makes exactly m + 1 solves.
-
-    Returns (q̈, τ of motion joints, number of solves, converged flag, τ of closed-loop joints
-    (the law at the final iterate; None without ``cl``)).
-    """
-    P, F = lay.presc, lay.free
-    pres = _prescribed(case, lay, t1, True)
-    Qt = _torques(case, lay, t1, True)
-    if lay.nonlinear:
-        rhs_const = Qt
-    else:
-        Aeff_const = cv * lay.D + cq * lay.K
-        rhs_const = Qt - lay.K @ qt - lay.D @ qtd
-    qdd = qdd0.copy()
-    qdd[P] = pres[:, 2]
-    m = ctx["iterations"]
-    n_solves = ctx["max_iterations"] if m is None else m + 1
-    prev = math.inf
-    converged = m is not None
-    for i in range(n_solves):
-        q = qt + cq * qdd
-        qd = qtd + cv * qdd
-        q[P], qd[P] = pres[:, 0], pres[:, 1]
-        M, f = _assemble(lay, q, qd, ctx["sel"])
-        if lay.nonlinear:
-            fi, KT = _internal(lay, q)
-            fd, Dt = _damping(lay, q, qd)
-            B = cq * KT + cv * Dt
-            A = M + B
-            rhs = f + rhs_const - fi - fd + B @ qdd
-        else:
-            A = M + Aeff_const
-            rhs = f + rhs_const
-        if cl is not None:
-            laws = _laws_at(cl, t1, True, q, qd, qdd)
-            gc.linearise(cl["loop"], A, rhs, qdd, laws, cq, cv, cl["dz"])
-        new = qdd.copy()
-        new[F] = _linear_solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P], ctx["linear_solver"])
-        if cl is not None:
-            cl["tau_used"] = gc.applied(cl["loop"], laws, new - qdd, cq, cv, cl["dz"])
-        delta = np.max(np.abs(new[F] - qdd[F])) if F.size else 0.0
-        qdd = new
-        if not np.isfinite(delta):
-            converged = False
-            break
-        if m is not None:
-            continue
-        stop, converged = stop_rule(i, delta, prev, np.max(np.abs(new)), ctx["tol"])
-        if stop:
-            break
-        prev = delta
-    tau_p = A[P] @ qdd - rhs[P]
-    tau_c = None
-    if cl is not None:
-        tau_c = _laws_at(cl, t1, True, qt + cq * qdd, qtd + cv * qdd, qdd)[0]
-    return qdd, tau_p, i + 1, converged, tau_c
-
-
-def _laws_at(cl: dict, t, left, q, qd, qdd):
-    """The closed-loop laws at an iterate, z = zc + dz·α (see :func:`_global_control.evaluate`)."""
-    loop = cl["loop"]
-    z = cl["zc"] + cl["dz"] * q[loop.rows]
-    return gc.evaluate(loop, t, left, q, qd, qdd, z, cl["tau_used"])
-
-
-@dataclass
-class _State:
-    """Integrator state at a step end: q, q̇, q̈, the generalized-α auxiliary a, joint torques
-    and the integral states z (nc,) of the closed-loop joints (None without)."""
-
-    t: float
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-    a: np.ndarray
-    tau: np.ndarray
-    z: np.ndarray | None = None
-
-
-def _forward_closed(case, lay, ctx, q, qd, t, left, z, tau0):
-    """:func:`_forward` with the closed-loop laws at the state (q, q̇) and integral states z:
-    M q̈ = Q − h − f_int − f_d + Σ τ_i(q̈) e_{α_i}, solved by iterating the laws' linearisation
-    (their dependence on ω̇ is the only one at a fixed state) until
-    :func:`dttmm.iteration.stop_rule` holds; a solve left unconverged counts in
-    ``ctx["unconverged_solves"]``. Returns (q̈, τ of motion joints, τ of closed-loop joints)."""
-    P, F = lay.presc, lay.free
-    loop = ctx["loop"]
-    cl = {"loop": loop, "zc": z, "dz": np.zeros(z.size), "tau_used": tau0}
-    pres = _prescribed(case, lay, t, left)
-    M, f = _assemble(lay, q, qd, ctx["sel"])
-    rhs0 = f + _torques(case, lay, t, left) - _internal(lay, q)[0] - _damping(lay, q, qd)[0]
-    x = np.zeros(lay.n_dof)
-    x[P] = pres[:, 2]
-    prev = math.inf
-    converged = False
-    for it in range(ctx["max_iterations"]):
-        A, rhs = M.copy(), rhs0.copy()
-        laws = _laws_at(cl, t, left, q, qd, x)
-        gc.linearise(loop, A, rhs, x, laws, 0.0, 0.0, cl["dz"])
-        new = x.copy()
-        new[F] = _linear_solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ x[P], ctx["linear_solver"])
-        cl["tau_used"] = gc.applied(loop, laws, new - x, 0.0, 0.0, cl["dz"])
-        delta = np.max(np.abs(new - x))
-        x = new
-        stop, converged = stop_rule(it, delta, prev, np.max(np.abs(x)), ctx["tol"])
-        if stop:
-            break
-        prev = delta
-    if not converged:
-        ctx["unconverged_solves"] = ctx.get("unconverged_solves", 0) + 1
-    tau_p = A[P] @ x - rhs[P]
-    return x, tau_p, _laws_at(cl, t, left, q, qd, x)[0]
-
-
-def _initial(case, lay, ctx) -> _State:
-    """State at t = 0: drive initial values, undeformed links, q̈ from the equations (with the
-    closed-loop laws, integral states 0)."""
-    P = lay.presc
-    q, qd = _initial_state(case, lay)
-    pres = _prescribed(case, lay, 0.0, False)
-    q[P], qd[P] = pres[:, 0], pres[:, 1]
-    loop = ctx["loop"]
-    if loop is None:
-        qdd, tau_p = _forward(case, lay, q, qd, 0.0, False, ctx["linear_solver"], ctx["sel"])
-        return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p))
-    z = np.zeros(loop.joints.size)
-    qdd, tau_p, tau_c = _forward_closed(case, lay, ctx, q, qd, 0.0, False, z, np.zeros(z.size))
-    tau = _joint_torques(case, lay, 0.0, False, tau_p, loop, tau_c)
-    return _State(0.0, q, qd, qdd, qdd.copy(), tau, z)
-
-
-def _predict(st: _State, dt: float, coef):
-    """Predictors (q̃, q̃') and the coefficients (c_q, c_v) of q̈_{n+1}."""
-    beta, gamma, am, af = coef
-    mix = (af * st.qdd - am * st.a) / (1 - am)
-    qt = st.q + dt * st.qd + dt * dt * (0.5 - beta) * st.a + beta * dt * dt * mix
-    qtd = st.qd + dt * (1 - gamma) * st.a + gamma * dt * mix
-    return qt, qtd, beta * dt * dt * (1 - af) / (1 - am), gamma * dt * (1 - af) / (1 - am)
-
-
-def _step_loop(loop, st: _State, t1: float) -> dict | None:
-    """The closed-loop data of the step st.t → t1: the trapezoidal integral state
-    z_{n+1} = z_n + (h/2)(α_ref(t_n) − α_n + α_ref(t_{n+1})) − (h/2) α_{n+1} = zc + dz·α_{n+1}
-    (pid joints; zc = dz = 0 else), and the torques of the last solve (a user law's M_root)."""
-    if loop is None:
-        return None
-    half = 0.5 * (t1 - st.t)
-    err0 = gc.reference_angles(loop, st.t) - st.q[loop.rows]
-    zc = np.where(loop.pid, st.z + half * (err0 + gc.reference_angles(loop, t1)), 0.0)
-    dz = np.where(loop.pid, -half, 0.0)
-    return {"loop": loop, "zc": zc, "dz": dz, "tau_used": st.tau[loop.joints].copy()}
-
-
-def _step(case, lay, ctx, st: _State, t1: float, coef):
-    """One step to t1. Returns (new state, solves used, converged flag)."""
-    _, _, am, af = coef
-    qt, qtd, cq, cv = _predict(st, t1 - st.t, coef)
-    cl = _step_loop(ctx["loop"], st, t1)
-    try:
-        qdd, tau_p, n_solves, ok, tau_c = _iterate(case, lay, ctx, t1, qt, qtd, st.qdd, cq, cv, cl)
-    except np.linalg.LinAlgError:
-        qdd, tau_p, n_solves, ok = np.full_like(st.qdd, np.nan), np.zeros(lay.presc.size), 1, False
-        tau_c = None if cl is None else np.full(cl["zc"].size, np.nan)
-    q, qd = qt + cq * qdd, qtd + cv * qdd
-    a = ((1 - af) * qdd + af * st.qdd - am * st.a) / (1 - am)
-    P = lay.presc
-    pres = _prescribed(case, lay, t1, True)
-    q[P], qd[P], a[P] = pres[:, 0], pres[:, 1], pres[:, 2]
-    tau = _joint_torques(case, lay, t1, True, tau_p, ctx["loop"], tau_c)
-    z = None if cl is None else cl["zc"] + cl["dz"] * q[cl["loop"].rows]
-    return _State(t1, q, qd, qdd, a, tau, z), n_solves, ok
-
-
-def _restart(case, lay, ctx, st: _State) -> _State:
-    """After a drive breakpoint: q̈ (and a) from the equations with right-limit drive values."""
-    if ctx["loop"] is None:
-        qdd, _ = _forward(case, lay, st.q, st.qd, st.t, False, ctx["linear_solver"], ctx["sel"])
-    else:
-        tau0 = st.tau[ctx["loop"].joints].copy()
-        qdd = _forward_closed(case, lay, ctx, st.q, st.qd, st.t, False, st.z, tau0)[0]
-    return _State(st.t, st.q, st.qd, qdd, qdd.copy(), st.tau, st.z)
-
-
-def _check_finite(rec, lay, st: _State, n: int, wall0: float, meta: dict):
-    x = np.concatenate([st.q, st.qd, st.qdd])
-    if np.all(np.isfinite(x)):
-        return
-    names = lay.names + [f"rate of {c}" for c in lay.names] + [f"acceleration of {c}" for c in lay.names]
-    _fail(rec, lay, time.perf_counter() - wall0, n, meta, x, st.t, n, names)
-
-
-def _newmark_run(case, lay, k, h, integrator, opt):
-    coef = _coefficients(integrator, opt)
-    t_end, restart = step_schedule(case.scenario.duration, h, case.scenario.breakpoints)
-    rec = _Recorder(lay, case.scenario.output_times)
-    ctx = {
-        "iterations": opt["iterations"],
-        "tol": opt["tol"],
-        "linear_solver": opt["linear_solver"],
-        "max_iterations": opt["max_iterations"],
-        "sel": _element_selector(lay),
-        "loop": gc.loop_of(case, lay, lambda q: _tip_deflections(lay, q)),
-    }
-    meta = _base_meta(lay, k, h, integrator, opt)
-    meta.update(dict(zip(("beta", "gamma", "alpha_m", "alpha_f"), coef)))
-    tol_t = 1e-9 * h
-    st = _initial(case, lay, ctx)
-    if rec.next_time <= tol_t:
-        rec.add(st.q, st.qd, st.tau)
-    solves, unconverged = [], []
-    wall0 = time.perf_counter()
-    for n, t1 in enumerate(t_end):
-        new, n_solves, ok = _step(case, lay, ctx, st, t1, coef)
-        solves.append(n_solves)
-        if not ok:
-            unconverged.append(n)
-        _check_finite(rec, lay, new, n, wall0, meta)
-        _emit_outputs(case, lay, rec, st, new, tol_t, ctx["loop"])
-        st = _restart(case, lay, ctx, new) if restart[n] else new
-    wall = time.perf_counter() - wall0
-    meta.update(
-        {
-            "iterations_mean": float(np.mean(solves)),
-            "iterations_max": int(np.max(solves)),
-            "time_per_step": wall / len(t_end),
-        }
-    )
-    status, warn = _convergence(meta, unconverged, t_end, opt, ctx.get("unconverged_solves", 0))
-    return rec.result(lay, wall, len(t_end), meta, status=status, warnings=warn)
-
-
-def _convergence(meta: dict, unconverged, t_end, opt, unconverged_solves: int = 0):
-    """Record the unconverged steps (and forward-dynamics solves with closed-loop laws, at t = 0
-    and restarts) in ``meta``; status and warnings for the Result."""
-    meta.update({"unconverged_steps": len(unconverged), "unconverged_step_indices": list(unconverged[:20])})
-    warns = []
-    if unconverged:
-        first = float(t_end[unconverged[0]])
-        warns.append(
-            f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
-            f"{len(unconverged)} step(s), first at t = {first:.6g} s"
-        )
-    if unconverged_solves:
-        meta["unconverged_solves"] = int(unconverged_solves)
-        warns.append(
-            f"{unconverged_solves} forward-dynamics solves with closed-loop laws (t = 0, restarts) "
-            f"not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves"
-        )
-    return ("unconverged" if warns else "ok"), tuple(warns)
-
-
-def _emit_outputs(case, lay, rec, start: _State, end: _State, tol_t, loop=None):
-    """Record every output time in (t0, t1]: the step-end state when it falls on t1, else
-    cubic Hermite interpolation of (q, q̇) (prescribed joints from their law; their torque,
-    and that of the closed-loop joints of ``loop``, linear between the step ends)."""
-    t0, q0, qd0, tau0 = start.t, start.q, start.qd, start.tau
-    t1, q1, qd1, tau1 = end.t, end.q, end.qd, end.tau
-    while rec.next_time <= t1 + tol_t:
-        t = rec.next_time
-        if abs(t - t1) <= tol_t:
-            rec.add(q1, qd1, tau1)
-            continue
-        q, qd = _hermite(t, t0, t1, q0, qd0, q1, qd1)
-        if lay.presc.size:
-            pres = _prescribed(case, lay, t, False)
-            q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
-        s = (t - t0) / (t1 - t0)
-        lin = (1 - s) * tau0 + s * tau1
-        tau_c = None if loop is None else lin[loop.joints]
-        tau = _joint_torques(case, lay, t, False, lin[lay.motion], loop, tau_c)
-        rec.add(q, qd, tau)
-
-
-# ----------------------------------------------------------------------------------------------
-# Adaptive reference (scipy solve_ivp), restarted at every drive breakpoint
-# ----------------------------------------------------------------------------------------------
-
-
-def _full_state(case, lay, y, t, left):
-    """(q, q̇) from the free part y = [q_F, q̇_F] and the motion laws at t."""
-    F, P = lay.free, lay.presc
-    q = np.zeros(lay.n_dof)
-    qd = np.zeros(lay.n_dof)
-    q[F], qd[F] = y[: F.size], y[F.size :]
-    if P.size:
-        pres = _prescribed(case, lay, t, left)
-        q[P], qd[P] = pres[:, 0], pres[:, 1]
-    return q, qd
-
-
-def _ivp_run(case, lay, k, h, integrator, opt):
-    from scipy.integrate import solve_ivp
-
-    F = lay.free
-    method = {"radau": "Radau", "dop853": "DOP853"}[integrator]
-    dur = case.scenario.duration
-    bounds = [0.0, *case.scenario.breakpoints, dur]
-    times = case.scenario.output_times
-    rec = _Recorder(lay, times)
-    meta = _base_meta(lay, k, h, integrator, opt)
-    sel = _element_selector(lay)
-    q0, qd0 = _initial_state(case, lay)
-    y = np.concatenate([q0[F], qd0[F]])
-    samples = []  # (t, y, left)
-    n_steps = nfev = 0
-    j = 0
-    wall0 = time.perf_counter()
-    for a, b in zip(bounds[:-1], bounds[1:]):
-
-        def fun(t, yy, b=b):
-            qq, qqd = _full_state(case, lay, yy, t, t >= b)
-            qdd, _ = _forward(case, lay, qq, qqd, t, t >= b, "dense", sel)
-            return np.concatenate([qqd[F], qdd[F]])
-
-        sol = solve_ivp(fun, (a, b), y, method=method, rtol=opt["rtol"], atol=opt["atol"], dense_output=True)
-        n_steps += sol.t.size - 1
-        nfev += sol.nfev
-        ok = sol.success and np.all(np.isfinite(sol.y[:, -1]))
-        while j < times.size and times[j] <= b * (1 + 1e-12) + 1e-12 and ok:
-            yj = sol.y[:, -1] if abs(times[j] - b) <= 1e-12 * max(1.0, b) else sol.sol(times[j])
-            samples.append((times[j], yj, times[j] > 0.0))
-            j += 1
-        if not ok:
-            wall = time.perf_counter() - wall0
-            _record_samples(case, lay, rec, samples, sel)
-            partial = rec.result(lay, wall, n_steps, {**meta, "success": False})
-            raise SimulationError(
-                f"solve_ivp ({method}) failed: {sol.message}",
-                t=float(sol.t[-1]),
-                step=n_steps,
-                component="state",
-                partial=partial,
-            )
-        y = sol.y[:, -1]
-    wall = time.perf_counter() - wall0
-    _record_samples(case, lay, rec, samples, sel)
-    meta.update(
-        {
-            "iterations_mean": None,
-            "iterations_max": None,
-            "nfev": int(nfev),
-            "time_per_step": wall / max(n_steps, 1),
-            "unconverged_steps": 0,
-        }
-    )
-    return rec.result(lay, wall, n_steps, meta)
-
-
-def _record_samples(case, lay, rec, samples, sel):
-    for t, y, left in samples:
-        q, qd = _full_state(case, lay, y, t, left)
-        _, tau_p = _forward(case, lay, q, qd, t, left, "dense", sel)
-        rec.add(q, qd, _joint_torques(case, lay, t, left, tau_p))
-
-
-# ----------------------------------------------------------------------------------------------
-# Entry point
-# ----------------------------------------------------------------------------------------------
-
-
-def _check_engine(engine, integrator, opt) -> str:
-    """ "numba" or "numpy"; None → "numba" when numba imports."""
-    if engine is None:
-        try:
-            import numba  # noqa: F401
-        except ImportError:
-            return "numpy"
-        engine = "numba"
-    if engine not in ENGINES:
-        raise InputError("engine", engine, f"unknown engine (one of: {', '.join(ENGINES)})")
-    if engine == "numba":
-        try:
-            import numba  # noqa: F401
-        except ImportError:
-            raise InputError("engine", engine, "needs numba, which is not installed (extra 'fast')") from None
-    if engine == "numba" and opt.get("linear_solver", "dense") == "sparse":
-        raise InputError("linear_solver", "sparse", "is an option of engine='numpy' only")
-    return engine

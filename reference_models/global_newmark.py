@@ -15,12 +15,16 @@ second-order strain energy (``strain="second-order"``, extensible links; see
 :func:`elastic_forces`). The Kelvin-Voigt damping acts on the rate of the same strain
 measure (:func:`damping_forces`): D q̇ with D = μK for the linear element.
 
-Two engines assemble and solve these equations. ``engine="numpy"`` forms M = Σ J_elᵀ M_el J_el
-from dense recursive Jacobians and solves by LU: the readable reference. ``engine="numba"``
-(the default when numba is installed; :mod:`reference_models._global_numba`) accumulates M
-column by column from composite body inertias (O(N²), no Jacobian products), solves by
-Cholesky, and runs the whole time loop compiled. Both agree to round-off. Either way the
-cost per solve grows like N³ in the number N of coordinates.
+The readable mechanics — M = Σ J_elᵀ M_el J_el from dense recursive Jacobians, the forces,
+energy and kinematics, and :func:`accelerations` (forward dynamics at one state, solved by
+LU) — are in :mod:`reference_models._global_numpy`; it has no time loop. The time loop is
+one source, :mod:`reference_models._global_numba`: it accumulates M column by column from
+composite body inertias (O(N²), no Jacobian products) and solves by Cholesky. numba compiles
+it (``engine="numba"``, the default when numba is installed); ``engine="python"`` (alias
+``"numpy"``) runs the same file uncompiled (:mod:`reference_models._global_python`), as
+:mod:`dttmm.kernel_python` does for DT-TMM. The two engines agree to round-off; the numpy
+mechanics are the independent check of their one-step quantities. Either way the cost per
+solve grows like N³ in the number N of coordinates.
 
 Each step of Newmark / generalized-α iterates the accelerations with the elastic and
 damping forces linearised at the iterate, and stops by the rule of :func:`dttmm.simulate`,
@@ -33,7 +37,8 @@ forward-dynamics solve with closed-loop laws (t = 0, restarts) that does
 Closed-loop drive laws (``pd``, ``pid``, user laws; docs/control.md, "Global solver") are
 solved implicitly at every step end with the stepped integrators: the law's torque enters the
 generalized force of its joint, its linearisation the iteration matrix, with the root bending
-moment M_root = τ − J_hub ω̇ (ω̇ a fixed row of q̈). See :mod:`reference_models._global_control`.
+moment M_root = τ − J_hub ω̇ (ω̇ a fixed row of q̈). See :mod:`reference_models._global_control`
+and ``_laws`` in :mod:`reference_models._global_numba`.
 
 This module is an independent implementation: it shares with :mod:`dttmm` only the model,
 scenario and result classes, the step schedule, the option checks, the stop rule of the
@@ -52,17 +57,11 @@ import dataclasses
 from dttmm import plumbing
 from dttmm.shapes import shape_points as _shape_points
 
-from . import _global_control
+from . import _global_control, _global_driver
+from ._global_driver import ENGINES, INTEGRATORS
 from ._global_numpy import (
-    _STEPPED,
-    ENGINES,
-    INTEGRATORS,
     STRAINS,
-    _check_engine,
-    _check_options,
-    _ivp_run,
     _layout,
-    _newmark_run,
     accelerations,
     coordinate_names,
     damping_forces,
@@ -101,17 +100,13 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     elements_per_link : int
         Number k ≥ 1 of beam elements per link.
     h : float
-        Step size (s), 0 < h ≤ duration. For ``"radau"``/``"dop853"`` it is only recorded
-        (the step is chosen by the error control).
-    integrator : {"newmark", "generalized-alpha", "radau", "dop853"}
+        Step size (s), 0 < h ≤ duration.
+    integrator : {"newmark", "generalized-alpha"}
         ``"newmark"`` (options ``beta`` = 0.25, ``gamma`` = 0.5) and ``"generalized-alpha"``
         (option ``rho_inf`` = 0.9) step the schedule of :func:`dttmm.timegrid.step_schedule`
         with the frozen-coefficient iteration (options ``iterations`` = None for
         tolerance-driven with ``tol`` = 1e-10 and at most ``max_iterations`` = 50 solves, or
-        m for exactly m + 1 solves per step; ``linear_solver`` = "dense" | "sparse", the
-        latter with ``engine="numpy"`` only). ``"radau"`` and ``"dop853"`` integrate the
-        first-order form with scipy's ``solve_ivp`` (options ``rtol`` = 1e-10,
-        ``atol`` = 1e-12), restarted at every drive breakpoint.
+        m for exactly m + 1 solves per step).
     strain : {"linear", "second-order"}
         Element strain measure (see :func:`elastic_forces`). With ``"second-order"`` the
         stepped integrators linearise the elastic forces at every iterate (Newton), exactly
@@ -120,12 +115,11 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     shape_points : int, option
         p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2) m from the element shape functions;
         0 (default) records none.
-    engine : {"numba", "numpy", None}
-        For ``"newmark"``/``"generalized-alpha"``: ``"numba"`` (compiled recursive assembly,
-        Cholesky solve and time loop; the default when numba is installed) or ``"numpy"``
-        (dense Jacobian products and LU; the readable reference, same results to round-off).
-        The adaptive integrators always use the numpy engine. Closed-loop user laws (Python
-        callables) need ``"numpy"``.
+    engine : {"numba", "python", "numpy", None}
+        ``"numba"``: the compiled time loop (the default when numba is installed);
+        ``"python"``: the same source uncompiled (≈ 100× slower; same results to round-off);
+        ``"numpy"`` is an alias of ``"python"``. Closed-loop user laws (Python callables) need
+        ``"python"``. ``Result.meta["engine"]`` says which ran.
 
     Returns
     -------
@@ -137,26 +131,18 @@ def simulate(case, *, elements_per_link, h, integrator="newmark", strain="linear
     Raises
     ------
     dttmm.InputError
-        Bad k, h, integrator or option (the message names the field); a closed-loop drive
-        with ``"radau"``/``"dop853"``, or a user law with the compiled engine.
+        Bad k, h, integrator, engine or option (the message names the field), or a user law
+        with the compiled engine.
     dttmm.SimulationError
-        Non-finite state or failed adaptive integration; ``partial`` holds the outputs so far.
+        Non-finite state; ``partial`` holds the outputs so far.
     """
     p = _shape_points(options.pop("shape_points", 0))
     k, h = plumbing.discretisation(case, elements_per_link, h)
-    opt = _check_options(integrator, options)
-    engine = _check_engine(engine, integrator, opt)
-    if integrator not in _STEPPED:
-        _global_control.require_stepped(case, f"integrator {integrator!r}")
-    elif engine == "numba":
+    opt = _global_driver.check_options(integrator, options)
+    engine = _global_driver.check_engine(engine)
+    if engine == "numba":
         _global_control.require_python_engine(case)
     lay = _layout(case, k, strain)
     if p:
         lay = dataclasses.replace(lay, shape_points=p)
-    if integrator in _STEPPED:
-        if engine == "numba":
-            from . import _global_compiled  # compiled on first use: numba is optional
-
-            return _global_compiled.run(case, lay, k, h, integrator, opt)
-        return _newmark_run(case, lay, k, h, integrator, opt)
-    return _ivp_run(case, lay, k, h, integrator, opt)
+    return _global_driver.run(case, lay, k, h, integrator, opt, engine)

@@ -17,9 +17,10 @@ can resolve (hub and rod are one body), so ``moment_gain != 0`` is refused and u
 RNEA(α_ref(t), α̇_ref(t), α̈_ref(t)) of this rigid model, with every joint's reference (a motion
 drive's law or a closed-loop drive's reference). Only ``"rk4"`` supports closed-loop drives.
 
-Integrators: ``"rk4"`` and ``"newmark"`` (β = ¼, γ = ½, Newton on the joint-space equations)
-on the shared step schedule (a step ends exactly at each drive jump; the step ending there
-sees the left limit), and ``"dop853"`` (scipy's adaptive solver, restarted at every jump).
+Integrators: ``"rk4"`` on the shared step schedule (a step ends exactly at each drive jump;
+the step ending there sees the left limit), and ``"dop853"`` (scipy's adaptive solver,
+restarted at every jump; the rigid reference of ``dttmm validate``). Other fixed-step
+schemes plug into :func:`_simulate` (the tests' Newmark step does).
 
 Pinocchio is imported here only; ``dttmm`` itself never needs it.
 """
@@ -47,7 +48,6 @@ __all__ = ["INTEGRATORS", "build_model", "simulate"]
 #: integrator name -> its options and their defaults
 INTEGRATORS = {
     "rk4": {},
-    "newmark": {"beta": 0.25, "gamma": 0.5, "tol": 1e-12, "max_iter": 25},
     "dop853": {"rtol": 1e-12, "atol": 1e-12, "max_step": math.inf},
 }
 
@@ -206,23 +206,11 @@ class _Arm:
         M = self._sym(pin.crba(self.model, self.data, q))
         return np.linalg.solve(M[self.ff], tau - b[self.f])
 
-    def newmark_residual(self, t, tau_f, qf, vf, af, c_q, c_v):
-        """Residual τ(q, v, q̈)_f − τ_f at t (motion laws: left limit) and its Jacobian in q̈_f
-        for q_f = q_pred + c_q q̈_f, v_f = v_pred + c_v q̈_f."""
-        q, v, a = self.full(t, True, qf, vf, af)
-        tau = pin.rnea(self.model, self.data, q, v, a)
-        dq, dv, M = pin.computeRNEADerivatives(self.model, self.data, q, v, a)
-        M = self._sym(M)
-        if self.all_free:
-            return tau - tau_f, M + c_q * dq + c_v * dv
-        ff = self.ff
-        return tau[self.f] - tau_f, M[ff] + c_q * dq[ff] + c_v * dv[ff]
 
-
-def _check_options(integrator, options):
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
-    known = INTEGRATORS[integrator]
+def _check_options(integrator, options, integrators=INTEGRATORS):
+    if integrator not in integrators:
+        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(integrators)})")
+    known = integrators[integrator]
     for key in options:
         if key not in known:
             raise InputError(
@@ -238,7 +226,7 @@ def _check_options(integrator, options):
             raise InputError(key, val, "must be a number") from None
         if not x > 0:
             raise InputError(key, val, "must be positive")
-    if integrator == "newmark":
+    if "max_iter" in opts:
         opts["max_iter"] = int(opts["max_iter"])
     return opts
 
@@ -331,57 +319,6 @@ def _rk4_closed(arm, q, v, T, restart, opts, stats):
     return T[: N + 1], Q[: N + 1], V[: N + 1], Ar[: N + 1], Al[: N + 1]
 
 
-def _newmark(arm, q, v, T, restart, opts, stats):
-    beta, gamma, tol, max_iter = opts["beta"], opts["gamma"], opts["tol"], opts["max_iter"]
-    N = T.size - 1
-    Q, V = np.empty((N + 1, q.size)), np.empty((N + 1, q.size))
-    Ar, Al = np.empty_like(Q), np.empty_like(Q)
-    Q[0], V[0] = q, v
-    a = arm.acc(T[0], False, q, v)
-    Al[0] = a
-    iters = 0
-    for k in range(N):
-        t1 = T[k + 1]
-        dt = t1 - T[k]
-        Ar[k] = a
-        qp = q + dt * v + dt * dt * (0.5 - beta) * a
-        vp = v + dt * (1 - gamma) * a
-        cq, cv = beta * dt * dt, gamma * dt
-        an = a.copy()
-        tau1 = arm.tau_f(t1, True)
-        for it in range(1, max_iter + 1):  # noqa: B007 (the count is read after the loop)
-            r, J = arm.newmark_residual(t1, tau1, qp + cq * an, vp + cv * an, an, cq, cv)
-            da = np.linalg.solve(J, -r)
-            an = an + da
-            if not math.isfinite(float(an.sum())):
-                break
-            if np.abs(da).max() <= tol * (1.0 + np.abs(an).max()):
-                break
-        else:
-            stats["fail"] = (
-                (
-                    f"Newmark Newton iteration did not converge in {max_iter} iterations "
-                    f"(last correction {np.abs(da).max():.3g} rad/s²)"
-                ),
-                k,
-                t1,
-                "joint accelerations",
-            )
-        iters += it
-        q, v = qp + cq * an, vp + cv * an
-        Q[k + 1], V[k + 1], Al[k + 1] = q, v, an
-        if "fail" not in stats and not math.isfinite(float(q.sum() + v.sum() + an.sum())):
-            stats["fail"] = _nonfinite(k, t1, q, v, arm)
-        if "fail" in stats:
-            stats["iterations_mean"] = iters / (k + 1)
-            return T[: k + 1], Q[: k + 1], V[: k + 1], Ar[: k + 1], Al[: k + 1]
-        # after a drive jump restart from the right-limit acceleration
-        a = arm.acc(t1, False, q, v) if restart[k] else an
-    Ar[N] = a
-    stats["iterations_mean"] = iters / max(N, 1)
-    return T, Q, V, Ar, Al
-
-
 def _hermite(T, Q, V, Ar, Al, t, h):
     """States at times t from the step nodes: node values where t hits a node, otherwise
     cubic Hermite on (q, q̇) and on (q̇, q̈) with the one-sided accelerations of the step."""
@@ -462,8 +399,9 @@ def _outputs(arm, t, qf, vf, z):
     return q, v, tau, root, tip, energy
 
 
-def _integrate(arm, scen, h, T_end, restart, integrator, opts, stats):
-    """Run the integrator; return output times reached, free states there, steps, wall time."""
+def _integrate(arm, scen, h, T_end, restart, integrator, stepper, opts, stats):
+    """Run the integrator (``stepper``: the fixed-step one); return output times reached, free
+    states there, steps, wall time."""
     t_out = scen.output_times
     qf0 = np.array([arm.drives[i].initial_angle for i in arm.f], float)
     vf0 = np.array([arm.drives[i].initial_rate for i in arm.f], float)
@@ -482,8 +420,7 @@ def _integrate(arm, scen, h, T_end, restart, integrator, opts, stats):
         z = np.zeros((T.size, 0))
         nodes = (T, z, z, z, z)
     else:
-        run = _newmark if integrator == "newmark" else (_rk4_closed if arm.nz else _rk4)
-        nodes = run(arm, qf0, vf0, T, restart, opts, stats)
+        nodes = stepper(arm, qf0, vf0, T, restart, opts, stats)
     wall = time.perf_counter() - t0
     n_steps = nodes[0].size - 1
     tg = t_out[t_out <= nodes[0][-1] + 1e-9 * h]
@@ -503,10 +440,9 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     h : float
         Step size (s). For ``"dop853"`` the first trial step of each restart (the step size
         is adaptive; limit it with the option ``max_step``).
-    integrator : ``"rk4"`` | ``"newmark"`` | ``"dop853"``
+    integrator : ``"rk4"`` | ``"dop853"``
     elements_per_link : ignored (rigid links); accepted for the common call.
     **options
-        newmark: beta (¼), gamma (½), tol (1e-12, relative Newton correction), max_iter (25);
         dop853: rtol (1e-12), atol (1e-12), max_step (inf); every integrator: shape_points
         (0): p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2) m, straight links.
 
@@ -521,14 +457,24 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     dttmm.InputError
         h ≤ 0 or h > duration, unknown integrator or option.
     dttmm.SimulationError
-        non-finite state or failed Newton iteration; ``partial`` holds the output samples
-        up to the last good step.
+        non-finite state; ``partial`` holds the output samples up to the last good step.
     """
+    return _simulate(case, h, integrator, elements_per_link, options)
+
+
+def _rk4_stepper(arm, q, v, T, restart, opts, stats):
+    return (_rk4_closed if arm.nz else _rk4)(arm, q, v, T, restart, opts, stats)
+
+
+def _simulate(case, h, integrator, elements_per_link, options, stepper=_rk4_stepper, integrators=INTEGRATORS):
+    """:func:`simulate` with the fixed-step integrator ``stepper(arm, q_f, v_f, T, restart,
+    opts, stats)`` -> node arrays (T, Q, V, A_right, A_left) for every name of ``integrators``
+    (name -> its options and defaults) but "dop853"; only "rk4" takes closed-loop drives."""
     _, h = plumbing.discretisation(case, elements_per_link, h, uses_k=False)
     scen = case.scenario
     options = dict(options)
     p = shape_points(options.pop("shape_points", 0))
-    opts = _check_options(integrator, options)
+    opts = _check_options(integrator, options, integrators)
     T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     arm = _Arm(case)
     if arm.nz and integrator != "rk4":
@@ -548,7 +494,9 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options):
     }
 
     with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
-        tg, qf, vf, zf, n_steps, wall = _integrate(arm, scen, h, T_end, restart, integrator, opts, stats)
+        tg, qf, vf, zf, n_steps, wall = _integrate(
+            arm, scen, h, T_end, restart, integrator, stepper, opts, stats
+        )
     for key in ("nfev", "iterations_mean"):
         if key in stats:
             meta[key] = stats[key]

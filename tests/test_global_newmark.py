@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.linalg
+from _global_reference import adaptive_reference
 
 import dttmm
 from dttmm import Case, Constant, Drive, Link, Manipulator, Scenario, Section
@@ -22,9 +23,9 @@ CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
 try:
     import numba  # noqa: F401
 
-    _ENGINES = ["numpy", "numba"]
+    _ENGINES = ["python", "numba"]
 except ImportError:  # the compiled engine is optional (extra "fast")
-    _ENGINES = ["numpy"]
+    _ENGINES = ["python"]
 needs_numba = pytest.mark.skipif("numba" not in _ENGINES, reason="numba not installed")
 
 
@@ -307,15 +308,12 @@ def test_energy_drift_is_second_order_in_h():
 
 
 def _newmark_errors(case, k, hs, **options):
-    ref = gn.simulate(case, elements_per_link=k, h=hs[0], integrator="dop853", rtol=1e-9, atol=1e-11)
+    ref_angle, ref_tip = adaptive_reference(case, k, method="DOP853", rtol=1e-9, atol=1e-11)
     errs = []
     for h in hs:
         res = gn.simulate(case, elements_per_link=k, h=h, **options)
         errs.append(
-            max(
-                np.abs(res.joint_angle - ref.joint_angle).max(),
-                np.abs(res.tip_deflection - ref.tip_deflection).max(),
-            )
+            max(np.abs(res.joint_angle - ref_angle).max(), np.abs(res.tip_deflection - ref_tip).max())
         )
     return np.array(errs)
 
@@ -347,12 +345,14 @@ def test_generalized_alpha_second_order_three_link():
 
 
 @pytest.mark.slow
-def test_radau_and_dop853_agree():
+def test_adaptive_references_radau_and_dop853_agree():
+    """The adaptive reference of the order tests does not depend on its integrator: Radau
+    (implicit, order 5) and DOP853 (explicit, order 8) agree through the torque switch."""
     case = _shorten(_with_beams(_load("single_link"), EA=None), 0.6, 0.05)
-    a = gn.simulate(case, elements_per_link=1, h=0.01, integrator="radau", rtol=1e-9, atol=1e-11)
-    b = gn.simulate(case, elements_per_link=1, h=0.01, integrator="dop853")
-    assert np.abs(a.joint_angle - b.joint_angle).max() < 1e-7
-    assert np.abs(a.tip_deflection - b.tip_deflection).max() < 1e-7
+    a = adaptive_reference(case, 1, method="Radau", rtol=1e-9, atol=1e-11)
+    b = adaptive_reference(case, 1, method="DOP853")
+    assert np.abs(a[0] - b[0]).max() < 1e-7
+    assert np.abs(a[1] - b[1]).max() < 1e-7
 
 
 # ----------------------------------------------------------------------------------------------
@@ -370,16 +370,6 @@ def test_fixed_iteration_count_and_tolerance_driven_iteration():
     assert conv.meta["method"] == "global" and conv.meta["n_dof"] == 12 and conv.meta["success"]
     # two corrections are close to the converged step
     assert np.abs(fixed.joint_angle - conv.joint_angle).max() < 1e-6
-
-
-def test_sparse_linear_solver_gives_the_dense_solution():
-    case = _shorten(_load("three_link"), 0.01, 1e-3)
-    dense = gn.simulate(case, elements_per_link=2, h=1e-3, iterations=1)
-    sparse = gn.simulate(
-        case, elements_per_link=2, h=1e-3, iterations=1, linear_solver="sparse", engine="numpy"
-    )
-    assert np.allclose(sparse.link_tip, dense.link_tip, rtol=0, atol=1e-12)
-    assert sparse.meta["iterations_mean"] == 2
 
 
 def test_outputs_between_step_ends_are_cubic_hermite_of_the_step_states():
@@ -460,14 +450,13 @@ def test_non_finite_state_raises_with_partial_result():
         ({"iterations": 1.5}, "iterations"),
         ({"tol": 0.0}, "tol"),
         ({"beta": -0.25}, "beta"),
-        ({"linear_solver": "magic"}, "linear_solver"),
+        ({"linear_solver": "dense"}, "linear_solver"),
         ({"integrator": "generalized-alpha", "rho_inf": 1.5}, "rho_inf"),
-        ({"integrator": "dop853", "rtol": 0.0}, "rtol"),
-        ({"integrator": "dop853", "beta": 0.3}, "beta"),
+        ({"integrator": "dop853"}, "integrator"),
+        ({"integrator": "generalized-alpha", "beta": 0.3}, "beta"),
         ({"maxiter": 3}, "maxiter"),
         ({"max_iterations": 0}, "max_iterations"),
         ({"engine": "fortran"}, "engine"),
-        pytest.param({"linear_solver": "sparse", "engine": "numba"}, "linear_solver", marks=needs_numba),
     ],
 )
 def test_bad_settings_are_refused_naming_the_field(kwargs, field):
@@ -610,9 +599,9 @@ def test_second_order_energy_check_detects_an_inconsistent_energy(monkeypatch):
     """The drift test discriminates: reporting ½qᵀKq instead of U along the same second-order
     trajectory leaves a drift that does not shrink with h (≈ 20× the true drift at h = 2.5e-4)."""
     case = _free_extensible_three_link()
-    good = gn.simulate(case, elements_per_link=2, h=2.5e-4, strain="second-order", engine="numpy")
-    monkeypatch.setattr(gnp, "_strain_energy", lambda lay, q: 0.5 * q @ lay.K @ q)
-    bad = gn.simulate(case, elements_per_link=2, h=2.5e-4, strain="second-order", engine="numpy")
+    good = gn.simulate(case, elements_per_link=2, h=2.5e-4, strain="second-order")
+    monkeypatch.setattr(gnp, "_strain_energy", lambda lay, q: 0.5 * q @ lay.K @ q)  # the recorder's
+    bad = gn.simulate(case, elements_per_link=2, h=2.5e-4, strain="second-order")
     d_good = np.abs(good.energy - good.energy[0]).max()
     d_bad = np.abs(bad.energy - bad.energy[0]).max()
     assert d_bad > 10 * d_good
@@ -637,53 +626,75 @@ def test_strain_option_is_validated_and_linear_is_the_default():
 
 
 # ----------------------------------------------------------------------------------------------
-# (9) compiled engine against the numpy engine; stopping rule and status
+# (9) the two engines of the one time-loop source; one-step quantities against the numpy
+# mechanics; stopping rule and status
 # ----------------------------------------------------------------------------------------------
+
+
+def _engine_module(engine):
+    if engine == "numba":
+        from reference_models import _global_numba as G
+    else:
+        from reference_models import _global_python as G
+    return G
 
 
 def _engines_case(name, damping=0.0):
     case = {
         "single_link": lambda: _shorten(_load("single_link"), 0.6, 0.02),
-        "three_link": lambda: _shorten(_load("three_link"), 0.3, 0.01),
-        "spin_up": lambda: _shorten(_load("spin_up"), 2.0, 0.1),
+        "three_link": lambda: _shorten(_load("three_link"), 0.03, 0.01),
+        "spin_up": lambda: _shorten(_load("spin_up"), 1.0, 0.1),
     }[name]()
     return _with_beams(case, damping=damping) if damping else case
 
 
-_ENGINE_RUNS = [  # (case, damping μ, k, h)
-    ("single_link", 0.0, 4, 2e-3),
+_ENGINE_RUNS = [  # (case, damping μ, k, h): a restart (single_link), motion drive (spin_up)
+    ("single_link", 0.0, 3, 2e-3),
     ("three_link", 0.0, 3, 1e-3),
     ("three_link", 2e-3, 2, 1e-3),
-    ("spin_up", 0.0, 4, 1e-2),
+    ("spin_up", 0.0, 3, 1e-2),
 ]
+
+
+def _rel(a, b):
+    return np.abs(a - b).max() / max(1.0, np.abs(b).max())
 
 
 @needs_numba
 @pytest.mark.parametrize("strain", ["linear", "second-order"])
 @pytest.mark.parametrize("integrator", ["newmark", "generalized-alpha"])
 @pytest.mark.parametrize("name, mu, k, h", _ENGINE_RUNS)
-def test_compiled_engine_agrees_with_numpy_engine(name, mu, k, h, integrator, strain):
-    """The two engines assemble the same equations by different sums (composite-inertia
-    recursion and Cholesky vs dense JᵀMJ and LU): end effector and tip deflections agree to
-    1e-9 m, step by step with the same iteration counts."""
+def test_uncompiled_engine_equals_compiled_engine(name, mu, k, h, integrator, strain):
+    """engine="python" runs the compiled engine's source uncompiled: the same run to
+    round-off; the iteration counts agree but for a step or two where the
+    last solve's change sits at the stop rule's bound (a difference of one solve in 1 %)."""
     case = _engines_case(name, mu)
     kw = {"elements_per_link": k, "h": h, "integrator": integrator, "strain": strain}
-    a = gn.simulate(case, engine="numpy", **kw)
+    a = gn.simulate(case, engine="python", **kw)
     b = gn.simulate(case, engine="numba", **kw)
-    assert b.meta["engine"] == "numba" and a.status == b.status == "ok"
-    assert np.abs(a.end_effector - b.end_effector).max() <= 1e-9
-    assert np.abs(a.tip_deflection - b.tip_deflection).max() <= 1e-9
-    assert np.abs(a.joint_torque - b.joint_torque).max() <= 1e-7 * max(1.0, np.abs(a.joint_torque).max())
-    assert np.allclose(a.energy, b.energy, rtol=1e-9, atol=1e-9)
-    assert abs(a.meta["iterations_mean"] - b.meta["iterations_mean"]) <= 0.05 * a.meta["iterations_mean"]
+    assert (a.meta["engine"], b.meta["engine"]) == ("python", "numba")
+    assert a.status == b.status == "ok"
+    for field in ("joint_angle", "joint_torque", "link_tip", "tip_deflection", "energy"):
+        assert _rel(getattr(a, field), getattr(b, field)) <= 1e-12, field  # measured ≤ 2e-15
+    # the rates carry the undamped elastic modes, where the iteration's tolerance (1e-10 on q̈)
+    # lets the round-off through: measured ≤ 1.1e-12 (three_link, μ = 0), ≤ 4e-14 otherwise
+    assert _rel(a.joint_rate, b.joint_rate) <= 1e-11
+    assert abs(a.meta["iterations_mean"] - b.meta["iterations_mean"]) <= 0.01
 
 
-@needs_numba
-def test_compiled_assembly_equals_dense_jacobian_products():
-    """M(q) and the velocity/gravity forces of the recursion equal Σ JᵀM_el J at random states
-    (extensible and inextensible links, hubs and a payload)."""
-    from reference_models import _global_numba as G
+def test_numpy_is_an_alias_of_the_uncompiled_engine():
+    case = _shorten(_load("three_link"), 0.005, 0.005)
+    a = gn.simulate(case, elements_per_link=1, h=1e-3, engine="numpy")
+    b = gn.simulate(case, elements_per_link=1, h=1e-3, engine="python")
+    assert a.meta["engine"] == "python"
+    assert np.array_equal(a.link_tip, b.link_tip) and np.array_equal(a.joint_torque, b.joint_torque)
 
+
+@pytest.mark.parametrize("engine", _ENGINES)
+def test_engine_assembly_equals_dense_jacobian_products(engine):
+    """M(q) and the velocity/gravity forces of the engine's recursion equal Σ JᵀM_el J of the
+    numpy mechanics at random states (extensible and inextensible links, hubs and a payload)."""
+    G = _engine_module(engine)
     for case in (_load("three_link"), _with_beams(_load("three_link"), EA=None)):
         for k, seed in ((1, 0), (3, 1)):
             lay = gnp._layout(case, k)
@@ -693,6 +704,35 @@ def test_compiled_assembly_equals_dense_jacobian_products():
             G.assemble(G.pack(lay, case), q, qd, M, f)
             assert np.abs(M - M0).max() <= 1e-13 * np.abs(M0).max()
             assert np.abs(f - f0).max() <= 1e-13 * np.abs(f0).max()
+
+
+@pytest.mark.parametrize("engine", _ENGINES)
+@pytest.mark.parametrize("strain", ["linear", "second-order"])
+def test_engine_forward_dynamics_equal_the_numpy_accelerations(engine, strain):
+    """The engine's one-step forward dynamics (recursive assembly, element forces, Cholesky)
+    against :func:`accelerations` (dense Jacobians, scattered K_T and D_t, LU) at random
+    states of a damped arm with a motion-driven joint; and its joint torque against the
+    residual of the numpy equations."""
+    base = _with_beams(_load("three_link"), damping=2e-3)
+    drives = list(base.scenario.drives)
+    drives[1] = Drive("motion", dttmm.Sine(0.4, 1.5, offset=0.2))
+    case = dataclasses.replace(base, scenario=dataclasses.replace(base.scenario, drives=tuple(drives)))
+    G = _engine_module(engine)
+    k, t = 2, 0.3
+    lay = gnp._layout(case, k, strain)
+    P = G.pack(lay, case)
+    for seed in range(3):
+        q = _deformed_state(case, k, seed)  # elastic coordinates of a plausible size
+        qd = _random_state(case, k, seed)[1] * 0.1
+        pres = gnp._prescribed(case, lay, t, False)
+        q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
+        ref = gn.accelerations(case, k, q, qd, t, strain=strain)
+        qdd, tau = G.forward(P, q, qd, gnp._torques(case, lay, t, False), pres[:, 2].copy())
+        assert _rel(qdd, ref) <= 1e-11
+        _, tau_ref = gnp._forward(case, lay, q, qd, t, False)
+        # τ = M[p]·q̈ − rhs[p] is a residual of much larger terms: compare at their size
+        terms = np.abs(gnp._assemble(lay, q, qd)[0][lay.presc]) @ np.abs(ref)
+        assert np.all(np.abs(tau - tau_ref) <= 1e-13 * terms)
 
 
 @pytest.mark.parametrize("engine", _ENGINES)
@@ -716,15 +756,15 @@ def test_stagnation_at_the_round_off_floor_counts_as_converged(engine):
     assert res.meta["iterations_max"] < 50
 
 
-@needs_numba
-def test_non_finite_state_raises_with_partial_result_compiled_engine():
+@pytest.mark.parametrize("engine", _ENGINES)
+def test_non_finite_state_raises_with_partial_result_in_both_engines(engine):
     class BrokenAfter(Constant):
         def __call__(self, t, left=False):
             return math.nan if t > 0.05 else self.value
 
     case = _single(Section(1.0, 2.0, 0.3), Drive("torque", BrokenAfter(1.0)), duration=0.1, output_step=0.01)
     with pytest.raises(dttmm.SimulationError) as info:
-        gn.simulate(case, elements_per_link=1, h=0.01, engine="numba")
+        gn.simulate(case, elements_per_link=1, h=0.01, engine=engine)
     err = info.value
     assert err.t == pytest.approx(0.06) and err.step == 5 and err.component.startswith("alpha_1")
     assert err.partial is not None and err.partial.t[-1] == pytest.approx(0.05)
@@ -797,7 +837,7 @@ def _elastica_tip(L, EI, w):
     [
         pytest.param(8, "numba", 3e-3, marks=needs_numba),
         pytest.param(16, "numba", 4e-4, marks=needs_numba),
-        (8, "numpy", 3e-3),
+        pytest.param(8, "python", 3e-3, marks=pytest.mark.slow),
     ],
 )
 def test_damped_second_order_cantilever_settles_to_the_elastica(k, engine, tol):

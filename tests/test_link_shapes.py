@@ -59,7 +59,7 @@ def test_dttmm_equals_global_shapes(three, dttmm_pair):
     """Same discretisation, independent code: the trajectories agree to the iteration
     tolerance (≤ 1e-9, test_dttmm_vs_global), and so must the shapes."""
     res = dttmm_pair[1]
-    for engine in ("numba", "numpy"):
+    for engine in ("numba", "python"):
         g = methods.run("global", three, 4, 1e-3, shape_points=P, engine=engine)
         _ends_match(g, 1e-13)
         assert np.abs(g.link_shapes - res.link_shapes).max() <= 1e-9, engine

@@ -176,14 +176,14 @@ def test_non_finite_torque_stops_the_run_at_that_step():
         dttmm.simulate(rotor(UserLaw(bad), duration=0.05, step=1e-3), elements_per_link=2, h=1e-3)
 
 
-@pytest.mark.parametrize("engine", ["global-numpy", "exudyn-ancf", "pinocchio-rigid"])
+@pytest.mark.parametrize("engine", ["global-python", "exudyn-ancf", "pinocchio-rigid"])
 def test_a_jitted_law_runs_in_the_other_engines(engine):
     """Engines that call a law from Python give a jitted one a JitState (UserLaw.evaluate): the
     same run as law="pd" (without the moment term: the rigid baseline's moment is nan)."""
-    if engine == "global-numpy":
+    if engine == "global-python":
         gn = pytest.importorskip("reference_models.global_newmark")
         run = lambda law: gn.simulate(
-            rotor(law, duration=0.05, EI=1e4), elements_per_link=2, h=1e-3, engine="numpy"
+            rotor(law, duration=0.05, EI=1e4), elements_per_link=2, h=1e-3, engine="python"
         )
     elif engine == "exudyn-ancf":
         ex = pytest.importorskip("reference_models.exudyn_ancf")
