@@ -138,6 +138,22 @@ def test_available_reports_reasons_instead_of_crashing():
     assert "unknown method" in av["no-such-method"]
 
 
+def test_available_in_parallel_processes_gives_the_serial_answer():
+    """The probe in forked processes (one per engine module) sees the methods registered here
+    and reports the same reasons, in the order asked."""
+
+    def not_yet(case, **kw):
+        raise NotImplementedError("soon")
+
+    methods.register("not-yet", not_yet)
+    asked = ["no-such-method", "rotor", "not-yet", "pinocchio-rigid"]
+    serial = methods.available(asked, workers=1)
+    parallel = methods.available(asked, workers=2)
+    assert list(parallel) == asked
+    assert parallel == serial
+    assert parallel["rotor"] is None and "not implemented" in parallel["not-yet"]
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
