@@ -400,13 +400,51 @@ def _head(meta, om) -> list[str]:
     return head
 
 
+_FORKED: Inputs | None = None  # the inputs a forked section worker reads (see _sections)
+
+
+def _section_in_worker(i: int):
+    """Section builder i on the forked inputs: (its Section, the tables and meta entries it added
+    or replaced), so that the parent can keep them as if it had run the builder itself."""
+    inp = _FORKED
+    tables, meta = dict(inp.tables), dict(inp.meta)
+    sec = SECTION_BUILDERS[i](inp)
+    new_tables = {k: v for k, v in inp.tables.items() if tables.get(k) is not v}
+    new_meta = {k: v for k, v in inp.meta.items() if meta.get(k) is not v}
+    return sec, new_tables, new_meta
+
+
+def _sections(inp: Inputs, workers: int | None = None) -> list:
+    """Every section builder's Section, in order. Drawing the figures is most of a report's
+    build; the builders are independent, so they run in ``workers`` processes forked from this
+    one (default: this machine's cores, at most 4), or here where fork is not offered."""
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    global _FORKED
+    n = min(4, os.cpu_count() or 1) if workers is None else workers
+    if n <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        return [b(inp) for b in SECTION_BUILDERS]
+    _FORKED = inp
+    try:
+        with ProcessPoolExecutor(n, mp_context=multiprocessing.get_context("fork")) as pool:
+            done = list(pool.map(_section_in_worker, range(len(SECTION_BUILDERS))))
+    finally:
+        _FORKED = None
+    for _, new_tables, new_meta in done:
+        inp.tables.update(new_tables)
+        inp.meta.update(new_meta)
+    return [sec for sec, _, _ in done]
+
+
 def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra=None):
     """Write figures, ``index.html`` and ``REPORT.md`` into ``out`` from the study tables."""
     out = Path(out)
     tables = dict(tables)
     inp = Inputs(tables, meta, out / "figures", Path(bench_dir))
     inp.fig_dir.mkdir(parents=True, exist_ok=True)
-    secs = [s for s in (b(inp) for b in SECTION_BUILDERS) if s is not None]
+    secs = [s for s in _sections(inp) if s is not None]
     om = omissions(tables)
     board = scoreboard(tables, meta)
     (out / "data").mkdir(parents=True, exist_ok=True)

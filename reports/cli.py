@@ -60,7 +60,10 @@ def run_report(
     t0 = time.perf_counter()
     mark = time.time()
     out = Path(out)
+    t_probe = time.perf_counter()
+    log("checking which methods run here (a fresh checkout compiles the numba engines first: about 2 min)")
     avail = methods.available(_methods_in(plan), workers=1 if scheduler == "serial" else workers)
+    log(f"methods checked ({time.perf_counter() - t_probe:.0f} s)")
     for m, why in avail.items():
         if why:
             log(f"unavailable: {m}: {why}")
