@@ -35,7 +35,6 @@ from .schema import (
     Positive,
     Until,
     _short,
-    _Strict,
     build,
     field_types,
     fields_model,
@@ -507,7 +506,7 @@ def _union(tables):
 
 
 #: ``{ law = "computed_torque" }``: rigid-model inverse dynamics of the reference motion
-ComputedTorqueTable = _tagged("computed_torque", create_model("ComputedTorqueFields", __base__=_Strict))
+ComputedTorqueTable = _tagged("computed_torque", fields_model(ComputedTorque))
 
 #: the tables of a PD/PID law's sub-laws: reference (a motion law), feedforward (a torque law)
 SUB_LAW_TABLES = {
@@ -549,12 +548,12 @@ def _prefixed(exc: InputError, where: str) -> InputError:
 
 def law_from_table(name: str, spec):
     """The law ``name`` from a table its :data:`LAW_FIELDS` model (or a drive table) has
-    validated: built from the validated values, only the cross-field rules run again."""
+    validated: built from the validated values; only the cross-field rules run."""
     if name == "computed_torque":
         return ComputedTorque()
     cls = LAWS[name]
     values = {k: getattr(spec, k) for k in field_types(cls)}
-    for k in SUB_LAW_TABLES.keys() & {f.name for f in dataclasses.fields(cls)}:
+    for k in [f.name for f in dataclasses.fields(cls) if f.name in SUB_LAW_TABLES]:
         sub = getattr(spec, k)
         try:
             values[k] = None if sub is None else law_from_table(sub.law, sub)

@@ -58,7 +58,6 @@ Positive = Annotated[float, Strict(), Field(ge=SMALL, le=BIG, allow_inf_nan=Fals
 NonNegative = Annotated[float, Strict(), Field(ge=0.0, le=BIG, allow_inf_nan=False)]
 Until = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf allowed (nan fails gt)
 Limit = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf (no saturation) allowed
-FiniteList = Annotated[list[Finite], Strict()]
 
 
 def tuple_of(item, **length):
