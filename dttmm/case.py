@@ -13,9 +13,9 @@ from pydantic import Field, Strict, ValidationError, create_model, model_validat
 
 from .drives import LAW_FIELDS, Drive, law_from_table
 from .errors import InputError
-from .model import Hub, Link, Manipulator, Material, Payload, Section
+from .model import Hub, Link, Manipulator, Material, Payload, Section, _of_material
 from .scenario import Scenario
-from .schema import _short, _Strict, build, field_types, fields_model, input_error
+from .schema import _short, _Strict, build, check_fields, field_types, fields_model, input_error
 
 __all__ = [
     "Case",
@@ -103,14 +103,16 @@ def _optional(types: dict, names) -> dict:
 
 
 #: one ``[[model.links]]`` table: the Section's fields (EI and rhoA optional) or the material
-#: form's, ``inextensible``, and a hub and payload table
+#: form's, ``inextensible``, and a hub and payload table (keys in the order errors are reported)
+_SECTION = _optional(field_types(Section), ("EI", "rhoA"))
 LinkFile = create_model(
     "LinkFile",
     __base__=_OneForm,
     __module__=__name__,
-    **_optional(field_types(Section), ("EI", "rhoA")),
+    **{k: v for k, v in _SECTION.items() if k != "damping"},
     **_optional(field_types(Material), field_types(Material)),
     inextensible=(bool, False),
+    damping=_SECTION["damping"],
     hub=(fields_model(Hub) | None, None),
     payload=(fields_model(Payload) | None, None),
 )
@@ -160,17 +162,21 @@ def validate_case_file(data) -> CaseFile:
 
 
 # --- objects from a validated file (its values are not validated again) -----------------------
+#: the Section fields a material-form link derives (checked once, as they are new numbers)
+_DERIVED = fields_model(Section, ("EI", "rhoA", "EA"))
+
+
 def _link(spec, i: int) -> Link:
     w = f"model.links[{i}]"
     ea = None if spec.inextensible else spec.EA
     if spec.E is not None:
         material = {k: getattr(spec, k) for k in field_types(Material)}
         ea = None if spec.inextensible else (True if spec.EA is None else spec.EA)
-        beam = Section._of_material(spec.length, **material, EA=ea, damping=spec.damping, where=w)
+        derived = dict(zip(("EI", "rhoA", "EA"), _of_material(**material, EA=ea), strict=True))
+        section = {"length": spec.length, **check_fields(_DERIVED, w, **derived), "damping": spec.damping}
     else:
-        beam = build(
-            Section, length=spec.length, EI=spec.EI, rhoA=spec.rhoA, EA=ea, damping=spec.damping, _where=w
-        )
+        section = {"length": spec.length, "EI": spec.EI, "rhoA": spec.rhoA, "EA": ea, "damping": spec.damping}
+    beam = build(Section, **section, _where=w)
     hub = None if spec.hub is None else build(Hub, **dict(spec.hub), _where=f"{w}.hub")
     pay = None if spec.payload is None else build(Payload, **dict(spec.payload), _where=f"{w}.payload")
     return Link(beam, hub, pay)

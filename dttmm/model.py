@@ -47,14 +47,7 @@ class Section(Checked):
         """Rectangular section from Young's modulus E (Pa), density ρ (kg/m³), width and
         thickness (m). ``EA=True`` derives E·A; ``EA=None`` makes the link inextensible."""
         m = check_fields(Material, where, E=E, rho=rho, width=width, thickness=thickness)
-        return cls._of_material(length, **m, EA=EA, damping=damping, where=where)
-
-    @classmethod
-    def _of_material(cls, length, E, rho, width, thickness, *, EA, damping, where) -> Section:
-        """The section of validated material values (the derived EI, rhoA, EA are checked)."""
-        b, t = width, thickness
-        ea = E * b * t if EA is True else EA
-        return cls(length, E * b * t**3 / 12.0, rho * b * t, ea, damping, _where=where)
+        return cls(length, *_of_material(**m, EA=EA), damping, _where=where)
 
     @property
     def mass(self) -> float:
@@ -63,6 +56,12 @@ class Section(Checked):
     @property
     def extensible(self) -> bool:
         return self.EA is not None
+
+
+def _of_material(E, rho, width, thickness, *, EA):
+    """(EI, rhoA, EA) of a rectangular section; ``EA=True`` derives E·A, else it is kept."""
+    b, t = width, thickness
+    return E * b * t**3 / 12.0, rho * b * t, E * b * t if EA is True else EA
 
 
 @dataclass(frozen=True)

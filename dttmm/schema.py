@@ -95,10 +95,12 @@ def field_types(cls) -> dict[str, tuple]:
 
 
 @functools.cache
-def fields_model(cls) -> type[BaseModel]:
-    """The strict pydantic model of the case fields of dataclass ``cls`` (``SectionFields``, …)."""
+def fields_model(cls, only: tuple[str, ...] | None = None) -> type[BaseModel]:
+    """The strict pydantic model of the case fields of dataclass ``cls`` (``SectionFields``, …),
+    or of the fields named in ``only``."""
+    types_ = {k: v for k, v in field_types(cls).items() if only is None or k in only}
     name = f"{cls.__name__.lstrip('_')}Fields"
-    return create_model(name, __base__=_Strict, __module__=cls.__module__, **field_types(cls))
+    return create_model(name, __base__=_Strict, __module__=cls.__module__, **types_)
 
 
 def _set(obj, values: dict) -> None:
