@@ -11,7 +11,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import Field, Strict, ValidationError, create_model, model_validator
 
-from .drives import LAW_FIELDS, Drive, law_from_table
+from .drives import LAW_FIELDS, Drive, _prefixed, law_from_table
 from .errors import InputError
 from .model import Hub, Link, Manipulator, Material, Payload, Section, _of_material
 from .scenario import Scenario
@@ -168,13 +168,13 @@ _DERIVED = fields_model(Section, ("EI", "rhoA", "EA"))
 
 def _link(spec, i: int) -> Link:
     w = f"model.links[{i}]"
-    ea = None if spec.inextensible else spec.EA
     if spec.E is not None:
         material = {k: getattr(spec, k) for k in field_types(Material)}
         ea = None if spec.inextensible else (True if spec.EA is None else spec.EA)
         derived = dict(zip(("EI", "rhoA", "EA"), _of_material(**material, EA=ea), strict=True))
         section = {"length": spec.length, **check_fields(_DERIVED, w, **derived), "damping": spec.damping}
     else:
+        ea = None if spec.inextensible else spec.EA
         section = {"length": spec.length, "EI": spec.EI, "rhoA": spec.rhoA, "EA": ea, "damping": spec.damping}
     beam = build(Section, **section, _where=w)
     hub = None if spec.hub is None else build(Hub, **dict(spec.hub), _where=f"{w}.hub")
@@ -188,7 +188,7 @@ def _drive(spec, i: int) -> Drive:
     try:
         law = law_from_table(spec.law, spec)
     except InputError as exc:
-        raise InputError(exc.field.replace("law", w, 1), exc.value, exc.reason) from None
+        raise _prefixed(exc, w) from None
     values = {k: getattr(spec, k) for k in field_types(Drive)}
     return build(Drive, **values, law=law, _where=w)
 
