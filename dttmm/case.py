@@ -7,14 +7,29 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated, Any, Literal, Union
 
-from .drives import LAWS, Drive
+from pydantic import Field, Strict, ValidationError, create_model, model_validator
+
+from .drives import LAW_FIELDS, Drive, _prefixed, law_from_table
 from .errors import InputError
-from .model import Hub, Link, Manipulator, Payload, Section
+from .model import Hub, Link, Manipulator, Material, Payload, Section, _of_material
 from .scenario import Scenario
-from .schema import CaseFile, LinkFile, validate_case_file
+from .schema import _short, _Strict, build, check_fields, field_types, fields_model, input_error
 
-__all__ = ["Case", "case_from_dict", "case_to_dict", "load_case", "read_case_text", "save_case"]
+__all__ = [
+    "Case",
+    "CaseFile",
+    "LinkFile",
+    "ModelFile",
+    "ScenarioFile",
+    "case_from_dict",
+    "case_to_dict",
+    "load_case",
+    "read_case_text",
+    "save_case",
+    "validate_case_file",
+]
 
 #: a case file larger than this is refused before parsing (bytes)
 MAX_FILE_BYTES = 16 * 2**20
@@ -57,44 +72,136 @@ class Case:
         return self.model.n_links
 
 
-def _link(spec: LinkFile, i: int) -> Link:
+# --- the file format: models composed from the fields the classes declare ---------------------
+class _OneForm(_Strict):
+    """The link-table rules: EI and rhoA, or E, rho, width and thickness; EA or inextensible."""
+
+    @model_validator(mode="after")
+    def _one_form(self):
+        mat = [k for k in field_types(Material) if getattr(self, k) is not None]
+        sec = [k for k in ("EI", "rhoA") if getattr(self, k) is not None]
+        if mat and sec:
+            raise InputError(
+                sec[0],
+                getattr(self, sec[0]),
+                "give either EI and rhoA or E, rho, width and thickness, not both",
+            )
+        if mat and len(mat) < 4:
+            miss = [k for k in field_types(Material) if k not in mat]
+            raise InputError(miss[0], None, f"is required with {', '.join(mat)} (material form)")
+        if not mat:
+            for k in ("EI", "rhoA"):
+                if getattr(self, k) is None:
+                    raise InputError(k, None, "is required (or give E, rho, width, thickness)")
+        if self.inextensible and self.EA is not None:
+            raise InputError("EA", self.EA, "contradicts inextensible = true")
+        return self
+
+
+def _optional(types: dict, names) -> dict:
+    return {k: (tp | None, None) if k in names else (tp, d) for k, (tp, d) in types.items()}
+
+
+#: one ``[[model.links]]`` table: the Section's fields (EI and rhoA optional) or the material
+#: form's, ``inextensible``, and a hub and payload table (keys in the order errors are reported)
+_SECTION = _optional(field_types(Section), ("EI", "rhoA"))
+LinkFile = create_model(
+    "LinkFile",
+    __base__=_OneForm,
+    __module__=__name__,
+    **{k: v for k, v in _SECTION.items() if k != "damping"},
+    **_optional(field_types(Material), field_types(Material)),
+    inextensible=(bool, False),
+    damping=_SECTION["damping"],
+    hub=(fields_model(Hub) | None, None),
+    payload=(fields_model(Payload) | None, None),
+)
+
+
+class ModelFile(fields_model(Manipulator)):
+    links: Annotated[list[LinkFile], Strict(), Field(min_length=1)]
+
+
+def _drive_file(name: str, fields):
+    """A drive table of law ``name``: the Drive's fields, the law's parameters and the tag."""
+    return create_model(
+        f"{fields.__name__[:-6]}Drive",
+        __base__=(fields_model(Drive), fields),
+        __module__=__name__,
+        law=(Literal[name], ...),
+    )
+
+
+DriveFile = Annotated[
+    Union[tuple(_drive_file(n, f) for n, f in LAW_FIELDS.items())],  # noqa: UP007
+    Field(discriminator="law"),
+]
+
+
+class ScenarioFile(fields_model(Scenario)):
+    drives: Annotated[list[DriveFile], Strict()] = []
+
+
+class CaseFile(_Strict):
+    """A whole case file. ``provenance`` is free-form metadata kept on the Case."""
+
+    name: str = ""
+    model: ModelFile
+    scenario: ScenarioFile
+    provenance: dict[str, Any] | None = None
+
+
+def validate_case_file(data) -> CaseFile:
+    """Validate a parsed case document; raises :class:`InputError` naming the first bad key."""
+    if not isinstance(data, dict):
+        raise InputError("case", _short(data), "must be a table (a TOML document)")
+    try:
+        return CaseFile.model_validate(data)
+    except ValidationError as exc:
+        raise input_error(exc, CaseFile) from None
+
+
+# --- objects from a validated file (its values are not validated again) -----------------------
+#: the Section fields a material-form link derives (checked once, as they are new numbers)
+_DERIVED = fields_model(Section, ("EI", "rhoA", "EA"))
+
+
+def _link(spec, i: int) -> Link:
     w = f"model.links[{i}]"
     if spec.E is not None:
-        ea = None if spec.inextensible else (spec.EA if spec.EA is not None else True)
-        beam = Section.from_material(
-            spec.length, spec.E, spec.rho, spec.width, spec.thickness, EA=ea, damping=spec.damping, where=w
-        )
+        material = {k: getattr(spec, k) for k in field_types(Material)}
+        ea = None if spec.inextensible else (True if spec.EA is None else spec.EA)
+        derived = dict(zip(("EI", "rhoA", "EA"), _of_material(**material, EA=ea), strict=True))
+        section = {"length": spec.length, **check_fields(_DERIVED, w, **derived), "damping": spec.damping}
     else:
-        beam = Section(
-            spec.length, spec.EI, spec.rhoA, None if spec.inextensible else spec.EA, spec.damping, _where=w
-        )
-    hub = None if spec.hub is None else Hub(spec.hub.mass, spec.hub.inertia, _where=f"{w}.hub")
-    pay = (
-        None
-        if spec.payload is None
-        else Payload(spec.payload.mass, spec.payload.inertia, _where=f"{w}.payload")
-    )
+        ea = None if spec.inextensible else spec.EA
+        section = {"length": spec.length, "EI": spec.EI, "rhoA": spec.rhoA, "EA": ea, "damping": spec.damping}
+    beam = build(Section, **section, _where=w)
+    hub = None if spec.hub is None else build(Hub, **dict(spec.hub), _where=f"{w}.hub")
+    pay = None if spec.payload is None else build(Payload, **dict(spec.payload), _where=f"{w}.payload")
     return Link(beam, hub, pay)
 
 
 def _drive(spec, i: int) -> Drive:
+    """The drive of the validated drive table ``spec``, joint ``i``."""
     w = f"scenario.drives[{i}]"
-    params = spec.model_dump(exclude={"law", "kind", "initial_angle", "initial_rate"})
     try:
-        law = LAWS[spec.law](**params)
+        law = law_from_table(spec.law, spec)
     except InputError as exc:
-        raise InputError(exc.field.replace("law.", f"{w}.", 1), exc.value, exc.reason) from None
-    return Drive(spec.kind, law, spec.initial_angle, spec.initial_rate, _where=w)
+        raise _prefixed(exc, w) from None
+    values = {k: getattr(spec, k) for k in field_types(Drive)}
+    return build(Drive, **values, law=law, _where=w)
 
 
 def case_from_spec(spec: CaseFile) -> Case:
-    """Build a :class:`Case` from a validated :class:`dttmm.schema.CaseFile`."""
+    """Build a :class:`Case` from a validated :class:`CaseFile`."""
     links = tuple(_link(d, i) for i, d in enumerate(spec.model.links))
-    manip = Manipulator(links, tuple(spec.model.gravity))
+    manip = build(Manipulator, links=links, gravity=spec.model.gravity)
     scen = spec.scenario
     drives = tuple(_drive(d, i) for i, d in enumerate(scen.drives))
     prov = None if spec.provenance is None else dict(spec.provenance)
-    return Case(manip, Scenario(scen.duration, scen.output_step, drives), spec.name, prov)
+    scenario = build(Scenario, duration=scen.duration, output_step=scen.output_step, drives=drives)
+    return Case(manip, scenario, spec.name, prov)
 
 
 def case_from_dict(data: dict) -> Case:

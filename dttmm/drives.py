@@ -17,18 +17,34 @@ and the step that starts there the right limit.
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass, field
+from typing import Annotated, Literal, Optional, Union
 
-from pydantic import BaseModel, ValidationError
+from pydantic import Field, Strict, ValidationError, create_model
 
 from .control_state import ControlState, JitState, is_jitted, jit_state
 from .errors import InputError
-from .schema import LAW_FIELDS, DriveFields, PDGainFields, PIDGainFields, _short, check_fields
+from .schema import (
+    Checked,
+    Finite,
+    Limit,
+    NonNegative,
+    Positive,
+    Until,
+    _short,
+    build,
+    field_types,
+    fields_model,
+    input_error,
+    tuple_of,
+)
 
 __all__ = [
     "LAWS",
+    "LAW_FIELDS",
     "PD",
     "PID",
     "BangBang",
@@ -61,15 +77,13 @@ def _check_kind(law, kind: str, where: str):
 
 
 @dataclass(frozen=True)
-class Constant:
+class Constant(Checked):
     """τ = value, or α = value (held angle)."""
 
-    value: float = 0.0
+    value: Finite = 0.0
     name = "constant"
     kinds = ("torque", "motion")
-
-    def __post_init__(self):
-        _set(self, check_fields(LAW_FIELDS["constant"], "law", value=self.value))
+    _where = "law"
 
     def __call__(self, t: float, left: bool = False) -> float:
         return self.value
@@ -86,23 +100,21 @@ class Constant:
 
 
 @dataclass(frozen=True)
-class BangBang:
+class BangBang(Checked):
     """Piecewise constant: ``levels[i]`` holds on [t_i, t_{i+1}) with t_0 = -inf."""
 
-    levels: tuple[float, ...]
-    switch_times: tuple[float, ...]
+    levels: tuple_of(Finite, min_length=1)
+    switch_times: tuple_of(Finite)
     name = "bang_bang"
     kinds = ("torque",)
+    _where = "law"
 
-    def __post_init__(self):
-        ok = check_fields(LAW_FIELDS["bang_bang"], "law", levels=self.levels, switch_times=self.switch_times)
-        lv, st = ok["levels"], ok["switch_times"]
+    def _rules(self):
+        lv, st = self.levels, self.switch_times
         if len(lv) != len(st) + 1:
             raise InputError("law.levels", list(lv), f"needs len(switch_times) + 1 = {len(st) + 1} entries")
         if any(b <= a for a, b in itertools.pairwise(st)):
             raise InputError("law.switch_times", list(st), "must be strictly increasing")
-        object.__setattr__(self, "levels", lv)
-        object.__setattr__(self, "switch_times", st)
 
     def __call__(self, t: float, left: bool = False) -> float:
         side = bisect.bisect_left if left else bisect.bisect_right
@@ -117,30 +129,17 @@ class BangBang:
 
 
 @dataclass(frozen=True)
-class Sine:
+class Sine(Checked):
     """amplitude·sin(2π·frequency·t + phase) + offset for t < until, offset afterwards."""
 
-    amplitude: float
-    frequency: float
-    phase: float = 0.0
-    offset: float = 0.0
-    until: float = math.inf
+    amplitude: Finite
+    frequency: Positive
+    phase: Finite = 0.0
+    offset: Finite = 0.0
+    until: Until = math.inf
     name = "sine"
     kinds = ("torque", "motion")
-
-    def __post_init__(self):
-        _set(
-            self,
-            check_fields(
-                LAW_FIELDS["sine"],
-                "law",
-                amplitude=self.amplitude,
-                frequency=self.frequency,
-                phase=self.phase,
-                offset=self.offset,
-                until=self.until,
-            ),
-        )
+    _where = "law"
 
     def _on(self, t, left):
         return t < self.until or (left and t <= self.until)
@@ -174,20 +173,18 @@ class Sine:
 
 
 @dataclass(frozen=True)
-class SpinUp:
+class SpinUp(Checked):
     """Smooth spin-up to the rate ω_s (rad/s) over ``ramp_time`` T (s) (motion only).
 
     rate (ω_s/T)(t − (T/2π) sin(2πt/T)) for t < T, then ω_s; the angle is its integral
     (ω_s/T)(t²/2 + (T/2π)²(cos(2πt/T) − 1)), then ω_s(t − T/2).
     """
 
-    rate: float
-    ramp_time: float
+    rate: Finite
+    ramp_time: Positive
     name = "spin_up"
     kinds = ("motion",)
-
-    def __post_init__(self):
-        _set(self, check_fields(LAW_FIELDS["spin_up"], "law", rate=self.rate, ramp_time=self.ramp_time))
+    _where = "law"
 
     def motion(self, t: float, left: bool = False):
         ws, T = self.rate, self.ramp_time
@@ -211,7 +208,7 @@ class SpinUp:
 
 
 @dataclass(frozen=True)
-class Table:
+class Table(Checked):
     """Tabulated law through the points (times[i], values[i]), held at the end values outside.
 
     Torque: piecewise linear. Motion: the angle is the cubic spline through the points with
@@ -220,21 +217,19 @@ class Table:
     continuous inside the table and jumps at its two ends, which are the law's breakpoints.
     """
 
-    times: tuple[float, ...]
-    values: tuple[float, ...]
+    times: tuple_of(Finite, min_length=2)
+    values: tuple_of(Finite, min_length=2)
     name = "table"
     kinds = ("torque", "motion")
+    _where = "law"
     _spline: object = field(default=None, init=False, repr=False, compare=False)
 
-    def __post_init__(self):
-        ok = check_fields(LAW_FIELDS["table"], "law", times=self.times, values=self.values)
-        ts, vs = ok["times"], ok["values"]
+    def _rules(self):
+        ts, vs = self.times, self.values
         if len(vs) != len(ts):
             raise InputError("law.values", list(vs), f"needs one value per time ({len(ts)} entries)")
         if any(b <= a for a, b in itertools.pairwise(ts)):
             raise InputError("law.times", list(ts), "must be strictly increasing")
-        object.__setattr__(self, "times", ts)
-        object.__setattr__(self, "values", vs)
 
     def __call__(self, t: float, left: bool = False) -> float:
         ts, vs = self.times, self.values
@@ -289,10 +284,8 @@ class ComputedTorque:
 
 
 def _sub_law(value, where: str, kind: str):
-    """A reference (``kind="motion"``) or feedforward (``"torque"``) law from a law object, a
-    table (dict) or a validated schema model; open-loop laws only."""
-    if isinstance(value, BaseModel):
-        value = value.model_dump()
+    """A reference (``kind="motion"``) or feedforward (``"torque"``) law from a law object or a
+    table (dict); open-loop laws only."""
     if isinstance(value, dict):
         if kind == "torque" and value.get("law") == "computed_torque":
             extra = sorted(k for k in value if k != "law")
@@ -330,8 +323,12 @@ def _saturate(tau: float, limit: float, slopes: tuple) -> tuple:
     return (tau, *slopes)
 
 
+#: > −1: at −1 the torque loop through the root bending moment has no solution
+MomentGain = Annotated[float, Strict(), Field(gt=-1.0, allow_inf_nan=False)]
+
+
 @dataclass(frozen=True)
-class PD:
+class PD(Checked):
     """τ = τ_ff(t) + kp (α_ref − α) + kd (α̇_ref − α̇) − moment_gain·M_root, then |τ| ≤ limit.
 
     kp : N·m/rad, kd : N·m·s/rad (both ≥ 0); reference : a motion law (or its table) giving
@@ -339,19 +336,18 @@ class PD:
     limit : N·m (inf: no saturation). Beyond the limit τ = ±limit and every slope is 0.
     """
 
-    kp: float
-    kd: float
+    kp: NonNegative
+    kd: NonNegative
     reference: object
     feedforward: object = None
-    moment_gain: float = 0.0
-    limit: float = math.inf
+    moment_gain: MomentGain = 0.0
+    limit: Limit = math.inf
     name = "pd"
     kinds = ("torque",)
     closed_loop = True
-    _gain_fields = PDGainFields
+    _where = "law"
 
-    def __post_init__(self):
-        _set(self, check_fields(self._gain_fields, "law", **self._gains()))
+    def _rules(self):
         _set(self, {"reference": _sub_law(self.reference, "law.reference", "motion")})
         if self.feedforward is not None:
             _set(self, {"feedforward": _sub_law(self.feedforward, "law.feedforward", "torque")})
@@ -420,9 +416,8 @@ class PID(PD):
     integrating while the torque is saturated).
     """
 
-    ki: float = None  # required: None is refused with a clear message
+    ki: NonNegative = None  # required: None is refused with a clear message
     name = "pid"
-    _gain_fields = PIDGainFields
 
     def _gains(self) -> dict:
         return {**super()._gains(), "ki": self.ki}
@@ -494,7 +489,77 @@ class UserLaw:
         raise InputError("law", self.label, "a user law (Python callable) cannot be written to a case file")
 
 
-LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table, PD, PID)}
+OPEN_LAWS = {cls.name: cls for cls in (Constant, BangBang, Sine, SpinUp, Table)}
+LAWS = {**OPEN_LAWS, "pd": PD, "pid": PID}
+
+
+# --- law tables: a law in a case file, ``law = "sine"`` and its parameters ----------------------
+def _tagged(name: str, fields):
+    """The model ``fields`` plus the tag ``law = name``: one member of a union of law tables."""
+    return create_model(
+        f"{fields.__name__[:-6]}Table", __base__=fields, __module__=__name__, law=(Literal[name], ...)
+    )
+
+
+def _union(tables):
+    return Annotated[Union[tuple(tables)], Field(discriminator="law")]  # noqa: UP007
+
+
+#: ``{ law = "computed_torque" }``: rigid-model inverse dynamics of the reference motion
+ComputedTorqueTable = _tagged("computed_torque", fields_model(ComputedTorque))
+
+#: the tables of a PD/PID law's sub-laws: reference (a motion law), feedforward (a torque law)
+SUB_LAW_TABLES = {
+    "reference": _union(_tagged(n, fields_model(c)) for n, c in OPEN_LAWS.items() if "motion" in c.kinds),
+    "feedforward": _union(
+        [
+            *(_tagged(n, fields_model(c)) for n, c in OPEN_LAWS.items() if "torque" in c.kinds),
+            ComputedTorqueTable,
+        ]
+    ),
+}
+
+
+def _law_fields(cls):
+    """The model of the parameters of law ``cls`` in a table: its case fields, and its sub-laws
+    as tables (required, or optional with the dataclass default None)."""
+    subs = {
+        f.name: (
+            (SUB_LAW_TABLES[f.name], ...)
+            if f.default is dataclasses.MISSING
+            else (Optional[SUB_LAW_TABLES[f.name]], f.default)  # noqa: UP045
+        )
+        for f in dataclasses.fields(cls)
+        if f.name in SUB_LAW_TABLES
+    }
+    if not subs:
+        return fields_model(cls)
+    return create_model(f"{cls.__name__}Fields", __base__=fields_model(cls), __module__=__name__, **subs)
+
+
+#: law name -> the model of its parameters (every law a case file can name)
+LAW_FIELDS = {name: _law_fields(cls) for name, cls in LAWS.items()}
+
+
+def _prefixed(exc: InputError, where: str) -> InputError:
+    """``exc`` with its leading ``law`` replaced by the path ``where``."""
+    return InputError(exc.field.replace("law", where, 1), exc.value, exc.reason)
+
+
+def law_from_table(name: str, spec):
+    """The law ``name`` from a table its :data:`LAW_FIELDS` model (or a drive table) has
+    validated: built from the validated values; only the cross-field rules run."""
+    if name == "computed_torque":
+        return ComputedTorque()
+    cls = LAWS[name]
+    values = {k: getattr(spec, k) for k in field_types(cls)}
+    for k in [f.name for f in dataclasses.fields(cls) if f.name in SUB_LAW_TABLES]:
+        sub = getattr(spec, k)
+        try:
+            values[k] = None if sub is None else law_from_table(sub.law, sub)
+        except InputError as exc:
+            raise _prefixed(exc, f"law.{k}") from None
+    return build(cls, **values)
 
 
 def law_from_dict(params: dict, where: str = "law"):
@@ -506,20 +571,18 @@ def law_from_dict(params: dict, where: str = "law"):
     name = params.pop("law", None)
     if not isinstance(name, str) or name not in LAWS:
         raise InputError(f"{where}.law", name, f"unknown drive law (one of: {', '.join(LAWS)})")
-    from .schema import input_error
-
     try:
         ok = LAW_FIELDS[name].model_validate(params)
     except ValidationError as exc:
         raise input_error(exc, LAW_FIELDS[name], where) from None
     try:
-        return LAWS[name](**dict(ok))
+        return law_from_table(name, ok)
     except InputError as exc:
-        raise InputError(exc.field.replace("law.", f"{where}.", 1), exc.value, exc.reason) from None
+        raise _prefixed(exc, where) from None
 
 
 @dataclass(frozen=True)
-class Drive:
+class Drive(Checked):
     """How one joint is driven.
 
     kind : ``"torque"`` (the law gives τ; the joint angle is free) or ``"motion"`` (the law
@@ -530,24 +593,14 @@ class Drive:
     they follow from the law; if given they must agree with it.
     """
 
-    kind: str
+    kind: Literal["torque", "motion"]
     law: object
-    initial_angle: float = 0.0
-    initial_rate: float = 0.0
+    initial_angle: Finite = 0.0
+    initial_rate: Finite = 0.0
     _where: str = field(default="drive", repr=False, compare=False)
 
-    def __post_init__(self):
+    def _rules(self):
         w = self._where
-        _set(
-            self,
-            check_fields(
-                DriveFields,
-                w,
-                kind=self.kind,
-                initial_angle=self.initial_angle,
-                initial_rate=self.initial_rate,
-            ),
-        )
         if getattr(self.law, "name", None) not in LAWS and not isinstance(self.law, UserLaw):
             raise InputError(
                 f"{w}.law",

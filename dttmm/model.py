@@ -1,7 +1,8 @@
 """The physical model of a planar manipulator with flexible links (SI units, radians).
 
 All classes are frozen dataclasses validated on construction; make variants with
-:func:`dataclasses.replace`.
+:func:`dataclasses.replace`. The annotations of the case fields are their value types, the one
+declaration the case-file layer (:mod:`dttmm.case`) uses too.
 """
 
 from __future__ import annotations
@@ -9,13 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from .errors import InputError
-from .schema import BodyFields, MaterialFields, ModelFields, SectionFields, check_fields
+from .schema import Bounded, Checked, NonNegative, Positive, check_fields, tuple_of
 
 __all__ = ["Hub", "Link", "Manipulator", "Payload", "Section"]
 
 
 @dataclass(frozen=True)
-class Section:
+class Section(Checked):
     """Uniform Euler-Bernoulli beam data of one link.
 
     Parameters
@@ -32,25 +33,12 @@ class Section:
         Stiffness-proportional (Kelvin-Voigt) coefficient μ (s): D = μK.
     """
 
-    length: float
-    EI: float
-    rhoA: float
-    EA: float | None = None
-    damping: float = 0.0
+    length: Positive
+    EI: Positive
+    rhoA: Positive
+    EA: Positive | None = None
+    damping: NonNegative = 0.0
     _where: str = field(default="section", repr=False, compare=False)
-
-    def __post_init__(self):
-        ok = check_fields(
-            SectionFields,
-            self._where,
-            length=self.length,
-            EI=self.EI,
-            rhoA=self.rhoA,
-            EA=self.EA,
-            damping=self.damping,
-        )
-        for k, v in ok.items():
-            object.__setattr__(self, k, v)
 
     @classmethod
     def from_material(
@@ -58,10 +46,8 @@ class Section:
     ) -> Section:
         """Rectangular section from Young's modulus E (Pa), density ρ (kg/m³), width and
         thickness (m). ``EA=True`` derives E·A; ``EA=None`` makes the link inextensible."""
-        m = check_fields(MaterialFields, where, E=E, rho=rho, width=width, thickness=thickness)
-        E, rho, b, t = m["E"], m["rho"], m["width"], m["thickness"]
-        ea = E * b * t if EA is True else EA
-        return cls(length, E * b * t**3 / 12.0, rho * b * t, ea, damping, _where=where)
+        m = check_fields(Material, where, E=E, rho=rho, width=width, thickness=thickness)
+        return cls(length, *_of_material(**m, EA=EA), damping, _where=where)
 
     @property
     def mass(self) -> float:
@@ -72,18 +58,30 @@ class Section:
         return self.EA is not None
 
 
+def _of_material(E, rho, width, thickness, *, EA):
+    """(EI, rhoA, EA) of a rectangular section; ``EA=True`` derives E·A, else it is kept."""
+    b, t = width, thickness
+    return E * b * t**3 / 12.0, rho * b * t, E * b * t if EA is True else EA
+
+
 @dataclass(frozen=True)
-class _Body:
+class Material:
+    """Rectangular section from material: E (Pa), rho (kg/m³), width and thickness (m); the
+    fields of :meth:`Section.from_material` and of a link table's material form."""
+
+    E: Positive
+    rho: Positive
+    width: Positive
+    thickness: Positive
+
+
+@dataclass(frozen=True)
+class _Body(Checked):
     """A rigid body on the beam axis: mass (kg) and inertia (kg·m²) about its attachment point."""
 
-    mass: float = 0.0
-    inertia: float = 0.0
+    mass: NonNegative = 0.0
+    inertia: NonNegative = 0.0
     _where: str = field(default="body", repr=False, compare=False)
-
-    def __post_init__(self):
-        ok = check_fields(BodyFields, self._where, mass=self.mass, inertia=self.inertia)
-        for k, v in ok.items():
-            object.__setattr__(self, k, v)
 
 
 @dataclass(frozen=True)
@@ -134,7 +132,7 @@ class Link:
 
 
 @dataclass(frozen=True)
-class Manipulator:
+class Manipulator(Checked):
     """A planar serial arm: n revolute joints (about z) and n flexible links, base first.
 
     Joint i sits at the root of link i; joint 1 at the origin of the ground frame.
@@ -142,9 +140,10 @@ class Manipulator:
     """
 
     links: tuple[Link, ...]
-    gravity: tuple[float, float] = (0.0, 0.0)
+    gravity: tuple_of(Bounded, min_length=2, max_length=2) = (0.0, 0.0)
+    _where = "model"
 
-    def __post_init__(self):
+    def _rules(self):
         if not isinstance(self.links, (tuple, list)):
             raise InputError("model.links", self.links, "must be a tuple of dttmm.Link")
         links = tuple(self.links)
@@ -154,9 +153,6 @@ class Manipulator:
             if not isinstance(link, Link):
                 raise InputError(f"model.links[{i}]", link, "must be a dttmm.Link")
         object.__setattr__(self, "links", links)
-        object.__setattr__(
-            self, "gravity", check_fields(ModelFields, "model", gravity=self.gravity)["gravity"]
-        )
 
     @property
     def n_links(self) -> int:

@@ -8,23 +8,21 @@ import numpy as np
 
 from .drives import Drive
 from .errors import InputError
-from .schema import ScenarioFields, check_fields
+from .schema import Checked, Positive
 
 __all__ = ["Scenario"]
 
 
 @dataclass(frozen=True)
-class Scenario:
+class Scenario(Checked):
     """duration (s), output_step (s) of the common output grid, drives (one per joint, base first)."""
 
-    duration: float
-    output_step: float
+    duration: Positive
+    output_step: Positive
     drives: tuple[Drive, ...]
+    _where = "scenario"
 
-    def __post_init__(self):
-        ok = check_fields(ScenarioFields, "scenario", duration=self.duration, output_step=self.output_step)
-        for k, v in ok.items():
-            object.__setattr__(self, k, v)
+    def _rules(self):
         if self.output_step > self.duration:
             raise InputError(
                 "scenario.output_step", self.output_step, f"must not exceed the duration {self.duration}"

@@ -1,52 +1,49 @@
-"""The case schema: every field of a case, its type and its allowed values, in one place.
+"""The value types of case fields, their validation and the one-line errors it raises.
 
-Two consumers share these definitions:
+Every case field is declared once, as a field of a frozen dataclass (:class:`dttmm.Section`,
+:class:`dttmm.Drive`, the drive laws, …) annotated with a value type below (``length:
+Positive``, ``kind: Literal["torque", "motion"]``). From those annotations
 
-* the case-file loader (:mod:`dttmm.case`) validates a parsed TOML document against
-  :class:`CaseFile` — strict types (no bool or string is read as a number; an integer is a
-  fine float), unknown keys refused at any depth with the nearest valid key;
-* the Python constructors (:class:`dttmm.Section`, :class:`dttmm.Drive`, the drive laws, …)
-  validate their fields through the ``*Fields`` models below via :func:`check_fields`.
+* :func:`fields_model` derives a strict pydantic model per class, which the constructors use
+  (:class:`Checked`, :func:`check_fields`): strict types (no bool or string is read as a number;
+  an integer is a fine float), unknown keys refused with the nearest valid key;
+* the case-file layer (:mod:`dttmm.case`, the law tables in :mod:`dttmm.drives`) composes its
+  file models from the same derived models, validates a document once, and builds the objects
+  from the validated values with :func:`build`, which runs only the rules that span several
+  fields (``_rules``: bang-bang levels vs switch times, a motion drive's initial state vs its
+  law, output step vs duration, …).
 
-Cross-field rules (bang-bang levels vs switch times, a motion drive's initial state vs its law,
-output step vs duration, one drive per joint) live in the constructors, which the loader calls,
-so they also hold for both. The reference for users is docs/cases.md.
+The reference for users is docs/cases.md.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
-import math
+import functools
 import numbers
 import types
-from typing import Annotated, Any, Literal, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, Union, get_args, get_origin, get_type_hints
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, Strict, ValidationError, create_model
 
 from .errors import InputError
 
 __all__ = [
-    "LAW_FIELDS",
-    "OPEN_LAW_FIELDS",
-    "BodyFields",
-    "CaseFile",
-    "DriveFields",
+    "Bounded",
+    "Checked",
     "Finite",
-    "LinkFile",
-    "MaterialFields",
+    "Limit",
     "NonNegative",
-    "PDFields",
-    "PDGainFields",
-    "PIDFields",
-    "PIDGainFields",
     "Positive",
-    "ScenarioFields",
-    "SectionFields",
     "Until",
+    "build",
     "check_fields",
+    "field_types",
+    "fields_model",
     "input_error",
-    "validate_case_file",
+    "tuple_of",
 ]
 
 # --- value types (units are those of the field that uses them) -----------------------------
@@ -60,224 +57,88 @@ Bounded = Annotated[float, Strict(), Field(ge=-BIG, le=BIG, allow_inf_nan=False)
 Positive = Annotated[float, Strict(), Field(ge=SMALL, le=BIG, allow_inf_nan=False)]
 NonNegative = Annotated[float, Strict(), Field(ge=0.0, le=BIG, allow_inf_nan=False)]
 Until = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf allowed (nan fails gt)
-FiniteList = Annotated[list[Finite], Strict()]
+Limit = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf (no saturation) allowed
+
+
+def tuple_of(item, **length):
+    """A list of ``item`` values (``min_length``, ``max_length``), kept as a tuple."""
+    return Annotated[list[item], Strict(), Field(**length), AfterValidator(tuple)]
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(strict=True, extra="forbid", frozen=True)
 
 
-# --- fields of the Python objects -----------------------------------------------------------
-class BodyFields(_Strict):
-    """Hub or payload: mass (kg), inertia (kg·m²) about its attachment point."""
-
-    mass: NonNegative = 0.0
-    inertia: NonNegative = 0.0
-
-
-class SectionFields(_Strict):
-    """Beam of one link: length (m), EI (N·m²), rhoA (kg/m), EA (N, None: inextensible),
-    damping (s, stiffness-proportional)."""
-
-    length: Positive
-    EI: Positive
-    rhoA: Positive
-    EA: Positive | None = None
-    damping: NonNegative = 0.0
+# --- fields declared by dataclasses -----------------------------------------------------------
+def _is_value(tp) -> bool:
+    """Whether a field annotation is a value type (Annotated or Literal, possibly optional);
+    other fields (a law object, a tuple of links) are checked by their class."""
+    if get_origin(tp) in (Union, types.UnionType):
+        return all(_is_value(a) for a in get_args(tp) if a is not type(None))
+    return get_origin(tp) in (Annotated, Literal)
 
 
-class MaterialFields(_Strict):
-    """Rectangular section from material: E (Pa), rho (kg/m³), width and thickness (m)."""
-
-    E: Positive
-    rho: Positive
-    width: Positive
-    thickness: Positive
-
-
-class ModelFields(_Strict):
-    """gravity (m/s²) in the plane of motion."""
-
-    gravity: Annotated[list[Bounded], Strict(), Field(min_length=2, max_length=2)] = [0.0, 0.0]
-
-
-class ScenarioFields(_Strict):
-    """duration (s) and output_step (s) of the common output grid."""
-
-    duration: Positive
-    output_step: Positive
+@functools.cache
+def field_types(cls) -> dict[str, tuple]:
+    """name -> (value type, default or ``...`` when required) of the case fields of dataclass
+    ``cls``: its public init fields annotated with a value type, in declaration order. A
+    default of None on a type that refuses None (``ki`` of a PID law) marks a required field."""
+    hints = get_type_hints(cls, include_extras=True)
+    out = {}
+    for f in dataclasses.fields(cls):
+        tp = hints[f.name]
+        if f.name.startswith("_") or not f.init or not _is_value(tp):
+            continue
+        required = f.default is dataclasses.MISSING or (f.default is None and type(None) not in get_args(tp))
+        out[f.name] = (tp, ... if required else f.default)
+    return out
 
 
-class DriveFields(_Strict):
-    """Joint drive: kind, and the joint state at t = 0 (rad, rad/s)."""
-
-    kind: Literal["torque", "motion"]
-    initial_angle: Finite = 0.0
-    initial_rate: Finite = 0.0
-
-
-class ConstantFields(_Strict):
-    value: Finite = 0.0
+@functools.cache
+def fields_model(cls, only: tuple[str, ...] | None = None) -> type[BaseModel]:
+    """The strict pydantic model of the case fields of dataclass ``cls`` (``SectionFields``, …),
+    or of the fields named in ``only``."""
+    types_ = {k: v for k, v in field_types(cls).items() if only is None or k in only}
+    name = f"{cls.__name__.lstrip('_')}Fields"
+    return create_model(name, __base__=_Strict, __module__=cls.__module__, **types_)
 
 
-class BangBangFields(_Strict):
-    levels: Annotated[FiniteList, Field(min_length=1)]
-    switch_times: FiniteList
+def _set(obj, values: dict) -> None:
+    for k, v in values.items():
+        object.__setattr__(obj, k, v)
 
 
-class SineFields(_Strict):
-    amplitude: Finite
-    frequency: Positive
-    phase: Finite = 0.0
-    offset: Finite = 0.0
-    until: Until = math.inf
+class Checked:
+    """Base of the dataclasses whose fields are case fields.
+
+    On construction the fields annotated with a value type are validated (an error names
+    ``<_where>.<field>``), then :meth:`_rules` checks what spans several fields.
+    """
+
+    _where = "value"
+
+    def __post_init__(self):
+        cls = type(self)
+        _set(self, check_fields(cls, self._where, **{k: getattr(self, k) for k in field_types(cls)}))
+        self._rules()
+
+    def _rules(self) -> None:
+        """Rules that span several fields (none by default); raise :class:`InputError`."""
 
 
-class SpinUpFields(_Strict):
-    rate: Finite
-    ramp_time: Positive
-
-
-class TableFields(_Strict):
-    times: Annotated[FiniteList, Field(min_length=2)]
-    values: Annotated[FiniteList, Field(min_length=2)]
-
-
-#: open-loop law name -> the model of its parameters
-OPEN_LAW_FIELDS: dict[str, type[_Strict]] = {
-    "constant": ConstantFields,
-    "bang_bang": BangBangFields,
-    "sine": SineFields,
-    "spin_up": SpinUpFields,
-    "table": TableFields,
-}
-MOTION_LAWS = ("constant", "sine", "spin_up", "table")  # laws that can give an angle α(t)
-TORQUE_LAWS = ("constant", "bang_bang", "sine", "table")  # laws that can give a torque τ(t)
-
-
-def _tagged(name: str, fields: type[_Strict]) -> type[_Strict]:
-    """``fields`` plus the tag ``law = name``: one member of a nested law table's union."""
-    return type(
-        f"{fields.__name__[:-6]}Table",
-        (fields,),
-        {"__annotations__": {"law": Literal[name]}, "__module__": __name__},
-    )
-
-
-class ComputedTorqueTable(_Strict):
-    """``{ law = "computed_torque" }``: rigid-model inverse dynamics of the reference motion."""
-
-    law: Literal["computed_torque"]
-
-
-ReferenceLaw = Annotated[
-    Union[tuple(_tagged(n, OPEN_LAW_FIELDS[n]) for n in MOTION_LAWS)],  # noqa: UP007
-    Field(discriminator="law"),
-]
-FeedforwardLaw = Annotated[
-    Union[(*(_tagged(n, OPEN_LAW_FIELDS[n]) for n in TORQUE_LAWS), ComputedTorqueTable)],
-    Field(discriminator="law"),
-]
-Limit = Annotated[float, Strict(), Field(gt=0.0)]  # positive, inf (no saturation) allowed
-
-
-class PDGainFields(_Strict):
-    """Gains of a PD law: kp (N·m/rad), kd (N·m·s/rad), moment_gain (1), limit (N·m)."""
-
-    kp: NonNegative
-    kd: NonNegative
-    # > −1: at −1 the torque loop through the root bending moment has no solution
-    moment_gain: Annotated[float, Strict(), Field(gt=-1.0, allow_inf_nan=False)] = 0.0
-    limit: Limit = math.inf
-
-
-class PIDGainFields(PDGainFields):
-    """PD gains plus ki (N·m/(rad·s))."""
-
-    ki: NonNegative
-
-
-class PDFields(PDGainFields):
-    reference: ReferenceLaw
-    feedforward: FeedforwardLaw | None = None
-
-
-class PIDFields(PIDGainFields):
-    reference: ReferenceLaw
-    feedforward: FeedforwardLaw | None = None
-
-
-#: law name -> the model of its parameters (every law a case file can name)
-LAW_FIELDS: dict[str, type[_Strict]] = {**OPEN_LAW_FIELDS, "pd": PDFields, "pid": PIDFields}
-
-
-# --- the file format --------------------------------------------------------------------------
-class LinkFile(_Strict):
-    """One ``[[model.links]]`` table: EI and rhoA, or E, rho, width and thickness."""
-
-    length: Positive
-    EI: Positive | None = None
-    rhoA: Positive | None = None
-    EA: Positive | None = None
-    E: Positive | None = None
-    rho: Positive | None = None
-    width: Positive | None = None
-    thickness: Positive | None = None
-    inextensible: bool = False
-    damping: NonNegative = 0.0
-    hub: BodyFields | None = None
-    payload: BodyFields | None = None
-
-    @model_validator(mode="after")
-    def _one_form(self):
-        mat = [k for k in ("E", "rho", "width", "thickness") if getattr(self, k) is not None]
-        sec = [k for k in ("EI", "rhoA") if getattr(self, k) is not None]
-        if mat and sec:
-            raise InputError(
-                sec[0],
-                getattr(self, sec[0]),
-                "give either EI and rhoA or E, rho, width and thickness, not both",
-            )
-        if mat and len(mat) < 4:
-            miss = [k for k in ("E", "rho", "width", "thickness") if k not in mat]
-            raise InputError(miss[0], None, f"is required with {', '.join(mat)} (material form)")
-        if not mat:
-            for k in ("EI", "rhoA"):
-                if getattr(self, k) is None:
-                    raise InputError(k, None, "is required (or give E, rho, width, thickness)")
-        if self.inextensible and self.EA is not None:
-            raise InputError("EA", self.EA, "contradicts inextensible = true")
-        return self
-
-
-class ModelFile(ModelFields):
-    links: Annotated[list[LinkFile], Strict(), Field(min_length=1)]
-
-
-def _drive_file(name: str, fields: type[_Strict]) -> type[_Strict]:
-    cls = type(
-        f"{fields.__name__[:-6]}Drive",
-        (DriveFields, fields),
-        {"__annotations__": {"law": Literal[name]}, "__module__": __name__},
-    )
-    return cls
-
-
-_DRIVE_FILES = tuple(_drive_file(n, f) for n, f in LAW_FIELDS.items())
-DriveFile = Annotated[Union[_DRIVE_FILES], Field(discriminator="law")]  # noqa: UP007
-
-
-class ScenarioFile(ScenarioFields):
-    drives: Annotated[list[DriveFile], Strict()] = []
-
-
-class CaseFile(_Strict):
-    """A whole case file. ``provenance`` is free-form metadata kept on the Case."""
-
-    name: str = ""
-    model: ModelFile
-    scenario: ScenarioFile
-    provenance: dict[str, Any] | None = None
+def build(cls, **values):
+    """An instance of the :class:`Checked` dataclass ``cls`` from values its fields model has
+    validated already (a case file's): they are set as given (defaults for the others) and only
+    :meth:`Checked._rules` runs."""
+    obj = object.__new__(cls)
+    for f in dataclasses.fields(cls):
+        if f.name in values:
+            v = values[f.name]
+        else:
+            v = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+        object.__setattr__(obj, f.name, v)
+    obj._rules()
+    return obj
 
 
 # --- errors -------------------------------------------------------------------------------------
@@ -393,9 +254,9 @@ def _reason(err: dict, keys) -> str:
             return f"needs at least {lo} entries"
         return f"needs at most {hi} entries"
     if t == "union_tag_not_found":
-        return f"is required (one of: {', '.join(keys or LAW_FIELDS)})"
+        return f"is required (one of: {', '.join(keys or ())})"
     if t == "union_tag_invalid":
-        tags = ctx.get("expected_tags") or ", ".join(LAW_FIELDS)
+        tags = ctx.get("expected_tags")
         return f"unknown drive law (one of: {tags})"
     return err.get("msg", t)
 
@@ -451,16 +312,6 @@ def input_error(exc: ValidationError, root, prefix: str = "") -> InputError:
     return out
 
 
-def validate_case_file(data) -> CaseFile:
-    """Validate a parsed case document; raises :class:`InputError` naming the first bad key."""
-    if not isinstance(data, dict):
-        raise InputError("case", _short(data), "must be a table (a TOML document)")
-    try:
-        return CaseFile.model_validate(data)
-    except ValidationError as exc:
-        raise input_error(exc, CaseFile) from None
-
-
 # --- the Python constructors --------------------------------------------------------------------
 def _plain(v):
     """numpy scalars and tuples/arrays to the plain Python values strict validation expects;
@@ -478,9 +329,12 @@ def _plain(v):
     return v
 
 
-def check_fields(model: type[_Strict], where: str, **values) -> dict:
-    """Validate constructor arguments through ``model``; return the validated values (lists
-    as tuples). Raises :class:`InputError` with the path ``where.field``."""
+def check_fields(model, where: str, **values) -> dict:
+    """Validate constructor arguments through ``model`` (a pydantic model, or a dataclass whose
+    :func:`fields_model` is used); return the validated values (lists as tuples). Raises
+    :class:`InputError` with the path ``where.field``."""
+    if dataclasses.is_dataclass(model):
+        model = fields_model(model)
     try:
         m = model.model_validate({k: _plain(v) for k, v in values.items()})
     except ValidationError as exc:
@@ -490,3 +344,13 @@ def check_fields(model: type[_Strict], where: str, **values) -> dict:
         v = getattr(m, k)
         out[k] = tuple(v) if isinstance(v, list) else v
     return out
+
+
+def __getattr__(name: str):
+    """The file models (``CaseFile``, ``ScenarioFile``, …) live in :mod:`dttmm.case`: they are
+    composed from the classes' declarations, and those classes import this module."""
+    if name in ("CaseFile", "LinkFile", "ModelFile", "ScenarioFile", "validate_case_file"):
+        from . import case
+
+        return getattr(case, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

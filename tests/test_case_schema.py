@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import dataclasses as dc
 import math
+import tomllib
 
 import numpy as np
+import pydantic
 import pytest
 from conftest import CASES
 
@@ -211,6 +213,26 @@ def test_provenance_is_kept_and_round_trips(tmp_path):
     }
     back = dttmm.load_case(dttmm.save_case(c, tmp_path / "again.toml"))
     assert back.provenance == c.provenance and back == c
+
+
+@pytest.mark.parametrize("name", ["three_link.toml", "control/closed_loop_three_link.toml"])
+def test_a_case_file_is_validated_once(monkeypatch, name):
+    # one validation of the whole document; the objects are built from it without a second check
+    # (a material-form link checks the EI, rhoA and EA it derives: they are new numbers)
+    seen = []
+    validate = pydantic.BaseModel.model_validate.__func__
+
+    def spy(cls, obj, *a, **k):
+        seen.append((cls.__name__, sorted(obj)))
+        return validate(cls, obj, *a, **k)
+
+    monkeypatch.setattr(pydantic.BaseModel, "model_validate", classmethod(spy))
+    case = dttmm.load_case(CASES / name)
+    derived = sum("E" in link for link in tomllib.loads((CASES / name).read_text())["model"]["links"])
+    assert seen[0][0] == "CaseFile" and seen[1:] == [("SectionFields", ["EA", "EI", "rhoA"])] * derived
+    monkeypatch.undo()
+    rebuilt = dc.replace(case, model=dc.replace(case.model), scenario=dc.replace(case.scenario))
+    assert rebuilt == case  # the constructors, which validate, accept the same values
 
 
 # --- the Python constructors follow the same rules ---------------------------------------------------
