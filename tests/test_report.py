@@ -207,6 +207,29 @@ def test_rebuild_from_data_without_simulating(report, tmp_path):
     assert "Skipped: no pytest-benchmark JSON" in (out / "REPORT.md").read_text()
 
 
+def test_sections_drawn_in_parallel_equal_those_drawn_here(report, tmp_path, monkeypatch):
+    """The report's sections are drawn in forked processes; drawn in this process instead, every
+    figure and the text are the same (but for the measured drawing time)."""
+    import functools
+    import shutil
+
+    from reports import build
+
+    out = tmp_path / "out"
+    shutil.copytree(report / "out", out)
+    monkeypatch.setattr(build, "_sections", functools.partial(build._sections, workers=1))
+    bench = str(report / "bench")
+    assert cli.main(["--from-data", "--out", str(out), "--bench", bench]) == 0
+    for f in (report / "out" / "figures").glob("*.png"):
+        assert (out / "figures" / f.name).read_bytes() == f.read_bytes(), f.name
+
+    def text(path):
+        drop = ("Drawn and encoded in", "**figures rebuilt**")
+        return [ln for ln in path.read_text().splitlines() if not any(d in ln for d in drop)]
+
+    assert text(out / "REPORT.md") == text(report / "out" / "REPORT.md")
+
+
 def test_old_benchmark_file_is_skipped_with_the_reason(report):
     md = (report / "out" / "REPORT.md").read_text()
     assert "bench-1.json has no scaling-suite groups" in md
