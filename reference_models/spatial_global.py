@@ -844,17 +844,11 @@ class _Recorder:
         )
 
 
-_OPTIONS = {"tol": 1e-10, "max_iterations": 50, "beta": None, "gamma": None, "rho_inf": None}
-
-
-def _check_options(integrator, options: dict) -> dict:
+def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
+    """The integrator's options with their defaults (None: the Newmark family's defaults)."""
     if integrator not in INTEGRATORS:
         raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
-    allowed = {"rk4": ()}.get(integrator, ("tol", "max_iterations", "beta", "gamma", "rho_inf"))
-    if integrator == "newmark":
-        allowed = ("tol", "max_iterations", "beta", "gamma")
-    elif integrator == "generalized-alpha":
-        allowed = ("tol", "max_iterations", "rho_inf")
+    allowed = {"newmark": ("beta", "gamma"), "generalized-alpha": ("rho_inf",), "rk4": ()}[integrator]
     for key, val in options.items():
         if key not in allowed:
             raise InputError(
@@ -862,9 +856,9 @@ def _check_options(integrator, options: dict) -> dict:
                 val,
                 f"unknown option for integrator {integrator!r} (allowed: {', '.join(allowed) or 'none'})",
             )
-    opt = {**_OPTIONS, **options}
-    opt["tol"] = plumbing.positive_number("tol", opt["tol"])
-    opt["max_iterations"] = plumbing.positive_integer("max_iterations", opt["max_iterations"])
+    opt = {"beta": None, "gamma": None, "rho_inf": None, **options}
+    opt["tol"] = plumbing.positive_number("tol", tol)
+    opt["max_iterations"] = plumbing.positive_integer("max_iterations", max_iterations)
     return opt
 
 
@@ -909,7 +903,7 @@ def simulate(
     """
     case = _check_case(case)
     h = plumbing.step_size(h, case.scenario.duration)
-    opt = _check_options(integrator, {"tol": tol, "max_iterations": max_iterations, **options})
+    opt = _check_options(integrator, tol, max_iterations, options)
     require_open_loop(case, "the spatial global solver")
     lay = _layout(case, elements_per_link, strain)
     meta = {
