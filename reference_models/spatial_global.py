@@ -380,8 +380,11 @@ def _bodies(lay: _Layout, q: np.ndarray) -> _Bodies:
 
 
 def _mass(b: _Bodies) -> np.ndarray:
-    Jv, Jw = b.Jv.real, b.Jw.real
-    M = np.einsum("p,pin,pim->nm", b.m, Jv, Jv) + np.einsum("pin,pij,pjm->nm", Jw, b.I.real, Jw)
+    N = b.Jv.shape[-1]
+    Jv = (b.Jv.real * np.sqrt(b.m)[:, None, None]).reshape(-1, N)
+    Jw = b.Jw.real
+    IJ = (b.I.real @ Jw).reshape(-1, N)
+    M = Jv.T @ Jv + Jw.reshape(-1, N).T @ IJ
     return 0.5 * (M + M.T)
 
 
@@ -397,10 +400,12 @@ def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
     w = om.real
     I = b.I.real
     Iw = np.einsum("pij,pj->pi", I, w)
-    h = np.einsum("p,pin,pi->n", b.m, b.Jv.real, av)
-    h += np.einsum("pin,pi->n", b.Jw.real, np.einsum("pij,pj->pi", I, aw) + np.cross(w, Iw))
-    Qg = np.einsum("p,pin,i->n", b.m, b.Jv.real, lay.gravity)
-    return M, Qg - h
+    N = lay.n_dof
+    force = b.m[:, None] * (lay.gravity - av)  # gravity minus the velocity-term inertia forces
+    moment = np.einsum("pij,pj->pi", I, aw) + np.cross(w, Iw)
+    f = b.Jv.real.transpose(2, 0, 1).reshape(N, -1) @ force.ravel()
+    f -= b.Jw.real.transpose(2, 0, 1).reshape(N, -1) @ moment.ravel()
+    return M, f
 
 
 def _kinetic(lay: _Layout, q, qd) -> float:
