@@ -15,9 +15,13 @@ from .model import (
     SpatialSection,
     embed_planar,
 )
+from .result import SpatialResult
 from .rotation import axis_angle_matrix, exp_so3, hat, left_jacobian, log_so3, rpy_matrix
 
 __all__ = [
+    "SpatialResult",
+    "accelerations",
+    "simulate",
     "SpatialCase",
     "SpatialHub",
     "SpatialJoint",
@@ -33,3 +37,5 @@ __all__ = [
     "log_so3",
     "rpy_matrix",
 ]
+
+from .solver import accelerations, simulate  # noqa: E402
