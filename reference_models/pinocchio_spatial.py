@@ -21,9 +21,9 @@ M_ff q̈_f = τ_f − b_f (b = RNEA(q, q̇, q̈ with q̈_f = 0)), by ``pinocchio
 is free. Integrators: ``"rk4"`` and ``"newmark"`` (β = ¼, γ = ½, Newton on the RNEA residual
 with ``computeRNEADerivatives``), both on the shared step schedule (the step ending at a drive
 jump sees the left limit). Outputs on the scenario's grid (cubic Hermite between step ends),
-shaped as those of :mod:`reference_models.spatial_global`: ``link_root``/``link_tip``
-(nt, n, 3), ``end_effector`` (nt, 3), ``tip_deflection`` (nt, n, 2) and ``meta["twist"]``
-(nt, n), both zero.
+a :class:`dttmm.spatial.SpatialResult` like those of :mod:`reference_models.spatial_global`:
+``link_root``/``link_tip`` (nt, n, 3), ``end_effector`` (nt, 3), ``tip_deflection`` (nt, n, 2)
+and ``twist`` (nt, n), both zero, ``link_rotation``/``tip_rotation`` (nt, n, 3, 3).
 
 Pinocchio is imported here only.
 """
@@ -38,8 +38,7 @@ import pinocchio as pin
 from dttmm import plumbing
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
-from dttmm.result import Result
-from dttmm.spatial import SpatialCase
+from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.timegrid import step_schedule
 
 from ._spatial_mechanics import rot_axis, rpy_matrix
@@ -237,17 +236,20 @@ def _sample(arm, nodes, times, h):
     return times, q, v, t_out
 
 
-def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0) -> Result:
+def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0) -> SpatialResult:
     times, q, v, tau = _sample(arm, nodes, times, h if h else 1.0)
     nt, nl = times.size, len(arm.frames)
     root, tip, energy = np.zeros((nt, nl, 3)), np.zeros((nt, nl, 3)), np.zeros(nt)
+    Rl, Rt = np.zeros((nt, nl, 3, 3)), np.zeros((nt, nl, 3, 3))
     for r in range(nt):
         energy[r] = pin.computeMechanicalEnergy(arm.model, arm.data, q[r], v[r])
         pin.updateFramePlacements(arm.model, arm.data)
         for i, (fr, ft) in enumerate(arm.frames):
             root[r, i] = arm.data.oMf[fr].translation
             tip[r, i] = arm.data.oMf[ft].translation
-    return Result(
+            Rl[r, i] = arm.data.oMf[fr].rotation
+            Rt[r, i] = arm.data.oMf[ft].rotation
+    return SpatialResult(
         t=times,
         joint_angle=q,
         joint_rate=v,
@@ -258,13 +260,16 @@ def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0) -> Resul
         end_effector=tip[:, -1].copy(),
         wall_time=wall,
         n_steps=int(n_steps),
-        meta={**meta, "twist": np.zeros((nt, nl))},
+        meta=dict(meta),
         energy=energy,
         status=status,
+        twist=np.zeros((nt, nl)),
+        link_rotation=Rl,
+        tip_rotation=Rt,
     )
 
 
-def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) -> Result:
+def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) -> SpatialResult:
     """Simulate a spatial case with rigid links (Pinocchio).
 
     Parameters
@@ -278,7 +283,7 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) ->
 
     Returns
     -------
-    dttmm.Result
+    dttmm.spatial.SpatialResult
         On the scenario's output grid; ``energy`` is kinetic + gravitational potential
         (Pinocchio's, zero at the world origin).
 

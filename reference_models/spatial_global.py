@@ -34,10 +34,12 @@ prescribe their joint (their torque is the equation's residual on α); open-loop
 drives give Q. Closed-loop drive laws are refused.
 
 **Outputs** (docs/spatial.md §4), on the scenario's output grid (cubic Hermite between step
-ends): a :class:`dttmm.Result` whose ``joint_*`` arrays have one column per unlocked joint,
-``link_root`` and ``link_tip`` (nt, n, 3), ``end_effector`` (nt, 3), ``tip_deflection``
-(nt, n, 2) (the components of tip − root along the root link frame's y and z axes) and
-``meta["twist"]`` (nt, n) (the x component of log(R_linkᵀ R_tip)).
+ends): a :class:`dttmm.spatial.SpatialResult` whose ``joint_*`` arrays have one column per
+unlocked joint, ``link_root`` and ``link_tip`` (nt, n, 3), ``end_effector`` (nt, 3),
+``tip_deflection`` (nt, n, 2) (the components of tip − root along the root link frame's y and
+z axes), ``twist`` (nt, n) (the x component of log(R_linkᵀ R_tip)), ``link_rotation`` R_link
+and ``tip_rotation`` R_tip (nt, n, 3, 3); ``meta["q"]``, ``meta["qd"]`` hold the coordinates.
+No cut loads.
 
 Readings of docs/spatial.md fixed here: the hub is rigid with the link frame R_link (it sits
 before the roll of the element frames); tip deflections and twist use R_link as the root
@@ -60,8 +62,7 @@ from dttmm import plumbing
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
 from dttmm.iteration import stop_rule
-from dttmm.result import Result
-from dttmm.spatial import SpatialCase
+from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.timegrid import step_schedule
 
 from ._spatial_mechanics import (
@@ -819,19 +820,21 @@ class _Recorder:
         partial = self.result(time.perf_counter() - self.wall0, n, {**self.meta, "success": False}, "failed")
         raise SimulationError("non-finite state", t=st.t, step=n, component=comp, partial=partial)
 
-    def result(self, wall, n_steps, meta, status="ok", warnings=()) -> Result:
+    def result(self, wall, n_steps, meta, status="ok", warnings=()) -> SpatialResult:
         lay, n = self.lay, self.count
         nl = lay.n_links
         root, tip = np.zeros((n, nl, 3)), np.zeros((n, nl, 3))
         defl, twist, en = np.zeros((n, nl, 2)), np.zeros((n, nl)), np.zeros(n)
+        Rl, Rt = np.zeros((n, nl, 3, 3)), np.zeros((n, nl, 3, 3))
         for i in range(n):
             fr = _link_frames(lay, self.q[i])
             root[i], tip[i], defl[i], twist[i] = fr["root"], fr["tip"], fr["tip_deflection"], fr["twist"]
+            Rl[i], Rt[i] = fr["root_rotation"], fr["tip_rotation"]
             e = _energy(lay, self.q[i], self.qd[i])
             en[i] = e["kinetic"] + e["elastic"] + e["gravity"]
         a = lay.alpha_idx[lay.joints]
-        meta = {**meta, "twist": twist, "q": self.q[:n].copy(), "qd": self.qd[:n].copy()}
-        return Result(
+        meta = {**meta, "q": self.q[:n].copy(), "qd": self.qd[:n].copy()}
+        return SpatialResult(
             t=self.t[:n].copy(),
             joint_angle=self.q[:n, a],
             joint_rate=self.qd[:n, a],
@@ -846,6 +849,9 @@ class _Recorder:
             energy=en,
             status=status,
             warnings=tuple(warnings),
+            twist=twist,
+            link_rotation=Rl,
+            tip_rotation=Rt,
         )
 
 
@@ -877,7 +883,7 @@ def simulate(
     tol=1e-10,
     max_iterations=50,
     **options,
-) -> Result:
+) -> SpatialResult:
     """Simulate a spatial case with the global equations of the spatial discretisation.
 
     Parameters
@@ -895,7 +901,7 @@ def simulate(
 
     Returns
     -------
-    dttmm.Result
+    dttmm.spatial.SpatialResult
         On ``case.scenario.output_times``; see the module notes for the spatial shapes.
         ``status`` "unconverged" when some step exhausted ``max_iterations``.
 

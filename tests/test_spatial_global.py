@@ -532,7 +532,7 @@ def test_dttmm_trajectory_equals_global(n, k, duration):
     assert np.max(np.abs(res.link_tip - ref.link_tip)) < 1e-9
     assert np.max(np.abs(res.joint_angle - ref.joint_angle)) < 1e-9
     assert np.max(np.abs(res.tip_deflection - ref.tip_deflection)) < 1e-9
-    assert np.max(np.abs(res.twist - ref.meta["twist"])) < 1e-9
+    assert np.max(np.abs(res.twist - ref.twist)) < 1e-9
     assert np.max(np.abs(res.energy - ref.energy)) < 1e-8 * np.max(np.abs(ref.energy))
 
 
