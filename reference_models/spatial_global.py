@@ -38,8 +38,9 @@ ends): a :class:`dttmm.spatial.SpatialResult` whose ``joint_*`` arrays have one 
 unlocked joint, ``link_root`` and ``link_tip`` (nt, n, 3), ``end_effector`` (nt, 3),
 ``tip_deflection`` (nt, n, 2) (the components of tip − root along the root link frame's y and
 z axes), ``twist`` (nt, n) (the x component of log(R_linkᵀ R_tip)), ``link_rotation`` R_link
-and ``tip_rotation`` R_tip (nt, n, 3, 3); ``meta["q"]``, ``meta["qd"]`` hold the coordinates.
-No cut loads.
+and ``tip_rotation`` R_tip (nt, n, 3, 3); ``meta["q"]``, ``meta["qd"]`` hold the coordinates;
+with ``cut_loads=True`` the loads at every element root and link tip, by Newton–Euler of the
+bodies outboard of the cut (:func:`cut_loads`).
 
 Readings of docs/spatial.md fixed here: the hub is rigid with the link frame R_link (it sits
 before the roll of the element frames); tip deflections and twist use R_link as the root
@@ -83,6 +84,7 @@ __all__ = [
     "STRAINS",
     "accelerations",
     "coordinate_names",
+    "cut_loads",
     "damping_forces",
     "elastic_forces",
     "energy",
@@ -407,6 +409,63 @@ def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
     f = b.Jv.real.transpose(2, 0, 1).reshape(N, -1) @ force.ravel()
     f -= b.Jw.real.transpose(2, 0, 1).reshape(N, -1) @ moment.ravel()
     return M, f
+
+
+def _cut_table(lay: _Layout):
+    """Cuts (link i: the roots of its k elements, then its tip; (n(k + 1),)) and, for every
+    point-mass and rotary body of :func:`_bodies`, the index of the first cut it is *not*
+    outboard of: a body is outboard of cut c when c < reach. Gauss points of element e lie
+    beyond the roots of elements ≤ e; a hub lies beyond the cuts of the links before its own
+    (it is on the inboard side of its link's root cut); a payload beyond every cut of its link
+    up to and including the link's tip."""
+    n, k = lay.n_links, lay.k
+    nel, ng = lay.m_g.shape
+    per = k + 1
+    el = np.arange(nel)
+    gauss = np.repeat((el // k) * per + el % k + 1, ng)
+    hub = np.arange(n) * per
+    pay = np.arange(n) * per + per
+    return np.concatenate([gauss, hub, pay])
+
+
+def _cut_loads(lay: _Layout, q, qd, qdd) -> np.ndarray:
+    """Loads (n(k + 1), 6) at the cuts: force and moment about the cut point (W components) that
+    the inboard part exerts on the outboard part, by Newton–Euler of the outboard bodies:
+    F = Σ m (a − g), M = Σ (r − r_c) × m (a − g) + Σ (I ω̇ + ω × I ω)."""
+    b = _bodies(lay, q + 1j * _EPS * qd)
+    fr = _frames(lay, q)
+    Jv, Jw = b.Jv.real, b.Jw.real
+    acc = Jv @ qdd + (b.Jv @ qd).imag / _EPS
+    om = Jw @ qd
+    dom = Jw @ qdd + (b.Jw @ qd).imag / _EPS
+    I = b.I.real
+    r = b.r.real
+    force = b.m[:, None] * (acc - lay.gravity)
+    spin = np.einsum("pij,pj->pi", I, dom) + np.cross(om, np.einsum("pij,pj->pi", I, om))
+    n, k = lay.n_links, lay.k
+    points = np.concatenate(
+        [np.concatenate([fr.rI[i * k : (i + 1) * k], fr.p_tip[i : i + 1]]) for i in range(n)]
+    )
+    reach = _cut_table(lay)
+    out = np.zeros((points.shape[0], 6))
+    for c, rc in enumerate(points):
+        sel = reach > c
+        out[c, :3] = force[sel].sum(axis=0)
+        out[c, 3:] = np.cross(r[sel] - rc, force[sel]).sum(axis=0) + spin[sel].sum(axis=0)
+    return out
+
+
+def cut_loads(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndarray:
+    """Cut loads (n(k + 1), 6) at the state (q, q̇) and time t (right limits of the drives), per
+    link the roots of its k elements and its tip, base link first: force (N) and moment about
+    the cut point (N·m), W components, that the inboard part exerts on the outboard part; from
+    the forward dynamics' q̈ by Newton–Euler of the outboard bodies. The hub of a link is on
+    the inboard side of its root cut, its payload on the outboard side of its tip cut."""
+    lay = _layout(case, elements_per_link, strain)
+    require_open_loop(case, "the spatial global solver")
+    q, qd = _as_state(lay, q, "q"), _as_state(lay, qd, "qd")
+    qdd = _forward(case, lay, q, qd, float(t), False)[0]
+    return _cut_loads(lay, q, qd, qdd)
 
 
 def _kinetic(lay: _Layout, q, qd) -> float:
@@ -776,6 +835,7 @@ class _Recorder:
         self.count = 0
         self.tol_t = 1e-9 * h
         self.meta = {}
+        self.want_loads = False
         self.wall0 = time.perf_counter()
 
     @property
@@ -834,6 +894,13 @@ class _Recorder:
             en[i] = e["kinetic"] + e["elastic"] + e["gravity"]
         a = lay.alpha_idx[lay.joints]
         meta = {**meta, "q": self.q[:n].copy(), "qd": self.qd[:n].copy()}
+        loads = None
+        if self.want_loads:
+            loads = np.zeros((n, nl * (lay.k + 1), 6))
+            for i in range(n):
+                t = float(self.t[i])
+                qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0)[0]
+                loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd)
         return SpatialResult(
             t=self.t[:n].copy(),
             joint_angle=self.q[:n, a],
@@ -849,6 +916,8 @@ class _Recorder:
             energy=en,
             status=status,
             warnings=tuple(warnings),
+            cut_loads=loads,
+            cut_load_t=self.t[:n].copy() if loads is not None else None,
             twist=twist,
             link_rotation=Rl,
             tip_rotation=Rt,
@@ -882,6 +951,7 @@ def simulate(
     strain="linear",
     tol=1e-10,
     max_iterations=50,
+    cut_loads=False,
     **options,
 ) -> SpatialResult:
     """Simulate a spatial case with the global equations of the spatial discretisation.
@@ -898,6 +968,9 @@ def simulate(
         iterate every step to ``tol`` (relative, :func:`dttmm.iteration.stop_rule`) within
         ``max_iterations`` solves; RK4 evaluates the forward dynamics four times a step.
     strain : {"linear", "second-order"}
+    cut_loads : bool
+        Record the cut loads (see :func:`cut_loads`) on the output grid (nt, n(k + 1), 6), from
+        the forward dynamics at every output state (left limits of the drives at t > 0).
 
     Returns
     -------
@@ -929,6 +1002,7 @@ def simulate(
     }
     rec = _Recorder(case, lay, h)
     rec.meta = meta
+    rec.want_loads = bool(cut_loads)
     wall0 = time.perf_counter()
     if integrator == "rk4":
         stats = _rk4_run(case, lay, h, opt, rec)
