@@ -1004,15 +1004,16 @@ def simulate(
     rec.meta = meta
     rec.want_loads = bool(cut_loads)
     wall0 = time.perf_counter()
-    if integrator == "rk4":
-        stats = _rk4_run(case, lay, h, opt, rec)
-    else:
-        coef = plumbing.newmark_family(
-            integrator, beta=opt["beta"], gamma=opt["gamma"], rho_inf=opt["rho_inf"]
-        )
-        meta.update(beta=coef.beta, gamma=coef.gamma, alpha_m=coef.alpha_m, alpha_f=coef.alpha_f)
-        meta.update(tol=opt["tol"], max_iterations=opt["max_iterations"])
-        stats = _newmark_run(case, lay, h, opt, coef, rec)
+    with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
+        if integrator == "rk4":
+            stats = _rk4_run(case, lay, h, opt, rec)
+        else:
+            coef = plumbing.newmark_family(
+                integrator, beta=opt["beta"], gamma=opt["gamma"], rho_inf=opt["rho_inf"]
+            )
+            meta.update(beta=coef.beta, gamma=coef.gamma, alpha_m=coef.alpha_m, alpha_f=coef.alpha_f)
+            meta.update(tol=opt["tol"], max_iterations=opt["max_iterations"])
+            stats = _newmark_run(case, lay, h, opt, coef, rec)
     wall = time.perf_counter() - wall0
     unc = stats["unconverged"]
     meta.update(
