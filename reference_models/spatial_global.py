@@ -778,7 +778,7 @@ def _newmark_run(case, lay, h, opt, coef, rec):
 
 def _rk4_run(case, lay, h, opt, rec):
     t_end, restart = step_schedule(case.scenario.duration, h, case.scenario.breakpoints)
-    F, P = lay.free, lay.presc
+    P = lay.presc
 
     def acc(t, left, q, qd):
         q, qd = q.copy(), qd.copy()
@@ -812,7 +812,6 @@ def _rk4_run(case, lay, h, opt, rec):
             qdd_r, _ = acc(t1, False, q, qd)
             new = _State(t1, q, qd, qdd_r, qdd_r, new.tau)
         st = new
-    _ = F
     return {
         "n_steps": len(t_end),
         "iterations_mean": None,

@@ -14,8 +14,7 @@ pin = pytest.importorskip("pinocchio")
 
 import dttmm  # noqa: E402
 import dttmm.spatial  # noqa: E402
-from dttmm import Constant, Drive, Scenario, SpinUp  # noqa: E402
-from dttmm.spatial import SpatialCase  # noqa: E402
+from dttmm import Constant, Drive, SpinUp  # noqa: E402
 from reference_models import pinocchio_spatial as ps  # noqa: E402
 from reference_models import spatial_global as sg  # noqa: E402
 from tests.test_spatial_global import _case, _torque_drives, arm  # noqa: E402
@@ -162,7 +161,6 @@ def test_bad_input():
         ps.simulate(dttmm.load_case, h=1e-3)
     with pytest.raises(dttmm.InputError, match="h"):
         ps.simulate(case, h=0.0)
-    _ = (Scenario, SpatialCase)
 
 
 needs_kernel = pytest.mark.skipif(
