@@ -13,6 +13,8 @@ overestimates by ≈ (ωl/c)²/24 = ((2n−1)π/2k)²/24, asserted within twice 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -23,14 +25,19 @@ from dttmm.spatial import (
     SpatialLink,
     SpatialManipulator,
     SpatialPayload,
-    SpatialSection,
     accelerations,
+    load_case,
     simulate,
 )
 from dttmm.spatial.build import build_model
 
-L = 1.2
-BEAM = SpatialSection(length=L, EA=4.0e6, GJ=30.0, EIy=80.0, EIz=20.0, rhoA=2.0, rhoJ=4e-3)
+#: the beam of experiments/cases/spatial/cantilever_3d.toml
+BEAM = (
+    load_case(Path(__file__).resolve().parent.parent / "experiments/cases/spatial/cantilever_3d.toml")
+    .model.links[0]
+    .beam
+)
+L = BEAM.length
 G = 9.81
 K = 16
 

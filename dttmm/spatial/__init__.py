@@ -5,7 +5,7 @@ manipulator with the planar suite's :class:`dttmm.Scenario`), the embedding of a
 (:func:`embed_planar`) and the rotation helpers of the discretisation.
 """
 
-from .case import SpatialCase
+from .case import SpatialCase, case_from_dict, load_case
 from .model import (
     SpatialHub,
     SpatialJoint,
@@ -30,7 +30,9 @@ __all__ = [
     "SpatialPayload",
     "SpatialSection",
     "axis_angle_matrix",
+    "case_from_dict",
     "embed_planar",
+    "load_case",
     "exp_so3",
     "hat",
     "left_jacobian",
