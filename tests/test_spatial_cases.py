@@ -95,3 +95,26 @@ def test_planar_files_stay_planar():
     for p in FILES:  # and the planar loader refuses a spatial file
         with pytest.raises(InputError, match="unknown key"):
             dttmm.load_case(p)
+
+
+def test_docs_tables_are_the_schema_fields():
+    import re
+
+    from dttmm.spatial import case as sc
+
+    doc = (ROOT.parent.parent / "docs" / "cases.md").read_text()
+    tables = {}
+    for m in re.finditer(r"<!-- spatial-schema: (\w+) -->\n((?:\|.*\n)+)", doc):
+        rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in m[2].splitlines()][2:]
+        tables[m[1]] = {r[0].strip("`") for r in rows}
+    models = {
+        n: getattr(sc, n) for n in ("SpatialCaseFile", "SpatialModelFile", "SpatialLinkFile", "JointFile")
+    }
+    assert set(tables) == set(models)
+    for name, keys in tables.items():
+        assert keys == set(models[name].model_fields), name
+    example = re.search(r"Example \(a yaw joint.*?```text\n(.*?)```", doc, flags=re.DOTALL)[1]
+    import tomllib
+
+    case = case_from_dict(tomllib.loads(example))
+    assert case.n_joints == 1
