@@ -359,27 +359,52 @@ def kinematics(md, ws, q, qd):
         v = mtv(C, vj)
         w = mtv(C, wj)
         R = mm(R, C)
+        S4 = md.Sig[i, 4]
+        s04 = md.s0[i, 4]
+        J = ws.J3
+        T = ws.Iw
         for j in range(md.k[i]):
             el = md.el0[i] + j
             e = ws.e[el]
             ed = ws.ed[el]
             unpack(md, i, j, q, qd, e, ed)
-            ws.Rw[el] = R
-            ws.pw[el] = p
-            ws.vl[el] = v
-            ws.wl[el] = w
-            sO = md.s0[i, 4] + mv(md.Sig[i, 4], e)
-            sOd = mv(md.Sig[i, 4], ed)
-            phi = e[3:6]
-            phid = ed[3:6]
-            E, J, _jd = exp_jl(phi, phid)
-            ws.E[el] = E
-            p = p + mv(R, sO)
-            vo = v + cross(w, sO) + sOd
-            wo = w + mv(J, phid)
-            v = mtv(E, vo)
-            w = mtv(E, wo)
-            R = mm(R, E)
+            for a in range(3):
+                ws.pw[el, a] = p[a]
+                ws.vl[el, a] = v[a]
+                ws.wl[el, a] = w[a]
+                for b in range(3):
+                    ws.Rw[el, a, b] = R[a, b]
+            E = ws.E[el]
+            so3_into(e[3], e[4], e[5], ed[3], ed[4], ed[5], E, J, ws.jd3)
+            x0 = s04[0]
+            x1 = s04[1]
+            x2 = s04[2]
+            d0 = 0.0
+            d1 = 0.0
+            d2 = 0.0
+            for cc in range(6):
+                x0 += S4[0, cc] * e[cc]
+                x1 += S4[1, cc] * e[cc]
+                x2 += S4[2, cc] * e[cc]
+                d0 += S4[0, cc] * ed[cc]
+                d1 += S4[1, cc] * ed[cc]
+                d2 += S4[2, cc] * ed[cc]
+            for a in range(3):
+                p[a] += R[a, 0] * x0 + R[a, 1] * x1 + R[a, 2] * x2
+            vo0 = v[0] + w[1] * x2 - w[2] * x1 + d0
+            vo1 = v[1] + w[2] * x0 - w[0] * x2 + d1
+            vo2 = v[2] + w[0] * x1 - w[1] * x0 + d2
+            wo0 = w[0] + J[0, 0] * ed[3] + J[0, 1] * ed[4] + J[0, 2] * ed[5]
+            wo1 = w[1] + J[1, 0] * ed[3] + J[1, 1] * ed[4] + J[1, 2] * ed[5]
+            wo2 = w[2] + J[2, 0] * ed[3] + J[2, 1] * ed[4] + J[2, 2] * ed[5]
+            for a in range(3):
+                v[a] = E[0, a] * vo0 + E[1, a] * vo1 + E[2, a] * vo2
+                w[a] = E[0, a] * wo0 + E[1, a] * wo1 + E[2, a] * wo2
+                for b in range(3):
+                    T[a, b] = R[a, 0] * E[0, b] + R[a, 1] * E[1, b] + R[a, 2] * E[2, b]
+            for a in range(3):
+                for b in range(3):
+                    R[a, b] = T[a, b]
         # tip frame: R_O Rx(−roll)
         Qi = md.Q[i]
         v = mv(Qi, v)
@@ -430,111 +455,356 @@ def body_inertia(m, J):
     return M
 
 
+@njit(inline="always")
+def so3_into(x, y, z, dx, dy, dz, E, J, jd):
+    """exp([ψ]×) into E, J_L(ψ) into J and J̇_L ψ̇ into jd, at ψ = (x, y, z), ψ̇ = (dx, dy, dz)."""
+    t2 = x * x + y * y + z * z
+    a, b, c, db, dc = so3_coefficients(t2)
+    q00 = x * x - t2
+    q11 = y * y - t2
+    q22 = z * z - t2
+    q01 = x * y
+    q02 = x * z
+    q12 = y * z
+    E[0, 0] = 1.0 + b * q00
+    E[0, 1] = -a * z + b * q01
+    E[0, 2] = a * y + b * q02
+    E[1, 0] = a * z + b * q01
+    E[1, 1] = 1.0 + b * q11
+    E[1, 2] = -a * x + b * q12
+    E[2, 0] = -a * y + b * q02
+    E[2, 1] = a * x + b * q12
+    E[2, 2] = 1.0 + b * q22
+    J[0, 0] = 1.0 + c * q00
+    J[0, 1] = -b * z + c * q01
+    J[0, 2] = b * y + c * q02
+    J[1, 0] = b * z + c * q01
+    J[1, 1] = 1.0 + c * q11
+    J[1, 2] = -b * x + c * q12
+    J[2, 0] = -b * y + c * q02
+    J[2, 1] = b * x + c * q12
+    J[2, 2] = 1.0 + c * q22
+    pp = 2.0 * (x * dx + y * dy + z * dz)
+    u0 = y * dz - z * dy
+    u1 = z * dx - x * dz
+    u2 = x * dy - y * dx
+    jd[0] = db * pp * u0 + dc * pp * (y * u2 - z * u1) + c * (dy * u2 - dz * u1)
+    jd[1] = db * pp * u1 + dc * pp * (z * u0 - x * u2) + c * (dz * u0 - dx * u2)
+    jd[2] = db * pp * u2 + dc * pp * (x * u1 - y * u0) + c * (dx * u1 - dy * u0)
+
+
+@njit(inline="always")
+def elastic_into(md, i, e, f, KT, D):
+    """Elastic force f(e), tangent K_T(e) and damping matrix D(e) of an element of link i into
+    f, KT, D: linear K e, K, μK; second order (ε = u/l + ½(bᵀGb + cᵀGc), b = (v, φz),
+    c = (w, −φy)) f = K_b e + EA l ε ∂ε, K_T = K_b + EA l (∂ε∂εᵀ + ε ∂²ε), D = μ(EA l ∂ε∂εᵀ + K_b)."""
+    mu = md.mu[i]
+    if md.so[i] == 0:
+        K = md.K[i]
+        for r in range(6):
+            t = 0.0
+            for s in range(6):
+                k = K[r, s]
+                t += k * e[s]
+                KT[r, s] = k
+                D[r, s] = mu * k
+            f[r] = t
+        return
+    Kb = md.Kb[i]
+    G = md.G[i]
+    l = md.l[i]
+    EAl = md.EA[i] * l
+    b0 = e[1]
+    b1 = e[5]
+    c0 = e[2]
+    c1 = -e[4]
+    gb0 = G[0, 0] * b0 + G[0, 1] * b1
+    gb1 = G[1, 0] * b0 + G[1, 1] * b1
+    gc0 = G[0, 0] * c0 + G[0, 1] * c1
+    gc1 = G[1, 0] * c0 + G[1, 1] * c1
+    eps = e[0] / l + 0.5 * (b0 * gb0 + b1 * gb1 + c0 * gc0 + c1 * gc1)
+    g = (1.0 / l, gb0, gc0, 0.0, -gc1, gb1)
+    for r in range(6):
+        t = 0.0
+        for s in range(6):
+            t += Kb[r, s] * e[s]
+            gg = EAl * g[r] * g[s]
+            KT[r, s] = Kb[r, s] + gg
+            D[r, s] = mu * (gg + Kb[r, s])
+        f[r] = t + EAl * eps * g[r]
+    h = EAl * eps
+    KT[1, 1] += h * G[0, 0]
+    KT[1, 5] += h * G[0, 1]
+    KT[5, 1] += h * G[1, 0]
+    KT[5, 5] += h * G[1, 1]
+    KT[2, 2] += h * G[0, 0]
+    KT[2, 4] -= h * G[0, 1]
+    KT[4, 2] -= h * G[1, 0]
+    KT[4, 4] += h * G[1, 1]
+
+
+@njit(inline="always")
+def cholesky_solve_into(M, L, sol):
+    """Solve M[6:, 6:] X = −[M[6:, :6] | r] (the rhs already in ``sol``) in place, by Cholesky
+    into L. Returns ok (False when the block is not positive definite)."""
+    for j in range(6):
+        t = M[6 + j, 6 + j]
+        for k in range(j):
+            t -= L[j, k] * L[j, k]
+        if not t > 0.0:
+            return False
+        d = math.sqrt(t)
+        L[j, j] = d
+        for i in range(j + 1, 6):
+            u = M[6 + i, 6 + j]
+            for k in range(j):
+                u -= L[i, k] * L[j, k]
+            L[i, j] = u / d
+    for c in range(7):
+        for i in range(6):
+            t = sol[i, c]
+            for k in range(i):
+                t -= L[i, k] * sol[k, c]
+            sol[i, c] = t / L[i, i]
+        for i in range(5, -1, -1):
+            t = sol[i, c]
+            for k in range(i + 1, 6):
+                t -= L[k, i] * sol[k, c]
+            sol[i, c] = t / L[i, i]
+    return True
+
+
 @njit()
-def element_step(md, i, el, w, gl, P, c, cq, cv, ehat, edhat, fext, ws):
-    """Backward step over element ``el`` of link i: from (P, c) at its outboard node (outboard
-    frame components) to (P, c) at its root (own frame components); keeps the gains
-    ë = Ka A + k0 and the outboard maps in ``ws``. Returns (P, c, ok)."""
+def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
+    """Backward step over element ``el`` of link i, in place: ws.P, ws.c from the outboard node
+    (outboard frame components) to the element's root (its own frame components); keeps the
+    gains ë = Ka A + k0 and the outboard maps in ``ws``. (g0, g1, g2): gravity in the element
+    frame. Returns ok."""
     e = ws.e[el]
     ed = ws.ed[el]
-    Mee = np.zeros((6, 6))
-    MeA = np.zeros((6, 6))
-    Maa = np.zeros((6, 6))
-    re = np.zeros(6)
-    rA = np.zeros(6)
-    for g in range(5):
-        Sg = md.Sig[i, g]
-        Pg = md.Psi[i, g]
-        s = md.s0[i, g] + mv(Sg, e)
-        sd = mv(Sg, ed)
-        psi = mv(Pg, e)
-        psid = mv(Pg, ed)
-        E, J, jd = exp_jl(psi, psid)
-        S = np.zeros((6, 6))
-        JP = mm(J, Pg)
-        for r in range(3):
-            for cc in range(6):
-                S[r, cc] = Sg[r, cc]
-                S[3 + r, cc] = JP[r, cc]
-        X = transfer(s)
-        Jpd = mv(J, psid)
-        zl = cross(w, cross(w, s)) + 2.0 * cross(w, sd)
-        za = cross(w, Jpd) + jd
-        zeta = np.empty(6)
-        zeta[:3] = zl
-        zeta[3:] = za
-        if g < 4:
-            m = md.mg[i, g]
-            Iw = np.empty((3, 3))
-            Ig = md.Ig[i, g]
-            for r in range(3):
-                for cc in range(3):
-                    Iw[r, cc] = (
-                        E[r, 0] * Ig[0] * E[cc, 0] + E[r, 1] * Ig[1] * E[cc, 1] + E[r, 2] * Ig[2] * E[cc, 2]
+    w0 = ws.wl[el, 0]
+    w1 = ws.wl[el, 1]
+    w2 = ws.wl[el, 2]
+    M = ws.M12
+    r = ws.r12
+    G = ws.G
+    H = ws.H
+    B = ws.B
+    E = ws.E3
+    J = ws.J3
+    jd = ws.jd3
+    Iw = ws.Iw
+    for a in range(12):
+        r[a] = 0.0
+        for b in range(12):
+            M[a, b] = 0.0
+    for a in range(3):
+        for b in range(12):
+            G[a, b] = 0.0
+            H[a, b] = 0.0
+    G[0, 0] = 1.0
+    G[1, 1] = 1.0
+    G[2, 2] = 1.0
+    H[0, 3] = 1.0
+    H[1, 4] = 1.0
+    H[2, 5] = 1.0
+    for gp in range(5):
+        Sg = md.Sig[i, gp]
+        Pg = md.Psi[i, gp]
+        s0 = md.s0[i, gp]
+        x0 = s0[0]
+        x1 = s0[1]
+        x2 = s0[2]
+        d0 = 0.0
+        d1 = 0.0
+        d2 = 0.0
+        p0 = 0.0
+        p1 = 0.0
+        p2 = 0.0
+        q0 = 0.0
+        q1 = 0.0
+        q2 = 0.0
+        for cc in range(6):
+            ec = e[cc]
+            edc = ed[cc]
+            x0 += Sg[0, cc] * ec
+            x1 += Sg[1, cc] * ec
+            x2 += Sg[2, cc] * ec
+            d0 += Sg[0, cc] * edc
+            d1 += Sg[1, cc] * edc
+            d2 += Sg[2, cc] * edc
+            p0 += Pg[0, cc] * ec
+            p1 += Pg[1, cc] * ec
+            p2 += Pg[2, cc] * ec
+            q0 += Pg[0, cc] * edc
+            q1 += Pg[1, cc] * edc
+            q2 += Pg[2, cc] * edc
+        so3_into(p0, p1, p2, q0, q1, q2, E, J, jd)
+        j0 = J[0, 0] * q0 + J[0, 1] * q1 + J[0, 2] * q2
+        j1 = J[1, 0] * q0 + J[1, 1] * q1 + J[1, 2] * q2
+        j2 = J[2, 0] * q0 + J[2, 1] * q1 + J[2, 2] * q2
+        # accelerations: a_g = X A + S ë + ζ, ζ = (ω×(ω×s) + 2ω×ṡ, ω×(J ψ̇) + J̇ ψ̇)
+        u0 = w1 * x2 - w2 * x1
+        u1 = w2 * x0 - w0 * x2
+        u2 = w0 * x1 - w1 * x0
+        zl0 = w1 * u2 - w2 * u1 + 2.0 * (w1 * d2 - w2 * d1)
+        zl1 = w2 * u0 - w0 * u2 + 2.0 * (w2 * d0 - w0 * d2)
+        zl2 = w0 * u1 - w1 * u0 + 2.0 * (w0 * d1 - w1 * d0)
+        za0 = w1 * j2 - w2 * j1 + jd[0]
+        za1 = w2 * j0 - w0 * j2 + jd[1]
+        za2 = w0 * j1 - w1 * j0 + jd[2]
+        # G = [I, −[s]×, Σ], H = [0, I, J Ψ]
+        G[0, 4] = x2
+        G[0, 5] = -x1
+        G[1, 3] = -x2
+        G[1, 5] = x0
+        G[2, 3] = x1
+        G[2, 4] = -x0
+        for cc in range(6):
+            G[0, 6 + cc] = Sg[0, cc]
+            G[1, 6 + cc] = Sg[1, cc]
+            G[2, 6 + cc] = Sg[2, cc]
+            for a in range(3):
+                H[a, 6 + cc] = J[a, 0] * Pg[0, cc] + J[a, 1] * Pg[1, cc] + J[a, 2] * Pg[2, cc]
+        if gp < 4:
+            m = md.mg[i, gp]
+            Ig = md.Ig[i, gp]
+            for a in range(3):
+                for b in range(3):
+                    Iw[a, b] = (
+                        E[a, 0] * Ig[0] * E[b, 0] + E[a, 1] * Ig[1] * E[b, 1] + E[a, 2] * Ig[2] * E[b, 2]
                     )
-            M = body_inertia(m, Iw)
-            wg = w + Jpd
-            gy = cross(wg, mv(Iw, wg))
-            b = np.empty(6)
-            for r in range(3):
-                b[r] = -m * gl[r]
-                b[3 + r] = gy[r]
+            wg0 = w0 + j0
+            wg1 = w1 + j1
+            wg2 = w2 + j2
+            h0 = Iw[0, 0] * wg0 + Iw[0, 1] * wg1 + Iw[0, 2] * wg2
+            h1 = Iw[1, 0] * wg0 + Iw[1, 1] * wg1 + Iw[1, 2] * wg2
+            h2 = Iw[2, 0] * wg0 + Iw[2, 1] * wg1 + Iw[2, 2] * wg2
+            fa0 = Iw[0, 0] * za0 + Iw[0, 1] * za1 + Iw[0, 2] * za2 + wg1 * h2 - wg2 * h1
+            fa1 = Iw[1, 0] * za0 + Iw[1, 1] * za1 + Iw[1, 2] * za2 + wg2 * h0 - wg0 * h2
+            fa2 = Iw[2, 0] * za0 + Iw[2, 1] * za1 + Iw[2, 2] * za2 + wg0 * h1 - wg1 * h0
+            fl0 = m * (zl0 - g0)
+            fl1 = m * (zl1 - g1)
+            fl2 = m * (zl2 - g2)
+            for b in range(3, 12):
+                B[0, b] = Iw[0, 0] * H[0, b] + Iw[0, 1] * H[1, b] + Iw[0, 2] * H[2, b]
+                B[1, b] = Iw[1, 0] * H[0, b] + Iw[1, 1] * H[1, b] + Iw[1, 2] * H[2, b]
+                B[2, b] = Iw[2, 0] * H[0, b] + Iw[2, 1] * H[1, b] + Iw[2, 2] * H[2, b]
+            for a in range(12):
+                ga0 = G[0, a]
+                ga1 = G[1, a]
+                ga2 = G[2, a]
+                r[a] += ga0 * fl0 + ga1 * fl1 + ga2 * fl2
+                for b in range(a, 12):
+                    M[a, b] += m * (ga0 * G[0, b] + ga1 * G[1, b] + ga2 * G[2, b])
+                if a >= 3:
+                    ha0 = H[0, a]
+                    ha1 = H[1, a]
+                    ha2 = H[2, a]
+                    r[a] += ha0 * fa0 + ha1 * fa1 + ha2 * fa2
+                    for b in range(a, 12):
+                        M[a, b] += ha0 * B[0, b] + ha1 * B[1, b] + ha2 * B[2, b]
         else:
-            EO = E
-            ws.E[el] = EO
-            M = rot_blocks(EO, P)
-            b = rot6(EO, c)
-            for r in range(6):
-                for cc in range(6):
-                    ws.XS[el, r, cc] = X[r, cc]
-                    ws.XS[el, r, 6 + cc] = S[r, cc]
-                ws.zO[el, r] = zeta[r]
-        MS = mm(M, S)
-        MX = mm(M, X)
-        Mzb = mv(M, zeta) + b
-        SMS = mtm(S, MS)
-        SMX = mtm(S, MX)
-        XMX = mtm(X, MX)
-        SMz = mtv(S, Mzb)
-        XMz = mtv(X, Mzb)
-        for r in range(6):
-            re[r] += SMz[r]
-            rA[r] += XMz[r]
-            for cc in range(6):
-                Mee[r, cc] += SMS[r, cc]
-                MeA[r, cc] += SMX[r, cc]
-                Maa[r, cc] += XMX[r, cc]
-    f, KT, D = elastic_terms(md, i, e)
-    for r in range(6):
-        re[r] += f[r] - fext[r]
-        for cc in range(6):
-            re[r] += KT[r, cc] * (ehat[cc] - e[cc]) + D[r, cc] * edhat[cc]
-            Mee[r, cc] += cq * KT[r, cc] + cv * D[r, cc]
+            # the outboard node: its frame exp(φ), its maps W = [G; H] and bias ζ
+            for a in range(3):
+                for b in range(3):
+                    ws.E[el, a, b] = E[a, b]
+            W = ws.XS[el]
+            for b in range(12):
+                for a in range(3):
+                    W[a, b] = G[a, b]
+                    W[3 + a, b] = H[a, b]
+            zO = ws.zO[el]
+            zO[0] = zl0
+            zO[1] = zl1
+            zO[2] = zl2
+            zO[3] = za0
+            zO[4] = za1
+            zO[5] = za2
+            # the outboard P, c in this frame: B P Bᵀ, B c with B = blockdiag(E, E)
+            P = ws.P
+            Pr = ws.Pr
+            cr = ws.cr
+            c = ws.c
+            for bi in range(2):
+                for bj in range(2):
+                    for a in range(3):
+                        for b in range(3):
+                            t = 0.0
+                            for k in range(3):
+                                ek = E[a, k]
+                                for mm_ in range(3):
+                                    t += ek * P[3 * bi + k, 3 * bj + mm_] * E[b, mm_]
+                            Pr[3 * bi + a, 3 * bj + b] = t
+                for a in range(3):
+                    cr[3 * bi + a] = E[a, 0] * c[3 * bi] + E[a, 1] * c[3 * bi + 1] + E[a, 2] * c[3 * bi + 2]
+            for a in range(6):
+                t = cr[a]
+                for k in range(6):
+                    t += Pr[a, k] * zO[k]
+                cr[a] = t
+            PW = ws.PW
+            for a in range(6):
+                for b in range(12):
+                    t = 0.0
+                    for k in range(6):
+                        t += Pr[a, k] * W[k, b]
+                    PW[a, b] = t
+            for a in range(12):
+                t = 0.0
+                for k in range(6):
+                    t += W[k, a] * cr[k]
+                r[a] += t
+                for b in range(a, 12):
+                    t = 0.0
+                    for k in range(6):
+                        t += W[k, a] * PW[k, b]
+                    M[a, b] += t
+    for a in range(12):
+        for b in range(a + 1, 12):
+            M[b, a] = M[a, b]
+    f = ws.f6
+    KT = ws.KT
+    D = ws.D6
+    elastic_into(md, i, e, f, KT, D)
+    for a in range(6):
+        t = f[a] - fext[a]
+        for b in range(6):
+            t += KT[a, b] * (ehat[b] - e[b]) + D[a, b] * edhat[b]
+            M[6 + a, 6 + b] += cq * KT[a, b] + cv * D[a, b]
+        r[6 + a] += t
     if md.ext[i] == 0:  # the dummy u: unit mass, no coupling, no load
-        for r in range(6):
-            Mee[0, r] = 0.0
-            Mee[r, 0] = 0.0
-            MeA[0, r] = 0.0
-        Mee[0, 0] = 1.0
-        re[0] = 0.0
-    rhs = np.empty((6, 7))
-    for r in range(6):
-        for cc in range(6):
-            rhs[r, cc] = -MeA[r, cc]
-        rhs[r, 6] = -re[r]
-    sol, ok = chol_solve(Mee, rhs)
-    for r in range(6):
-        for cc in range(6):
-            ws.Ka[el, r, cc] = sol[r, cc]
-        ws.k0[el, r] = sol[r, 6]
-    Pn = Maa + mtm(MeA, sol[:, :6])
-    cn = rA + mtv(MeA, sol[:, 6])
-    for r in range(6):
-        for cc in range(r + 1, 6):
-            s = 0.5 * (Pn[r, cc] + Pn[cc, r])
-            Pn[r, cc] = s
-            Pn[cc, r] = s
-    return Pn, cn, ok
+        for a in range(12):
+            M[6, a] = 0.0
+            M[a, 6] = 0.0
+        M[6, 6] = 1.0
+        r[6] = 0.0
+    sol = ws.sol
+    for a in range(6):
+        for b in range(6):
+            sol[a, b] = -M[6 + a, b]
+        sol[a, 6] = -r[6 + a]
+    ok = cholesky_solve_into(M, ws.L, sol)
+    P = ws.P
+    c = ws.c
+    for a in range(6):
+        for b in range(6):
+            ws.Ka[el, a, b] = sol[a, b]
+        ws.k0[el, a] = sol[a, 6]
+    for a in range(6):
+        t = r[a]
+        for k in range(6):
+            t += M[6 + k, a] * sol[k, 6]
+        c[a] = t
+        for b in range(a, 6):
+            t = M[a, b]
+            for k in range(6):
+                t += M[6 + k, a] * sol[k, b]
+            P[a, b] = t
+    for a in range(6):
+        for b in range(a):
+            P[a, b] = P[b, a]
+    return ok
 
 
 @njit()
@@ -575,9 +845,17 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             for s in range(6):
                 ws.Ptip[i, r, s] = P[r, s]
             ws.Ptip[i, r, 6] = c[r]
+        for r in range(6):
+            ws.c[r] = c[r]
+            for s in range(6):
+                ws.P[r, s] = P[r, s]
         for j in range(md.k[i] - 1, -1, -1):
             el = md.el0[i] + j
-            gl = mtv(ws.Rw[el], md.grav)
+            Rw = ws.Rw[el]
+            gv = md.grav
+            g0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
+            g1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
+            g2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
             r0 = md.ie[el]
             if md.ext[i] == 1:
                 for s in range(6):
@@ -592,12 +870,14 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
                     ehat[s + 1] = qhat[r0 + s]
                     edhat[s + 1] = qdhat[r0 + s]
                     fext[s + 1] = forces[r0 + s]
-            P, c, good = element_step(md, i, el, ws.wl[el], gl, P, c, cq, cv, ehat, edhat, fext, ws)
+            good = element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws)
             ok = ok and good
             for r in range(6):
                 for s in range(6):
-                    ws.Pc[el, r, s] = P[r, s]
-                ws.Pc[el, r, 6] = c[r]
+                    ws.Pc[el, r, s] = ws.P[r, s]
+                ws.Pc[el, r, 6] = ws.c[r]
+        P = ws.P.copy()
+        c = ws.c.copy()
         # hub at the root point
         el0 = md.el0[i]
         wF = ws.wl[el0]
@@ -654,7 +934,6 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
     # forward sweep: the base does not move
     A = np.zeros(6)
     ic = 0
-    ed_ = np.zeros(6)
     for i in range(md.n):
         C = ws.C[i]
         Xo = transfer(md.org[i])
@@ -684,7 +963,13 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
                 for r in range(6):
                     loads[ic, r] = fw[r]
             ic += 1
-            edd = mv(ws.Ka[el], A) + ws.k0[el]
+            edd = ws.f6
+            Ka = ws.Ka[el]
+            for a in range(6):
+                t = ws.k0[el, a]
+                for b in range(6):
+                    t += Ka[a, b] * A[b]
+                edd[a] = t
             r0 = md.ie[el]
             if md.ext[i] == 1:
                 for s in range(6):
@@ -692,10 +977,17 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             else:
                 for s in range(5):
                     qdd[r0 + s] = edd[s + 1]
-            for s in range(6):
-                ed_[s] = edd[s]
-            AO = mv(ws.XS[el, :, :6], A) + mv(ws.XS[el, :, 6:], ed_) + ws.zO[el]
-            A = rot6t(ws.E[el], AO)
+            W = ws.XS[el]
+            AO = ws.cr
+            for a in range(6):
+                t = ws.zO[el, a]
+                for b in range(6):
+                    t += W[a, b] * A[b] + W[a, 6 + b] * edd[b]
+                AO[a] = t
+            E = ws.E[el]
+            for bl in range(2):
+                for a in range(3):
+                    A[3 * bl + a] = E[0, a] * AO[3 * bl] + E[1, a] * AO[3 * bl + 1] + E[2, a] * AO[3 * bl + 2]
         el_last = md.el0[i] + md.k[i] - 1
         if want_loads:
             f = mv(ws.Ptip[i, :, :6], A) + ws.Ptip[i, :, 6]

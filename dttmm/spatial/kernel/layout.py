@@ -75,4 +75,26 @@ class Work(NamedTuple):
     Ptip: np.ndarray  # (n, 6, 7) at each link tip (outboard element-frame components)
     PF: np.ndarray  # (n, 6, 7) at each link root with the hub, before the joint
     zJ: np.ndarray  # (n, 6) joint velocity-product term (root frame components)
-    acc: np.ndarray  # (n, 3) per joint: α̈, torque, 0
+    acc: np.ndarray  # (n, 3) per joint: α̈, torque, α̇
+    # scratch of the element step (no allocation per element)
+    G: np.ndarray  # (3, 12) translational velocity map of a body, [I, −[s]×, Σ]
+    H: np.ndarray  # (3, 12) angular velocity map of a body, [0, I, J_L Ψ]
+    B: np.ndarray  # (3, 12) its inertia times H
+    M12: np.ndarray  # (12, 12) the element's matrix over (A, ë)
+    r12: np.ndarray  # (12,)
+    PW: np.ndarray  # (6, 12)
+    Pr: np.ndarray  # (6, 6) the outboard P in this element's frame
+    cr: np.ndarray  # (6,)
+    L: np.ndarray  # (6, 6) Cholesky factor
+    sol: np.ndarray  # (6, 7)
+    E3: np.ndarray  # (3, 3)
+    J3: np.ndarray  # (3, 3)
+    jd3: np.ndarray  # (3,)
+    Iw: np.ndarray  # (3, 3)
+    P: np.ndarray  # (6, 6) the running articulated inertia
+    c: np.ndarray  # (6,)
+    KT: np.ndarray  # (6, 6)
+    D6: np.ndarray  # (6, 6)
+    f6: np.ndarray  # (6,)
+    A6: np.ndarray  # (6,)
+    A6b: np.ndarray  # (6,)
