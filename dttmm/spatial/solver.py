@@ -229,7 +229,8 @@ def simulate(
             **planar_options,
         )
     if planar_options:
-        raise InputError(next(iter(planar_options)), "<option>", "unknown option of dttmm.spatial.simulate")
+        key = next(iter(planar_options))
+        raise InputError(key, planar_options[key], "is an option of the planar kernel only (dttmm.simulate)")
     case = as_spatial_case(case)
     k = plumbing.elements_per_link(elements_per_link)
     h = plumbing.step_size(h, case.scenario.duration)
