@@ -83,6 +83,7 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
     f = lambda *shape: np.zeros((n, *shape))
     s0, Sig, Psi = f(5, 3), f(5, 3, 6), f(5, 3, 6)
     mg, Ig = f(4), f(4, 3)
+    mel, CS, CSS = f(), f(3, 6), f(6, 6)
     K, Kb, G = f(6, 6), f(6, 6), f(2, 2)
     l_, EA, mu = f(), f(), f()
     aF, aT, org, Crpy, axis, Q = f(3), f(3), f(3), f(3, 3), f(3), f(3, 3)
@@ -106,6 +107,13 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         s0[i], Sig[i], Psi[i] = shape_tables(l, b.EA is not None, pts)
         mg[i] = wq * b.rhoA * l
         Ig[i] = np.outer(wq * l, [b.rhoJ, b.rhoIy, b.rhoIz])
+        # the kernel's outboard step assumes S_O = [[D, 0], [0, J_L]]: check the tables' pattern
+        D = np.diag([1.0 if b.EA is not None else 0.0, 1.0, 1.0])
+        assert np.array_equal(Sig[i, 4], np.hstack([D, np.zeros((3, 3))]))
+        assert np.array_equal(Psi[i, 4], np.hstack([np.zeros((3, 3)), np.eye(3)]))
+        mel[i] = mg[i].sum()
+        CS[i] = np.einsum("g,gij->ij", mg[i], Sig[i, :4])
+        CSS[i] = np.einsum("g,gki,gkj->ij", mg[i], Sig[i, :4], Sig[i, :4])
         K[i] = stiffness(b, l)
         Kb[i] = K[i]
         Kb[i, 0, 0] = 0.0
@@ -170,6 +178,9 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         Psi=Psi,
         mg=mg,
         Ig=Ig,
+        mel=mel,
+        CS=CS,
+        CSS=CSS,
     )
 
 

@@ -587,7 +587,6 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     w2 = ws.wl[el, 2]
     M = ws.M12
     r = ws.r12
-    G = ws.G
     H = ws.H
     B = ws.B
     E = ws.E3
@@ -598,16 +597,9 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
         r[a] = 0.0
         for b in range(12):
             M[a, b] = 0.0
-    for a in range(3):
-        for b in range(12):
-            G[a, b] = 0.0
-            H[a, b] = 0.0
-    G[0, 0] = 1.0
-    G[1, 1] = 1.0
-    G[2, 2] = 1.0
-    H[0, 3] = 1.0
-    H[1, 4] = 1.0
-    H[2, 5] = 1.0
+    ms0 = 0.0
+    ms1 = 0.0
+    ms2 = 0.0
     for gp in range(5):
         Sg = md.Sig[i, gp]
         Pg = md.Psi[i, gp]
@@ -653,22 +645,39 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
         za0 = w1 * j2 - w2 * j1 + jd[0]
         za1 = w2 * j0 - w0 * j2 + jd[1]
         za2 = w0 * j1 - w1 * j0 + jd[2]
-        # G = [I, −[s]×, Σ], H = [0, I, J Ψ]
-        G[0, 4] = x2
-        G[0, 5] = -x1
-        G[1, 3] = -x2
-        G[1, 5] = x0
-        G[2, 3] = x1
-        G[2, 4] = -x0
-        for cc in range(6):
-            G[0, 6 + cc] = Sg[0, cc]
-            G[1, 6 + cc] = Sg[1, cc]
-            G[2, 6 + cc] = Sg[2, cc]
-            for a in range(3):
-                H[a, 6 + cc] = J[a, 0] * Pg[0, cc] + J[a, 1] * Pg[1, cc] + J[a, 2] * Pg[2, cc]
         if gp < 4:
             m = md.mg[i, gp]
             Ig = md.Ig[i, gp]
+            # translational: the blocks of m GᵀG, G = [I, −[s]×, Σ], that depend on e; the
+            # constant ones (Σm I, Σ mΣ, Σ mΣᵀΣ) and −[Σ m s]× are added after the loop
+            fl0 = m * (zl0 - g0)
+            fl1 = m * (zl1 - g1)
+            fl2 = m * (zl2 - g2)
+            r[0] += fl0
+            r[1] += fl1
+            r[2] += fl2
+            r[3] += x1 * fl2 - x2 * fl1
+            r[4] += x2 * fl0 - x0 * fl2
+            r[5] += x0 * fl1 - x1 * fl0
+            ms0 += m * x0
+            ms1 += m * x1
+            ms2 += m * x2
+            ss = x0 * x0 + x1 * x1 + x2 * x2
+            M[3, 3] += m * (ss - x0 * x0)
+            M[3, 4] -= m * x0 * x1
+            M[3, 5] -= m * x0 * x2
+            M[4, 4] += m * (ss - x1 * x1)
+            M[4, 5] -= m * x1 * x2
+            M[5, 5] += m * (ss - x2 * x2)
+            for cc in range(6):
+                s0c = Sg[0, cc]
+                s1c = Sg[1, cc]
+                s2c = Sg[2, cc]
+                r[6 + cc] += s0c * fl0 + s1c * fl1 + s2c * fl2
+                M[3, 6 + cc] += m * (x1 * s2c - x2 * s1c)
+                M[4, 6 + cc] += m * (x2 * s0c - x0 * s2c)
+                M[5, 6 + cc] += m * (x0 * s1c - x1 * s0c)
+            # rotational: Hᵀ Iw H with H = [0, I, J Ψ]
             for a in range(3):
                 for b in range(3):
                     Iw[a, b] = (
@@ -683,37 +692,49 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
             fa0 = Iw[0, 0] * za0 + Iw[0, 1] * za1 + Iw[0, 2] * za2 + wg1 * h2 - wg2 * h1
             fa1 = Iw[1, 0] * za0 + Iw[1, 1] * za1 + Iw[1, 2] * za2 + wg2 * h0 - wg0 * h2
             fa2 = Iw[2, 0] * za0 + Iw[2, 1] * za1 + Iw[2, 2] * za2 + wg0 * h1 - wg1 * h0
-            fl0 = m * (zl0 - g0)
-            fl1 = m * (zl1 - g1)
-            fl2 = m * (zl2 - g2)
-            for b in range(3, 12):
-                B[0, b] = Iw[0, 0] * H[0, b] + Iw[0, 1] * H[1, b] + Iw[0, 2] * H[2, b]
-                B[1, b] = Iw[1, 0] * H[0, b] + Iw[1, 1] * H[1, b] + Iw[1, 2] * H[2, b]
-                B[2, b] = Iw[2, 0] * H[0, b] + Iw[2, 1] * H[1, b] + Iw[2, 2] * H[2, b]
-            for a in range(12):
-                ga0 = G[0, a]
-                ga1 = G[1, a]
-                ga2 = G[2, a]
-                r[a] += ga0 * fl0 + ga1 * fl1 + ga2 * fl2
-                for b in range(a, 12):
-                    M[a, b] += m * (ga0 * G[0, b] + ga1 * G[1, b] + ga2 * G[2, b])
-                if a >= 3:
-                    ha0 = H[0, a]
-                    ha1 = H[1, a]
-                    ha2 = H[2, a]
-                    r[a] += ha0 * fa0 + ha1 * fa1 + ha2 * fa2
-                    for b in range(a, 12):
-                        M[a, b] += ha0 * B[0, b] + ha1 * B[1, b] + ha2 * B[2, b]
+            for cc in range(6):
+                for a in range(3):
+                    H[a, 6 + cc] = J[a, 0] * Pg[0, cc] + J[a, 1] * Pg[1, cc] + J[a, 2] * Pg[2, cc]
+                for a in range(3):
+                    B[a, 6 + cc] = Iw[a, 0] * H[0, 6 + cc] + Iw[a, 1] * H[1, 6 + cc] + Iw[a, 2] * H[2, 6 + cc]
+            r[3] += fa0
+            r[4] += fa1
+            r[5] += fa2
+            for a in range(3):
+                for b in range(a, 3):
+                    M[3 + a, 3 + b] += Iw[a, b]
+            for a in range(6):
+                ha0 = H[0, 6 + a]
+                ha1 = H[1, 6 + a]
+                ha2 = H[2, 6 + a]
+                r[6 + a] += ha0 * fa0 + ha1 * fa1 + ha2 * fa2
+                M[3, 6 + a] += B[0, 6 + a]
+                M[4, 6 + a] += B[1, 6 + a]
+                M[5, 6 + a] += B[2, 6 + a]
+                for b in range(a, 6):
+                    M[6 + a, 6 + b] += ha0 * B[0, 6 + b] + ha1 * B[1, 6 + b] + ha2 * B[2, 6 + b]
         else:
-            # the outboard node: its frame exp(φ), its maps W = [G; H] and bias ζ
+            # the outboard node: its frame exp(φ); its maps W = [X | S], X = [[I, −[s]×], [0, I]],
+            # S = [[D, 0], [0, J]] (D = diag(1 or 0 for the dummy u, 1, 1), checked by build_model)
             for a in range(3):
                 for b in range(3):
                     ws.E[el, a, b] = E[a, b]
             W = ws.XS[el]
-            for b in range(12):
-                for a in range(3):
-                    W[a, b] = G[a, b]
-                    W[3 + a, b] = H[a, b]
+            for a in range(6):
+                for b in range(12):
+                    W[a, b] = 0.0
+            for a in range(3):
+                W[a, a] = 1.0
+                W[3 + a, 3 + a] = 1.0
+                W[a, 6 + a] = Sg[a, a]
+                for b in range(3):
+                    W[3 + a, 9 + b] = J[a, b]
+            W[0, 4] = x2
+            W[0, 5] = -x1
+            W[1, 3] = -x2
+            W[1, 5] = x0
+            W[2, 3] = x1
+            W[2, 4] = -x0
             zO = ws.zO[el]
             zO[0] = zl0
             zO[1] = zl1
@@ -724,42 +745,106 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
             # the outboard P, c in this frame: B P Bᵀ, B c with B = blockdiag(E, E)
             P = ws.P
             Pr = ws.Pr
+            T = ws.PW  # scratch: E·P by blocks into T[:, :6]
             cr = ws.cr
             c = ws.c
             for bi in range(2):
                 for bj in range(2):
                     for a in range(3):
                         for b in range(3):
-                            t = 0.0
-                            for k in range(3):
-                                ek = E[a, k]
-                                for mm_ in range(3):
-                                    t += ek * P[3 * bi + k, 3 * bj + mm_] * E[b, mm_]
-                            Pr[3 * bi + a, 3 * bj + b] = t
+                            T[3 * bi + a, 3 * bj + b] = (
+                                E[a, 0] * P[3 * bi, 3 * bj + b]
+                                + E[a, 1] * P[3 * bi + 1, 3 * bj + b]
+                                + E[a, 2] * P[3 * bi + 2, 3 * bj + b]
+                            )
                 for a in range(3):
                     cr[3 * bi + a] = E[a, 0] * c[3 * bi] + E[a, 1] * c[3 * bi + 1] + E[a, 2] * c[3 * bi + 2]
+            for a in range(6):
+                for bj in range(2):
+                    for b in range(3):
+                        Pr[a, 3 * bj + b] = (
+                            T[a, 3 * bj] * E[b, 0] + T[a, 3 * bj + 1] * E[b, 1] + T[a, 3 * bj + 2] * E[b, 2]
+                        )
+            # ρ = Pr ζ + cr
             for a in range(6):
                 t = cr[a]
                 for k in range(6):
                     t += Pr[a, k] * zO[k]
                 cr[a] = t
+            # PW = Pr W = [Pr X | Pr S]
             PW = ws.PW
             for a in range(6):
-                for b in range(12):
-                    t = 0.0
-                    for k in range(6):
-                        t += Pr[a, k] * W[k, b]
-                    PW[a, b] = t
-            for a in range(12):
-                t = 0.0
-                for k in range(6):
-                    t += W[k, a] * cr[k]
-                r[a] += t
-                for b in range(a, 12):
-                    t = 0.0
-                    for k in range(6):
-                        t += W[k, a] * PW[k, b]
-                    M[a, b] += t
+                p0_ = Pr[a, 0]
+                p1_ = Pr[a, 1]
+                p2_ = Pr[a, 2]
+                PW[a, 0] = p0_
+                PW[a, 1] = p1_
+                PW[a, 2] = p2_
+                # −P[:, :3][s]× : row (p0, p1, p2)·(−[s]×) = (p1 x2 − p2 x1, p2 x0 − p0 x2, p0 x1 − p1 x0)
+                PW[a, 3] = Pr[a, 3] + p1_ * (-x2) + p2_ * x1
+                PW[a, 4] = Pr[a, 4] + p0_ * x2 + p2_ * (-x0)
+                PW[a, 5] = Pr[a, 5] + p0_ * (-x1) + p1_ * x0
+                PW[a, 6] = p0_ * W[0, 6]
+                PW[a, 7] = p1_ * W[1, 7]
+                PW[a, 8] = p2_ * W[2, 8]
+                for b in range(3):
+                    PW[a, 9 + b] = Pr[a, 3] * J[0, b] + Pr[a, 4] * J[1, b] + Pr[a, 5] * J[2, b]
+            # Xᵀ on the rows of PW (rows A), Sᵀ (rows e, columns e): [s]× Y[:3] + Y[3:]
+            for b in range(12):
+                y0 = PW[0, b]
+                y1 = PW[1, b]
+                y2 = PW[2, b]
+                for a in range(3):
+                    if b >= a:
+                        M[a, b] += PW[a, b]
+                k0_ = x1 * y2 - x2 * y1 + PW[3, b]
+                k1_ = x2 * y0 - x0 * y2 + PW[4, b]
+                k2_ = x0 * y1 - x1 * y0 + PW[5, b]
+                if b >= 3:
+                    M[3, b] += k0_
+                if b >= 4:
+                    M[4, b] += k1_
+                if b >= 5:
+                    M[5, b] += k2_
+            for a in range(3):
+                for b in range(6):
+                    if 6 + b >= 6 + a:
+                        M[6 + a, 6 + b] += W[a, 6 + a] * PW[a, 6 + b]
+                    if 9 + a <= 6 + b:
+                        M[9 + a, 6 + b] += (
+                            J[0, a] * PW[3, 6 + b] + J[1, a] * PW[4, 6 + b] + J[2, a] * PW[5, 6 + b]
+                        )
+            y0 = cr[0]
+            y1 = cr[1]
+            y2 = cr[2]
+            r[0] += y0
+            r[1] += y1
+            r[2] += y2
+            r[3] += x1 * y2 - x2 * y1 + cr[3]
+            r[4] += x2 * y0 - x0 * y2 + cr[4]
+            r[5] += x0 * y1 - x1 * y0 + cr[5]
+            for a in range(3):
+                r[6 + a] += W[a, 6 + a] * cr[a]
+                r[9 + a] += J[0, a] * cr[3] + J[1, a] * cr[4] + J[2, a] * cr[5]
+    # the constant translational blocks and −[Σ m s]×
+    mel = md.mel[i]
+    M[0, 0] += mel
+    M[1, 1] += mel
+    M[2, 2] += mel
+    M[0, 4] += ms2
+    M[0, 5] -= ms1
+    M[1, 3] -= ms2
+    M[1, 5] += ms0
+    M[2, 3] += ms1
+    M[2, 4] -= ms0
+    CS = md.CS[i]
+    CSS = md.CSS[i]
+    for a in range(6):
+        M[0, 6 + a] += CS[0, a]
+        M[1, 6 + a] += CS[1, a]
+        M[2, 6 + a] += CS[2, a]
+        for b in range(a, 6):
+            M[6 + a, 6 + b] += CSS[a, b]
     for a in range(12):
         for b in range(a + 1, 12):
             M[b, a] = M[a, b]

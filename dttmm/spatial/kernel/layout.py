@@ -50,6 +50,9 @@ class Model(NamedTuple):
     Psi: np.ndarray  # (n, 5, 3, 6) ∂ψ/∂e
     mg: np.ndarray  # (n, 4) masses of the Gauss bodies
     Ig: np.ndarray  # (n, 4, 3) principal inertias of the Gauss bodies
+    mel: np.ndarray  # (n,) element mass Σ m_g
+    CS: np.ndarray  # (n, 3, 6) Σ m_g Σ_g
+    CSS: np.ndarray  # (n, 6, 6) Σ m_g Σ_gᵀ Σ_g
 
 
 class Work(NamedTuple):
