@@ -153,34 +153,37 @@ def chol_solve(A, B):
 # ---------------------------------------------------------------- rotations -----------------
 
 
+def _series(k0, n, deriv=False):
+    """Coefficients (lowest power first) of Σ (−t)^k/(2k + k0)! or of its derivative in t."""
+    if not deriv:
+        return tuple((-1.0) ** k / math.factorial(2 * k + k0) for k in range(n))
+    return tuple((k + 1) * (-1.0) ** (k + 1) / math.factorial(2 * k + 2 + k0) for k in range(n))
+
+
+#: Taylor coefficients in θ² of sin θ/θ, (1 − cos θ)/θ², (θ − sin θ)/θ³ and the derivatives of
+#: the last two in θ²; 10 terms (θ² < 1: truncation < 1e-19) and 5 (θ² < 1e-2: < 1e-18)
+_A, _B, _C = _series(1, 10), _series(2, 10), _series(3, 10)
+_DB, _DC = _series(2, 10, True), _series(3, 10, True)
+_A5, _B5, _C5 = _series(1, 5), _series(2, 5), _series(3, 5)
+_DB5, _DC5 = _series(2, 5, True), _series(3, 5, True)
+
+
+@njit(inline="always")
+def _horner(cs, t):
+    acc = 0.0
+    for k in range(len(cs) - 1, -1, -1):
+        acc = acc * t + cs[k]
+    return acc
+
+
 @njit(inline="always")
 def so3_coefficients(t2):
     """(sin θ/θ, (1 − cos θ)/θ², (θ − sin θ)/θ³) and the derivatives of the last two in θ²,
-    at θ² = t2 (series for θ < 1, closed forms beyond)."""
+    at θ² = t2 (Taylor series for θ < 1, closed forms beyond)."""
+    if t2 < 1e-2:
+        return _horner(_A5, t2), _horner(_B5, t2), _horner(_C5, t2), _horner(_DB5, t2), _horner(_DC5, t2)
     if t2 < 1.0:
-        a = 0.0
-        b = 0.0
-        c = 0.0
-        db = 0.0
-        dc = 0.0
-        term = 1.0  # (−t2)^n
-        f1 = 1.0  # (2n+1)!
-        f2 = 2.0  # (2n+2)!
-        f3 = 6.0  # (2n+3)!
-        tprev = 1.0  # (−t2)^(n−1)
-        for n in range(10):
-            a += term / f1
-            b += term / f2
-            c += term / f3
-            if n >= 1:
-                db += -n * tprev / f2
-                dc += -n * tprev / f3
-                tprev = -tprev * t2
-            f1 *= (2 * n + 2) * (2 * n + 3)
-            f2 *= (2 * n + 3) * (2 * n + 4)
-            f3 *= (2 * n + 4) * (2 * n + 5)
-            term = -term * t2
-        return a, b, c, db, dc
+        return _horner(_A, t2), _horner(_B, t2), _horner(_C, t2), _horner(_DB, t2), _horner(_DC, t2)
     t = math.sqrt(t2)
     s = math.sin(t)
     co = math.cos(t)
