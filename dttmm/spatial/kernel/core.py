@@ -117,39 +117,6 @@ def rot6t(R, x):
     return y
 
 
-@njit()
-def chol_solve(A, B):
-    """Solve A X = B for symmetric positive definite A (n×n) and B (n×m); returns (X, ok)."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for j in range(n):
-        s = A[j, j]
-        for k in range(j):
-            s -= L[j, k] * L[j, k]
-        if not s > 0.0:
-            return np.zeros_like(B), False
-        L[j, j] = math.sqrt(s)
-        for i in range(j + 1, n):
-            t = A[i, j]
-            for k in range(j):
-                t -= L[i, k] * L[j, k]
-            L[i, j] = t / L[j, j]
-    m = B.shape[1]
-    X = B.copy()
-    for c in range(m):
-        for i in range(n):
-            t = X[i, c]
-            for k in range(i):
-                t -= L[i, k] * X[k, c]
-            X[i, c] = t / L[i, i]
-        for i in range(n - 1, -1, -1):
-            t = X[i, c]
-            for k in range(i + 1, n):
-                t -= L[k, i] * X[k, c]
-            X[i, c] = t / L[i, i]
-    return X, True
-
-
 # ---------------------------------------------------------------- rotations -----------------
 
 
@@ -222,19 +189,6 @@ def exp_jl(psi, psid):
 
 
 @njit(inline="always")
-def exp3(psi):
-    x, y, z = psi[0], psi[1], psi[2]
-    a, b, _c, _db, _dc = so3_coefficients(x * x + y * y + z * z)
-    K = np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))
-    K2 = mm(K, K)
-    E = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            E[i, j] = (1.0 if i == j else 0.0) + a * K[i, j] + b * K2[i, j]
-    return E
-
-
-@njit(inline="always")
 def axis_rotation(ax, ang):
     x, y, z = ax[0], ax[1], ax[2]
     K = np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))
@@ -271,42 +225,6 @@ def strain_gradient(md, i, e):
     g[2] = gc0
     g[4] = -gc1
     return eps, g
-
-
-@njit(inline="always")
-def elastic_terms(md, i, e):
-    """Elastic force f(e) (6,) and its tangent K_T(e) (6, 6) of an element of link i, and the
-    damping matrix D(e) (6, 6): D = μK (linear) or μ(EA l ∂ε∂εᵀ + K_b) (second order)."""
-    if md.so[i] == 0:
-        K = md.K[i]
-        f = mv(K, e)
-        D = md.mu[i] * K
-        return f, K.copy(), D
-    eps, g = strain_gradient(md, i, e)
-    EA = md.EA[i]
-    l = md.l[i]
-    Kb = md.Kb[i]
-    f = mv(Kb, e)
-    KT = Kb.copy()
-    D = np.empty((6, 6))
-    G = md.G[i]
-    # ∂²ε/∂e²: G on (v, φz) = (1, 5), T G T on (w, φy) = (2, 4) with T = diag(1, −1)
-    H = np.zeros((6, 6))
-    H[1, 1] = G[0, 0]
-    H[1, 5] = G[0, 1]
-    H[5, 1] = G[1, 0]
-    H[5, 5] = G[1, 1]
-    H[2, 2] = G[0, 0]
-    H[2, 4] = -G[0, 1]
-    H[4, 2] = -G[1, 0]
-    H[4, 4] = G[1, 1]
-    for r in range(6):
-        f[r] += EA * l * eps * g[r]
-        for s in range(6):
-            gg = EA * l * g[r] * g[s]
-            KT[r, s] += gg + EA * l * eps * H[r, s]
-            D[r, s] = md.mu[i] * (gg + Kb[r, s])
-    return f, KT, D
 
 
 @njit(inline="always")
@@ -1036,7 +954,7 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             else:
                 Ps = mv(PF[:, :6], s6)
                 Dj = np.dot(s6, Ps)
-                add = (tau[i] + forces[md.ia[i]] - np.dot(s6, mv(PF[:, :6], A)) - np.dot(s6, PF[:, 6])) / Dj
+                add = (tau[i] + forces[md.ia[i]] - np.dot(s6, mv(PF[:, :6], A) + PF[:, 6])) / Dj
             for r in range(3):
                 A[3 + r] += aF[r] * add
             qdd[md.ia[i]] = add

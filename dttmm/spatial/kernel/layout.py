@@ -80,7 +80,6 @@ class Work(NamedTuple):
     zJ: np.ndarray  # (n, 6) joint velocity-product term (root frame components)
     acc: np.ndarray  # (n, 3) per joint: α̈, torque, α̇
     # scratch of the element step (no allocation per element)
-    G: np.ndarray  # (3, 12) translational velocity map of a body, [I, −[s]×, Σ]
     H: np.ndarray  # (3, 12) angular velocity map of a body, [0, I, J_L Ψ]
     B: np.ndarray  # (3, 12) its inertia times H
     M12: np.ndarray  # (12, 12) the element's matrix over (A, ë)
