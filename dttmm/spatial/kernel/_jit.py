@@ -46,9 +46,11 @@ def _cache_dir() -> str:
 CACHE_DIR = None if PURE else _cache_dir()
 
 
-def njit(*, inline="never"):
+def njit(*, inline="never", nrt=True):
     """``numba.njit(cache=True, boundscheck=False)`` with the cache in :data:`CACHE_DIR`; the
-    identity in the uncompiled kernel."""
+    identity in the uncompiled kernel. ``nrt=False`` compiles without reference counting (only
+    for functions that allocate nothing): a call then does not touch the reference count of
+    every array of its named-tuple arguments, nor does taking a view."""
 
     def deco(f):
         if PURE:
@@ -56,7 +58,7 @@ def njit(*, inline="never"):
         old = numba.config.CACHE_DIR
         numba.config.CACHE_DIR = CACHE_DIR
         try:
-            return numba.njit(cache=True, boundscheck=False, inline=inline)(f)
+            return numba.njit(cache=True, boundscheck=False, inline=inline, _nrt=nrt)(f)
         finally:
             numba.config.CACHE_DIR = old
 

@@ -254,6 +254,58 @@ def unpack(md, i, j, q, qd, e, ed):
             ed[c + 1] = qd[r + c]
 
 
+@njit(nrt=False)
+def kin_link(md, ws, i, q, qd, R, p, v, w):
+    """Frames, origins and velocities of the elements of link i into ``ws``, from the root
+    element frame (R, p; v, ω in its components), which move in place to the last outboard node."""
+    S4 = md.Sig[i, 4]
+    s04 = md.s0[i, 4]
+    J = ws.J3
+    T = ws.Iw
+    for j in range(md.k[i]):
+        el = md.el0[i] + j
+        e = ws.e[el]
+        ed = ws.ed[el]
+        unpack(md, i, j, q, qd, e, ed)
+        for a in range(3):
+            ws.pw[el, a] = p[a]
+            ws.vl[el, a] = v[a]
+            ws.wl[el, a] = w[a]
+            for b in range(3):
+                ws.Rw[el, a, b] = R[a, b]
+        E = ws.E[el]
+        so3_into(e[3], e[4], e[5], ed[3], ed[4], ed[5], E, J, ws.jd3)
+        x0 = s04[0]
+        x1 = s04[1]
+        x2 = s04[2]
+        d0 = 0.0
+        d1 = 0.0
+        d2 = 0.0
+        for cc in range(6):
+            x0 += S4[0, cc] * e[cc]
+            x1 += S4[1, cc] * e[cc]
+            x2 += S4[2, cc] * e[cc]
+            d0 += S4[0, cc] * ed[cc]
+            d1 += S4[1, cc] * ed[cc]
+            d2 += S4[2, cc] * ed[cc]
+        for a in range(3):
+            p[a] += R[a, 0] * x0 + R[a, 1] * x1 + R[a, 2] * x2
+        vo0 = v[0] + w[1] * x2 - w[2] * x1 + d0
+        vo1 = v[1] + w[2] * x0 - w[0] * x2 + d1
+        vo2 = v[2] + w[0] * x1 - w[1] * x0 + d2
+        wo0 = w[0] + J[0, 0] * ed[3] + J[0, 1] * ed[4] + J[0, 2] * ed[5]
+        wo1 = w[1] + J[1, 0] * ed[3] + J[1, 1] * ed[4] + J[1, 2] * ed[5]
+        wo2 = w[2] + J[2, 0] * ed[3] + J[2, 1] * ed[4] + J[2, 2] * ed[5]
+        for a in range(3):
+            v[a] = E[0, a] * vo0 + E[1, a] * vo1 + E[2, a] * vo2
+            w[a] = E[0, a] * wo0 + E[1, a] * wo1 + E[2, a] * wo2
+            for b in range(3):
+                T[a, b] = R[a, 0] * E[0, b] + R[a, 1] * E[1, b] + R[a, 2] * E[2, b]
+        for a in range(3):
+            for b in range(3):
+                R[a, b] = T[a, b]
+
+
 @njit()
 def kinematics(md, ws, q, qd):
     """Frames, origins and velocities of every element and link tip at (q, q̇) into ``ws``."""
@@ -280,52 +332,7 @@ def kinematics(md, ws, q, qd):
         v = mtv(C, vj)
         w = mtv(C, wj)
         R = mm(R, C)
-        S4 = md.Sig[i, 4]
-        s04 = md.s0[i, 4]
-        J = ws.J3
-        T = ws.Iw
-        for j in range(md.k[i]):
-            el = md.el0[i] + j
-            e = ws.e[el]
-            ed = ws.ed[el]
-            unpack(md, i, j, q, qd, e, ed)
-            for a in range(3):
-                ws.pw[el, a] = p[a]
-                ws.vl[el, a] = v[a]
-                ws.wl[el, a] = w[a]
-                for b in range(3):
-                    ws.Rw[el, a, b] = R[a, b]
-            E = ws.E[el]
-            so3_into(e[3], e[4], e[5], ed[3], ed[4], ed[5], E, J, ws.jd3)
-            x0 = s04[0]
-            x1 = s04[1]
-            x2 = s04[2]
-            d0 = 0.0
-            d1 = 0.0
-            d2 = 0.0
-            for cc in range(6):
-                x0 += S4[0, cc] * e[cc]
-                x1 += S4[1, cc] * e[cc]
-                x2 += S4[2, cc] * e[cc]
-                d0 += S4[0, cc] * ed[cc]
-                d1 += S4[1, cc] * ed[cc]
-                d2 += S4[2, cc] * ed[cc]
-            for a in range(3):
-                p[a] += R[a, 0] * x0 + R[a, 1] * x1 + R[a, 2] * x2
-            vo0 = v[0] + w[1] * x2 - w[2] * x1 + d0
-            vo1 = v[1] + w[2] * x0 - w[0] * x2 + d1
-            vo2 = v[2] + w[0] * x1 - w[1] * x0 + d2
-            wo0 = w[0] + J[0, 0] * ed[3] + J[0, 1] * ed[4] + J[0, 2] * ed[5]
-            wo1 = w[1] + J[1, 0] * ed[3] + J[1, 1] * ed[4] + J[1, 2] * ed[5]
-            wo2 = w[2] + J[2, 0] * ed[3] + J[2, 1] * ed[4] + J[2, 2] * ed[5]
-            for a in range(3):
-                v[a] = E[0, a] * vo0 + E[1, a] * vo1 + E[2, a] * vo2
-                w[a] = E[0, a] * wo0 + E[1, a] * wo1 + E[2, a] * wo2
-                for b in range(3):
-                    T[a, b] = R[a, 0] * E[0, b] + R[a, 1] * E[1, b] + R[a, 2] * E[2, b]
-            for a in range(3):
-                for b in range(3):
-                    R[a, b] = T[a, b]
+        kin_link(md, ws, i, q, qd, R, p, v, w)
         # tip frame: R_O Rx(−roll)
         Qi = md.Q[i]
         v = mv(Qi, v)
@@ -495,7 +502,7 @@ def cholesky_solve_into(M, L, sol):
     return True
 
 
-@njit()
+@njit(nrt=False)
 def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     """Backward step over element ``el`` of link i, in place: ws.P, ws.c from the outboard node
     (outboard frame components) to the element's root (its own frame components); keeps the
@@ -813,6 +820,91 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     return ok
 
 
+@njit(nrt=False)
+def backward_link(md, ws, i, cq, cv, qhat, qdhat, forces, ehat, edhat, fext):
+    """The backward sweep over the elements of link i, in place on ws.P, ws.c (tip → root),
+    keeping each element root's (P, c) in ws.Pc. Returns ok."""
+    ok = True
+    for j in range(md.k[i] - 1, -1, -1):
+        el = md.el0[i] + j
+        Rw = ws.Rw[el]
+        gv = md.grav
+        g0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
+        g1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
+        g2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
+        r0 = md.ie[el]
+        if md.ext[i] == 1:
+            for s in range(6):
+                ehat[s] = qhat[r0 + s]
+                edhat[s] = qdhat[r0 + s]
+                fext[s] = forces[r0 + s]
+        else:
+            ehat[0] = 0.0
+            edhat[0] = 0.0
+            fext[0] = 0.0
+            for s in range(5):
+                ehat[s + 1] = qhat[r0 + s]
+                edhat[s + 1] = qdhat[r0 + s]
+                fext[s + 1] = forces[r0 + s]
+        good = element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws)
+        ok = ok and good
+        for r in range(6):
+            for s in range(6):
+                ws.Pc[el, r, s] = ws.P[r, s]
+            ws.Pc[el, r, 6] = ws.c[r]
+    return ok
+
+
+@njit(nrt=False)
+def forward_link(md, ws, i, A, qdd, want_loads, loads, ic):
+    """The forward sweep over the elements of link i: A (root acceleration of the link, its own
+    frame) in place to the outboard node of the last element, ë into qdd, cut loads from row
+    ``ic`` on. Returns the next cut row."""
+    for j in range(md.k[i]):
+        el = md.el0[i] + j
+        if want_loads:
+            f = ws.A6b
+            Pc = ws.Pc[el]
+            for a in range(6):
+                t = Pc[a, 6]
+                for b in range(6):
+                    t += Pc[a, b] * A[b]
+                f[a] = t
+            Rw = ws.Rw[el]
+            for bl in range(2):
+                for a in range(3):
+                    loads[ic, 3 * bl + a] = (
+                        Rw[a, 0] * f[3 * bl] + Rw[a, 1] * f[3 * bl + 1] + Rw[a, 2] * f[3 * bl + 2]
+                    )
+        ic += 1
+        edd = ws.f6
+        Ka = ws.Ka[el]
+        for a in range(6):
+            t = ws.k0[el, a]
+            for b in range(6):
+                t += Ka[a, b] * A[b]
+            edd[a] = t
+        r0 = md.ie[el]
+        if md.ext[i] == 1:
+            for s in range(6):
+                qdd[r0 + s] = edd[s]
+        else:
+            for s in range(5):
+                qdd[r0 + s] = edd[s + 1]
+        W = ws.XS[el]
+        AO = ws.cr
+        for a in range(6):
+            t = ws.zO[el, a]
+            for b in range(6):
+                t += W[a, b] * A[b] + W[a, 6 + b] * edd[b]
+            AO[a] = t
+        E = ws.E[el]
+        for bl in range(2):
+            for a in range(3):
+                A[3 * bl + a] = E[0, a] * AO[3 * bl] + E[1, a] * AO[3 * bl + 1] + E[2, a] * AO[3 * bl + 2]
+    return ic
+
+
 @njit()
 def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads):
     """One Riccati sweep at the kinematics in ``ws`` (from :func:`kinematics`): q̈ into ``qdd``,
@@ -855,33 +947,7 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             ws.c[r] = c[r]
             for s in range(6):
                 ws.P[r, s] = P[r, s]
-        for j in range(md.k[i] - 1, -1, -1):
-            el = md.el0[i] + j
-            Rw = ws.Rw[el]
-            gv = md.grav
-            g0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
-            g1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
-            g2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
-            r0 = md.ie[el]
-            if md.ext[i] == 1:
-                for s in range(6):
-                    ehat[s] = qhat[r0 + s]
-                    edhat[s] = qdhat[r0 + s]
-                    fext[s] = forces[r0 + s]
-            else:
-                ehat[0] = 0.0
-                edhat[0] = 0.0
-                fext[0] = 0.0
-                for s in range(5):
-                    ehat[s + 1] = qhat[r0 + s]
-                    edhat[s + 1] = qdhat[r0 + s]
-                    fext[s + 1] = forces[r0 + s]
-            good = element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws)
-            ok = ok and good
-            for r in range(6):
-                for s in range(6):
-                    ws.Pc[el, r, s] = ws.P[r, s]
-                ws.Pc[el, r, 6] = ws.c[r]
+        ok = backward_link(md, ws, i, cq, cv, qhat, qdhat, forces, ehat, edhat, fext) and ok
         P = ws.P.copy()
         c = ws.c.copy()
         # hub at the root point
@@ -961,39 +1027,7 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             ws.acc[i, 0] = add
             fF = mv(PF[:, :6], A) + PF[:, 6]
             ws.acc[i, 1] = np.dot(s6, fF)
-        for j in range(md.k[i]):
-            el = md.el0[i] + j
-            if want_loads:
-                f = mv(ws.Pc[el, :, :6], A) + ws.Pc[el, :, 6]
-                fw = rot6(ws.Rw[el], f)
-                for r in range(6):
-                    loads[ic, r] = fw[r]
-            ic += 1
-            edd = ws.f6
-            Ka = ws.Ka[el]
-            for a in range(6):
-                t = ws.k0[el, a]
-                for b in range(6):
-                    t += Ka[a, b] * A[b]
-                edd[a] = t
-            r0 = md.ie[el]
-            if md.ext[i] == 1:
-                for s in range(6):
-                    qdd[r0 + s] = edd[s]
-            else:
-                for s in range(5):
-                    qdd[r0 + s] = edd[s + 1]
-            W = ws.XS[el]
-            AO = ws.cr
-            for a in range(6):
-                t = ws.zO[el, a]
-                for b in range(6):
-                    t += W[a, b] * A[b] + W[a, 6 + b] * edd[b]
-                AO[a] = t
-            E = ws.E[el]
-            for bl in range(2):
-                for a in range(3):
-                    A[3 * bl + a] = E[0, a] * AO[3 * bl] + E[1, a] * AO[3 * bl + 1] + E[2, a] * AO[3 * bl + 2]
+        ic = forward_link(md, ws, i, A, qdd, want_loads, loads, ic)
         el_last = md.el0[i] + md.k[i] - 1
         if want_loads:
             f = mv(ws.Ptip[i, :, :6], A) + ws.Ptip[i, :, 6]
