@@ -15,6 +15,17 @@ Gravity is not part of URDF: the file records ``model.gravity`` in a comment onl
 loading tool must set it (for Pinocchio: ``model.gravity.linear = [gx, gy, 0]``; its default
 is −z, which does nothing to a planar arm). The flexibility of the links (EI, EA, damping)
 has no URDF form and is dropped.
+
+A spatial case (:class:`dttmm.spatial.SpatialCase` or ``SpatialManipulator``, docs/spatial.md)
+gives its rigid limit: ``world`` and a fixed ``base_joint`` at the base frame (``base_xyz``,
+``base_rpy``); ``joint{i}`` with the joint's ``axis``, its origin at the parent's tip frame
+(x = L of the inboard link, in the rigid limit the tip frame is the link frame moved by L)
+plus ``origin_xyz``/``origin_rpy``, ``fixed`` when the joint is locked (unlocked joints keep
+the wide limits); ``link{i}`` the beam as a rigid body, mass ρA·L at (L/2, 0, 0), inertia about
+its centre diag(0, mL²/12, mL²/12) + L·Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ (link frame);
+``hub{i}`` at the root with its 3×3 inertia; ``payload{i}`` at (L, 0, 0) + offset with its
+inertia about its centre; the ``link{i}_tip`` and ``tip`` markers as above. The gravity comment
+has three components.
 """
 
 from __future__ import annotations
@@ -58,11 +69,96 @@ def _fixed(robot, name, parent, child, x=0.0):
     ET.SubElement(joint, "child", link=child)
 
 
+def _inertia(parent, mass, xyz, J):
+    inertial = ET.SubElement(parent, "inertial")
+    ET.SubElement(inertial, "origin", xyz=" ".join(_num(v) for v in xyz), rpy="0 0 0")
+    ET.SubElement(inertial, "mass", value=_num(mass))
+    ET.SubElement(
+        inertial,
+        "inertia",
+        ixx=_num(J[0][0]),
+        ixy=_num(J[0][1]),
+        ixz=_num(J[0][2]),
+        iyy=_num(J[1][1]),
+        iyz=_num(J[1][2]),
+        izz=_num(J[2][2]),
+    )
+
+
+def _spatial_urdf(case, name):
+    import numpy as np
+
+    from .spatial import SpatialCase
+    from .spatial.build import rx
+
+    model = case.model if isinstance(case, SpatialCase) else case
+    name = name or (case.name if isinstance(case, SpatialCase) and case.name else "arm")
+    robot = ET.Element("robot", name=name)
+    g = model.gravity
+    robot.append(
+        ET.Comment(
+            " gravity (m/s^2, not part of URDF; set it in the loading tool): "
+            f"[{_num(g[0])}, {_num(g[1])}, {_num(g[2])}] "
+        )
+    )
+    vec = lambda v: " ".join(_num(x) for x in v)  # noqa: E731
+    ET.SubElement(robot, "link", name="world")
+    j = ET.SubElement(robot, "joint", name="base_joint", type="fixed")
+    ET.SubElement(j, "origin", xyz=vec(model.base_xyz), rpy=vec(model.base_rpy))
+    ET.SubElement(j, "parent", link="world")
+    ET.SubElement(j, "child", link="base")
+    ET.SubElement(robot, "link", name="base")
+    parent, x = "base", 0.0
+    for i, link in enumerate(model.links, start=1):
+        b, jt = link.beam, link.joint
+        L, m = b.length, b.mass
+        joint = ET.SubElement(robot, "joint", name=f"joint{i}", type="fixed" if jt.locked else "revolute")
+        o = jt.origin_xyz
+        ET.SubElement(joint, "origin", xyz=vec((x + o[0], o[1], o[2])), rpy=vec(jt.origin_rpy))
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=f"link{i}")
+        if not jt.locked:
+            ET.SubElement(joint, "axis", xyz=vec(jt.axis))
+            ET.SubElement(joint, "limit", lower="-" + _WIDE, upper=_WIDE, effort=_WIDE, velocity=_WIDE)
+        Q = rx(b.roll)
+        J = np.diag([0.0, m * L * L / 12, m * L * L / 12]) + L * Q @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Q.T
+        _inertia(ET.SubElement(robot, "link", name=f"link{i}"), m, (L / 2, 0.0, 0.0), J)
+        if link.hub is not None:
+            _fixed(robot, f"hub{i}_joint", f"link{i}", f"hub{i}")
+            _inertia(
+                ET.SubElement(robot, "link", name=f"hub{i}"), link.hub.mass, (0.0, 0.0, 0.0), link.hub.inertia
+            )
+        if link.payload is not None:
+            pj = ET.SubElement(robot, "joint", name=f"payload{i}_joint", type="fixed")
+            c = link.payload.offset
+            ET.SubElement(pj, "origin", xyz=vec((L + c[0], c[1], c[2])), rpy="0 0 0")
+            ET.SubElement(pj, "parent", link=f"link{i}")
+            ET.SubElement(pj, "child", link=f"payload{i}")
+            _inertia(
+                ET.SubElement(robot, "link", name=f"payload{i}"),
+                link.payload.mass,
+                (0.0, 0.0, 0.0),
+                link.payload.inertia,
+            )
+        _fixed(robot, f"link{i}_tip_joint", f"link{i}", f"link{i}_tip", L)
+        _link(robot, f"link{i}_tip")
+        parent, x = f"link{i}", L
+    _fixed(robot, "tip_joint", parent, "tip", x)
+    _link(robot, "tip")
+    ET.indent(robot)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
 def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
-    """URDF text of the rigid arm of ``case`` (a Case or a Manipulator); see the module notes."""
+    """URDF text of the rigid arm of ``case`` (a Case or a Manipulator, or a spatial case or
+    manipulator); see the module notes."""
+    from .spatial import SpatialCase, SpatialManipulator
+
+    if isinstance(case, (SpatialCase, SpatialManipulator)):
+        return _spatial_urdf(case, name)
     model = case.model if isinstance(case, Case) else case
     if not isinstance(model, Manipulator):
-        raise InputError("case", case, "must be a dttmm.Case or dttmm.Manipulator")
+        raise InputError("case", case, "must be a dttmm.Case or dttmm.Manipulator (or a spatial case)")
     name = name or (case.name if isinstance(case, Case) and case.name else "arm")
     robot = ET.Element("robot", name=name)
     gx, gy = model.gravity
@@ -97,6 +193,24 @@ def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
 
+def _load_any(path):
+    """A spatial case file (``kind = "spatial"``) by :func:`dttmm.spatial.load_case`, any other by
+    the planar loader."""
+    import tomllib
+
+    from .case import read_case_text
+
+    try:
+        kind = tomllib.loads(read_case_text(path)).get("kind")
+    except (InputError, tomllib.TOMLDecodeError):
+        kind = None
+    if kind == "spatial":
+        from .spatial import load_case as load_spatial
+
+        return load_spatial(path)
+    return load_case(path)
+
+
 def main(argv=None) -> int:
     """``dttmm urdf CASE [--out FILE]``: print (or write) the rigid arm of a case as URDF."""
 
@@ -109,7 +223,7 @@ def main(argv=None) -> int:
     p.add_argument("--out", metavar="FILE", help="write to FILE instead of standard output")
     a = p.parse_args(argv)
     try:
-        text = case_to_urdf(load_case(a.case))
+        text = case_to_urdf(_load_any(a.case))
     except (InputError, OSError) as exc:
         print(f"dttmm urdf: {exc}", file=sys.stderr)
         return 2

@@ -1,0 +1,43 @@
+"""dttmm.spatial — spatial (3-D) manipulators with flexible links (docs/spatial.md).
+
+The model (:class:`SpatialManipulator` and its parts), cases (:class:`SpatialCase`: a spatial
+manipulator with the planar suite's :class:`dttmm.Scenario`), the embedding of a planar arm
+(:func:`embed_planar`) and the rotation helpers of the discretisation.
+"""
+
+from .case import SpatialCase, case_from_dict, load_case
+from .model import (
+    SpatialHub,
+    SpatialJoint,
+    SpatialLink,
+    SpatialManipulator,
+    SpatialPayload,
+    SpatialSection,
+    embed_planar,
+)
+from .result import SpatialResult
+from .rotation import axis_angle_matrix, exp_so3, hat, left_jacobian, log_so3, rpy_matrix
+
+__all__ = [
+    "SpatialResult",
+    "accelerations",
+    "simulate",
+    "SpatialCase",
+    "SpatialHub",
+    "SpatialJoint",
+    "SpatialLink",
+    "SpatialManipulator",
+    "SpatialPayload",
+    "SpatialSection",
+    "axis_angle_matrix",
+    "case_from_dict",
+    "embed_planar",
+    "load_case",
+    "exp_so3",
+    "hat",
+    "left_jacobian",
+    "log_so3",
+    "rpy_matrix",
+]
+
+from .solver import accelerations, simulate  # noqa: E402

@@ -1,0 +1,187 @@
+"""A spatial case = a spatial manipulator + the planar suite's scenario (one drive per unlocked
+joint, base first)."""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+from pydantic import Field, Strict, ValidationError
+
+from ..case import _drive, read_case_text
+from ..errors import InputError
+from ..scenario import Scenario
+from ..schema import Finite, NonNegative, Positive, ScenarioFile, _short, _Strict, input_error
+from .model import (
+    BoundedVector3,
+    InertiaValue,
+    SpatialHub,
+    SpatialJoint,
+    SpatialLink,
+    SpatialManipulator,
+    SpatialPayload,
+    SpatialSection,
+    Vector3,
+)
+
+__all__ = ["SpatialCase", "SpatialCaseFile", "case_from_dict", "load_case", "validate_spatial_file"]
+
+
+@dataclass(frozen=True)
+class SpatialCase:
+    """The physical problem of a spatial arm: ``model`` and ``scenario``; ``provenance`` is
+    free-form metadata (no part in equality)."""
+
+    model: SpatialManipulator
+    scenario: Scenario
+    name: str = ""
+    provenance: dict | None = field(default=None, compare=False)
+
+    def __post_init__(self):
+        if not isinstance(self.model, SpatialManipulator):
+            raise InputError("case.model", self.model, "must be a dttmm.spatial.SpatialManipulator")
+        if not isinstance(self.scenario, Scenario):
+            raise InputError("case.scenario", self.scenario, "must be a dttmm.Scenario")
+        if not isinstance(self.name, str):
+            raise InputError("case.name", self.name, "must be a string")
+        if self.provenance is not None:
+            if not isinstance(self.provenance, dict) or not all(isinstance(k, str) for k in self.provenance):
+                raise InputError(
+                    "case.provenance", self.provenance, "must be a dict with string keys or None"
+                )
+            object.__setattr__(self, "provenance", dict(self.provenance))
+        n, m = self.model.n_joints, len(self.scenario.drives)
+        if n != m:
+            raise InputError(
+                "scenario.drives", f"{m} drives", f"needs exactly one drive per unlocked joint ({n} joints)"
+            )
+
+    @property
+    def n_joints(self) -> int:
+        return self.model.n_joints
+
+
+# --- the spatial case file (docs/cases.md "Spatial cases") ----------------------------------
+class JointFile(_Strict):
+    axis: Vector3 = [0.0, 0.0, 1.0]
+    origin_xyz: BoundedVector3 = [0.0, 0.0, 0.0]
+    origin_rpy: Vector3 = [0.0, 0.0, 0.0]
+    locked: bool = False
+
+
+InertiaEntry = Union[InertiaValue, BoundedVector3]  # noqa: UP007
+
+
+class HubFile(_Strict):
+    mass: NonNegative = 0.0
+    inertia: InertiaEntry = [0.0, 0.0, 0.0]
+
+
+class PayloadFile(_Strict):
+    mass: NonNegative = 0.0
+    offset: BoundedVector3 = [0.0, 0.0, 0.0]
+    inertia: InertiaEntry = [0.0, 0.0, 0.0]
+
+
+class SpatialLinkFile(_Strict):
+    """One ``[[model.links]]`` table of a spatial case."""
+
+    length: Positive
+    EA: Positive | None = None
+    GJ: Positive
+    EIy: Positive
+    EIz: Positive
+    rhoA: Positive
+    rhoJ: Positive
+    rhoIy: NonNegative = 0.0
+    rhoIz: NonNegative = 0.0
+    roll: Finite = 0.0
+    damping: NonNegative = 0.0
+    joint: JointFile = JointFile()
+    hub: HubFile | None = None
+    payload: PayloadFile | None = None
+
+
+class BaseFile(_Strict):
+    xyz: BoundedVector3 = [0.0, 0.0, 0.0]
+    rpy: Vector3 = [0.0, 0.0, 0.0]
+
+
+class SpatialModelFile(_Strict):
+    gravity: BoundedVector3 = [0.0, 0.0, 0.0]
+    base: BaseFile = BaseFile()
+    links: Annotated[list[SpatialLinkFile], Strict(), Field(min_length=1)]
+
+
+class SpatialCaseFile(_Strict):
+    """A whole spatial case file; ``kind = "spatial"`` marks it (optional)."""
+
+    kind: Literal["spatial"] = "spatial"
+    name: str = ""
+    model: SpatialModelFile
+    scenario: ScenarioFile
+    provenance: dict[str, Any] | None = None
+
+
+def validate_spatial_file(data) -> SpatialCaseFile:
+    """Validate a parsed spatial case document; InputError naming the first bad key (an
+    unknown key with the nearest valid one)."""
+    if not isinstance(data, dict):
+        raise InputError("case", _short(data), "must be a table (a TOML document)")
+    try:
+        return SpatialCaseFile.model_validate(data)
+    except ValidationError as exc:
+        raise input_error(exc, SpatialCaseFile) from None
+
+
+def case_from_dict(data: dict) -> SpatialCase:
+    """Build a :class:`SpatialCase` from a parsed spatial case document."""
+    spec = validate_spatial_file(data)
+    links = []
+    for i, d in enumerate(spec.model.links):
+        w = f"model.links[{i}]"
+        beam = SpatialSection(
+            length=d.length,
+            EA=d.EA,
+            GJ=d.GJ,
+            EIy=d.EIy,
+            EIz=d.EIz,
+            rhoA=d.rhoA,
+            rhoJ=d.rhoJ,
+            rhoIy=d.rhoIy,
+            rhoIz=d.rhoIz,
+            roll=d.roll,
+            damping=d.damping,
+            _where=w,
+        )
+        j = d.joint
+        joint = SpatialJoint(j.axis, j.origin_xyz, j.origin_rpy, j.locked, _where=f"{w}.joint")
+        hub = None if d.hub is None else SpatialHub(d.hub.mass, d.hub.inertia, _where=f"{w}.hub")
+        pay = (
+            None
+            if d.payload is None
+            else SpatialPayload(d.payload.mass, d.payload.offset, d.payload.inertia, _where=f"{w}.payload")
+        )
+        links.append(SpatialLink(beam, joint, hub, pay, _where=w))
+    m = spec.model
+    manip = SpatialManipulator(tuple(links), tuple(m.gravity), tuple(m.base.xyz), tuple(m.base.rpy))
+    sc = spec.scenario
+    drives = tuple(_drive(d, i) for i, d in enumerate(sc.drives))
+    prov = None if spec.provenance is None else dict(spec.provenance)
+    return SpatialCase(manip, Scenario(sc.duration, sc.output_step, drives), spec.name, prov)
+
+
+def load_case(path) -> SpatialCase:
+    """Read a spatial case TOML file (docs/cases.md "Spatial cases"); the name defaults to the
+    file's stem. Raises InputError for an unreadable file, invalid TOML, or any key or value the
+    schema refuses."""
+    text = read_case_text(path)
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
+    if "name" not in data:
+        data["name"] = Path(path).stem
+    return case_from_dict(data)

@@ -1,0 +1,1030 @@
+"""The global-equation solver of the spatial discretisation (docs/spatial.md): the reference.
+
+Same model and same discretisation as the spatial DT-TMM (:mod:`dttmm.spatial`), but the
+equations of motion are assembled into one dense system in the minimal coordinates
+
+    q = [α_1, e_{1,1}, …, e_{1,k}, α_2, …],   e = (u, v, w, φx, φy, φz)
+
+(no α for a locked joint, no u for an inextensible link) and solved as
+
+    M(q) q̈ + h(q, q̇) + f_int(q) + f_d(q, q̇) = Q(t).
+
+**Bodies.** Every element contributes the material points and sections at its 4 Gauss–Legendre
+points ξ_g (weights w_g on [0, 1]): a point mass ρA l w_g at r(ξ_g) = r_I + R_I s(ξ_g) and a
+rotary inertia l w_g R_s diag(ρJ, ρIy, ρIz) R_sᵀ with R_s = R_I exp([ψ(ξ_g)]×). A hub is a
+mass at its link's root point with the inertia R_link J_h R_linkᵀ; a payload a mass at its
+centre p_tip + R_tip c with the inertia R_tip J_p R_tipᵀ. The Jacobians of the bodies'
+velocities (ṙ = J_v q̇, ω = J_ω q̇) follow the chain: a joint adds R_J a α̇ to the angular
+velocity, an element's outboard node moves by ṙ_O = ṙ_I + ω_I × R_I d + R_I ḋ with
+d = (l + u, v, w), and turns by ω_O = ω_I + R_I J_L(φ) φ̇ (J_L the left Jacobian of SO(3)).
+
+**Equations.** M = Σ m J_vᵀJ_v + Σ J_ωᵀ I J_ω; the velocity terms
+h = Σ m J_vᵀ (J̇_v q̇) + Σ J_ωᵀ (I J̇_ω q̇ + ω × I ω), with J̇q̇ the exact directional derivative
+of J(q)q̇ along q̇, taken by the complex step Im[J(q + iε q̇)] q̇ / ε (ε = 1e-30; every map is
+analytic); gravity Q_g = Σ m J_vᵀ g. The elastic force is the gradient of the element strain
+energy (linear strain, or the second-order axial strain of extensible links); the
+Kelvin–Voigt damping acts on the rate of the same strain measures (D = μK for linear strain).
+
+**Time integration.** ``"newmark"`` (β = ¼, γ = ½) and ``"generalized-alpha"`` step the shared
+schedule (:func:`dttmm.timegrid.step_schedule`) and iterate each step's accelerations with the
+elastic and damping forces linearised at the iterate,
+[M + c_v D_t + c_q K_T] q̈⁽ⁱ⁺¹⁾ = Q − h − f_int − f_d + (c_q K_T + c_v D_t) q̈⁽ⁱ⁾, stopped by
+:func:`dttmm.iteration.stop_rule`; ``"rk4"`` integrates the forward dynamics. Motion drives
+prescribe their joint (their torque is the equation's residual on α); open-loop torque
+drives give Q. Closed-loop drive laws are refused.
+
+**Outputs** (docs/spatial.md §4), on the scenario's output grid (cubic Hermite between step
+ends): a :class:`dttmm.spatial.SpatialResult` whose ``joint_*`` arrays have one column per
+unlocked joint, ``link_root`` and ``link_tip`` (nt, n, 3), ``end_effector`` (nt, 3),
+``tip_deflection`` (nt, n, 2) (the components of tip − root along the root link frame's y and
+z axes), ``twist`` (nt, n) (the x component of log(R_linkᵀ R_tip)), ``link_rotation`` R_link
+and ``tip_rotation`` R_tip (nt, n, 3, 3); ``meta["q"]``, ``meta["qd"]`` hold the coordinates;
+with ``cut_loads=True`` the loads at every element root and link tip, by Newton–Euler of the
+bodies outboard of the cut (:func:`cut_loads`).
+
+Readings of docs/spatial.md fixed here: the hub is rigid with the link frame R_link (it sits
+before the roll of the element frames); tip deflections and twist use R_link as the root
+frame; the second-order strain only concerns extensible links (inextensible links keep
+their linear bending and torsion energy).
+
+This module shares with :mod:`dttmm` only the model, scenario and result classes, the step
+schedule, the Newmark-family coefficients, the stop rule of the iteration and the errors.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from dttmm import plumbing
+from dttmm.drives import require_open_loop
+from dttmm.errors import InputError, SimulationError
+from dttmm.iteration import stop_rule
+from dttmm.spatial import SpatialCase, SpatialResult
+from dttmm.timegrid import step_schedule
+
+from ._spatial_mechanics import (
+    GAUSS_WEIGHTS,
+    element_stiffness,
+    exp_so3,
+    left_jacobian,
+    log_so3,
+    rot_axis,
+    rpy_matrix,
+    shape_matrices,
+    skew,
+    strain_terms,
+)
+
+__all__ = [
+    "INTEGRATORS",
+    "STRAINS",
+    "accelerations",
+    "coordinate_names",
+    "cut_loads",
+    "damping_forces",
+    "elastic_forces",
+    "energy",
+    "generalized_forces",
+    "kinematics",
+    "mass_matrix",
+    "simulate",
+]
+
+INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
+STRAINS = ("linear", "second-order")
+_STEPPED = ("newmark", "generalized-alpha")
+_EPS = 1e-30  # complex step
+_SLOTS = ("u", "v", "w", "phix", "phiy", "phiz")
+
+
+# ----------------------------------------------------------------------------------------------
+# Layout
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Layout:
+    """Coordinates and constant data of one (case, k) discretisation."""
+
+    n_links: int
+    k: int
+    n_dof: int
+    names: list
+    alpha_idx: np.ndarray  # (n,) q index of α_i, −1 for a locked joint
+    joints: np.ndarray  # (nj,) links with an unlocked joint, base first
+    e_idx: np.ndarray  # (Nel, 6) q index of e's slots, −1 where absent
+    sel: np.ndarray  # (Nel, 6, N) q → e
+    link_of: np.ndarray  # (Nel,)
+    length: np.ndarray  # (Nel,)
+    # per link
+    axis: np.ndarray  # (n, 3)
+    origin_R: np.ndarray  # (n, 3, 3)
+    origin_p: np.ndarray  # (n, 3)
+    roll_R: np.ndarray  # (n, 3, 3) Rx(roll)
+    hub_m: np.ndarray  # (n,)
+    hub_J: np.ndarray  # (n, 3, 3)
+    pay_m: np.ndarray  # (n,)
+    pay_c: np.ndarray  # (n, 3)
+    pay_J: np.ndarray  # (n, 3, 3)
+    base_R: np.ndarray
+    base_p: np.ndarray
+    gravity: np.ndarray  # (3,)
+    # Gauss points, per element
+    s0: np.ndarray  # (Nel, ng, 3)
+    S: np.ndarray  # (Nel, ng, 3, 6)
+    P: np.ndarray  # (Nel, ng, 3, 6)
+    m_g: np.ndarray  # (Nel, ng) point masses ρA l w_g
+    I_g: np.ndarray  # (Nel, ng, 3) rotary inertia diagonals l w_g (ρJ, ρIy, ρIz)
+    # elastic data, per element
+    EA: list  # (Nel,) float or None
+    K_el: np.ndarray  # (Nel, 6, 6) linear-strain stiffness
+    mu: np.ndarray  # (Nel,)
+    second: np.ndarray  # (Nel,) bool: second-order axial strain
+    K: np.ndarray  # (N, N) linear stiffness
+    D: np.ndarray  # (N, N) μK
+    strain: str
+    # drives
+    motion: np.ndarray  # (nj,) bool
+    presc: np.ndarray  # q indices of motion-driven α
+    free: np.ndarray
+
+
+def _check_case(case) -> SpatialCase:
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
+    return case
+
+
+def _check_strain(strain) -> str:
+    if not isinstance(strain, str) or strain not in STRAINS:
+        raise InputError("strain", strain, f"unknown strain measure (one of: {', '.join(STRAINS)})")
+    return strain
+
+
+def _layout(case, k, strain="linear") -> _Layout:
+    case = _check_case(case)
+    k = plumbing.elements_per_link(k)
+    strain = _check_strain(strain)
+    model = case.model
+    links = model.links
+    n = len(links)
+    names, alpha_idx, e_idx = [], [], []
+    for i, link in enumerate(links, start=1):
+        if link.joint.locked:
+            alpha_idx.append(-1)
+        else:
+            alpha_idx.append(len(names))
+            names.append(f"alpha_{i}")
+        slots = range(6) if link.beam.EA is not None else range(1, 6)
+        for j in range(1, k + 1):
+            row = [-1] * 6
+            for s in slots:
+                row[s] = len(names)
+                names.append(f"{_SLOTS[s]}_{i}_{j}")
+            e_idx.append(row)
+    N = len(names)
+    e_idx = np.array(e_idx, int)
+    nel = n * k
+    sel = np.zeros((nel, 6, N))
+    el, slot = np.nonzero(e_idx >= 0)
+    sel[el, slot, e_idx[el, slot]] = 1.0
+    length = np.repeat([lk.beam.length / k for lk in links], k).astype(float)
+    s0, S, P, m_g, I_g, K_el, EA, mu, second = [], [], [], [], [], [], [], [], []
+    for link in links:
+        b = link.beam
+        l = b.length / k
+        a, B, C = shape_matrices(l)
+        Ke = element_stiffness(l, b.EA, b.GJ, b.EIy, b.EIz)
+        for _ in range(k):
+            s0.append(a)
+            S.append(B)
+            P.append(C)
+            m_g.append(b.rhoA * l * GAUSS_WEIGHTS)
+            I_g.append(l * GAUSS_WEIGHTS[:, None] * np.array([b.rhoJ, b.rhoIy, b.rhoIz]))
+            K_el.append(Ke)
+            EA.append(b.EA)
+            mu.append(b.damping)
+            second.append(strain == "second-order" and b.EA is not None)
+    K_el = np.array(K_el)
+    mu = np.array(mu, float)
+    K = np.zeros((N, N))
+    for e in range(nel):
+        K += sel[e].T @ K_el[e] @ sel[e]
+    joints = np.array([i for i, lk in enumerate(links) if not lk.joint.locked], int)
+    alpha_idx = np.array(alpha_idx, int)
+    motion = np.array([d.kind == "motion" for d in case.scenario.drives], bool)
+    presc = alpha_idx[joints[motion]]
+    D = np.zeros((N, N))
+    for e in range(nel):
+        D += mu[e] * (sel[e].T @ K_el[e] @ sel[e])
+    return _Layout(
+        n_links=n,
+        k=k,
+        n_dof=N,
+        names=names,
+        alpha_idx=alpha_idx,
+        joints=joints,
+        e_idx=e_idx,
+        sel=sel,
+        link_of=np.repeat(np.arange(n), k),
+        length=length,
+        axis=np.array([lk.joint.axis for lk in links], float),
+        origin_R=np.array([rpy_matrix(lk.joint.origin_rpy) for lk in links]),
+        origin_p=np.array([lk.joint.origin_xyz for lk in links], float),
+        roll_R=np.array([rot_axis((1, 0, 0), lk.beam.roll) for lk in links]),
+        hub_m=np.array([lk.hub_mass for lk in links], float),
+        hub_J=np.array([lk.hub_inertia for lk in links], float),
+        pay_m=np.array([lk.payload_mass for lk in links], float),
+        pay_c=np.array([lk.payload_offset for lk in links], float),
+        pay_J=np.array([lk.payload_inertia for lk in links], float),
+        base_R=rpy_matrix(model.base_rpy),
+        base_p=np.array(model.base_xyz, float),
+        gravity=np.array(model.gravity, float),
+        s0=np.array(s0),
+        S=np.array(S),
+        P=np.array(P),
+        m_g=np.array(m_g),
+        I_g=np.array(I_g),
+        EA=EA,
+        K_el=K_el,
+        mu=mu,
+        second=np.array(second, bool),
+        K=K,
+        D=D,
+        strain=strain,
+        motion=motion,
+        presc=presc,
+        free=np.setdiff1d(np.arange(N), presc),
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# Kinematics: frames and their velocity Jacobians (any dtype: complex for the complex step)
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _Frames:
+    e: np.ndarray  # (Nel, 6)
+    RI: np.ndarray  # (Nel, 3, 3) element frames
+    rI: np.ndarray  # (Nel, 3)
+    JrI: np.ndarray  # (Nel, 3, N)
+    JwI: np.ndarray  # (Nel, 3, N)
+    R_link: np.ndarray  # (n, 3, 3)
+    p_link: np.ndarray  # (n, 3)
+    Jr_link: np.ndarray  # (n, 3, N)
+    Jw_link: np.ndarray
+    R_tip: np.ndarray  # (n, 3, 3)
+    p_tip: np.ndarray  # (n, 3)
+    Jr_tip: np.ndarray
+    Jw_tip: np.ndarray
+    nodes: np.ndarray  # (Nel, 3) outboard node positions
+
+
+def _frames(lay: _Layout, q: np.ndarray) -> _Frames:
+    dt = q.dtype
+    N, n, k = lay.n_dof, lay.n_links, lay.k
+    nel = n * k
+    e = np.einsum("esn,n->es", lay.sel, q)
+    out = {
+        "RI": np.empty((nel, 3, 3), dt),
+        "rI": np.empty((nel, 3), dt),
+        "JrI": np.empty((nel, 3, N), dt),
+        "JwI": np.empty((nel, 3, N), dt),
+        "R_link": np.empty((n, 3, 3), dt),
+        "p_link": np.empty((n, 3), dt),
+        "Jr_link": np.empty((n, 3, N), dt),
+        "Jw_link": np.empty((n, 3, N), dt),
+        "R_tip": np.empty((n, 3, 3), dt),
+        "p_tip": np.empty((n, 3), dt),
+        "Jr_tip": np.empty((n, 3, N), dt),
+        "Jw_tip": np.empty((n, 3, N), dt),
+        "nodes": np.empty((nel, 3), dt),
+    }
+    R = lay.base_R.astype(dt)
+    p = lay.base_p.astype(dt)
+    Jr = np.zeros((3, N), dt)
+    Jw = np.zeros((3, N), dt)
+    for i in range(n):
+        # joint frame: R_J = R_par R_rpy, p_J = p_par + R_par o
+        off = R @ lay.origin_p[i]
+        p = p + off
+        Jr = Jr - skew(off) @ Jw
+        R = R @ lay.origin_R[i]
+        a = lay.alpha_idx[i]
+        if a >= 0:
+            Jw = Jw.copy()
+            Jw[:, a] += R @ lay.axis[i]
+            R = R @ rot_axis(lay.axis[i], q[a])
+        out["R_link"][i], out["p_link"][i], out["Jr_link"][i], out["Jw_link"][i] = R, p, Jr, Jw
+        R = R @ lay.roll_R[i]
+        for j in range(k):
+            el = i * k + j
+            out["RI"][el], out["rI"][el], out["JrI"][el], out["JwI"][el] = R, p, Jr, Jw
+            ee = e[el]
+            d = R @ np.array([lay.length[el] + ee[0], ee[1], ee[2]])
+            Jr = Jr - skew(d) @ Jw + R @ lay.sel[el, 0:3]
+            Jw = Jw + R @ left_jacobian(ee[3:]) @ lay.sel[el, 3:6]
+            p = p + d
+            R = R @ exp_so3(ee[3:])
+            out["nodes"][el] = p
+        R = R @ lay.roll_R[i].T
+        out["R_tip"][i], out["p_tip"][i], out["Jr_tip"][i], out["Jw_tip"][i] = R, p, Jr, Jw
+    return _Frames(e=e, **out)
+
+
+@dataclass
+class _Bodies:
+    """Point masses (m, r, J_v) and rotary inertias (I, R, J_ω) of the discretised arm."""
+
+    m: np.ndarray  # (Pm,)
+    r: np.ndarray  # (Pm, 3)
+    Jv: np.ndarray  # (Pm, 3, N)
+    I: np.ndarray  # (Pr, 3, 3) in W
+    Jw: np.ndarray  # (Pr, 3, N)
+
+
+def _bodies(lay: _Layout, q: np.ndarray) -> _Bodies:
+    fr = _frames(lay, q)
+    nel, ng = lay.m_g.shape
+    N = lay.n_dof
+    RI = fr.RI[:, None]  # (Nel, 1, 3, 3)
+    s = lay.s0 + np.einsum("egij,ej->egi", lay.S, fr.e)  # (Nel, ng, 3)
+    psi = np.einsum("egij,ej->egi", lay.P, fr.e)
+    x = np.einsum("eij,egj->egi", fr.RI, s)  # R_I s
+    r = fr.rI[:, None] + x
+    sel = lay.sel[:, None]  # (Nel, 1, 6, N)
+    Jv = fr.JrI[:, None] - skew(x) @ fr.JwI[:, None] + RI @ lay.S @ sel
+    Jw = fr.JwI[:, None] + RI @ left_jacobian(psi) @ lay.P @ sel
+    Rs = RI @ exp_so3(psi)
+    Ig = (Rs * lay.I_g[:, :, None, :]) @ np.swapaxes(Rs, -1, -2)
+    # hubs (at the root point, rigid with R_link) and payloads (centre p_tip + R_tip c)
+    hub_I = fr.R_link @ lay.hub_J @ np.swapaxes(fr.R_link, -1, -2)
+    c = np.einsum("nij,nj->ni", fr.R_tip, lay.pay_c)
+    pay_r = fr.p_tip + c
+    pay_Jv = fr.Jr_tip - skew(c) @ fr.Jw_tip
+    pay_I = fr.R_tip @ lay.pay_J @ np.swapaxes(fr.R_tip, -1, -2)
+    return _Bodies(
+        m=np.concatenate([lay.m_g.ravel(), lay.hub_m, lay.pay_m]),
+        r=np.concatenate([r.reshape(-1, 3), fr.p_link, pay_r]),
+        Jv=np.concatenate([Jv.reshape(-1, 3, N), fr.Jr_link, pay_Jv]),
+        I=np.concatenate([Ig.reshape(-1, 3, 3), hub_I, pay_I]),
+        Jw=np.concatenate([Jw.reshape(-1, 3, N), fr.Jw_link, fr.Jw_tip]),
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# Inertia, velocity terms, gravity
+# ----------------------------------------------------------------------------------------------
+
+
+def _mass(b: _Bodies) -> np.ndarray:
+    N = b.Jv.shape[-1]
+    Jv = (b.Jv.real * np.sqrt(b.m)[:, None, None]).reshape(-1, N)
+    Jw = b.Jw.real
+    IJ = (b.I.real @ Jw).reshape(-1, N)
+    M = Jv.T @ Jv + Jw.reshape(-1, N).T @ IJ
+    return 0.5 * (M + M.T)
+
+
+def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
+    """M(q) and f = Q_g − h(q, q̇): one complex evaluation of the bodies at q + iε q̇ gives the
+    Jacobians (real part) and J̇q̇ (imaginary part of J q̇, divided by ε)."""
+    b = _bodies(lay, q + 1j * _EPS * qd)
+    M = _mass(b)
+    vel = b.Jv @ qd
+    om = b.Jw @ qd
+    av = vel.imag / _EPS  # J̇_v q̇
+    aw = om.imag / _EPS  # J̇_ω q̇
+    w = om.real
+    I = b.I.real
+    Iw = np.einsum("pij,pj->pi", I, w)
+    N = lay.n_dof
+    force = b.m[:, None] * (lay.gravity - av)  # gravity minus the velocity-term inertia forces
+    moment = np.einsum("pij,pj->pi", I, aw) + np.cross(w, Iw)
+    f = b.Jv.real.transpose(2, 0, 1).reshape(N, -1) @ force.ravel()
+    f -= b.Jw.real.transpose(2, 0, 1).reshape(N, -1) @ moment.ravel()
+    return M, f
+
+
+def _cut_table(lay: _Layout):
+    """Cuts (link i: the roots of its k elements, then its tip; (n(k + 1),)) and, for every
+    point-mass and rotary body of :func:`_bodies`, the index of the first cut it is *not*
+    outboard of: a body is outboard of cut c when c < reach. Gauss points of element e lie
+    beyond the roots of elements ≤ e; a hub lies beyond the cuts of the links before its own
+    (it is on the inboard side of its link's root cut); a payload beyond every cut of its link
+    up to and including the link's tip."""
+    n, k = lay.n_links, lay.k
+    nel, ng = lay.m_g.shape
+    per = k + 1
+    el = np.arange(nel)
+    gauss = np.repeat((el // k) * per + el % k + 1, ng)
+    hub = np.arange(n) * per
+    pay = np.arange(n) * per + per
+    return np.concatenate([gauss, hub, pay])
+
+
+def _cut_loads(lay: _Layout, q, qd, qdd) -> np.ndarray:
+    """Loads (n(k + 1), 6) at the cuts: force and moment about the cut point (W components) that
+    the inboard part exerts on the outboard part, by Newton–Euler of the outboard bodies:
+    F = Σ m (a − g), M = Σ (r − r_c) × m (a − g) + Σ (I ω̇ + ω × I ω)."""
+    b = _bodies(lay, q + 1j * _EPS * qd)
+    fr = _frames(lay, q)
+    Jv, Jw = b.Jv.real, b.Jw.real
+    acc = Jv @ qdd + (b.Jv @ qd).imag / _EPS
+    om = Jw @ qd
+    dom = Jw @ qdd + (b.Jw @ qd).imag / _EPS
+    I = b.I.real
+    r = b.r.real
+    force = b.m[:, None] * (acc - lay.gravity)
+    spin = np.einsum("pij,pj->pi", I, dom) + np.cross(om, np.einsum("pij,pj->pi", I, om))
+    n, k = lay.n_links, lay.k
+    points = np.concatenate(
+        [np.concatenate([fr.rI[i * k : (i + 1) * k], fr.p_tip[i : i + 1]]) for i in range(n)]
+    )
+    reach = _cut_table(lay)
+    out = np.zeros((points.shape[0], 6))
+    for c, rc in enumerate(points):
+        sel = reach > c
+        out[c, :3] = force[sel].sum(axis=0)
+        out[c, 3:] = np.cross(r[sel] - rc, force[sel]).sum(axis=0) + spin[sel].sum(axis=0)
+    return out
+
+
+def cut_loads(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndarray:
+    """Cut loads (n(k + 1), 6) at the state (q, q̇) and time t (right limits of the drives), per
+    link the roots of its k elements and its tip, base link first: force (N) and moment about
+    the cut point (N·m), W components, that the inboard part exerts on the outboard part; from
+    the forward dynamics' q̈ by Newton–Euler of the outboard bodies. The hub of a link is on
+    the inboard side of its root cut, its payload on the outboard side of its tip cut."""
+    lay = _layout(case, elements_per_link, strain)
+    require_open_loop(case, "the spatial global solver")
+    q, qd = _as_state(lay, q, "q"), _as_state(lay, qd, "qd")
+    qdd = _forward(case, lay, q, qd, float(t), False)[0]
+    return _cut_loads(lay, q, qd, qdd)
+
+
+def _kinetic(lay: _Layout, q, qd) -> float:
+    b = _bodies(lay, q)
+    v = b.Jv @ qd
+    w = b.Jw @ qd
+    return float(0.5 * np.sum(b.m * np.sum(v * v, -1)) + 0.5 * np.einsum("pi,pij,pj->", w, b.I, w))
+
+
+def _potential(lay: _Layout, q) -> float:
+    b = _bodies(lay, q)
+    return -float(np.sum(b.m * (b.r @ lay.gravity)))
+
+
+# ----------------------------------------------------------------------------------------------
+# Elastic and damping forces
+# ----------------------------------------------------------------------------------------------
+
+
+def _element_e(lay, x):
+    return np.einsum("esn,n->es", lay.sel, x)
+
+
+def _elastic(lay: _Layout, q):
+    """Strain energy U, internal force f_int (N,) and tangent K_T (N, N)."""
+    if not lay.second.any():
+        f = lay.K @ q
+        return 0.5 * float(q @ f), f, lay.K
+    e = _element_e(lay, q)
+    U, f, KT = 0.0, np.zeros(lay.n_dof), np.zeros((lay.n_dof, lay.n_dof))
+    for el in range(e.shape[0]):
+        Kb = lay.K_el[el].copy()
+        Kb[0, 0] = 0.0  # the axial part comes from ε below
+        fe = Kb @ e[el]
+        Ue = 0.5 * e[el] @ fe
+        Ke = Kb
+        if lay.EA[el] is not None:
+            eps, g, H = strain_terms(lay.length[el], lay.EA[el], e[el], lay.second[el])
+            c = lay.EA[el] * lay.length[el]
+            Ue += 0.5 * c * eps * eps
+            fe = fe + c * eps * g
+            Ke = Ke + c * (np.outer(g, g) + eps * H)
+        S = lay.sel[el]
+        U += Ue
+        f += S.T @ fe
+        KT += S.T @ Ke @ S
+    return float(U), f, KT
+
+
+def _damping(lay: _Layout, q, qd):
+    """Damping force f_d (N,) and its rate tangent D_t (N, N): R = ½μ[EA l ε̇² + ėᵀK_b ė]."""
+    if not lay.second.any():
+        return lay.D @ qd, lay.D
+    e, ed = _element_e(lay, q), _element_e(lay, qd)
+    f, Dt = np.zeros(lay.n_dof), np.zeros((lay.n_dof, lay.n_dof))
+    for el in range(e.shape[0]):
+        Kb = lay.K_el[el].copy()
+        Kb[0, 0] = 0.0
+        fe = Kb @ ed[el]
+        De = Kb
+        if lay.EA[el] is not None:
+            _, g, _ = strain_terms(lay.length[el], lay.EA[el], e[el], lay.second[el])
+            c = lay.EA[el] * lay.length[el]
+            fe = fe + c * (g @ ed[el]) * g
+            De = De + c * np.outer(g, g)
+        S = lay.sel[el]
+        f += lay.mu[el] * (S.T @ fe)
+        Dt += lay.mu[el] * (S.T @ De @ S)
+    return f, Dt
+
+
+# ----------------------------------------------------------------------------------------------
+# Drives and forward dynamics
+# ----------------------------------------------------------------------------------------------
+
+
+def _torques(case, lay: _Layout, t, left) -> np.ndarray:
+    Q = np.zeros(lay.n_dof)
+    for j, d in enumerate(case.scenario.drives):
+        if d.kind == "torque":
+            Q[lay.alpha_idx[lay.joints[j]]] = d.torque(t, left)
+    return Q
+
+
+def _prescribed(case, t, left) -> np.ndarray:
+    rows = [d.motion(t, left) for d in case.scenario.drives if d.kind == "motion"]
+    return np.array(rows, float).reshape(-1, 3)
+
+
+def _initial_state(case, lay: _Layout):
+    q, qd = np.zeros(lay.n_dof), np.zeros(lay.n_dof)
+    for j, d in enumerate(case.scenario.drives):
+        a = lay.alpha_idx[lay.joints[j]]
+        q[a], qd[a] = d.initial_angle, d.initial_rate
+    return q, qd
+
+
+def _forward(case, lay, q, qd, t, left):
+    """q̈ of M q̈ = Q − h − f_int − f_d with the motion joints prescribed; their torques."""
+    P, F = lay.presc, lay.free
+    pres = _prescribed(case, t, left)
+    M, f = _assemble(lay, q, qd)
+    rhs = f + _torques(case, lay, t, left) - _elastic(lay, q)[1] - _damping(lay, q, qd)[0]
+    qdd = np.zeros(lay.n_dof)
+    qdd[P] = pres[:, 2]
+    qdd[F] = np.linalg.solve(M[np.ix_(F, F)], rhs[F] - M[np.ix_(F, P)] @ qdd[P])
+    return qdd, M[P] @ qdd - rhs[P]
+
+
+def _joint_torques(case, lay, t, left, tau_p) -> np.ndarray:
+    tau = np.zeros(lay.joints.size)
+    for j, d in enumerate(case.scenario.drives):
+        if d.kind == "torque":
+            tau[j] = d.torque(t, left)
+    tau[lay.motion] = tau_p
+    return tau
+
+
+# ----------------------------------------------------------------------------------------------
+# Public functions of a state
+# ----------------------------------------------------------------------------------------------
+
+
+def _as_state(lay: _Layout, x, field: str) -> np.ndarray:
+    arr = np.asarray(x, float)
+    if arr.shape != (lay.n_dof,):
+        raise InputError(field, f"shape {arr.shape}", f"must have shape ({lay.n_dof},)")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(field, "non-finite entries", "must be finite")
+    return arr
+
+
+def coordinate_names(case, elements_per_link) -> list[str]:
+    """Names of the minimal coordinates in the order of q: per link i ``alpha_i`` (unlocked
+    joints), then per element j ``u_i_j`` (extensible links), ``v_i_j``, ``w_i_j``,
+    ``phix_i_j``, ``phiy_i_j``, ``phiz_i_j`` (1-based)."""
+    return list(_layout(case, elements_per_link).names)
+
+
+def mass_matrix(case, elements_per_link, q) -> np.ndarray:
+    """M(q) (N, N) = Σ m J_vᵀJ_v + Σ J_ωᵀ I J_ω over the Gauss points, hubs and payloads."""
+    lay = _layout(case, elements_per_link)
+    return _mass(_bodies(lay, _as_state(lay, q, "q")))
+
+
+def generalized_forces(case, elements_per_link, q, qd) -> np.ndarray:
+    """Q_g − h(q, q̇) (N,): gravity minus the velocity terms (no joint torques, no elastic or
+    damping forces)."""
+    lay = _layout(case, elements_per_link)
+    return _assemble(lay, _as_state(lay, q, "q"), _as_state(lay, qd, "qd"))[1]
+
+
+def elastic_forces(case, elements_per_link, q, strain="linear"):
+    """(U, f_int, K_T): strain energy (J), its gradient (N,) and Hessian (N, N)."""
+    lay = _layout(case, elements_per_link, strain)
+    U, f, KT = _elastic(lay, _as_state(lay, q, "q"))
+    return U, f.copy(), KT.copy()
+
+
+def damping_forces(case, elements_per_link, q, qd, strain="linear"):
+    """(f_d, D_t): the Kelvin–Voigt force (N,) and its rate tangent (N, N)."""
+    lay = _layout(case, elements_per_link, strain)
+    f, Dt = _damping(lay, _as_state(lay, q, "q"), _as_state(lay, qd, "qd"))
+    return f.copy(), Dt.copy()
+
+
+def accelerations(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndarray:
+    """Forward dynamics q̈ (N,) at the state (q, q̇) and time t (right limits of the drives);
+    motion-driven joints take α̈ from their law (their entries of q, q̇ are used as given)."""
+    lay = _layout(case, elements_per_link, strain)
+    require_open_loop(case, "the spatial global solver")
+    q, qd = _as_state(lay, q, "q"), _as_state(lay, qd, "qd")
+    return _forward(case, lay, q, qd, float(t), False)[0]
+
+
+def energy(case, elements_per_link, q, qd, strain="linear") -> dict:
+    """``kinetic`` ½q̇ᵀMq̇, ``elastic`` Σ U and ``gravity`` −Σ m gᵀr (J)."""
+    lay = _layout(case, elements_per_link, strain)
+    q, qd = _as_state(lay, q, "q"), _as_state(lay, qd, "qd")
+    return _energy(lay, q, qd)
+
+
+def _energy(lay, q, qd) -> dict:
+    return {"kinetic": _kinetic(lay, q, qd), "elastic": _elastic(lay, q)[0], "gravity": _potential(lay, q)}
+
+
+def kinematics(case, elements_per_link, q) -> dict:
+    """Frames at q: ``root`` (n, 3) and ``tip`` (n, 3) positions, ``root_rotation`` R_link and
+    ``tip_rotation`` R_tip (n, 3, 3), ``nodes`` (n, k, 3) the outboard element nodes,
+    ``tip_deflection`` (n, 2) and ``twist`` (n,)."""
+    lay = _layout(case, elements_per_link)
+    return _link_frames(lay, _as_state(lay, q, "q"))
+
+
+def _link_frames(lay, q) -> dict:
+    fr = _frames(lay, q)
+    d = fr.p_tip - fr.p_link
+    defl = np.einsum("nij,ni->nj", fr.R_link, d)[:, 1:]
+    rel = np.swapaxes(fr.R_link, -1, -2) @ fr.R_tip
+    return {
+        "root": fr.p_link,
+        "tip": fr.p_tip,
+        "root_rotation": fr.R_link,
+        "tip_rotation": fr.R_tip,
+        "nodes": fr.nodes.reshape(lay.n_links, lay.k, 3),
+        "tip_deflection": defl,
+        "twist": log_so3(rel)[:, 0],
+    }
+
+
+# ----------------------------------------------------------------------------------------------
+# Time integration
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class _State:
+    t: float
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    a: np.ndarray
+    tau: np.ndarray
+
+
+def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv):
+    """The step's iteration (left-limit drive values at t1); returns (q̈, τ_p, solves, ok)."""
+    P, F = lay.presc, lay.free
+    pres = _prescribed(case, t1, True)
+    Qt = _torques(case, lay, t1, True)
+    qdd = qdd0.copy()
+    qdd[P] = pres[:, 2]
+    prev = math.inf
+    converged = False
+    for i in range(opt["max_iterations"]):
+        q = qt + cq * qdd
+        qd = qtd + cv * qdd
+        q[P], qd[P] = pres[:, 0], pres[:, 1]
+        M, f = _assemble(lay, q, qd)
+        _, fi, KT = _elastic(lay, q)
+        fd, Dt = _damping(lay, q, qd)
+        B = cq * KT + cv * Dt
+        A = M + B
+        rhs = f + Qt - fi - fd + B @ qdd
+        new = qdd.copy()
+        new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P])
+        delta = float(np.max(np.abs(new[F] - qdd[F]))) if F.size else 0.0
+        qdd = new
+        stop, converged = stop_rule(i, delta, prev, float(np.max(np.abs(new))), opt["tol"])
+        if stop:
+            break
+        prev = delta
+    # the motion joints' torques: the residual of their rows at the converged state
+    q = qt + cq * qdd
+    qd = qtd + cv * qdd
+    q[P], qd[P] = pres[:, 0], pres[:, 1]
+    tau_p = np.zeros(P.size)
+    if P.size:
+        M, f = _assemble(lay, q, qd)
+        rhs = f + Qt - _elastic(lay, q)[1] - _damping(lay, q, qd)[0]
+        tau_p = M[P] @ qdd - rhs[P]
+    return qdd, tau_p, i + 1, converged
+
+
+def _initial(case, lay) -> _State:
+    q, qd = _initial_state(case, lay)
+    pres = _prescribed(case, 0.0, False)
+    q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
+    qdd, tau_p = _forward(case, lay, q, qd, 0.0, False)
+    return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p))
+
+
+def _newmark_run(case, lay, h, opt, coef, rec):
+    beta, gamma, am, af = coef.beta, coef.gamma, coef.alpha_m, coef.alpha_f
+    t_end, restart = step_schedule(case.scenario.duration, h, case.scenario.breakpoints)
+    st = _initial(case, lay)
+    rec.start(st)
+    solves, unconverged = [], []
+    for n, t1 in enumerate(t_end):
+        dt = t1 - st.t
+        mix = (af * st.qdd - am * st.a) / (1 - am)
+        qt = st.q + dt * st.qd + dt * dt * (0.5 - beta) * st.a + beta * dt * dt * mix
+        qtd = st.qd + dt * (1 - gamma) * st.a + gamma * dt * mix
+        cq = beta * dt * dt * (1 - af) / (1 - am)
+        cv = gamma * dt * (1 - af) / (1 - am)
+        qdd, tau_p, n_solves, ok = _iterate(case, lay, opt, t1, qt, qtd, st.qdd, cq, cv)
+        solves.append(n_solves)
+        if not ok:
+            unconverged.append(n)
+        q, qd = qt + cq * qdd, qtd + cv * qdd
+        a = ((1 - af) * qdd + af * st.qdd - am * st.a) / (1 - am)
+        pres = _prescribed(case, t1, True)
+        P = lay.presc
+        q[P], qd[P], a[P] = pres[:, 0], pres[:, 1], pres[:, 2]
+        new = _State(t1, q, qd, qdd, a, _joint_torques(case, lay, t1, True, tau_p))
+        rec.check(new, n)
+        rec.emit(st, new)
+        if restart[n]:
+            qdd_r, _ = _forward(case, lay, new.q, new.qd, t1, False)
+            new = _State(t1, new.q, new.qd, qdd_r, qdd_r.copy(), new.tau)
+        st = new
+    return {
+        "n_steps": len(t_end),
+        "iterations_mean": float(np.mean(solves)),
+        "iterations_max": int(np.max(solves)),
+        "unconverged": unconverged,
+        "t_end": t_end,
+    }
+
+
+def _rk4_run(case, lay, h, opt, rec):
+    t_end, restart = step_schedule(case.scenario.duration, h, case.scenario.breakpoints)
+    P = lay.presc
+
+    def acc(t, left, q, qd):
+        q, qd = q.copy(), qd.copy()
+        pres = _prescribed(case, t, left)
+        q[P], qd[P] = pres[:, 0], pres[:, 1]
+        return _forward(case, lay, q, qd, t, left)
+
+    st = _initial(case, lay)
+    rec.start(st)
+    q, qd = st.q, st.qd
+    for n, t1 in enumerate(t_end):
+        t0 = st.t
+        dt = t1 - t0
+        tm = t0 + 0.5 * dt
+        a1 = st.qdd
+        q2, v2 = q + 0.5 * dt * qd, qd + 0.5 * dt * a1
+        a2 = acc(tm, False, q2, v2)[0]
+        q3, v3 = q + 0.5 * dt * v2, qd + 0.5 * dt * a2
+        a3 = acc(tm, False, q3, v3)[0]
+        q4, v4 = q + dt * v3, qd + dt * a3
+        a4 = acc(t1, True, q4, v4)[0]
+        q = q + (dt / 6) * (qd + 2 * v2 + 2 * v3 + v4)
+        qd = qd + (dt / 6) * (a1 + 2 * a2 + 2 * a3 + a4)
+        pres = _prescribed(case, t1, True)
+        q[P], qd[P] = pres[:, 0], pres[:, 1]
+        qdd, tau_p = acc(t1, True, q, qd)
+        new = _State(t1, q, qd, qdd, qdd, _joint_torques(case, lay, t1, True, tau_p))
+        rec.check(new, n)
+        rec.emit(st, new)
+        if restart[n]:
+            qdd_r, _ = acc(t1, False, q, qd)
+            new = _State(t1, q, qd, qdd_r, qdd_r, new.tau)
+        st = new
+    return {
+        "n_steps": len(t_end),
+        "iterations_mean": None,
+        "iterations_max": None,
+        "unconverged": [],
+        "t_end": t_end,
+    }
+
+
+class _Recorder:
+    """(q, q̇, τ) at the output times; the step-end state on a step end, else cubic Hermite."""
+
+    def __init__(self, case, lay, h):
+        self.case, self.lay = case, lay
+        self.t = case.scenario.output_times
+        nt = self.t.size
+        self.q = np.zeros((nt, lay.n_dof))
+        self.qd = np.zeros((nt, lay.n_dof))
+        self.tau = np.zeros((nt, lay.joints.size))
+        self.count = 0
+        self.tol_t = 1e-9 * h
+        self.meta = {}
+        self.want_loads = False
+        self.wall0 = time.perf_counter()
+
+    @property
+    def next_time(self):
+        return self.t[self.count] if self.count < self.t.size else math.inf
+
+    def add(self, q, qd, tau):
+        i = self.count
+        self.q[i], self.qd[i], self.tau[i] = q, qd, tau
+        self.count += 1
+
+    def start(self, st):
+        if self.next_time <= self.tol_t:
+            self.add(st.q, st.qd, st.tau)
+
+    def emit(self, s0: _State, s1: _State):
+        lay = self.lay
+        while self.next_time <= s1.t + self.tol_t:
+            t = self.next_time
+            if abs(t - s1.t) <= self.tol_t:
+                self.add(s1.q, s1.qd, s1.tau)
+                continue
+            y, yd = plumbing.hermite_sample(t, [s0.t, s1.t], [s0.q, s1.q], [s0.qd, s1.qd], derivative=True)
+            q, qd = y[0], yd[0]
+            if lay.presc.size:
+                pres = _prescribed(self.case, t, False)
+                q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
+            s = (t - s0.t) / (s1.t - s0.t)
+            tau = (1 - s) * s0.tau + s * s1.tau
+            for j, d in enumerate(self.case.scenario.drives):
+                if d.kind == "torque":
+                    tau[j] = d.torque(t, False)
+            self.add(q, qd, tau)
+
+    def check(self, st: _State, n: int):
+        x = np.concatenate([st.q, st.qd, st.qdd])
+        if np.all(np.isfinite(x)):
+            return
+        bad = int(np.flatnonzero(~np.isfinite(x))[0])
+        names = self.lay.names
+        comp = (names + [f"rate of {c}" for c in names] + [f"acceleration of {c}" for c in names])[bad]
+        partial = self.result(time.perf_counter() - self.wall0, n, {**self.meta, "success": False}, "failed")
+        raise SimulationError("non-finite state", t=st.t, step=n, component=comp, partial=partial)
+
+    def result(self, wall, n_steps, meta, status="ok", warnings=()) -> SpatialResult:
+        lay, n = self.lay, self.count
+        nl = lay.n_links
+        root, tip = np.zeros((n, nl, 3)), np.zeros((n, nl, 3))
+        defl, twist, en = np.zeros((n, nl, 2)), np.zeros((n, nl)), np.zeros(n)
+        Rl, Rt = np.zeros((n, nl, 3, 3)), np.zeros((n, nl, 3, 3))
+        for i in range(n):
+            fr = _link_frames(lay, self.q[i])
+            root[i], tip[i], defl[i], twist[i] = fr["root"], fr["tip"], fr["tip_deflection"], fr["twist"]
+            Rl[i], Rt[i] = fr["root_rotation"], fr["tip_rotation"]
+            e = _energy(lay, self.q[i], self.qd[i])
+            en[i] = e["kinetic"] + e["elastic"] + e["gravity"]
+        a = lay.alpha_idx[lay.joints]
+        meta = {**meta, "q": self.q[:n].copy(), "qd": self.qd[:n].copy()}
+        loads = None
+        if self.want_loads:
+            loads = np.zeros((n, nl * (lay.k + 1), 6))
+            for i in range(n):
+                t = float(self.t[i])
+                qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0)[0]
+                loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd)
+        return SpatialResult(
+            t=self.t[:n].copy(),
+            joint_angle=self.q[:n, a],
+            joint_rate=self.qd[:n, a],
+            joint_torque=self.tau[:n].copy(),
+            link_root=root,
+            link_tip=tip,
+            tip_deflection=defl,
+            end_effector=tip[:, -1].copy(),
+            wall_time=float(wall),
+            n_steps=int(n_steps),
+            meta=meta,
+            energy=en,
+            status=status,
+            warnings=tuple(warnings),
+            cut_loads=loads,
+            cut_load_t=self.t[:n].copy() if loads is not None else None,
+            twist=twist,
+            link_rotation=Rl,
+            tip_rotation=Rt,
+        )
+
+
+def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
+    """The integrator's options with their defaults (None: the Newmark family's defaults)."""
+    if integrator not in INTEGRATORS:
+        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
+    allowed = {"newmark": ("beta", "gamma"), "generalized-alpha": ("rho_inf",), "rk4": ()}[integrator]
+    for key, val in options.items():
+        if key not in allowed:
+            raise InputError(
+                key,
+                val,
+                f"unknown option for integrator {integrator!r} (allowed: {', '.join(allowed) or 'none'})",
+            )
+    opt = {"beta": None, "gamma": None, "rho_inf": None, **options}
+    opt["tol"] = plumbing.positive_number("tol", tol)
+    opt["max_iterations"] = plumbing.positive_integer("max_iterations", max_iterations)
+    return opt
+
+
+def simulate(
+    case,
+    *,
+    elements_per_link,
+    h,
+    integrator="newmark",
+    strain="linear",
+    tol=1e-10,
+    max_iterations=50,
+    cut_loads=False,
+    **options,
+) -> SpatialResult:
+    """Simulate a spatial case with the global equations of the spatial discretisation.
+
+    Parameters
+    ----------
+    case : dttmm.spatial.SpatialCase
+    elements_per_link : int
+        k ≥ 1 elements per link.
+    h : float
+        Step size (s), 0 < h ≤ duration.
+    integrator : {"newmark", "generalized-alpha", "rk4"}
+        Newmark (options ``beta`` = ¼, ``gamma`` = ½) and generalised-α (``rho_inf`` = 0.9)
+        iterate every step to ``tol`` (relative, :func:`dttmm.iteration.stop_rule`) within
+        ``max_iterations`` solves; RK4 evaluates the forward dynamics four times a step.
+    strain : {"linear", "second-order"}
+    cut_loads : bool
+        Record the cut loads (see :func:`cut_loads`) on the output grid (nt, n(k + 1), 6), from
+        the forward dynamics at every output state (left limits of the drives at t > 0).
+
+    Returns
+    -------
+    dttmm.spatial.SpatialResult
+        On ``case.scenario.output_times``; see the module notes for the spatial shapes.
+        ``status`` "unconverged" when some step exhausted ``max_iterations``.
+
+    Raises
+    ------
+    dttmm.InputError
+        Bad case, k, h, integrator, strain or option; a closed-loop drive law.
+    dttmm.SimulationError
+        Non-finite state (``partial`` holds the outputs so far).
+    """
+    case = _check_case(case)
+    h = plumbing.step_size(h, case.scenario.duration)
+    opt = _check_options(integrator, tol, max_iterations, options)
+    require_open_loop(case, "the spatial global solver")
+    lay = _layout(case, elements_per_link, strain)
+    meta = {
+        "method": "spatial-global",
+        "elements_per_link": lay.k,
+        "h": float(h),
+        "integrator": integrator,
+        "strain": strain,
+        "n_dof": lay.n_dof,
+        "coordinates": list(lay.names),
+        "versions": plumbing.versions(),
+    }
+    rec = _Recorder(case, lay, h)
+    rec.meta = meta
+    rec.want_loads = bool(cut_loads)
+    wall0 = time.perf_counter()
+    with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
+        if integrator == "rk4":
+            stats = _rk4_run(case, lay, h, opt, rec)
+        else:
+            coef = plumbing.newmark_family(
+                integrator, beta=opt["beta"], gamma=opt["gamma"], rho_inf=opt["rho_inf"]
+            )
+            meta.update(beta=coef.beta, gamma=coef.gamma, alpha_m=coef.alpha_m, alpha_f=coef.alpha_f)
+            meta.update(tol=opt["tol"], max_iterations=opt["max_iterations"])
+            stats = _newmark_run(case, lay, h, opt, coef, rec)
+    wall = time.perf_counter() - wall0
+    unc = stats["unconverged"]
+    meta.update(
+        iterations_mean=stats["iterations_mean"],
+        iterations_max=stats["iterations_max"],
+        unconverged_steps=len(unc),
+        time_per_step=wall / stats["n_steps"],
+    )
+    warns = []
+    if unc:
+        warns.append(
+            f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
+            f"{len(unc)} step(s), first at t = {float(stats['t_end'][unc[0]]):.6g} s"
+        )
+    return rec.result(wall, stats["n_steps"], meta, "unconverged" if warns else "ok", warns)
