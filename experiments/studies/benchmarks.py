@@ -19,8 +19,9 @@ import numpy as np
 import pandas as pd
 
 from ..methods import uses_k
+from ..params import ProblemsParams
 from ..runs import Task
-from ._common import fit_orders, k_limit
+from ._common import fit_orders, k_limit, params
 
 NAME = "benchmarks"
 CASE_DIR = Path(__file__).resolve().parents[1] / "cases" / "benchmarks"
@@ -119,7 +120,7 @@ def _ref_task(name, case, prov):
 
 
 # ----------------------------------------------------------------------------- tasks
-def _methods(params: dict, kind: str, size: str | None = None) -> list:
+def _methods(p, kind: str, size: str | None = None) -> list:
     """The methods run on a problem of this kind (every registered method that takes part,
     :func:`experiments.methods.takes_part`), narrowed to the plan's ``methods`` when it names some."""
     from .. import methods
@@ -128,7 +129,7 @@ def _methods(params: dict, kind: str, size: str | None = None) -> list:
         every = [m for m in methods.takes_part(NAME, kind=kind, size=size) if methods.frequencies_of(m)]
     else:
         every = methods.takes_part(NAME, kind=kind, size=size)
-    chosen = params.get("methods")
+    chosen = p.methods
     return [m for m in every if chosen is None or m in chosen]
 
 
@@ -143,10 +144,10 @@ def cases(ctx) -> dict:
     cases, which ``experiments.study.add_cases`` puts into ``ctx.cases`` before tasks are listed."""
     if not _active(ctx):
         return {}
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     return {
-        name: _shortened(case, p.get("durations", {}).get(name))
-        for name, (case, prov) in problems(p.get("problems")).items()
+        name: _shortened(case, p.durations.get(name))
+        for name, (case, prov) in problems(p.problems).items()
         if prov["quantity"] != "frequencies"
     }
 
@@ -155,21 +156,21 @@ def tasks(ctx) -> list:
     """Every applicable method at every k of the plan (one run for the rigid baseline) on the
     problems' cases (:func:`cases`, in ``ctx.cases``); listing them changes nothing.
 
-    Plan parameters (``ctx.plan.studies["benchmarks"]``): ``ks`` (elements per link),
+    Plan parameters (:class:`experiments.params.ProblemsParams`): ``ks`` (elements per link),
     ``problems`` (case-file names, default all), ``durations`` (name -> shortened duration, s),
     ``methods`` (optional: only these of each problem's methods), ``ks_by_problem`` (name -> ks
     replacing ``ks`` for that problem)."""
     if not _active(ctx):
         return []
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     out = []
-    for name, (_case, prov) in problems(p.get("problems")).items():
+    for name, (_case, prov) in problems(p.problems).items():
         kind = prov["quantity"]
         if kind == "frequencies":
             continue
         T, h = ctx.cases[name].scenario.duration, SETTINGS[kind]["h"]
         for m in _methods(p, kind, ctx.plan.name):
-            ks = [0] if not uses_k(m) else p.get("ks_by_problem", {}).get(name, p["ks"])
+            ks = [0] if not uses_k(m) else p.ks_by_problem.get(name, p.ks)
             ks = [k for k in ks if k <= k_limit(m, NAME, ctx.plan.name)]
             out += [Task(name, m, k, h, T) for k in ks]
     return list(dict.fromkeys(out))
@@ -350,7 +351,7 @@ _FAILS = (ImportError, ValueError, ArithmeticError, np.linalg.LinAlgError)
 def frequency_rows(name, case, prov, ks, plan_params=None, size=None) -> list:
     """Rows of the clamped-link frequency problems: every method with its own linearisation, each k."""
     rows, n = [], len(prov["values"])
-    for m in _methods(plan_params or {}, "frequencies", size):
+    for m in _methods(plan_params or ProblemsParams(), "frequencies", size):
         fine = _fine_frequencies(case, m, n)
         for k in ks:
             r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
@@ -386,12 +387,12 @@ def analyse(ctx, table):
     ``benchmarks_problems`` (each problem's source, compared quantity, target and tolerance)."""
     if not _active(ctx):
         return {}
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     rows, info = [], []
-    for name, (case, prov) in problems(p.get("problems")).items():
+    for name, (case, prov) in problems(p.problems).items():
         info.append(_problem_info(name, prov))
         if prov["quantity"] == "frequencies":
-            rows += frequency_rows(name, case, prov, p["ks"], p, ctx.plan.name)
+            rows += frequency_rows(name, case, prov, p.ks, p, ctx.plan.name)
             continue
         runs = table[table.case == name] if len(table) else table
         rows += _run_rows(ctx, name, ctx.cases.get(name, case), prov, runs)
