@@ -502,7 +502,7 @@ def modes_table(modes: ControlModes, case) -> pd.DataFrame:
     and elastic mode: DT-TMM's frequency (``dttmm.modes`` at ``k``), Exudyn's eigenvalue
     computation at ``exudyn_k``, their relative difference. A system whose frequencies cannot be
     computed gets one row with the reason in ``note``."""
-    from .benchmarks import frequencies, load_problem
+    from .problems import frequencies, load_problem
 
     k, ke, n = int(modes.k), int(modes.exudyn_k), int(modes.n)
     systems = [case] + [load_problem(CASES / f)[0] for f in modes.systems]
