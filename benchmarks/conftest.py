@@ -1,4 +1,4 @@
-"""Shared set-up of the scaling benchmarks.
+"""Shared set-up of the cost benchmarks (the pytest-benchmark scaling suites of benchmarks/).
 
 Every benchmark runs a method on the same case for a fixed number of steps; the timed call is
 the whole ``simulate`` (model build included, it is small), and ``extra_info`` carries the

@@ -55,11 +55,11 @@ def reduced_plan(size: str = "quick"):
     base = plan_for(size)
     studies = {}
     for name in STUDIES:
-        p = dict(base.studies[name])
-        if "cases" in p:
-            p["cases"] = [CASE]
-        if "case" in p:
-            p["case"] = CASE
+        p = base.studies[name]
+        if hasattr(p, "cases"):
+            p = replace(p, cases=[CASE])
+        if hasattr(p, "case"):
+            p = replace(p, case=CASE)
         studies[name] = p
     return replace(
         base,

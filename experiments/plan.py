@@ -13,6 +13,18 @@ import json
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from .params import (
+    ControlModes,
+    ControlParams,
+    ConvergenceHParams,
+    ConvergenceKParams,
+    CostParams,
+    PaperParams,
+    ProblemsParams,
+    SchemeParams,
+    WorkPrecisionParams,
+    study_params,
+)
 from .references import RefSpec
 
 __all__ = ["CASE_DIR", "PLANS", "SHIPPED", "Plan", "case_fingerprint", "load_cases", "plan_for"]
@@ -28,7 +40,9 @@ class Plan:
 
     durations : case name -> simulated duration (s); None keeps the TOML value
     reference, check : case name -> RefSpec candidates (reference) / cross-check methods
-    studies : study name -> its parameters (see each study module's ``tasks``)
+    studies : study name -> its parameter record (:mod:`experiments.params`; a dict of the
+        record's fields is turned into the record here, an unknown name or bad value raises
+        InputError)
     output_step : common output grid (s) of every run, or None to keep each TOML's value. The
         Exudyn adapters sample on their step grid, so it must be a multiple of every h studied.
     case_files : case name -> TOML path; a case not listed is read from ``CASE_DIR/<name>.toml``
@@ -42,6 +56,9 @@ class Plan:
     note: str = ""
     output_step: float | None = None
     case_files: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        object.__setattr__(self, "studies", {n: study_params(n, p) for n, p in self.studies.items()})
 
 
 def case_fingerprint(case) -> str:
@@ -124,11 +141,10 @@ def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
     ref, chk = next(iter(base.reference.values())), next(iter(base.check.values()))
     studies = {}
     for s, p in base.studies.items():
-        p = dict(p)
-        if "cases" in p:
-            p["cases"] = names
-        if "case" in p:
-            p["case"] = names[-1]
+        if hasattr(p, "cases"):
+            p = replace(p, cases=names)
+        if hasattr(p, "case"):
+            p = replace(p, case=names[-1])
         studies[s] = p
     return replace(
         base,
@@ -190,20 +206,20 @@ def _plan(
         {
             # methods: every registered method that takes part (experiments/methods.py); explicit
             # methods use the explicit steps, or their record's max_step along the path
-            "convergence_k": {"cases": cases, "ks": ks, "h": 1e-3},
-            "convergence_h": {"cases": cases, "hs": hs, "k": k_h, "explicit_hs": rk4_h},
-            "work_precision": {"cases": cases, "path": path, "rigid_h": [1e-3]},
-            "scheme": {"cases": cases, "variants": variants, "ks": scheme_ks, "h": 1e-3, "hs": hs, "k": k_h},
-            "paper": {
-                "cases": cases,
-                "k": 8,
-                "h": 1e-3,
-                "explicit_h": rk4_h[-1],
+            "convergence_k": ConvergenceKParams(cases=cases, ks=ks, h=1e-3),
+            "convergence_h": ConvergenceHParams(cases=cases, hs=hs, k=k_h, explicit_hs=rk4_h),
+            "work_precision": WorkPrecisionParams(cases=cases, path=path, rigid_h=[1e-3]),
+            "scheme": SchemeParams(cases=cases, variants=variants, ks=scheme_ks, h=1e-3, hs=hs, k=k_h),
+            "paper": PaperParams(
+                cases=cases,
+                k=8,
+                h=1e-3,
+                explicit_h=rk4_h[-1],
                 # Exudyn records no energy: the energy errors are taken against DT-TMM at the
                 # reference's k and h (also the reference's cross-check)
-                "energy_reference": {"k": ref_kh[0], "h": ref_kh[1]},
-            },
-            "cost": {"case": cost_case, "ks": cost_ks, "h": 1e-3},
+                energy_reference={"k": ref_kh[0], "h": ref_kh[1]},
+            ),
+            "cost": CostParams(case=cost_case, ks=cost_ks, h=1e-3),
             "benchmarks": bench,
             "control": control,
         },
@@ -212,32 +228,32 @@ def _plan(
     )
 
 
-# Benchmark problems (experiments/studies/benchmarks.py). Quick: spin-up runs end after the peak
+# Benchmark problems (study "benchmarks", experiments/studies/problems.py). Quick: spin-up runs end after the peak
 # (8 s); methods that sit a size out say why in their registry record.
+# the very flexible pendulum needs k = 64 (measured: 2nd-order element)
+_KS_BY_PROBLEM = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
 _BENCH = {
-    "quick": {
-        "ks": [2, 4, 8, 16, 32],
-        "durations": dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
-    },
-    "full": {"ks": [2, 4, 8, 16, 32]},
+    "quick": ProblemsParams(
+        ks=[2, 4, 8, 16, 32],
+        durations=dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
+        ks_by_problem=_KS_BY_PROBLEM,
+    ),
+    "full": ProblemsParams(ks=[2, 4, 8, 16, 32], ks_by_problem=_KS_BY_PROBLEM),
 }
-for _b in _BENCH.values():  # the very flexible pendulum needs k = 64 (measured: 2nd-order element)
-    _b["ks_by_problem"] = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
 
 # Closed loop (experiments/studies/control.py) on its own case: every method that takes part at
 # the report's k = 8, h = 1 ms (an explicit method at its record's max_step), the rigid baseline
 # on the variant without moment feedback, a moment-gain sweep, references at k = 32, h = 2.5e-4.
-_CONTROL = {
-    "k": 8,
-    "h": 1e-3,
-    "rigid_h": 1e-3,
-    "reference": (32, 2.5e-4),
-    "gains": [0.0, 0.5, 1.0, 2.0],
+_CONTROL = ControlParams(
+    k=8,
+    h=1e-3,
+    rigid_h=1e-3,
+    reference=(32, 2.5e-4),
+    gains=[0.0, 0.5, 1.0, 2.0],
     # equal k for both: DT-TMM's frequencies agree with Exudyn's to 1e-7 at k = 16 (measured)
-    "modes": {"k": 16, "exudyn_k": 16, "n": 4},
-}
-_CONTROL_SIZES = {"quick": _CONTROL, "full": {**_CONTROL, "modes": {"k": 32, "exudyn_k": 32, "n": 4}}}
-
+    modes=ControlModes(k=16, exudyn_k=16, n=4),
+)
+_CONTROL_SIZES = {"quick": _CONTROL, "full": replace(_CONTROL, modes=ControlModes(k=32, exudyn_k=32, n=4))}
 
 _GRID_NOTE = {
     "quick": "references at h = 2.5e-4 instead of 1e-4; h down to 5e-4 and k up to 16 (32 for cost); errors "

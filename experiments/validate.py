@@ -4,8 +4,8 @@ For each method (built-in or outside, see :mod:`experiments.methods`) the suite 
 
 * every benchmark problem of ``experiments/cases/benchmarks/`` whose target is fixed in its
   ``[provenance]`` table (published, closed form or a recorded converged value) and whose case
-  the method can model; pass/fail is decided by the benchmarks study's own rule
-  (:func:`experiments.studies.benchmarks._row`: the provenance tolerance, relative or absolute)
+  the method can model; pass/fail is decided by the benchmark-problems study's own rule
+  (:func:`experiments.studies.problems._row`: the provenance tolerance, relative or absolute)
   at the largest k of a three-point ladder, and the observed order in k is fitted over the ladder;
   problems compared against a *reference run* are listed as not run (the report runs them);
 * the independent checks: the rigid limit against Pinocchio (:func:`rigid_limit`), the static
@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from . import methods
-from .studies import benchmarks as B
+from .studies import problems as problems_study
 
 __all__ = [
     "CHECKS",
@@ -400,14 +400,16 @@ def order_in_k(ks, errs) -> float:
 
 # ----------------------------------------------------------------------------- benchmark problems
 def _bench_value(prov, case, res) -> tuple:
-    """(value, note) of a benchmark run, from the benchmarks study's extractors."""
+    """(value, note) of a benchmark run, from the benchmark-problems study's extractors."""
     kind = prov["quantity"]
     if kind == "peak_tip_deflection":
-        return B.peak_tip_deflection(res), ""
+        return problems_study.peak_tip_deflection(res), ""
     if kind == "static_tip_displacement":
-        v, moved = B.tip_displacement(res, case, prov["component"])
+        v, moved = problems_study.tip_displacement(res, case, prov["component"])
         note = (
-            "" if moved < B.SETTLE_TOL else f"not at rest: the tip moved {moved:.2g} m over the last second"
+            ""
+            if moved < problems_study.SETTLE_TOL
+            else f"not at rest: the tip moved {moved:.2g} m over the last second"
         )
         return v, note
     raise ValueError(f"no extractor for {kind!r}")
@@ -421,8 +423,8 @@ def _frequencies(name, case, k, n):
 
 def linearisation(name: str):
     """``f(case, k, n) -> Hz`` of a method with the "modes" capability, or None when none is
-    reachable: DT-TMM methods use :func:`dttmm.modes` with their strain option; the benchmark
-    study's linearisations (:func:`experiments.studies.benchmarks.frequencies`) by name; an
+    reachable: DT-TMM methods use :func:`dttmm.modes` with their strain option; the benchmark-problems
+    study's linearisations (:func:`experiments.studies.problems.frequencies`) by name; an
     outside function may carry one as its ``frequencies`` attribute."""
     rec = methods.get(name)
     if rec.module == "dttmm":
@@ -438,9 +440,9 @@ def linearisation(name: str):
         return getattr(rec.simulate, "frequencies", None)
     if rec.module is None:
         return None
-    # the benchmarks study's dispatch knows a few built-in linearisations by name; one it does
+    # the benchmark-problems study's dispatch knows a few built-in linearisations by name; one it does
     # not know raises ValueError("frequencies: no linearisation ...") in the worker (see _NO_LIN)
-    return lambda case, k, n: B.frequencies(case, k, name, n=n)
+    return lambda case, k, n: problems_study.frequencies(case, k, name, n=n)
 
 
 def _no_lin(got) -> bool:
@@ -454,11 +456,11 @@ def _published(prov) -> bool:
 
 def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
     """Rows of one benchmark problem: each compared quantity at the largest k of the ladder,
-    pass/fail by the benchmarks study's rule, observed order in k over the ladder."""
+    pass/fail by the benchmark-problems study's rule, observed order in k over the ladder."""
     rec, ks = run.rec, run.ks
     src = prov.get("source", "")
     check = "benchmark"
-    quantities = targets = B.targets(prov)
+    quantities = targets = problems_study.targets(prov)
     tol = float(prov["tolerance"])
     kw = dict(source=src, tolerance=tol, tolerance_kind=prov["tolerance_kind"])
     if not _published(prov):
@@ -469,7 +471,7 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
             problem,
             prov["quantity"],
             f"its target is a reference run ({r['method']}, k = {r['k']}, h = {r['h']} s), not a published "
-            "or closed-form value: the report's benchmarks study runs it",
+            "or closed-form value: the report's benchmark-problems study runs it",
             **kw,
         )
     kind = prov["quantity"]
@@ -506,7 +508,7 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
     why = _missing(rec, _needs(case)) or run.step_unknown
     if why:
         return _not_run(rec.name, check, problem, kind, why, reference=targets[0][1], **kw)
-    h = B.SETTINGS[kind]["h"]
+    h = problems_study.SETTINGS[kind]["h"]
     vals, cpu, reason = [], 0.0, ""
     for k in ks:
         res, c, why = run.run(case, k, run.step(k, h))
@@ -533,7 +535,7 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
 _RIGID = "rigid links: the problem's quantity is a deformation, which a rigid model does not have"
 _NO_LIN = (
     "{0} claims natural modes, but no linearisation of it is reachable here (a DT-TMM method, one the "
-    "benchmarks study knows, or an outside function's 'frequencies' attribute)"
+    "benchmark-problems study knows, or an outside function's 'frequencies' attribute)"
 )
 
 
@@ -542,9 +544,9 @@ def _nan_none(v):
 
 
 def _judge(method, check, problem, quantity, target, value, prov, reason, ks, cpu, **kw) -> dict:
-    """A row judged by the benchmarks study's rule (provenance tolerance, relative or absolute)."""
+    """A row judged by the benchmark-problems study's rule (provenance tolerance, relative or absolute)."""
     r = {"method": method, "k": ks[-1], "h": math.nan, "status": "ok" if value is not None else "failed"}
-    judged = B._row(problem, prov, quantity, target, r, math.nan if value is None else value)
+    judged = problems_study._row(problem, prov, quantity, target, r, math.nan if value is None else value)
     passed = judged["passed"] if value is not None else False
     if value is None and not reason:
         reason = "no value"
@@ -839,10 +841,10 @@ ENERGY_H = 1e-3
 
 def energy_balance(run: Runner) -> list:
     """Energy drift max |E(t) − E(0)| / (m g L/2) of the undamped free swing ``pendulum_stiff``
-    (:func:`experiments.studies.benchmarks.energy_drift`) within the problem's energy tolerance."""
+    (:func:`experiments.studies.problems.energy_drift`) within the problem's energy tolerance."""
     rec = run.rec
-    case, prov = B.problems([ENERGY_PROBLEM])[ENERGY_PROBLEM]
-    case = B._shortened(case, run.size.energy_duration)
+    case, prov = problems_study.problems([ENERGY_PROBLEM])[ENERGY_PROBLEM]
+    case = problems_study._shortened(case, run.size.energy_duration)
     tol = float(prov["energy_tolerance"])
     kw = dict(
         source="conservation of energy: no damping, a zero-torque joint does no work (case "
@@ -859,7 +861,7 @@ def energy_balance(run: Runner) -> list:
     res, cpu, why = run.run(case, ENERGY_K, h)
     value = None
     if not why:
-        value = B.energy_drift(res, case)
+        value = problems_study.energy_drift(res, case)
         if not np.isfinite(value):
             value, why = None, "no finite energy in its Result (energy is None or NaN)"
     return [
@@ -1055,12 +1057,12 @@ def _bench(run, *, problem, case, prov):
 
 def _bench_checks(size: Size) -> dict:
     out = {}
-    for name, (case, prov) in B.problems().items():
+    for name, (case, prov) in problems_study.problems().items():
         if name.startswith("spin_up"):
             if name not in size.spin_up:
                 continue
-            case = B._shortened(case, size.spin_duration)
-        case = B._shortened(case, dict(size.durations).get(name))
+            case = problems_study._shortened(case, size.spin_duration)
+        case = problems_study._shortened(case, dict(size.durations).get(name))
         out[name] = functools.partial(_bench, problem=name, case=case, prov=prov)
     return out
 

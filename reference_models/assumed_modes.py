@@ -30,9 +30,9 @@ The model (docs/assumed_modes.md has the derivation and the measured facts):
   nor stiffens it). All three are Lagrangian (kinetic energy to second order in δ) and conserve
   energy. On torque-driven links with slow hubs the consistent variant's second-order terms in
   the hub equation are no better than the third-order terms it drops (see the doc).
-* **Default: "consistent".** Rule: the default must stay bounded and within the benchmark
-  tolerance on every benchmark problem it can model; only the consistent variant passes the
-  spin-up benchmarks (ω_s = 4, 6: premature diverges, ruthless is 5–10 % off). Where the links
+* **Default: "consistent".** Rule: the default must stay bounded and within the tolerance
+  on every benchmark problem it can model; only the consistent variant passes the
+  spin-up benchmark problems (ω_s = 4, 6: premature diverges, ruthless is 5–10 % off). Where the links
   stay within a few percent of their length all variants agree; on the shipped ``single_link``
   at its nominal torque (deflections of 12–23 % of the length) no truncated variant is accurate
   and ruthless happens to be closest — see the doc's table.

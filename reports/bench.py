@@ -29,7 +29,7 @@ _STEP_KEYS = ("n_steps", "steps")
 
 
 def latest(folder="data/bench") -> Path | None:
-    """The newest benchmark JSON in ``folder`` (by modification time), or None."""
+    """The newest pytest-benchmark JSON in ``folder`` (by modification time), or None."""
     files = sorted(Path(folder).glob("*.json"), key=lambda p: p.stat().st_mtime)
     return files[-1] if files else None
 
@@ -322,7 +322,7 @@ def _sig2(v) -> str:
 
 
 def costs_text(exponents, per_element, ratios, *, k_min=K_MIN, n_min=N_MIN, case="three_link") -> list[str]:
-    """Sentences under the benchmark figures: fitted exponents, cost per element-step at each
+    """Sentences under the pytest-benchmark figures: fitted exponents, cost per element-step at each
     method's largest k, and the like-for-like ratios (2 significant digits)."""
     out = []
     el = exponents[(exponents.scan == "elements per link") & (exponents.case == case)]
@@ -393,7 +393,7 @@ def code_commit(root=None) -> str:
     return r.stdout.strip() if r.returncode == 0 else ""
 
 
-#: the folders whose code the benchmarks time: a benchmark file made at another commit still
+#: the folders whose code the cost benchmarks time: a pytest-benchmark file made at another commit still
 #: describes the code when none of them changed in between
 TIMED_CODE = ("dttmm", "reference_models", "benchmarks")
 
@@ -417,7 +417,7 @@ def code_changed(since: str, commit: str, root=None) -> bool:
 
 
 def provenance(info, commit: str | None = None) -> list[str]:
-    """Where the benchmark numbers come from, how they were timed, and a warning when the file
+    """Where the pytest-benchmark numbers come from, how they were timed, and a warning when the file
     was made at another commit than the code (``commit``; found with git when None) and the
     timed code changed in between."""
     commit = code_commit() if commit is None else commit
@@ -426,7 +426,7 @@ def provenance(info, commit: str | None = None) -> list[str]:
     date, name = str(info["date"])[:19].replace("T", " "), Path(info["file"]).name
     out = [
         (
-            f"Benchmark run {date} ({name}) on {info['machine'] or info['node']}"
+            f"pytest-benchmark run {date} ({name}) on {info['machine'] or info['node']}"
             f"{f', {cores} cores' if cores else ''}, Python {info['python']}, commit {info['commit'][:10]}{dirty}. "
             f"Times per step are the least solve-only time of the rounds (CPU time beside it where recorded) "
             f"on a shared {f'{cores}-core ' if cores else ''}machine: read differences under about 20 % as noise."
@@ -441,11 +441,11 @@ def provenance(info, commit: str | None = None) -> list[str]:
         )
     elif other:
         out.append(
-            f"Warning: this benchmark file was made at commit {bc[:10]}, not at the code's commit "
+            f"Warning: this pytest-benchmark file was made at commit {bc[:10]}, not at the code's commit "
             f"{commit[:10]}; its timings may not describe this code (rerun `make bench`)."
         )
     elif info.get("dirty"):
-        out.append("Warning: this benchmark file was made with uncommitted changes.")
+        out.append("Warning: this pytest-benchmark file was made with uncommitted changes.")
     return out
 
 

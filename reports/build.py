@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from . import animations, bench, benchmarks, control, figures, interpret, peers
+from . import animations, bench, control, figures, interpret, peers, problems
 from .render import Section, write
 from .scoreboard import scoreboard
 
@@ -67,7 +67,7 @@ RUN_TABLES = ("convergence_k", "convergence_h", "work_precision", "scheme", "pap
 @dataclass
 class Inputs:
     """What a section builder reads: the study tables, the report's metadata, the figure folder
-    and the benchmark JSON folder."""
+    and the pytest-benchmark JSON folder."""
 
     tables: dict
     meta: dict
@@ -303,7 +303,7 @@ def _cases_section(inp):
     return case_section(inp.meta)
 
 
-BENCH_TITLE = "Cost scaling (benchmarks)"
+BENCH_TITLE = "Cost scaling (pytest-benchmark)"
 BENCH_TABLES = ("bench", "bench_exponents", "bench_element_step_us", "bench_ratios")
 
 
@@ -336,19 +336,19 @@ def _bench_section(inp):
     text = bench.costs_text(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
     gone = bench.absent(rec)
     if gone:
-        text.append("Absent from this benchmark file: " + ", ".join(gone) + ".")
+        text.append("Absent from this pytest-benchmark file: " + ", ".join(gone) + ".")
     text += [
         (
             "Tables: exponents with their fit ranges (bench_exponents), cost per element-step in µs "
             "(bench_element_step_us, three_link), ratios of each method's time to DT-TMM's "
-            "(bench_ratios: >1 means DT-TMM is faster); the benchmarks' tip errors are against a DT-TMM "
+            "(bench_ratios: >1 means DT-TMM is faster); the pytest-benchmark runs' tip errors are against a DT-TMM "
             "reference and are not used here for cross-method accuracy."
         ),
         *bench.provenance(info),
     ]
     tabs = [(n, tables[n]) for n in BENCH_TABLES[1:]]
     head = next((s for s in text if s.startswith("At equal model size")), None)
-    return Section(BENCH_TITLE, figs, text, tabs, "bench", head and f"Benchmarks: a{head[1:]}")
+    return Section(BENCH_TITLE, figs, text, tabs, "bench", head and f"pytest-benchmark: a{head[1:]}")
 
 
 SECTION_BUILDERS = [
@@ -361,7 +361,7 @@ SECTION_BUILDERS = [
     _paper,
     _loads,
     _cost,
-    benchmarks.section,  # benchmark problems (published single-case checks)
+    problems.section,  # benchmark problems (published single-case checks)
     control.section,  # closed-loop drives: tracking, moment feedback, natural frequencies
     _validation,
     _peer_configuration,

@@ -25,10 +25,12 @@ def _methods_in(plan) -> list:
     """Every method the plan's studies run: those a study names, else every registered method
     that takes part in it (experiments/methods.py)."""
     from experiments import methods
+    from experiments.params import study_params
 
     names = []
     for study, p in plan.studies.items():
-        names += list(p["methods"]) if "methods" in p else methods.takes_part(study, size=plan.name)
+        p = study_params(study, p)
+        names += list(p.methods) if p.methods is not None else methods.takes_part(study, size=plan.name)
     return list(dict.fromkeys(names))
 
 
@@ -52,6 +54,7 @@ def run_report(
     from dttmm.case import case_to_dict
     from experiments import methods
     from experiments.context import prepare
+    from experiments.params import as_dicts
     from experiments.study import run_studies, save_tables
 
     from . import provenance
@@ -80,7 +83,7 @@ def run_report(
         "availability": avail,
         "references": ctx.provenance,
         "elapsed": time.perf_counter() - t0,
-        "studies": plan.studies,
+        "studies": as_dicts(plan.studies),
         "cases": {n: case_to_dict(c) for n, c in ctx.cases.items()},
         "case_files": dict(plan.case_files),
     }

@@ -273,7 +273,7 @@ def save(fig: Figure, path) -> None:
     fig.savefig(path, dpi=110)
 
 
-# --- Benchmark scaling (pytest-benchmark groups "elements:<case>:<method>", "links:<method>") ---
+# --- Cost scaling (pytest-benchmark groups "elements:<case>:<method>", "links:<method>") ---
 
 
 def _bench_curves(ax, d, x, exps, fit_note):
@@ -338,7 +338,7 @@ def bench_elements(records: pd.DataFrame, exponents: pd.DataFrame, k_min: int = 
         ax.grid(True, which="both", alpha=0.3)
         ax.set(xlabel="elements per link k", ylabel="time per step, solve only (s)", title=f"{case}")
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
-    fig.suptitle("benchmarks: cost per step against elements per link (N = elements)")
+    fig.suptitle("pytest-benchmark: cost per step against elements per link (N = elements)")
     return fig
 
 
@@ -357,7 +357,7 @@ def bench_links(records: pd.DataFrame, exponents: pd.DataFrame, n_min: int = 2) 
     ax.set(
         xlabel="number of links n",
         ylabel="time per step, solve only (s)",
-        title=f"benchmarks: cost per step against links (k = {int(k.iloc[0]) if len(k) else '?'} per link)",
+        title=f"pytest-benchmark: cost per step against links (k = {int(k.iloc[0]) if len(k) else '?'} per link)",
     )
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
     return fig

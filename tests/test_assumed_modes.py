@@ -19,7 +19,7 @@ import pytest
 import dttmm
 from dttmm.drives import BangBang, Constant, Drive, UserLaw
 from experiments.fit import slope
-from experiments.studies import benchmarks as B
+from experiments.studies import problems as B
 from reference_models import assumed_modes as am
 from reference_models._amm_shapes import link_modes, outboard_inertia
 

@@ -16,7 +16,7 @@ import pytest
 
 import dttmm
 from experiments.fit import slope
-from experiments.studies import benchmarks as B
+from experiments.studies import problems as B
 
 ALL = sorted(p.stem for p in B.CASE_DIR.glob("*.toml"))
 SECOND = {"strain": "second-order", "integrator": "generalized-alpha", "rho_inf": 0.8}
@@ -206,7 +206,7 @@ def _small_study(tmp_path, problems, ks):
 
 
 def test_study_and_report_section(tmp_path):
-    from reports import benchmarks as RB
+    from reports import problems as RB
 
     tables = _small_study(tmp_path, ["cantilever_self_weight", "deluca_link2_clamped"], [8, 16])
     res = tables[B.NAME]
@@ -240,7 +240,7 @@ def test_study_skipped_for_user_case_files(tmp_path):
 
 
 def test_report_section_absent_without_tables(tmp_path):
-    from reports import benchmarks as RB
+    from reports import problems as RB
 
     assert RB.sections({}, tmp_path) == []
 

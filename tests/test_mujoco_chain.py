@@ -278,7 +278,7 @@ def test_work_precision_study_runs_the_mujoco_path():
 
     p = PLANS["quick"].studies["work_precision"]
     c = shortened(case("three_link"), 0.02, 4e-3)
-    plan = SimpleNamespace(name="quick", studies={"work_precision": {**p, "cases": ["three_link"]}})
+    plan = SimpleNamespace(name="quick", studies={"work_precision": dc.replace(p, cases=["three_link"])})
     tasks = work_precision.tasks(SimpleNamespace(plan=plan, cases={"three_link": c}))
     mine = [t for t in tasks if t.method == "mujoco-chain"]
     assert [t.h for t in mine] == [2e-3, 1e-3, 2.5e-4, 6.25e-5]  # the quick path's k = 2, 4, 8, 16

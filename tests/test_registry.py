@@ -57,7 +57,7 @@ def test_the_scan_finds_a_planted_list():
 
 def test_studies_derive_their_methods_from_the_records():
     p = PLANS["quick"].studies
-    assert not any("methods" in params for params in p.values())
+    assert all(params.methods is None for params in p.values())
     conv = [
         m for m in methods.takes_part("convergence_k", flexible=True) if m in methods.METHODS
     ]  # built-ins

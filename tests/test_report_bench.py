@@ -140,14 +140,14 @@ def test_ratios_equal_the_known_values(tmp_path):
     assert acc["global/dttmm"] == pytest.approx(100.0) and acc["exudyn-ancf/dttmm-2nd"] == pytest.approx(28.0)
     assert np.isnan(acc["exudyn-beam/dttmm-2nd"]) and acc.target_error_m == pytest.approx(1e-4)
     md = (out / "REPORT.md").read_text()
-    sec = md[md.index("## Cost scaling (benchmarks)") : md.index("## Omissions")]
+    sec = md[md.index("## Cost scaling (pytest-benchmark)") : md.index("## Omissions")]
     assert "global/dttmm = 4100, exudyn-ancf/dttmm-2nd = 10." in sec  # k = 64: 4096 to 2 digits
     assert "three_link at 1e-04 m: global/dttmm = 100, exudyn-ancf/dttmm-2nd = 28" in sec
     assert "exudyn-beam (three_link)" in sec  # listed as absent
     assert "2026-01-02 03:04:05" in sec and "Test CPU" in sec and "0123456789" in sec
     assert "shared 2-core machine" in sec and "k ≥ 8" in sec
     # the synthetic file names another commit than the code's
-    assert "Warning: this benchmark file was made at commit 0123456789" in sec
+    assert "Warning: this pytest-benchmark file was made at commit 0123456789" in sec
     for t in ("bench_exponents", "bench_element_step_us", "bench_ratios"):
         assert f"data/{t}.csv" in md
     assert "## Peer configuration" in md and "SetPreStepUserFunction" in md

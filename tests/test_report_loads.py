@@ -48,7 +48,7 @@ def test_case_files_outside_the_repo_carry_a_fingerprint(tmp_path):
     plan = plan_for("quick", [a, CASE_DIR / "three_link.toml"])
     names = list(plan.durations)
     assert names[1] == "three_link" and names[0].startswith("single_link-") and len(names[0]) == 20
-    assert plan.studies["convergence_k"]["cases"] == names and plan.studies["cost"]["case"] == "three_link"
+    assert plan.studies["convergence_k"].cases == names and plan.studies["cost"].case == "three_link"
     cases = load_cases(plan)
     assert cases[names[0]].model.links[0].beam.length == 1.0 and cases[names[0]].name == names[0]
     edited = plan_for("quick", [_write(tmp_path / "arm.toml", 1.2)])

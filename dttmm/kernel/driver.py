@@ -131,17 +131,17 @@ class Settings:
         )
 
 
-def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
+def drive_tables(structure: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
     """Drive values the kernel needs, per step: torques and motion (α, α̇, α̈) at the step end
     (left limits), at restart steps also the right limits, and for RK4 at the mid-step."""
-    n, ns = st.n_links, t_end.size
+    n, ns = structure.n_links, t_end.size
     t_start = np.concatenate(([0.0], t_end[:-1]))
     t_mid = t_start + 0.5 * (t_end - t_start)
     taul, motl = np.zeros((ns, n)), np.zeros((ns, n, 3))
     taur, motr = np.zeros((ns, n)), np.zeros((ns, n, 3))
     taum, motm = (np.zeros((ns, n)), np.zeros((ns, n, 3))) if rk4 else (np.zeros((1, n)), np.zeros((1, n, 3)))
     rs = np.flatnonzero(restart)
-    for i, (d, m) in enumerate(zip(st.case.scenario.drives, st.motion)):
+    for i, (d, m) in enumerate(zip(structure.case.scenario.drives, structure.motion)):
         if d.closed_loop:
             continue  # its tables: control_tables
         law, tau_or_mot = (d.motion, (motl, motr, motm)) if m else (d.torque, (taul, taur, taum))
@@ -161,35 +161,35 @@ def drive_tables(st: Structure, t_end, restart, need_loads, rk4: bool) -> loop.D
         mot_right=motr,
         tau_mid=taum,
         mot_mid=motm,
-        **control_tables(st, t_end, restart, rk4),
+        **control_tables(structure, t_end, restart, rk4),
     )
 
 
-def control_tables(st: Structure, t_end, restart, rk4: bool) -> dict:
+def control_tables(structure: Structure, t_end, restart, rk4: bool) -> dict:
     """The closed-loop fields of :class:`loop.Drives`: per joint the code (1: pd/pid, 2: user
     law, whose laws are in ``user``, a tuple; the compiled kernel takes them as
     :class:`userlaw.UserTables`; else an empty array) and the
     constants (kp, kd, ki, g_M, limit, J_hub), per step the feedforward torque and the
     reference (α_ref, α̇_ref) at the step end (left limits), at restart steps the right limits,
     at mid-step (RK4). Without closed-loop joints: zeros, the tables one row."""
-    n, ns = st.n_links, t_end.size
-    g = control.gains(st.case)
+    n, ns = structure.n_links, t_end.size
+    g = control.gains(structure.case)
     code = np.ascontiguousarray(g.code, np.int64)
     gain = np.ascontiguousarray(np.column_stack([g.kp, g.kd, g.ki, g.moment_gain, g.limit, g.j_hub]), float)
     one = lambda: (np.zeros((1, n)), np.zeros((1, n, 2)))
     (ffl, refl), (ffr, refr), (ffm, refm) = one(), one(), one()
     if code.any():
-        ffl, refl = control.time_tables(st.case, t_end, left=True)
+        ffl, refl = control.time_tables(structure.case, t_end, left=True)
         ffr, refr = np.zeros((ns, n)), np.zeros((ns, n, 2))
         rs = np.flatnonzero(restart)
         if rs.size:
-            ffr[rs], refr[rs] = control.time_tables(st.case, t_end[rs], left=False)
+            ffr[rs], refr[rs] = control.time_tables(structure.case, t_end[rs], left=False)
         if rk4:
             t_start = np.concatenate(([0.0], t_end[:-1]))
-            ffm, refm = control.time_tables(st.case, t_start + 0.5 * (t_end - t_start), left=False)
+            ffm, refm = control.time_tables(structure.case, t_start + 0.5 * (t_end - t_start), left=False)
     c = lambda a: np.ascontiguousarray(a, float)
     user = (
-        tuple(d.law if c == control.CODE_USER else None for d, c in zip(st.case.scenario.drives, code))
+        tuple(d.law if c == control.CODE_USER else None for d, c in zip(structure.case.scenario.drives, code))
         if np.any(code == control.CODE_USER)
         else np.zeros(0)
     )
@@ -206,11 +206,11 @@ def control_tables(st: Structure, t_end, restart, rk4: bool) -> dict:
     }
 
 
-def drive_values(st: Structure, t: float, left: bool = False):
+def drive_values(structure: Structure, t: float, left: bool = False):
     """(torques (n,), motions (n, 3)) of all joints at time t (zeros where not applicable)."""
-    n = st.n_links
+    n = structure.n_links
     tau, mot = np.zeros(n), np.zeros((n, 3))
-    for i, (d, m) in enumerate(zip(st.case.scenario.drives, st.motion)):
+    for i, (d, m) in enumerate(zip(structure.case.scenario.drives, structure.motion)):
         if m:
             mot[i] = d.motion(t, left)
         elif not d.closed_loop:  # closed loop: the kernel evaluates the law
@@ -218,11 +218,11 @@ def drive_values(st: Structure, t: float, left: bool = False):
     return tau, mot
 
 
-def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Record:
+def new_record(structure: Structure, times, want_loads: bool, want_energy: bool) -> Record:
     """NaN-filled output arrays on the grid ``times``; cut loads every stride-th sample so
     that they hold at most ~2e6 cut-samples; no coordinates (see :func:`with_coordinates`)."""
-    nt, n = times.size, st.n_links
-    ncuts = st.n_elements + n
+    nt, n = times.size, structure.n_links
+    ncuts = structure.n_elements + n
     stride = max(1, math.ceil(nt * ncuts / 2.0e6)) if want_loads else 0
     full = lambda *shape: np.full((nt, *shape), np.nan)
     loads = np.full(((nt - 1) // stride + 1, ncuts, 3), np.nan) if want_loads else np.zeros((0, ncuts, 3))
@@ -237,7 +237,7 @@ def new_record(st: Structure, times, want_loads: bool, want_energy: bool) -> Rec
         energy=full() if want_energy else np.zeros(0),
         loads=loads,
         load_stride=stride,
-        q=np.zeros((0, st.n_dof)),
+        q=np.zeros((0, structure.n_dof)),
     )
 
 
@@ -285,24 +285,24 @@ def to_result(rec: Record, upto: int, wall: float, n_steps: int, meta: dict, sta
     )
 
 
-def initial_state(st: Structure):
+def initial_state(structure: Structure):
     """(q, q̇) at t = 0 from the drives' initial angles and rates (elastic coordinates zero)."""
-    q, qd = np.zeros(st.n_dof), np.zeros(st.n_dof)
-    for i, d in enumerate(st.case.scenario.drives):
-        q[st.links[i].i_alpha], qd[st.links[i].i_alpha] = d.initial_angle, d.initial_rate
+    q, qd = np.zeros(structure.n_dof), np.zeros(structure.n_dof)
+    for i, d in enumerate(structure.case.scenario.drives):
+        q[structure.links[i].i_alpha], qd[structure.links[i].i_alpha] = d.initial_angle, d.initial_rate
     return q, qd
 
 
-def base_meta(st: Structure, s: Settings) -> dict:
+def base_meta(structure: Structure, s: Settings) -> dict:
     meta = {
         "method": "dttmm",
         "sweep": s.sweep,
-        "elements_per_link": st.k,
+        "elements_per_link": structure.k,
         "h": float(s.h),
         "integrator": s.integrator,
         "iterations": s.iterations,
         "tol": s.tol,
-        "n_dof": st.n_dof,
+        "n_dof": structure.n_dof,
         "final_system_size": 3,
         "versions": plumbing.versions(),
         "success": True,
@@ -328,7 +328,7 @@ def _run_chunked(lp, args: tuple, n_steps: int, progress: bool | None):
     """Run the time loop: in one call if ``progress`` is False; else a first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a
     progress bar (``progress`` True, or None and the estimated run time above
     :data:`PROGRESS_AFTER`) in chunks between bar updates, else the rest in one call.
-    ``args``: (md, dt, opts, drv, state, rec, stats, ws). Returns (status, bar or None)."""
+    ``args``: (md, data, opts, drv, state, rec, stats, ws). Returns (status, bar or None)."""
     if progress is False:
         return lp.run(*args, 0, n_steps), None
     stats = args[6]
@@ -361,42 +361,42 @@ def _progress_bar(total: int, enabled: bool):
     return tqdm(total=total, unit="step", desc="dttmm", leave=False)
 
 
-def simulate_structure(st: Structure, s: Settings):
-    """Run the time loop on the discretised case ``st`` with settings ``s`` (validated)."""
+def simulate_structure(structure: Structure, s: Settings):
+    """Run the time loop on the discretised case ``structure`` with settings ``s`` (validated)."""
     lp, rp = _modules(s.engine)
     compile_time = warmup() if s.engine == "numba" and not _WARM else None
-    scen = st.case.scenario
+    scen = structure.case.scenario
     t_end, restart = step_schedule(scen.duration, s.h, scen.breakpoints)
-    md = build_model(st)
-    dt = make_data(md, s.sweep == "plain")
-    meta = base_meta(st, s)
+    md = build_model(structure)
+    data = make_data(md, s.sweep == "plain")
+    meta = base_meta(structure, s)
     if compile_time is not None:
         meta["compile_time"] = compile_time
-    rec = new_record(st, scen.output_times, s.cut_loads, s.energy)
+    rec = new_record(structure, scen.output_times, s.cut_loads, s.energy)
     if s.shape_points:
         rec = with_coordinates(rec)
     n_steps = t_end.size
     wall0 = time.perf_counter()
-    ncuts = st.n_elements + st.n_links
-    ws = lp.new_work(st.n_dof, st.n_links, ncuts)
+    ncuts = structure.n_elements + structure.n_links
+    ws = lp.new_work(structure.n_dof, structure.n_links, ncuts)
     stats = lp.new_stats()
 
     # initial accelerations (closed-loop laws at z = 0), and the samples at t = 0
-    q, qd = initial_state(st)
-    tau0, mot0 = drive_values(st, 0.0)
-    qdd, loads = np.empty(st.n_dof), np.empty((ncuts, 3))
-    drv = drive_tables(st, t_end, restart, np.zeros(n_steps, np.bool_), s.integrator == "rk4")
+    q, qd = initial_state(structure)
+    tau0, mot0 = drive_values(structure, 0.0)
+    qdd, loads = np.empty(structure.n_dof), np.empty((ncuts, 3))
+    drv = drive_tables(structure, t_end, restart, np.zeros(n_steps, np.bool_), s.integrator == "rk4")
     if s.engine == "numba" and isinstance(drv.user, tuple):  # numba-jitted user laws
-        drv = drv._replace(user=userlaw.tables(drv.user, st.n_links))
+        drv = drv._replace(user=userlaw.tables(drv.user, structure.n_links))
     closed = bool(drv.code.any())
     coupled = bool(np.any((drv.code[1:] == control.CODE_PD) & (drv.gain[1:, 3] * drv.gain[1:, 5] != 0.0)))
     opts = s.options(closed, coupled)
-    z0 = np.zeros(st.n_links)
+    z0 = np.zeros(structure.n_links)
     if closed:
-        ff0, ref0 = control.time_tables(st.case, [0.0], left=False)
+        ff0, ref0 = control.time_tables(structure.case, [0.0], left=False)
         ok, cond0 = lp.accel_closed(
             md,
-            dt,
+            data,
             opts,
             0.0,
             q,
@@ -414,10 +414,12 @@ def simulate_structure(st: Structure, s: Settings):
             True,
             True,
         )
-        zerr0 = np.where(drv.code == control.CODE_PD, ref0[0, :, 0] - q[st.alpha_index], 0.0)
+        zerr0 = np.where(drv.code == control.CODE_PD, ref0[0, :, 0] - q[structure.alpha_index], 0.0)
     else:
-        ok, cond0 = lp.accel(md, dt, SWEEP_CODES[s.sweep], q, qd, tau0, mot0, ws, qdd, ws.torque, loads, True)
-        zerr0 = np.zeros(st.n_links)
+        ok, cond0 = lp.accel(
+            md, data, SWEEP_CODES[s.sweep], q, qd, tau0, mot0, ws, qdd, ws.torque, loads, True
+        )
+        zerr0 = np.zeros(structure.n_links)
     partial = lambda m, upto=0: to_result(rec, upto, time.perf_counter() - wall0, int(stats.steps_done[0]), m)
     if not ok:
         raise plumbing.simulation_failure(
@@ -430,7 +432,7 @@ def simulate_structure(st: Structure, s: Settings):
             message="initial acceleration solve failed (Singular matrix)",
         )
     lp.apply_motion(md.motion, md.im, mot0, q, qd)
-    st0 = loop.State(
+    state = loop.State(
         q=q,
         qd=qd,
         qdd=qdd,
@@ -442,15 +444,15 @@ def simulate_structure(st: Structure, s: Settings):
         z=z0,
         zerr=zerr0,
     )
-    s0 = (st0.q_prev, st0.qd_prev, st0.torque_prev, st0.loads_prev)
+    s0 = (state.q_prev, state.qd_prev, state.torque_prev, state.loads_prev)
     stats.ptr[0] = rp.record(md, -1.0, 0.0, s0, s0, (ws.qs, ws.qds), 0, rec)
     stats.cond_max[0] = 0.0 if math.isnan(cond0) else cond0
     drv = drv._replace(need_loads=load_plan(rec, t_end, int(stats.ptr[0])))
 
-    short = s.engine == "numba" and n_steps * max(st.n_elements, 1) <= SHORT_RUN and not s.progress
+    short = s.engine == "numba" and n_steps * max(structure.n_elements, 1) <= SHORT_RUN and not s.progress
     cpu0 = time.process_time()
     status, bar = _run_chunked(
-        lp, (md, dt, opts, drv, st0, rec, stats, ws), n_steps, False if short else s.progress
+        lp, (md, data, opts, drv, state, rec, stats, ws), n_steps, False if short else s.progress
     )
     cpu_loop = time.process_time() - cpu0
     wall = time.perf_counter() - wall0
@@ -460,23 +462,25 @@ def simulate_structure(st: Structure, s: Settings):
     upto = int(stats.ptr[0])
     if status:
         _raise_failure(
-            st,
+            structure,
             status,
             stats,
             t_end,
             meta,
             lambda m: with_shapes(
-                to_result(rec, upto, wall, int(stats.steps_done[0]), m), st, rec, s.shape_points
+                to_result(rec, upto, wall, int(stats.steps_done[0]), m), structure, rec, s.shape_points
             ),
             float(rec.t[upto - 1]) if upto else 0.0,
         )
     _add_stats(meta, stats, s, n_steps, wall, t_end)
     if ws.fd_unconverged[0]:
         meta["unconverged_solves"] = int(ws.fd_unconverged[0])
-    if rec.energy.size and not any(st.motion):
-        _energy_growth(meta, st, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
+    if rec.energy.size and not any(structure.motion):
+        _energy_growth(meta, structure, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
     status, warns = verdict(meta, s, n_steps)
-    return with_shapes(to_result(rec, upto, wall, n_steps, meta, status, warns), st, rec, s.shape_points)
+    return with_shapes(
+        to_result(rec, upto, wall, n_steps, meta, status, warns), structure, rec, s.shape_points
+    )
 
 
 def with_coordinates(rec: Record) -> Record:
@@ -484,14 +488,14 @@ def with_coordinates(rec: Record) -> Record:
     return rec._replace(q=np.full((rec.t.size, rec.q.shape[1]), np.nan))
 
 
-def with_shapes(res, st: Structure, rec: Record, p: int):
+def with_shapes(res, structure: Structure, rec: Record, p: int):
     """``res`` with its link shapes (p points per link) from the recorded coordinates; ``res``
     itself when none were asked for (p = 0)."""
     if p == 0 or rec.q.shape[0] == 0:
         return res
     from ..shapes import element_shapes
 
-    return replace(res, link_shapes=element_shapes(st, rec.q[: res.t.size], p))
+    return replace(res, link_shapes=element_shapes(structure, rec.q[: res.t.size], p))
 
 
 #: equilibrated condition number of the plain sweep's final system above which a run is
@@ -559,25 +563,25 @@ def verdict(meta: dict, s: Settings, n_steps: int):
 ENERGY_GROWTH = 1e-3
 
 
-def energy_scale(st: Structure, t, energy, torque, rate) -> float:
+def energy_scale(structure: Structure, t, energy, torque, rate) -> float:
     """Energy scale (J) of a run: the largest of the energy's range, the work of the joint
     torques ∫ Σ|τ α̇| dt (trapezoid on the output grid) and m |g| L (total mass, gravity,
     summed link lengths)."""
-    mass = sum(lk.et.m * lk.k + lk.m_hub + lk.m_pay for lk in st.links)
-    mgl = mass * float(np.linalg.norm(st.gravity)) * sum(lk.length for lk in st.links)
+    mass = sum(lk.et.m * lk.k + lk.m_hub + lk.m_pay for lk in structure.links)
+    mgl = mass * float(np.linalg.norm(structure.gravity)) * sum(lk.length for lk in structure.links)
     p = np.sum(np.abs(torque * rate), axis=1)
     work = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))) if t.size > 1 else 0.0
     rng = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
     return max(rng, work, mgl)
 
 
-def _energy_growth(meta: dict, st: Structure, t, energy, torque, rate) -> None:
+def _energy_growth(meta: dict, structure: Structure, t, energy, torque, rate) -> None:
     """Energy check of a torque-driven run: wherever every joint torque is zero on a stretch of
     output samples, damping can only remove energy, so the total energy must not grow there.
     Stores the largest growth relative to :func:`energy_scale` (and its time) in
     ``meta["energy_growth"]``, ``meta["energy_growth_t"]``."""
     free = np.all(torque == 0.0, axis=1)
-    scale = energy_scale(st, t, energy, torque, rate)
+    scale = energy_scale(structure, t, energy, torque, rate)
     worst, when = 0.0, None
     idx = np.flatnonzero(free)
     if idx.size > 1 and scale > 0.0:
@@ -593,7 +597,7 @@ def _energy_growth(meta: dict, st: Structure, t, energy, torque, rate) -> None:
     meta["energy_growth_t"] = when
 
 
-def _raise_failure(st, status, stats, t_end, meta, partial, t_last):
+def _raise_failure(structure, status, stats, t_end, meta, partial, t_last):
     step = int(stats.steps_done[0])
     if status == ST_SINGULAR:
         raise plumbing.simulation_failure(
@@ -606,13 +610,15 @@ def _raise_failure(st, status, stats, t_end, meta, partial, t_last):
             message="linear solve failed (Singular matrix)",
         )
     bad = int(stats.bad_index[0])
-    name = st.coordinate_names()[bad]
+    name = structure.coordinate_names()[bad]
     if status == ST_NONFINITE:
         why, detail = "non-finite state", "non-finite value"
     else:
         why = "runaway elastic displacement"
-        value, bound = float(stats.bad_value[0]), md_lim(st, bad)
-        el = next(lk.length / lk.k for i, lk in enumerate(st.links) if name.startswith(f"link {i + 1},"))
+        value, bound = float(stats.bad_value[0]), md_lim(structure, bad)
+        el = next(
+            lk.length / lk.k for i, lk in enumerate(structure.links) if name.startswith(f"link {i + 1},")
+        )
         detail = (
             f"elastic rotation {value:.4g} rad beyond ±{bound:.4g} rad"
             if name.endswith("phi")
@@ -630,9 +636,9 @@ def _raise_failure(st, status, stats, t_end, meta, partial, t_last):
     )
 
 
-def md_lim(st: Structure, index: int) -> float:
+def md_lim(structure: Structure, index: int) -> float:
     """The runaway bound of coordinate ``index`` (see :func:`dttmm.kernel.layout.build_model`)."""
-    return float(build_model(st).lim[index])
+    return float(build_model(structure).lim[index])
 
 
 def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> None:
@@ -669,20 +675,20 @@ def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> No
     meta["time_per_step"] = wall / n_steps
 
 
-def accelerations_at(st: Structure, q, qd, t: float, sweep: str, engine: str):
+def accelerations_at(structure: Structure, q, qd, t: float, sweep: str, engine: str):
     """q̈ (n_dof,) of the discretised case at (q, q̇) and time t by the kernel."""
     lp, _ = _modules(engine)
     if engine == "numba":
         warmup()
-    md = build_model(st)
-    dt = make_data(md, sweep == "plain")
-    ncuts = st.n_elements + st.n_links
-    ws = lp.new_work(st.n_dof, st.n_links, ncuts)
-    tau, mot = drive_values(st, t)
-    qdd = np.empty(st.n_dof)
+    md = build_model(structure)
+    data = make_data(md, sweep == "plain")
+    ncuts = structure.n_elements + structure.n_links
+    ws = lp.new_work(structure.n_dof, structure.n_links, ncuts)
+    tau, mot = drive_values(structure, t)
+    qdd = np.empty(structure.n_dof)
     ok, _ = lp.accel(
         md,
-        dt,
+        data,
         SWEEP_CODES[sweep],
         np.ascontiguousarray(q, float),
         np.ascontiguousarray(qd, float),

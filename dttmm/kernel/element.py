@@ -44,7 +44,7 @@ def coord_base(e_start, ne, pad, j):
 
 
 @njit(nrt=False)
-def angles(md, q, qd, dt):
+def angles(md, q, qd, data):
     """Kinematic pass (base → tip): frame cos/sin and rate of every element, padded e and ė."""
     k = md.k
     th0 = 0.0
@@ -61,20 +61,20 @@ def angles(md, q, qd, dt):
             g = i * k + j
             if j > 0:
                 cth, sth = rotate(cth, sth, th, q[b + 2])  # b, th: from element j − 1, θ_j
-            dt.c[g] = cth
-            dt.s[g] = sth
-            dt.td[g] = thd
+            data.c[g] = cth
+            data.s[g] = sth
+            data.td[g] = thd
             b = coord_base(es, ne, off, j)
             if off:
-                dt.e[g, 0] = 0.0
-                dt.ed[g, 0] = 0.0
+                data.e[g, 0] = 0.0
+                data.ed[g, 0] = 0.0
             else:
-                dt.e[g, 0] = q[b]
-                dt.ed[g, 0] = qd[b]
-            dt.e[g, 1] = q[b + 1]
-            dt.ed[g, 1] = qd[b + 1]
-            dt.e[g, 2] = q[b + 2]
-            dt.ed[g, 2] = qd[b + 2]
+                data.e[g, 0] = q[b]
+                data.ed[g, 0] = qd[b]
+            data.e[g, 1] = q[b + 1]
+            data.ed[g, 1] = qd[b + 1]
+            data.e[g, 2] = q[b + 2]
+            data.ed[g, 2] = qd[b + 2]
             th += q[b + 2]
             thd += qd[b + 2]
         th0 = th
@@ -82,9 +82,9 @@ def angles(md, q, qd, dt):
 
 
 @njit(nrt=False)
-def elastic_known(md, qt, qdt, dt):
+def elastic_known(md, qt, qdt, data):
     """K ê + D ê' of every element (constant during the frozen-coefficient iteration); for a
-    link with second-order strain D ê' only (D = μK), and ê, ê' themselves in ``dt.e_hat``
+    link with second-order strain D ê' only (D = μK), and ê, ê' themselves in ``data.e_hat``
     (its elastic and damping forces are taken at each iterate inside the sweep,
     see :func:`second_order_terms` and :func:`second_order_damping`)."""
     k = md.k
@@ -100,17 +100,17 @@ def elastic_known(md, qt, qdt, dt):
             e1, e2 = qt[b + 1], qt[b + 2]
             d1, d2 = qdt[b + 1], qdt[b + 2]
             if so:
-                dt.e_hat[g, 0] = e0
-                dt.e_hat[g, 1] = e1
-                dt.e_hat[g, 2] = e2
-                dt.e_hat[g, 3] = d0
-                dt.e_hat[g, 4] = d1
-                dt.e_hat[g, 5] = d2
+                data.e_hat[g, 0] = e0
+                data.e_hat[g, 1] = e1
+                data.e_hat[g, 2] = e2
+                data.e_hat[g, 3] = d0
+                data.e_hat[g, 4] = d1
+                data.e_hat[g, 5] = d2
                 for r in range(3):
-                    dt.f_known[g, r] = md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2
+                    data.f_known[g, r] = md.D[i, r, 0] * d0 + md.D[i, r, 1] * d1 + md.D[i, r, 2] * d2
             else:
                 for r in range(3):
-                    dt.f_known[g, r] = (
+                    data.f_known[g, r] = (
                         md.K[i, r, 0] * e0
                         + md.K[i, r, 1] * e1
                         + md.K[i, r, 2] * e2
@@ -121,16 +121,16 @@ def elastic_known(md, qt, qdt, dt):
 
 
 @njit(nrt=False)
-def effective_mass(md, cq, cv, dt):
+def effective_mass(md, cq, cv, data):
     """M̃_ee = C_SS + c_q K + c_v D per link (+ the unit dummy mass of an inextensible link);
     c_q and c_v are kept for the per-element tangents of second-order links."""
     for i in range(md.n):
         for r in range(3):
             for c in range(3):
-                dt.Mt[i, r, c] = md.CSS[i, r, c] + cq * md.K[i, r, c] + cv * md.D[i, r, c]
-        dt.Mt[i, 0, 0] += md.dummy[i]
-        dt.cq[i, 0] = cq
-        dt.cq[i, 1] = cv
+                data.Mt[i, r, c] = md.CSS[i, r, c] + cq * md.K[i, r, c] + cv * md.D[i, r, c]
+        data.Mt[i, 0, 0] += md.dummy[i]
+        data.cq[i, 0] = cq
+        data.cq[i, 1] = cv
 
 
 @njit(inline="always")

@@ -60,26 +60,26 @@ def pd_torque(gain, i, ff, a_ref, r_ref, z, alpha, rate, omega_dot):
 
 
 @njit(nrt=False, inline="always")
-def root_omega_dot(md, dt, i):
+def root_omega_dot(md, data, i):
     """ω̇ of link i's root cross-section from the last Riccati sweep."""
-    return dt.a[i * md.k, 2]
+    return data.a[i * md.k, 2]
 
 
 @njit(nrt=False, inline="always")
-def inboard(md, dt, x, i):
+def inboard(md, data, x, i):
     """y_i = ω̇_i − α̈_i of the last sweep (x: its q̈)."""
-    return dt.a[i * md.k, 2] - x[md.i_alpha[i]]
+    return data.a[i * md.k, 2] - x[md.i_alpha[i]]
 
 
 @njit(nrt=False, inline="always")
-def step_law(md, dt, drv, s, st, ws, h, cq, cv, i, final):
+def step_law(md, data, drv, s, state, ws, h, cq, cv, i, final):
     """Law of closed-loop joint i at the Newmark iterate (ws.qi, ws.qdi, ws.x) of step s (size
     h) with ω̇ from the last sweep. Sets the sweep's inputs ws.taul[i] = τ_k − s α̈_k and
     ws.acc[i] = s; with ``final``, the law's τ into ws.torque[i] and (z, e) of t_{n+1} into
     (ws.zs[i], ws.zsum[i]). Returns τ_k."""
     ia = md.i_alpha[i]
     err = drv.ref_left[s, i, 0] - ws.qi[ia]
-    z = st.z[i] + 0.5 * h * (st.zerr[i] + err)
+    z = state.z[i] + 0.5 * h * (state.zerr[i] + err)
     tau, d_a, d_r, d_z, d_w = pd_torque(
         drv.gain,
         i,
@@ -89,13 +89,13 @@ def step_law(md, dt, drv, s, st, ws, h, cq, cv, i, final):
         z,
         ws.qi[ia],
         ws.qdi[ia],
-        root_omega_dot(md, dt, i),
+        root_omega_dot(md, data, i),
     )
     slope = d_a * cq + d_r * cv - d_z * (0.5 * h * cq) + d_w
     ws.acc[i] = slope
     ws.taul[i] = tau - slope * ws.x[ia]
     ws.dw[i] = d_w
-    ws.yk[i] = inboard(md, dt, ws.x, i)
+    ws.yk[i] = inboard(md, data, ws.x, i)
     if final:
         ws.torque[i] = tau
         ws.zs[i] = z
@@ -104,34 +104,34 @@ def step_law(md, dt, drv, s, st, ws, h, cq, cv, i, final):
 
 
 @njit(nrt=False, inline="always")
-def step_laws(md, dt, drv, s, st, ws, h, cq, cv, final):
+def step_laws(md, data, drv, s, state, ws, h, cq, cv, final):
     """:func:`step_law` for every closed-loop joint (the others keep ws.taul = their τ)."""
     for i in range(md.n):
         if drv.code[i] == CODE_PD:
-            step_law(md, dt, drv, s, st, ws, h, cq, cv, i, final)
+            step_law(md, data, drv, s, state, ws, h, cq, cv, i, final)
     out = ws.torque if final else ws.torque_r  # ws.torque: the last sweep's, the moments
-    user_laws(md, dt, drv, drv.t_end[s], ws.qi, ws.qdi, ws.x, cq, cv, ws, ws.torque, out, False)
+    user_laws(md, data, drv, drv.t_end[s], ws.qi, ws.qdi, ws.x, cq, cv, ws, ws.torque, out, False)
 
 
 @njit(nrt=False, inline="always")
-def state_laws(md, dt, drv, t, ff, ref, z, q, qd, x, ws, first, torque):
+def state_laws(md, data, drv, t, ff, ref, z, q, qd, x, ws, first, torque):
     """Laws of the closed-loop joints at the state (q, q̇) with integral states z (n,) and the
     laws of time ``ff`` (n,), ``ref`` (n, 2), linearised in α̈ through ω̇ only (the forward
     dynamics). ``first``: no sweep at this state yet, ω̇ and α̈ of the iterate taken as 0.
     Sets ws.taul, ws.acc and the law's τ in ``torque`` of those joints; returns whether any
     law depends on ω̇ (user laws: on the moment). ``t``: the time (user laws)."""
-    loop = user_laws(md, dt, drv, t, q, qd, x, 0.0, 0.0, ws, torque, torque, first)
+    loop = user_laws(md, data, drv, t, q, qd, x, 0.0, 0.0, ws, torque, torque, first)
     for i in range(md.n):
         if drv.code[i] != CODE_PD:
             continue
         ia = md.i_alpha[i]
-        wd = 0.0 if first else root_omega_dot(md, dt, i)
+        wd = 0.0 if first else root_omega_dot(md, data, i)
         ak = 0.0 if first else x[ia]
         tau, _da, _dr, _dz, d_w = pd_torque(drv.gain, i, ff[i], ref[i, 0], ref[i, 1], z[i], q[ia], qd[ia], wd)
         ws.acc[i] = d_w
         ws.taul[i] = tau - d_w * ak
         ws.dw[i] = d_w
-        ws.yk[i] = 0.0 if first else inboard(md, dt, x, i)
+        ws.yk[i] = 0.0 if first else inboard(md, data, x, i)
         torque[i] = tau
         loop |= drv.gain[i, GM] * drv.gain[i, JHUB] != 0.0
     return loop
@@ -203,7 +203,7 @@ def correct(md, drv, ws):
 # --- user laws: Python callables (engine "python"), numba-jitted laws (both engines) ----------------------------------------------------
 if PURE:
 
-    def user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+    def user_laws(md, data, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
         """User laws (code CODE_USER) at the iterate (q, q̇, q̈ = x) at time t: each law sees a
         :class:`dttmm.drives.ControlState` (a numba-jitted law: a
         :class:`dttmm.kernel.userlaw.JitState`) (its moment: M_root = τ − J_hub ω̇ of the last sweep,
@@ -234,7 +234,7 @@ if PURE:
         for i in range(n):
             if drv.code[i] != CODE_USER:
                 continue
-            wd = 0.0 if first else root_omega_dot(md, dt, i)
+            wd = 0.0 if first else root_omega_dot(md, data, i)
             moment = 0.0 if first else tsweep[i] - drv.gain[i, JHUB] * wd
             if is_jitted(drv.user[i].fn):  # a numba-jitted law takes the compiled kernel's state
                 state = JitState(i, angles[i], rates[i], float(moment), 0.0, *arrays, math.nan)
@@ -273,23 +273,23 @@ else:
     from .recorder import sample
     from .userlaw import JitState
 
-    def user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+    def user_laws(md, data, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
         """The user laws of the compiled kernel (numba-jitted laws in ``drv.user``, a
         :class:`dttmm.kernel.userlaw.UserTables`), as in the uncompiled kernel; compiled by the
         overload below, a no-op returning False where ``drv.user`` is an array (no user law)."""
         raise NotImplementedError  # pragma: no cover - only ever compiled
 
     @overload(user_laws, jit_options={"_nrt": False, "boundscheck": False})
-    def _user_laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+    def _user_laws(md, data, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
         if isinstance(drv.types[drv.fields.index("user")], types.Array):
             # open-loop and pd/pid runs: their kernel has no user-law code at all
 
-            def none(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+            def none(md, data, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
                 return False
 
             return none
 
-        def laws(md, dt, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
+        def laws(md, data, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
             u = drv.user
             ia = md.i_alpha
             sample(md, q, qd, 0, u)
@@ -306,7 +306,7 @@ else:
                 moment = 0.0
                 ak = 0.0
                 if not first:
-                    moment = tsweep[i] - drv.gain[i, JHUB] * root_omega_dot(md, dt, i)
+                    moment = tsweep[i] - drv.gain[i, JHUB] * root_omega_dot(md, data, i)
                     ak = x[ia[i]]
                 state = JitState(i, u.angles[i], u.rates[i], moment, 0.0, u.angles, u.rates, u.tips, np.nan)
                 tau, d_a, d_r = u.fns[u.slot[i]](t, state)

@@ -79,9 +79,9 @@ class Model(NamedTuple):
     lim: np.ndarray  # (n_dof,) runaway bound per coordinate (inf for joint angles)
 
 
-def build_model(st) -> Model:
+def build_model(structure) -> Model:
     """Pack a :class:`dttmm.structure.Structure` into a :class:`Model`."""
-    n = st.n_links
+    n = structure.n_links
     z = lambda *shape: np.zeros((n, *shape))
     f = {
         name: z()
@@ -115,8 +115,8 @@ def build_model(st) -> Model:
     )
     ne, pad = np.zeros(n, np.int64), np.zeros(n, np.int64)
     second_order = np.zeros(n, np.bool_)
-    lim = np.full(st.n_dof, np.inf)
-    for i, lk in enumerate(st.links):
+    lim = np.full(structure.n_dof, np.inf)
+    for i, lk in enumerate(structure.links):
         et = lk.et
         p = 3 - et.ne
         ne[i], pad[i] = et.ne, p
@@ -145,17 +145,17 @@ def build_model(st) -> Model:
         if et.second_order and et.ne == 3:
             el[:, 0] = RUNAWAY_LENGTHS_U2 * lk.length / lk.k
         lim[lk.e_slice] = el.ravel()
-    ia = st.alpha_index.astype(np.int64)
+    ia = structure.alpha_index.astype(np.int64)
     return Model(
         n=n,
-        k=st.k,
-        grav=np.ascontiguousarray(st.gravity, dtype=float),
+        k=structure.k,
+        grav=np.ascontiguousarray(structure.gravity, dtype=float),
         ne=ne,
         i_alpha=ia,
-        e_start=np.array([lk.e_slice.start for lk in st.links], np.int64),
+        e_start=np.array([lk.e_slice.start for lk in structure.links], np.int64),
         pad=pad,
-        motion=st.motion.astype(np.bool_),
-        im=np.ascontiguousarray(ia[st.motion]),
+        motion=structure.motion.astype(np.bool_),
+        im=np.ascontiguousarray(ia[structure.motion]),
         lim=lim,
         second_order=second_order,
         **f,

@@ -228,14 +228,14 @@ def copy(src, dst):
 
 
 @njit(nrt=False, inline="always")
-def sweep(md, dt, code, q, qd, tau, acc, xout, torque, loads):
-    """One sweep at the iterate (q, q̇) (dt.f_known and dt.Mt already set). Returns
+def sweep(md, data, code, q, qd, tau, acc, xout, torque, loads):
+    """One sweep at the iterate (q, q̇) (data.f_known and data.Mt already set). Returns
     (ok, cond): cond is the plain sweep's final-system condition number (nan for Riccati)."""
-    angles(md, q, qd, dt)
+    angles(md, q, qd, data)
     if code == SW_RICCATI:
-        riccati(md, dt, tau, acc, xout, torque)
+        riccati(md, data, tau, acc, xout, torque)
         return True, np.nan
-    return plain(md, dt, tau, acc, xout, torque, loads)
+    return plain(md, data, tau, acc, xout, torque, loads)
 
 
 @njit(nrt=False, inline="always")
@@ -251,7 +251,7 @@ def apply_motion(motion, im, mot, q, qd):
 
 
 @njit(nrt=False, inline="always")
-def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
+def accel(md, data, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     """Exact forward dynamics q̈(q, q̇) into xout (motion joints take the law's angle, rate,
     α̈), with the joint torques and, if ``want_loads``, the cut loads. Returns (ok, cond)."""
     copy(q, ws.qs)
@@ -259,35 +259,35 @@ def accel(md, dt, code, q, qd, tau, mot, ws, xout, torque, loads, want_loads):
     for i in range(md.n):
         ws.acc[i] = mot[i, 2]
     apply_motion(md.motion, md.im, mot, ws.qs, ws.qds)
-    elastic_known(md, ws.qs, ws.qds, dt)
-    effective_mass(md, 0.0, 0.0, dt)
-    ok, cond = sweep(md, dt, code, ws.qs, ws.qds, tau, ws.acc, xout, torque, loads)
+    elastic_known(md, ws.qs, ws.qds, data)
+    effective_mass(md, 0.0, 0.0, data)
+    ok, cond = sweep(md, data, code, ws.qs, ws.qds, tau, ws.acc, xout, torque, loads)
     for i in range(md.n):
         if not md.motion[i]:
             torque[i] = tau[i]
     if want_loads and code == SW_RICCATI:
-        riccati_loads(md, dt, loads)
+        riccati_loads(md, data, loads)
     return ok, cond
 
 
 @njit(nrt=False)  # a real call: closed-loop runs only
-def sensitivity(md, dt, opts, q, qd, drv, ws, columns):
+def sensitivity(md, data, opts, q, qd, drv, ws, columns):
     """Base sweep at (q, q̇) with the torques ws.taul (its y into ws.yb, the torques copied to
     ws.tb) and, with ``columns``, one sweep per closed-loop joint j with τ'_j + 1:
     ws.amat[:, j] = ∂y/∂τ'_j (the sweep is affine in its torques). Outputs go to scratch
     (ws.xs, restart arrays). Returns ok."""
-    ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
+    ok, _c = sweep(md, data, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
     for i in range(md.n):
-        ws.yb[i] = inboard(md, dt, ws.xs, i)
+        ws.yb[i] = inboard(md, data, ws.xs, i)
         ws.tb[i] = ws.taul[i]
     for j in range(md.n):
         if drv.code[j] != CODE_PD or not ok or not columns:
             continue
         ws.taul[j] = ws.tb[j] + 1.0
-        ok, _c = sweep(md, dt, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
+        ok, _c = sweep(md, data, opts.sweep, q, qd, ws.taul, ws.acc, ws.xs, ws.torque_r, ws.loads_r)
         ws.taul[j] = ws.tb[j]
         for i in range(md.n):
-            ws.amat[i, j] = inboard(md, dt, ws.xs, i) - ws.yb[i]
+            ws.amat[i, j] = inboard(md, data, ws.xs, i) - ws.yb[i]
     return ok
 
 
@@ -303,7 +303,7 @@ def _flag(value):
 # its flags arrive as run-time bools (:func:`_flag`)
 @njit(nrt=False)
 def accel_closed(
-    md, dt, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads, fresh
+    md, data, opts, t, q, qd, tau, mot, drv, ff, ref, z, ws, xout, torque, loads, want_loads, fresh
 ):
     """:func:`accel` with closed-loop joints: their laws at (q, q̇) and time t, integral states z (n,),
     feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback depends on
@@ -319,8 +319,8 @@ def accel_closed(
         ws.acc[i] = mot[i, 2]
         ws.taul[i] = tau[i]
     apply_motion(md.motion, md.im, mot, ws.qs, ws.qds)
-    elastic_known(md, ws.qs, ws.qds, dt)
-    effective_mass(md, 0.0, 0.0, dt)
+    elastic_known(md, ws.qs, ws.qds, data)
+    effective_mass(md, 0.0, 0.0, data)
     ok = True
     cond = np.nan
     converged = False
@@ -328,16 +328,16 @@ def accel_closed(
     for it in range(opts.max_iterations):
         if it > 0:
             copy(ws.taul, ws.tb)
-        loop = state_laws(md, dt, drv, t, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
+        loop = state_laws(md, data, drv, t, ff, ref, z, ws.qs, ws.qds, xout, ws, it == 0, torque)
         if opts.coupled:
             if it == 0:
-                if not sensitivity(md, dt, opts, ws.qs, ws.qds, drv, ws, fresh):
+                if not sensitivity(md, data, opts, ws.qs, ws.qds, drv, ws, fresh):
                     return False, cond
                 ws.fd_sweeps[0] += n_sensitivity(md, drv) if fresh else 1
             else:
                 copy(ws.yk, ws.yb)
             correct(md, drv, ws)
-        ok, cond = sweep(md, dt, opts.sweep, ws.qs, ws.qds, ws.taul, ws.acc, xout, torque, loads)
+        ok, cond = sweep(md, data, opts.sweep, ws.qs, ws.qds, ws.taul, ws.acc, xout, torque, loads)
         ws.fd_sweeps[0] += 1
         if not ok:
             return ok, cond
@@ -360,9 +360,9 @@ def accel_closed(
     for i in range(md.n):
         if not md.motion[i] and drv.code[i] == 0:  # closed loop: the sweep's τ until the laws
             torque[i] = tau[i]
-    state_laws(md, dt, drv, t, ff, ref, z, ws.qs, ws.qds, xout, ws, False, torque)  # τ at the final ω̇
+    state_laws(md, data, drv, t, ff, ref, z, ws.qs, ws.qds, xout, ws, False, torque)  # τ at the final ω̇
     if want_loads and opts.sweep == SW_RICCATI:
-        riccati_loads(md, dt, loads)
+        riccati_loads(md, data, loads)
     return ok, cond
 
 
@@ -428,7 +428,7 @@ def _update_iterate(x, xn, qt, qdt, qi, qdi, qdd, cq, cv, want_dq):
 
 
 @njit(nrt=False, inline="always")
-def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h):
+def _iterate(md, data, opts, state, ws, cq, cv, tau, mot, stats, drv, s, h):
     """Sweeps of one Newmark step (step s of ``drv``, size h) from the iterate x = ws.x; the
     closed-loop laws linearised at each iterate (:func:`dttmm.kernel.feedback.step_laws`).
     Returns (ok, sweeps used, converged)."""
@@ -447,26 +447,26 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h):
         apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
         if opts.closed:
             copy(ws.taul, ws.tb)  # the last sweep's torques (it ≥ 1)
-            step_laws(md, dt, drv, s, st, ws, h, cq, cv, False)
+            step_laws(md, data, drv, s, state, ws, h, cq, cv, False)
             if opts.coupled:
                 if it == 0:
                     # a base sweep about this very iterate (y of the last step's is a poor
                     # guess: measured), with A anew every A_EVERY steps and after a restart
                     fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
-                    if not sensitivity(md, dt, opts, ws.qi, ws.qdi, drv, ws, fresh):
+                    if not sensitivity(md, data, opts, ws.qi, ws.qdi, drv, ws, fresh):
                         return False, used, False
                     used += n_sensitivity(md, drv) if fresh else 1
                 else:
                     copy(ws.yk, ws.yb)
                 correct(md, drv, ws)
-        ok, cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tv, ws.acc, ws.xn, ws.torque, ws.loads)
+        ok, cond = sweep(md, data, opts.sweep, ws.qi, ws.qdi, tv, ws.acc, ws.xn, ws.torque, ws.loads)
         used += 1
         if not ok:
             return False, used, False
         if opts.sweep == SW_PLAIN and cond > stats.cond_max[0]:
             stats.cond_max[0] = cond
         dx, xmax, dq = _update_iterate(
-            ws.x, ws.xn, ws.qt, ws.qdt, ws.qi, ws.qdi, st.qdd, cq, cv, opts.iteration == IT_AUTO
+            ws.x, ws.xn, ws.qt, ws.qdt, ws.qi, ws.qdi, state.qdd, cq, cv, opts.iteration == IT_AUTO
         )
         if opts.iteration != IT_FIXED:
             stop, converged = _stop(opts, it, dx, prev_dx, xmax, dq)
@@ -477,7 +477,7 @@ def _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h):
 
 
 @njit(nrt=False)  # a real call: inlining a third sweep into `run` slowed every step (measured)
-def _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats):
+def _residual_check(md, data, opts, ws, tau, mot, dq, d2q, s, stats):
     """Residual of the step equations at the accepted iterate x = ws.x of step s: one more
     sweep, not applied (its q̈ into ws.k2, torques and loads into the restart scratch), gives
     the correction d = max|Δq̈| it would make. An error d in q̈ moves q by βh²·d and q̇ by
@@ -486,7 +486,7 @@ def _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats):
     q̈_{n−1}|). The check's ratio is the larger of the two error ratios; it passes at ≤ 1 (a tol
     term admits what a converged step leaves). Updates the counters of ``stats``."""
     apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
-    ok, _cond = sweep(md, dt, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.k2, ws.torque_r, ws.loads_r)
+    ok, _cond = sweep(md, data, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.k2, ws.torque_r, ws.loads_r)
     d = 0.0
     xmax = 0.0
     for r in range(ws.x.shape[0]):
@@ -512,24 +512,34 @@ def _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats):
 
 
 @njit(nrt=False, inline="always")
-def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, keep, s, drv):
+def newmark_step(md, data, opts, state, ws, h, tau, mot, want_loads, stats, check, keep, s, drv):
     """One Newmark-family step s of ``drv``, of size h, to the end values (tau, mot); with
     ``check``, the residual check after it (:func:`_residual_check`); with ``keep``, q̈_n is
     kept in ws.ka for the next step's check. Closed-loop joints: the law's τ of the converged
     iterate is the step's torque, and z, α_ref − α move to t_{n+1}. Returns ok."""
     cq, cv = predict(
-        opts.beta, opts.gamma, opts.alpha_m, opts.alpha_f, h, st.q, st.qd, st.qdd, st.aux, ws.qt, ws.qdt
+        opts.beta,
+        opts.gamma,
+        opts.alpha_m,
+        opts.alpha_f,
+        h,
+        state.q,
+        state.qd,
+        state.qdd,
+        state.aux,
+        ws.qt,
+        ws.qdt,
     )
-    copy(st.qdd, ws.x)
+    copy(state.qdd, ws.x)
     ii = 0
     for i in range(md.n):
         ws.acc[i] = mot[i, 2]
         if md.motion[i]:
             ws.x[md.im[ii]] = mot[i, 2]
             ii += 1
-    elastic_known(md, ws.qt, ws.qdt, dt)
-    effective_mass(md, cq, cv, dt)
-    ok, used, converged = _iterate(md, dt, opts, st, ws, cq, cv, tau, mot, stats, drv, s, h)
+    elastic_known(md, ws.qt, ws.qdt, data)
+    effective_mass(md, cq, cv, data)
+    ok, used, converged = _iterate(md, data, opts, state, ws, cq, cv, tau, mot, stats, drv, s, h)
     if not ok:
         return False
     stats.sweeps[0] += used
@@ -539,44 +549,44 @@ def newmark_step(md, dt, opts, st, ws, h, tau, mot, want_loads, stats, check, ke
     dq = 0.0
     d2q = 0.0
     if check:
-        for r in range(st.q.shape[0]):
-            dq = max(dq, abs(ws.x[r] - st.qdd[r]))
-            d2q = max(d2q, abs(ws.x[r] - 2.0 * st.qdd[r] + ws.ka[r]))
+        for r in range(state.q.shape[0]):
+            dq = max(dq, abs(ws.x[r] - state.qdd[r]))
+            d2q = max(d2q, abs(ws.x[r] - 2.0 * state.qdd[r] + ws.ka[r]))
     if keep:
-        copy(st.qdd, ws.ka)
+        copy(state.qdd, ws.ka)
     am, af = opts.alpha_m, opts.alpha_f
     i1m = 1.0 / (1.0 - am)
-    for r in range(st.q.shape[0]):
-        anew = ((1.0 - af) * ws.x[r] + af * st.qdd[r] - am * st.aux[r]) * i1m
-        st.q[r] = ws.qt[r] + cq * ws.x[r]
-        st.qd[r] = ws.qdt[r] + cv * ws.x[r]
-        st.aux[r] = anew
-        st.qdd[r] = ws.x[r]
-    apply_motion(md.motion, md.im, mot, st.q, st.qd)
+    for r in range(state.q.shape[0]):
+        anew = ((1.0 - af) * ws.x[r] + af * state.qdd[r] - am * state.aux[r]) * i1m
+        state.q[r] = ws.qt[r] + cq * ws.x[r]
+        state.qd[r] = ws.qdt[r] + cv * ws.x[r]
+        state.aux[r] = anew
+        state.qdd[r] = ws.x[r]
+    apply_motion(md.motion, md.im, mot, state.q, state.qd)
     ii = 0
     for i in range(md.n):
         if md.motion[i]:
-            st.aux[md.im[ii]] = ws.x[md.im[ii]]
+            state.aux[md.im[ii]] = ws.x[md.im[ii]]
             ii += 1
         elif drv.code[i] == 0:  # closed loop: the law's τ, below
             ws.torque[i] = tau[i]
     if want_loads and opts.sweep == SW_RICCATI:
-        riccati_loads(md, dt, ws.loads)
+        riccati_loads(md, data, ws.loads)
     if opts.closed:  # the laws at the converged iterate (ws.qi, ws.qdi, ω̇ of its sweep)
-        step_laws(md, dt, drv, s, st, ws, h, cq, cv, True)
+        step_laws(md, data, drv, s, state, ws, h, cq, cv, True)
         tau = ws.taul
     if check:  # after the loads: the extra sweep overwrites the workspace they are read from
-        _residual_check(md, dt, opts, ws, tau, mot, dq, d2q, s, stats)
+        _residual_check(md, data, opts, ws, tau, mot, dq, d2q, s, stats)
     if opts.closed:
         for i in range(md.n):
             if drv.code[i] == CODE_PD:
-                st.z[i] = ws.zs[i]
-                st.zerr[i] = ws.zsum[i]
+                state.z[i] = ws.zs[i]
+                state.zerr[i] = ws.zsum[i]
     return True
 
 
 @njit(nrt=False, inline="always")
-def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fresh):
+def _accel_at(md, data, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fresh):
     """Forward dynamics at an RK4 stage of step s of size h (``stage`` 1: mid-step laws of
     time, 2: the step end) into xout; closed-loop laws with the stage's integral states ws.zs
     (``fresh``: measure the sensitivity A, :func:`accel_closed`)."""
@@ -585,7 +595,7 @@ def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fresh
     else:
         tau, mot = drv.tau_left[s], drv.mot_left[s]
     if not opts.closed:
-        return accel(md, dt, opts.sweep, q, qd, tau, mot, ws, xout, ws.torque, ws.loads, want_loads)
+        return accel(md, data, opts.sweep, q, qd, tau, mot, ws, xout, ws.torque, ws.loads, want_loads)
     t = drv.t_end[s]
     if stage == 1:
         ff, ref = drv.ff_mid[s], drv.ref_mid[s]
@@ -594,7 +604,7 @@ def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fresh
         ff, ref = drv.ff_left[s], drv.ref_left[s]
     return accel_closed(
         md,
-        dt,
+        data,
         opts,
         t,
         q,
@@ -615,66 +625,66 @@ def _accel_at(md, dt, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fresh
 
 
 @njit(nrt=False, inline="always")
-def _rk4_z(md, drv, st, ws, ref, q, w, c):
+def _rk4_z(md, drv, state, ws, ref, q, w, c):
     """Closed-loop integral states at an RK4 stage: ż = α_ref − α of the stage state q (its
     reference ``ref`` (n, 2)) enters the sum with weight w and the next stage's z = z_n + c ż."""
     for i in range(md.n):
         if drv.code[i] == CODE_PD:
             zd = ref[i, 0] - q[md.i_alpha[i]]
             ws.zsum[i] += w * zd
-            ws.zs[i] = st.z[i] + c * zd
+            ws.zs[i] = state.z[i] + c * zd
 
 
 @njit(nrt=False, inline="always")
-def rk4_step(md, dt, opts, st, ws, h, drv, s, stats):
+def rk4_step(md, data, opts, state, ws, h, drv, s, stats):
     """Classical RK4 on (q, q̇) (and the integral states z of closed-loop laws, ż = α_ref − α)
     with the exact acceleration solver (step s of ``drv``)."""
-    q, qd, qdd = st.q, st.qd, st.qdd
+    q, qd, qdd = state.q, state.qd, state.qdd
     qi, qdi, k2v, k3v, ka, x, xn = ws.qi, ws.qdi, ws.k2, ws.k3, ws.ka, ws.x, ws.xn
     hf = 0.5 * h
     fd0 = ws.fd_sweeps[0]
     if opts.closed:  # stage 1: ż = e_n
         for i in range(md.n):
-            ws.zsum[i] = st.zerr[i]
-            ws.zs[i] = st.z[i] + hf * st.zerr[i]
+            ws.zsum[i] = state.zerr[i]
+            ws.zs[i] = state.z[i] + hf * state.zerr[i]
     for r in range(q.shape[0]):
         qi[r] = q[r] + hf * qd[r]
         qdi[r] = qd[r] + hf * qdd[r]
         k2v[r] = qdi[r]
     fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])  # else the A of an earlier stage
-    ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, ka, _flag(False), fresh)
+    ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 1, ws, ka, _flag(False), fresh)
     if ok:
         if opts.closed:
-            _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, hf)
+            _rk4_z(md, drv, state, ws, drv.ref_mid[s], qi, 2.0, hf)
         for r in range(q.shape[0]):
             qi[r] = q[r] + hf * k2v[r]
             qdi[r] = qd[r] + hf * ka[r]
             k3v[r] = qdi[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 1, ws, x, _flag(False), _flag(False))
+        ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 1, ws, x, _flag(False), _flag(False))
     if ok:
         if opts.closed:
-            _rk4_z(md, drv, st, ws, drv.ref_mid[s], qi, 2.0, h)
+            _rk4_z(md, drv, state, ws, drv.ref_mid[s], qi, 2.0, h)
         for r in range(q.shape[0]):
             qi[r] = q[r] + h * k3v[r]
             qdi[r] = qd[r] + h * x[r]
-        ok, cond = _accel_at(md, dt, opts, qi, qdi, drv, s, h, 2, ws, xn, _flag(False), _flag(False))
+        ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 2, ws, xn, _flag(False), _flag(False))
     if ok:
         if opts.closed:
-            _rk4_z(md, drv, st, ws, drv.ref_left[s], qi, 1.0, 0.0)
+            _rk4_z(md, drv, state, ws, drv.ref_left[s], qi, 1.0, 0.0)
             for i in range(md.n):
                 if drv.code[i] == CODE_PD:
-                    st.z[i] += h / 6.0 * ws.zsum[i]
-                    ws.zs[i] = st.z[i]
+                    state.z[i] += h / 6.0 * ws.zsum[i]
+                    ws.zs[i] = state.z[i]
         # k1 = (q̇, q̈), k2 = (k2v, ka), k3 = (k3v, x), k4 = (qdi, xn)
         for r in range(q.shape[0]):
             q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2v[r] + 2.0 * k3v[r] + qdi[r])
             qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * x[r] + xn[r])
         apply_motion(md.motion, md.im, drv.mot_left[s], q, qd)
-        ok, cond = _accel_at(md, dt, opts, q, qd, drv, s, h, 2, ws, qdd, drv.need_loads[s], _flag(False))
+        ok, cond = _accel_at(md, data, opts, q, qd, drv, s, h, 2, ws, qdd, drv.need_loads[s], _flag(False))
         if opts.closed:
             for i in range(md.n):
                 if drv.code[i] == CODE_PD:
-                    st.zerr[i] = drv.ref_left[s, i, 0] - q[md.i_alpha[i]]
+                    state.zerr[i] = drv.ref_left[s, i, 0] - q[md.i_alpha[i]]
     if not ok:
         return False
     if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep: keep the max
@@ -698,33 +708,33 @@ def check_state(md, q, qd, qdd):
 
 
 @njit(nrt=False, inline="always")
-def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
+def _finish_step(md, data, opts, state, ws, drv, s, t0, rec, stats):
     """After step s: check the state, restart at a drive jump, record. Returns the status."""
     t1 = drv.t_end[s]
-    bad = check_state(md, st.q, st.qd, st.qdd)
+    bad = check_state(md, state.q, state.qd, state.qdd)
     if bad >= 0:
         stats.bad_index[0] = bad
-        stats.bad_value[0] = st.q[bad]
-        finite = math.isfinite(st.q[bad] + st.qd[bad] + st.qdd[bad])
+        stats.bad_value[0] = state.q[bad]
+        finite = math.isfinite(state.q[bad] + state.qd[bad] + state.qdd[bad])
         return ST_RUNAWAY if finite else ST_NONFINITE
     if drv.restart[s]:  # a drive jumps at t1: restart with the right-hand limit; the
         # recorded sample at t1 keeps the left limit (the step's own solve)
         if opts.closed:
             ok, cond = accel_closed(
                 md,
-                dt,
+                data,
                 opts,
                 t1,
-                st.q,
-                st.qd,
+                state.q,
+                state.qd,
                 drv.tau_right[s],
                 drv.mot_right[s],
                 drv,
                 drv.ff_right[s],
                 drv.ref_right[s],
-                st.z,
+                state.z,
                 ws,
-                st.qdd,
+                state.qdd,
                 ws.torque_r,
                 ws.loads_r,
                 _flag(False),
@@ -733,14 +743,14 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
         else:
             ok, cond = accel(
                 md,
-                dt,
+                data,
                 opts.sweep,
-                st.q,
-                st.qd,
+                state.q,
+                state.qd,
                 drv.tau_right[s],
                 drv.mot_right[s],
                 ws,
-                st.qdd,
+                state.qdd,
                 ws.torque_r,
                 ws.loads_r,
                 False,
@@ -749,24 +759,24 @@ def _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats):
             return ST_SINGULAR
         if cond > stats.cond_max[0]:  # noqa: PLR1730 - cond is NaN for the Riccati sweep
             stats.cond_max[0] = cond
-        copy(st.qdd, st.aux)
-    s0 = (st.q_prev, st.qd_prev, st.torque_prev, st.loads_prev)
-    s1 = (st.q, st.qd, ws.torque, ws.loads)
+        copy(state.qdd, state.aux)
+    s0 = (state.q_prev, state.qd_prev, state.torque_prev, state.loads_prev)
+    s1 = (state.q, state.qd, ws.torque, ws.loads)
     stats.ptr[0] = record(md, t0, t1, s0, s1, (ws.qs, ws.qds), stats.ptr[0], rec)
-    copy(st.q, st.q_prev)
-    copy(st.qd, st.qd_prev)
-    copy(ws.torque, st.torque_prev)
+    copy(state.q, state.q_prev)
+    copy(state.qd, state.qd_prev)
+    copy(ws.torque, state.torque_prev)
     if drv.need_loads[s]:
         for c in range(ws.loads.shape[0]):
             for r in range(3):
-                st.loads_prev[c, r] = ws.loads[c, r]
+                state.loads_prev[c, r] = ws.loads[c, r]
     return ST_OK
 
 
 @njit(nrt=False)
-def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
+def run(md, data, opts, drv, state, rec, stats, ws, s_begin, s_end):
     """Steps s_begin … s_end − 1 of the time loop, recording the output samples on the way;
-    ``st`` holds the state at the end of step s_begin − 1 and is overwritten. Returns the
+    ``state`` holds the state at the end of step s_begin − 1 and is overwritten. Returns the
     status (also in stats.status; stats.steps_done: steps completed)."""
     t0 = 0.0 if s_begin == 0 else drv.t_end[s_begin - 1]
     status = ST_OK
@@ -779,12 +789,12 @@ def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
             check = every > 0 and (s % every == 0 or s == last)
             keep = every > 0 and ((s + 1) % every == 0 or s + 1 == last)
             if check and s == 0:  # no q̈_{−1}: the first check uses Δq̈ for Δ²q̈
-                copy(st.qdd, ws.ka)
+                copy(state.qdd, ws.ka)
             ok = newmark_step(
                 md,
-                dt,
+                data,
                 opts,
-                st,
+                state,
                 ws,
                 t1 - t0,
                 drv.tau_left[s],
@@ -797,8 +807,8 @@ def run(md, dt, opts, drv, st, rec, stats, ws, s_begin, s_end):
                 drv,
             )
         else:
-            ok = rk4_step(md, dt, opts, st, ws, t1 - t0, drv, s, stats)
-        status = _finish_step(md, dt, opts, st, ws, drv, s, t0, rec, stats) if ok else ST_SINGULAR
+            ok = rk4_step(md, data, opts, state, ws, t1 - t0, drv, s, stats)
+        status = _finish_step(md, data, opts, state, ws, drv, s, t0, rec, stats) if ok else ST_SINGULAR
         if status != ST_OK:
             break
         t0 = t1

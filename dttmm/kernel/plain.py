@@ -19,21 +19,21 @@ from .layout import NO_SLOT
 
 
 @njit()
-def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the seven arrays after lc
+def dense_terms(md, data, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the seven arrays after lc
     """Element g's terms as dense 3×3 matrices (padded): M_aa, M_ae, h̄_a, h̃_e (with the known
     elastic force), B_a, B_e, γ̄_O (from :func:`element_terms`)."""
-    c, s = dt.c[g], dt.s[g]
+    c, s = data.c[g], data.s[g]
     (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
         lc,
         c,
         s,
-        dt.td[g],
-        dt.e[g, 0],
-        dt.e[g, 1],
-        dt.e[g, 2],
-        dt.ed[g, 0],
-        dt.ed[g, 1],
-        dt.ed[g, 2],
+        data.td[g],
+        data.e[g, 0],
+        data.e[g, 1],
+        data.e[g, 2],
+        data.ed[g, 0],
+        data.ed[g, 1],
+        data.ed[g, 2],
         md.grav[0],
         md.grav[1],
     )
@@ -48,9 +48,9 @@ def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the
         for cc in range(3):
             Mae[r, cc] = A[3 * r + cc]
     ha[0], ha[1], ha[2] = ha0, ha1, ha2
-    he[0] = he0 + dt.f_known[g, 0]
-    he[1] = he1 + dt.f_known[g, 1]
-    he[2] = he2 + dt.f_known[g, 2]
+    he[0] = he0 + data.f_known[g, 0]
+    he[1] = he1 + data.f_known[g, 1]
+    he[2] = he2 + data.f_known[g, 2]
     Ba[:, :] = 0.0
     Ba[0, 0] = Ba[1, 1] = Ba[2, 2] = 1.0
     Ba[0, 2] = -ry
@@ -65,19 +65,19 @@ def dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the
 
 
 @njit()
-def _second_order_dense(md, dt, i, g, Mt, he):
+def _second_order_dense(md, data, i, g, Mt, he):
     """Second-order strain of element g: h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K);
     with damping also h̃_e += ΔD(e) ê', M̃_ee += c_v ΔD(e) (:func:`second_order_damping`)."""
-    e0, e1, e2 = dt.e[g, 0], dt.e[g, 1], dt.e[g, 2]
+    e0, e1, e2 = data.e[g, 0], data.e[g, 1], data.e[g, 2]
     fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(strain_constants(md, i), e0, e1, e2)
     K = md.K[i]
-    de0 = dt.e_hat[g, 0] - e0
-    de1 = dt.e_hat[g, 1] - e1
-    de2 = dt.e_hat[g, 2] - e2
+    de0 = data.e_hat[g, 0] - e0
+    de1 = data.e_hat[g, 1] - e1
+    de2 = data.e_hat[g, 2] - e2
     he[0] += fu0 + (K[0, 0] * de0 + T01 * de1 + T02 * de2)
     he[1] += fu1 + (T01 * de0 + (dT11 + K[1, 1]) * de1 + (dT12 + K[1, 2]) * de2)
     he[2] += fu2 + (T02 * de0 + (dT21 + K[2, 1]) * de1 + (dT22 + K[2, 2]) * de2)
-    cq = dt.cq[i, 0]
+    cq = data.cq[i, 0]
     Mt[0, 1] += cq * T01
     Mt[0, 2] += cq * T02
     Mt[1, 0] += cq * T01
@@ -98,14 +98,14 @@ def _second_order_dense(md, dt, i, g, Mt, he):
             md.G[i, 1, 1],
             e1,
             e2,
-            dt.e_hat[g, 3],
-            dt.e_hat[g, 4],
-            dt.e_hat[g, 5],
+            data.e_hat[g, 3],
+            data.e_hat[g, 4],
+            data.e_hat[g, 5],
         )
         he[0] += g0d
         he[1] += g1d
         he[2] += g2d
-        cv = dt.cq[i, 1]
+        cv = data.cq[i, 1]
         Mt[0, 1] += cv * D01
         Mt[0, 2] += cv * D02
         Mt[1, 0] += cv * D01
@@ -176,25 +176,25 @@ def equilibrated_cond(A):
 
 
 @njit()
-def _joint(md, dt, i, tau, acc, B, Bn, S):
+def _joint(md, data, i, tau, acc, B, Bn, S):
     """Joint i's condition on B: the base unknowns (joint 1), a known α̈ (motion-driven) or the
-    elimination of one unknown by the torque condition (stored in dt.subs, dt.slot)."""
-    dt.substituted[i] = False
+    elimination of one unknown by the torque condition (stored in data.subs, data.slot)."""
+    data.substituted[i] = False
     if i == 0:
         B[:, :] = 0.0
         if md.motion[0]:  # w = (Fx, Fy, τ1), α̈ known
             B[3, 0] = B[4, 1] = B[5, 2] = 1.0
             B[2, 3] = acc[0]
-            dt.slot[0] = NO_SLOT
+            data.slot[0] = NO_SLOT
         else:  # w = (Fx, Fy, α̈1), τ1 known
             B[3, 0] = B[4, 1] = 1.0
             B[5, 3] = tau[0]
             B[2, 2] = 1.0
-            dt.slot[0] = 2
+            data.slot[0] = 2
         return
     if md.motion[i]:
         B[2, 3] += acc[i]
-        dt.slot[i] = NO_SLOT
+        data.slot[i] = NO_SLOT
         return
     # pivot: the unknown the torque row depends on most, relative to its column's size
     piv = 0
@@ -224,9 +224,9 @@ def _joint(md, dt, i, tau, acc, B, Bn, S):
             Bn[r, cc] = acc_
     B[:, :] = Bn
     B[2, piv] += 1.0
-    dt.subs[i, :, :] = S
-    dt.substituted[i] = True
-    dt.slot[i] = piv
+    data.subs[i, :, :] = S
+    data.substituted[i] = True
+    data.slot[i] = piv
 
 
 @njit()
@@ -328,8 +328,8 @@ def _apply(U, B, Bn):
 
 
 @njit()
-def _transfer_chain(md, dt, tau, acc):
-    """Base → tip: B at every cut (dt.cuts) and the element maps (dt.E). Returns (ok, B at the
+def _transfer_chain(md, data, tau, acc):
+    """Base → tip: B at every cut (data.cuts) and the element maps (data.E). Returns (ok, B at the
     end of the arm)."""
     B = np.zeros((6, 4))
     Bn = np.zeros((6, 4))
@@ -342,22 +342,22 @@ def _transfer_chain(md, dt, tau, acc):
     k = md.k
     ic = 0
     for i in range(md.n):
-        _joint(md, dt, i, tau, acc, B, Bn, S)
+        _joint(md, data, i, tau, acc, B, Bn, S)
         _rigid_body(md, B, md.m_hub[i], md.J_hub[i])
         lc = link_constants(md, i, md.grav[0], md.grav[1])
         for j in range(k):
             g = i * k + j
-            dt.cuts[ic, :, :] = B
+            data.cuts[ic, :, :] = B
             ic += 1
-            dense_terms(md, dt, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb)
-            Mt[:, :] = dt.Mt[i]
+            dense_terms(md, data, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb)
+            Mt[:, :] = data.Mt[i]
             if md.second_order[i]:
-                _second_order_dense(md, dt, i, g, Mt, he)
-            if not _element_solve(Mt, Maa, Mae, ha, he, Ba, Be, T, BeT, G, rhs, dt.E[g]):
+                _second_order_dense(md, data, i, g, Mt, he)
+            if not _element_solve(Mt, Maa, Mae, ha, he, Ba, Be, T, BeT, G, rhs, data.E[g]):
                 return False, B
-            _transfer(Maa, Mae, ha, Ba, Be, gb, T, dt.E[g], U)
+            _transfer(Maa, Mae, ha, Ba, Be, gb, T, data.E[g], U)
             _apply(U, B, Bn)
-        dt.cuts[ic, :, :] = B
+        data.cuts[ic, :, :] = B
         ic += 1
         _rigid_body(md, B, md.m_pay[i], md.J_pay[i])
     return True, B
@@ -371,7 +371,7 @@ def _cut_state(cut, w, z, r0):
 
 
 @njit()
-def _back_substitute(md, dt, wst, acc, xout, torque, loads):
+def _back_substitute(md, data, wst, acc, xout, torque, loads):
     """With the unknowns w of every link known: α̈, ë, joint torques and cut loads."""
     k = md.k
     ic = 0
@@ -379,15 +379,15 @@ def _back_substitute(md, dt, wst, acc, xout, torque, loads):
     for i in range(md.n):
         wi = wst[i]
         off = md.pad[i]
-        xout[md.i_alpha[i]] = acc[i] if md.motion[i] else wi[dt.slot[i]]
+        xout[md.i_alpha[i]] = acc[i] if md.motion[i] else wi[data.slot[i]]
         for j in range(k):
-            _cut_state(dt.cuts[ic], wi, z, 0)
+            _cut_state(data.cuts[ic], wi, z, 0)
             if j == 0:  # torque at the joint: f⁻_θ = f⁺_θ + (M_h a⁺)_θ
                 torque[i] = z[5] + md.J_hub[i] * z[2]
             loads[ic, 0] = z[3]
             loads[ic, 1] = z[4]
             loads[ic, 2] = z[5]
-            E = dt.E[i * k + j]
+            E = data.E[i * k + j]
             b = md.e_start[i] + j * md.ne[i] - off
             for r in range(off, 3):
                 v = E[r, 6]
@@ -395,7 +395,7 @@ def _back_substitute(md, dt, wst, acc, xout, torque, loads):
                     v += E[r, cc] * z[cc] + E[r, 3 + cc] * z[3 + cc]
                 xout[b + r] = v
             ic += 1
-        _cut_state(dt.cuts[ic], wi, z, 3)
+        _cut_state(data.cuts[ic], wi, z, 3)
         loads[ic, 0] = z[3]
         loads[ic, 1] = z[4]
         loads[ic, 2] = z[5]
@@ -403,10 +403,10 @@ def _back_substitute(md, dt, wst, acc, xout, torque, loads):
 
 
 @njit()
-def plain(md, dt, tau, acc, xout, torque, loads):
-    """One plain sweep at the iterate in ``dt``. Fills xout (q̈), torque and loads (all cuts).
+def plain(md, data, tau, acc, xout, torque, loads):
+    """One plain sweep at the iterate in ``data``. Fills xout (q̈), torque and loads (all cuts).
     Returns (ok, equilibrated condition number of the final 3×3 system)."""
-    ok, B = _transfer_chain(md, dt, tau, acc)
+    ok, B = _transfer_chain(md, data, tau, acc)
     if not ok:
         return False, np.inf
     A3 = np.ascontiguousarray(B[3:, :3])
@@ -422,12 +422,12 @@ def plain(md, dt, tau, acc, xout, torque, loads):
     wv = np.array([u[0, 0], u[1, 0], u[2, 0], 1.0])
     for i in range(md.n - 1, -1, -1):
         wst[i, :] = wv
-        if dt.substituted[i]:
-            S = dt.subs[i]
+        if data.substituted[i]:
+            S = data.subs[i]
             wn = np.zeros(4)
             for r in range(4):
                 for c in range(4):
                     wn[r] += S[r, c] * wv[c]
             wv = wn
-    _back_substitute(md, dt, wst, acc, xout, torque, loads)
+    _back_substitute(md, data, wst, acc, xout, torque, loads)
     return True, cond

@@ -19,12 +19,12 @@ from .element import coord_base, element_terms, second_order_damping, second_ord
 
 
 @njit(fastmath=CONTRACT, nrt=False)
-def riccati(md, dt, tau, acc, xout, torque):
-    """One Riccati sweep at the iterate whose angles are in ``dt`` (:func:`angles`), with
-    ``dt.f_known`` and ``dt.Mt`` set. Writes q̈ into xout (α̈ and elastic), the joint torques
-    into torque, and leaves in ``dt`` what :func:`riccati_loads` needs."""
-    backward(md, dt, tau, acc)
-    forward(md, dt, xout, torque)
+def riccati(md, data, tau, acc, xout, torque):
+    """One Riccati sweep at the iterate whose angles are in ``data`` (:func:`angles`), with
+    ``data.f_known`` and ``data.Mt`` set. Writes q̈ into xout (α̈ and elastic), the joint torques
+    into torque, and leaves in ``data`` what :func:`riccati_loads` needs."""
+    backward(md, data, tau, acc)
+    forward(md, data, xout, torque)
 
 
 @njit(fastmath=CONTRACT, inline="always")
@@ -234,7 +234,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
 
 
 @njit(fastmath=CONTRACT, inline="always")
-def backward(md, dt, tau, acc):
+def backward(md, data, tau, acc):
     """Tip → base: (P, c) at every cut, the element gains and the joint gains. The link
     constants are read here, not by a helper: an inlined helper would copy ``md`` each call."""
     k = md.k
@@ -243,7 +243,7 @@ def backward(md, dt, tau, acc):
     Pc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for i in range(md.n - 1, -1, -1):
         Pc = _rigid_body(Pc, md.m_pay[i], md.J_pay[i], g0, g1)  # payload at the tip of link i
-        _store_Pc(dt.P_tip, dt.c_tip, i, Pc)
+        _store_Pc(data.P_tip, data.c_tip, i, Pc)
         m = md.m[i]
         lc = (
             m,
@@ -273,48 +273,55 @@ def backward(md, dt, tau, acc):
             md.sO0[i, 1],
             md.su[i],
         )
-        Mt = (dt.Mt[i, 0, 0], dt.Mt[i, 1, 1], dt.Mt[i, 1, 2], dt.Mt[i, 2, 2], dt.cq[i, 0], dt.cq[i, 1])
+        Mt = (
+            data.Mt[i, 0, 0],
+            data.Mt[i, 1, 1],
+            data.Mt[i, 1, 2],
+            data.Mt[i, 2, 2],
+            data.cq[i, 0],
+            data.cq[i, 1],
+        )
         so = md.second_order[i]
         damped = so and md.mu[i] != 0.0
         for j in range(k - 1, -1, -1):
             g = i * k + j
             kin = (
-                dt.c[g],
-                dt.s[g],
-                dt.td[g],
-                dt.e[g, 0],
-                dt.e[g, 1],
-                dt.e[g, 2],
-                dt.ed[g, 0],
-                dt.ed[g, 1],
-                dt.ed[g, 2],
-                dt.e_hat[g, 0],
-                dt.e_hat[g, 1],
-                dt.e_hat[g, 2],
+                data.c[g],
+                data.s[g],
+                data.td[g],
+                data.e[g, 0],
+                data.e[g, 1],
+                data.e[g, 2],
+                data.ed[g, 0],
+                data.ed[g, 1],
+                data.ed[g, 2],
+                data.e_hat[g, 0],
+                data.e_hat[g, 1],
+                data.e_hat[g, 2],
             )
             if damped:  # ê' of a damped second-order link (its strain-rate damping)
-                dh = (dt.e_hat[g, 3], dt.e_hat[g, 4], dt.e_hat[g, 5])
+                dh = (data.e_hat[g, 3], data.e_hat[g, 4], data.e_hat[g, 5])
             else:
                 dh = (0.0, 0.0, 0.0)
-            fk = (dt.f_known[g, 0], dt.f_known[g, 1], dt.f_known[g, 2])
+            fk = (data.f_known[g, 0], data.f_known[g, 1], data.f_known[g, 2])
             Ka, k0, Pc, rg = _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1)
             (
-                dt.Ka[g, 0, 0],
-                dt.Ka[g, 0, 1],
-                dt.Ka[g, 0, 2],
-                dt.Ka[g, 1, 0],
-                dt.Ka[g, 1, 1],
-                dt.Ka[g, 1, 2],
-                dt.Ka[g, 2, 0],
-                dt.Ka[g, 2, 1],
-                dt.Ka[g, 2, 2],
+                data.Ka[g, 0, 0],
+                data.Ka[g, 0, 1],
+                data.Ka[g, 0, 2],
+                data.Ka[g, 1, 0],
+                data.Ka[g, 1, 1],
+                data.Ka[g, 1, 2],
+                data.Ka[g, 2, 0],
+                data.Ka[g, 2, 1],
+                data.Ka[g, 2, 2],
             ) = Ka
-            dt.k0[g, 0], dt.k0[g, 1], dt.k0[g, 2] = k0
-            _store_Pc(dt.P, dt.c_I, g, Pc)
-            dt.rso[g, 0], dt.rso[g, 1], dt.gbar[g, 0], dt.gbar[g, 1] = rg
+            data.k0[g, 0], data.k0[g, 1], data.k0[g, 2] = k0
+            _store_Pc(data.P, data.c_I, g, Pc)
+            data.rso[g, 0], data.rso[g, 1], data.gbar[g, 0], data.gbar[g, 1] = rg
         hub, Pc, gains = _joint(md.m_hub[i], md.J_hub[i], md.motion[i], tau[i], acc[i], Pc, g0, g1)
-        _store_Pc(dt.P_hub, dt.c_hub, i, hub)
-        dt.ga[i, 0], dt.ga[i, 1], dt.ga[i, 2], dt.g0[i] = gains
+        _store_Pc(data.P_hub, data.c_hub, i, hub)
+        data.ga[i, 0], data.ga[i, 1], data.ga[i, 2], data.g0[i] = gains
 
 
 @njit(fastmath=CONTRACT, inline="always")
@@ -336,7 +343,7 @@ def _store_Pc(P, c, row, Pc):
 
 
 @njit(fastmath=CONTRACT, inline="always")
-def forward(md, dt, xout, torque):
+def forward(md, data, xout, torque):
     """Base → tip: α̈, ë and the cut accelerations from the gains of :func:`backward`."""
     k = md.k
     a0 = a1 = a2 = 0.0
@@ -345,36 +352,36 @@ def forward(md, dt, xout, torque):
         es, ne = md.e_start[i], md.ne[i]
         su = md.su[i]
         if md.motion[i]:
-            add = dt.g0[i]
+            add = data.g0[i]
         else:
-            add = dt.ga[i, 0] * a0 + dt.ga[i, 1] * a1 + dt.ga[i, 2] * a2 + dt.g0[i]
+            add = data.ga[i, 0] * a0 + data.ga[i, 1] * a1 + data.ga[i, 2] * a2 + data.g0[i]
         a2 += add
         xout[md.i_alpha[i]] = add
-        torque[i] = dt.P_hub[i, 2] * a0 + dt.P_hub[i, 4] * a1 + dt.P_hub[i, 5] * a2 + dt.c_hub[i, 2]
+        torque[i] = data.P_hub[i, 2] * a0 + data.P_hub[i, 4] * a1 + data.P_hub[i, 5] * a2 + data.c_hub[i, 2]
         for j in range(k):
             g = i * k + j
-            dt.a[g, 0] = a0
-            dt.a[g, 1] = a1
-            dt.a[g, 2] = a2
-            q0 = dt.Ka[g, 0, 0] * a0 + dt.Ka[g, 0, 1] * a1 + dt.Ka[g, 0, 2] * a2 + dt.k0[g, 0]
-            q1 = dt.Ka[g, 1, 0] * a0 + dt.Ka[g, 1, 1] * a1 + dt.Ka[g, 1, 2] * a2 + dt.k0[g, 1]
-            q2 = dt.Ka[g, 2, 0] * a0 + dt.Ka[g, 2, 1] * a1 + dt.Ka[g, 2, 2] * a2 + dt.k0[g, 2]
+            data.a[g, 0] = a0
+            data.a[g, 1] = a1
+            data.a[g, 2] = a2
+            q0 = data.Ka[g, 0, 0] * a0 + data.Ka[g, 0, 1] * a1 + data.Ka[g, 0, 2] * a2 + data.k0[g, 0]
+            q1 = data.Ka[g, 1, 0] * a0 + data.Ka[g, 1, 1] * a1 + data.Ka[g, 1, 2] * a2 + data.k0[g, 1]
+            q2 = data.Ka[g, 2, 0] * a0 + data.Ka[g, 2, 1] * a1 + data.Ka[g, 2, 2] * a2 + data.k0[g, 2]
             b = coord_base(es, ne, off, j)
             if not off:
                 xout[b] = q0
             xout[b + 1] = q1
             xout[b + 2] = q2
-            c = dt.c[g]
-            s = dt.s[g]
-            rx = dt.rso[g, 0]
-            ry = dt.rso[g, 1]
+            c = data.c[g]
+            s = data.s[g]
+            rx = data.rso[g, 0]
+            ry = data.rso[g, 1]
             sq0 = su * q0
-            a0 = a0 - ry * a2 + c * sq0 - s * q1 + dt.gbar[g, 0]
-            a1 = a1 + rx * a2 + s * sq0 + c * q1 + dt.gbar[g, 1]
+            a0 = a0 - ry * a2 + c * sq0 - s * q1 + data.gbar[g, 0]
+            a1 = a1 + rx * a2 + s * sq0 + c * q1 + data.gbar[g, 1]
             a2 = a2 + q2
-        dt.a_tip[i, 0] = a0
-        dt.a_tip[i, 1] = a1
-        dt.a_tip[i, 2] = a2
+        data.a_tip[i, 0] = a0
+        data.a_tip[i, 1] = a1
+        data.a_tip[i, 2] = a2
 
 
 @njit(inline="always")
@@ -386,14 +393,14 @@ def _affine(P, c, a0, a1, a2, out):
 
 
 @njit(nrt=False)
-def riccati_loads(md, dt, loads):
+def riccati_loads(md, data, loads):
     """Loads (Qx, Qy, M) at every cut from the last Riccati sweep: f = P a + c."""
     k = md.k
     ic = 0
     for i in range(md.n):
         for j in range(k):
             g = i * k + j
-            _affine(dt.P[g], dt.c_I[g], dt.a[g, 0], dt.a[g, 1], dt.a[g, 2], loads[ic])
+            _affine(data.P[g], data.c_I[g], data.a[g, 0], data.a[g, 1], data.a[g, 2], loads[ic])
             ic += 1
-        _affine(dt.P_tip[i], dt.c_tip[i], dt.a_tip[i, 0], dt.a_tip[i, 1], dt.a_tip[i, 2], loads[ic])
+        _affine(data.P_tip[i], data.c_tip[i], data.a_tip[i, 0], data.a_tip[i, 1], data.a_tip[i, 2], loads[ic])
         ic += 1

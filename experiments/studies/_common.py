@@ -43,6 +43,14 @@ def fit_orders(table: pd.DataFrame, x: str, y: str, by: list, *, refine_descendi
     return pd.DataFrame(rows)
 
 
+def params(ctx, study: str):
+    """The plan's parameter record of ``study`` (:mod:`experiments.params`; a plan written as
+    plain dicts, as tests do, gets its record built here)."""
+    from ..params import study_params
+
+    return study_params(study, ctx.plan.studies[study])
+
+
 def with_task_columns(table: pd.DataFrame) -> pd.DataFrame:
     """The run table with a stable column order and sorted rows."""
     if table.empty:
@@ -55,7 +63,7 @@ def study_methods(ctx, study: str, **filters) -> list[str]:
     registered method that takes part (``experiments.methods.takes_part``, at the plan's size)."""
     from .. import methods
 
-    chosen = ctx.plan.studies[study].get("methods")
+    chosen = params(ctx, study).methods
     if chosen is None:
         return methods.takes_part(study, size=ctx.plan.name, **filters)
     flexible = filters.get("flexible")

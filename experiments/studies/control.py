@@ -10,7 +10,7 @@ refuses closed-loop drives (an ``InputError`` naming the drive) is kept as a row
 ``dttmm.modes`` against Exudyn's eigenvalue computation, skipped (with the reason) where either
 is missing.
 
-Plan parameters (``ctx.plan.studies["control"]``):
+Plan parameters (:class:`experiments.params.ControlParams`, defaults there):
 
 * ``case_file``: the case file, relative to ``experiments/cases`` (default the three-link arm);
   ``duration``: s, None keeps the file's value (the move and at least 1.5 s after it must fit);
@@ -24,8 +24,8 @@ Plan parameters (``ctx.plan.studies["control"]``):
 * ``gains``: the moment gains of the gain sweep, run by every method taking part in
   ``control:gains`` at k and h (or ``gain_runs`` [(method, k, h)]);
 * ``window``: s, length of the residual-vibration windows (default 1 s);
-* ``modes``: {"k": elements per link, "exudyn_k": Exudyn's, "n": modes per system,
-  "systems": case files relative to ``experiments/cases``}.
+* ``modes`` (:class:`experiments.params.ControlModes`): k (elements per link), exudyn_k
+  (Exudyn's), n (modes per system), systems (case files relative to ``experiments/cases``).
 """
 
 from __future__ import annotations
@@ -37,26 +37,30 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..params import ControlModes, ControlParams, study_params
 from ..runs import WITH_HISTORY, Task
 from ..timing import COST_REPEATS
+from ._common import params
 
 NAME = "control"
 REPEATS = COST_REPEATS  # timed calls per run: the table's CPU time is the least of them
 CASES = Path(__file__).resolve().parents[1] / "cases"
-CASE_FILE = "control/closed_loop_three_link.toml"
-WINDOW = 1.0  # s: residual vibration is measured on the last WINDOW s of the run
+CASE_FILE = ControlParams.case_file
+WINDOW = ControlParams.window  # s: residual vibration is measured on the last WINDOW s of the run
 MAX_POINTS = 1000  # time samples kept per curve in the stored series
 NOT_SUPPORTED = "not supported"
 NO_VIBRATION = 1e-9  # m: below this a tip deflection is round-off (a rigid link), not vibration
 
 
 # ----------------------------------------------------------------------------- cases
-def load(params: dict):
-    """The study's case (dttmm.Case), shortened to ``params["duration"]`` when given."""
+def load(p):
+    """The study's case (dttmm.Case) of the parameters ``p`` (a ControlParams or a dict of its
+    fields), shortened to ``p.duration`` when given."""
     import dttmm
 
-    case = dttmm.load_case(CASES / params.get("case", CASE_FILE))
-    T = params.get("duration")
+    p = study_params(NAME, p)
+    case = dttmm.load_case(CASES / p.case_file)
+    T = p.duration
     if T is not None and T != case.scenario.duration:
         case = replace(case, scenario=replace(case.scenario, duration=float(T)))
     return case
@@ -113,10 +117,10 @@ def _active(ctx) -> bool:
 def _cases(ctx) -> dict:
     """role -> Case of the study: the case, its variant without moment feedback ("rigid") and
     the gain variants ("gain <g>"). Nothing is changed."""
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     base = load(p)
     out = {base.name: base, "rigid": with_gain(base, 0.0)}
-    for g in p.get("gains", ()):
+    for g in p.gains:
         out[f"gain {g:g}"] = with_gain(base, g)
     return out
 
@@ -132,43 +136,47 @@ def cases(ctx) -> dict:
 def planned(ctx) -> dict:
     """The study's runs by role: "runs" (the case as written), "rigid" (the variant without
     moment feedback), "reference" (candidates) and "gains" (gain -> runs of that variant)."""
-    p, cases = ctx.plan.studies[NAME], _cases(ctx)
+    p, cases = params(ctx, NAME), _cases(ctx)
     base = next(iter(cases.values()))
     T = base.scenario.duration
-    run_specs = p["runs"] if "runs" in p else _derived(p, ctx.plan.name)
-    rigid_specs = p["rigid_runs"] if "rigid_runs" in p else _derived_rigid(p, ctx.plan.name)
-    gain_specs = p["gain_runs"] if "gain_runs" in p else _derived(p, ctx.plan.name, "gains")
+    run_specs = p.runs if p.runs is not None else _derived(p, ctx.plan.name)
+    rigid_specs = p.rigid_runs if p.rigid_runs is not None else _derived_rigid(p, ctx.plan.name)
+    gain_specs = p.gain_runs if p.gain_runs is not None else _derived(p, ctx.plan.name, "gains")
     runs = [Task(base.name, m, k, h, T) for m, k, h in run_specs]
     rigid = [Task(cases["rigid"].name, m, 0, h, T) for m, h in rigid_specs]
     return {
         "runs": runs,
         "rigid": [t for t in rigid if t not in runs],  # a case without moment feedback has no variant
         "gains": {
-            float(g): [Task(cases[f"gain {g:g}"].name, m, k, h, T) for m, k, h in gain_specs]
-            for g in p.get("gains", ())
+            float(g): [Task(cases[f"gain {g:g}"].name, m, k, h, T) for m, k, h in gain_specs] for g in p.gains
         },
     }
 
 
 def _derived(p, size, kind=None) -> list:
     """(method, k, h) of every method taking part (explicit ones at their max_step; rigid ones
-    at ``rigid_h``, k = 0)."""
+    at ``rigid_h``, default h, k = 0)."""
     from .. import methods
     from ._common import step_for
 
+    p = study_params(NAME, p)
     out = []
     for m in methods.takes_part(NAME, kind=kind, size=size):
         if methods.uses_k(m):
-            out.append((m, p["k"], step_for(m, p["k"], p["h"])))
+            out.append((m, p.k, step_for(m, p.k, p.h)))
         elif kind is None:
-            out.append((m, 0, p.get("rigid_h", p["h"])))
+            out.append((m, 0, _rigid_h(p)))
     return out
 
 
 def _derived_rigid(p, size) -> list:
     from .. import methods
 
-    return [(m, p.get("rigid_h", p["h"])) for m in methods.takes_part(NAME, size=size, flexible=False)]
+    return [(m, _rigid_h(p)) for m in methods.takes_part(NAME, size=size, flexible=False)]
+
+
+def _rigid_h(p) -> float:
+    return p.h if p.rigid_h is None else p.rigid_h
 
 
 def reference_specs(p) -> list:
@@ -176,7 +184,7 @@ def reference_specs(p) -> list:
     from .. import methods
     from ..references import RefSpec
 
-    ref = p.get("reference", ())
+    ref = study_params(NAME, p).reference
     if len(ref) == 2 and all(isinstance(x, (int, float)) for x in ref):
         return [RefSpec(m, int(ref[0]), float(ref[1])) for m in methods.reference_candidates()]
     return [RefSpec(m, int(k), float(h)) for m, k, h in ref]
@@ -365,9 +373,9 @@ def analyse(ctx, table):
     (move end, windows, reference)."""
     if not _active(ctx):
         return {}
-    p, cases, by = ctx.plan.studies[NAME], _cases(ctx), planned(ctx)
+    p, cases, by = params(ctx, NAME), _cases(ctx), planned(ctx)
     base, rigid = next(iter(cases.values())), cases["rigid"]
-    window = float(p.get("window", WINDOW))
+    window = float(p.window)
     t_move, T = move_end(base), base.scenario.duration
     ref, ref_name = _reference(ctx, base, reference_specs(p))
     rows = _measured(ctx, _select(table, by["runs"]), base, moment_gain(base), t_move, window, ref)
@@ -395,7 +403,7 @@ def analyse(ctx, table):
         NAME: pd.DataFrame(rows),
         f"{NAME}_gains": pd.DataFrame(gain_rows),
         f"{NAME}_series": _series(ctx, series, cases, ref, ref_name),
-        f"{NAME}_modes": modes_table(p.get("modes", {}), base),
+        f"{NAME}_modes": modes_table(p.modes, base),
         f"{NAME}_info": pd.DataFrame([info]),
         f"{NAME}_pairs": pairs,
     }
@@ -471,7 +479,7 @@ def _series(ctx, rows, cases, ref, ref_name) -> pd.DataFrame:
 
 
 # ----------------------------------------------------------------------------- natural frequencies
-MODE_SYSTEMS = ("benchmarks/deluca_link1_clamped.toml", "benchmarks/deluca_link2_clamped.toml")
+MODE_SYSTEMS = ControlModes.systems
 MODES_COLUMNS = ["system", "mode", "dttmm_hz", "exudyn_hz", "rel_diff", "k", "exudyn_k", "note"]
 ZERO_HZ = 1e-6  # frequencies below this (Hz) are the rigid-body modes of free joints
 
@@ -489,15 +497,15 @@ def _attempt(fn, *args):
         return None, f"{type(exc).__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}"
 
 
-def modes_table(params: dict, case) -> pd.DataFrame:
+def modes_table(modes: ControlModes, case) -> pd.DataFrame:
     """Per system (the study's arm with its torque joints free, then the clamped De Luca links)
     and elastic mode: DT-TMM's frequency (``dttmm.modes`` at ``k``), Exudyn's eigenvalue
     computation at ``exudyn_k``, their relative difference. A system whose frequencies cannot be
     computed gets one row with the reason in ``note``."""
-    from .benchmarks import frequencies, load_problem
+    from .problems import frequencies, load_problem
 
-    k, ke, n = int(params.get("k", 8)), int(params.get("exudyn_k", 32)), int(params.get("n", 4))
-    systems = [case] + [load_problem(CASES / f)[0] for f in params.get("systems", MODE_SYSTEMS)]
+    k, ke, n = int(modes.k), int(modes.exudyn_k), int(modes.n)
+    systems = [case] + [load_problem(CASES / f)[0] for f in modes.systems]
     rows = []
     for c in systems:
         fd, why_d = _attempt(frequencies, c, k, "dttmm", None)  # each method's own linearisation

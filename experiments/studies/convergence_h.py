@@ -12,20 +12,20 @@ import pandas as pd
 
 from .. import methods, metrics
 from ..runs import Task, task_from_row
-from ._common import MAIN_ERROR, fit_orders, study_methods, with_task_columns
+from ._common import MAIN_ERROR, fit_orders, params, study_methods, with_task_columns
 
 NAME = "convergence_h"
 
 
 def tasks(ctx) -> list[Task]:
     """One run per (case, method, h) at the plan's k; some methods have their own h list."""
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     out = []
-    for c in p["cases"]:
+    for c in p.cases:
         T = ctx.cases[c].scenario.duration
         for m in study_methods(ctx, NAME, flexible=True):
-            hs = p.get("explicit_hs", p["hs"]) if methods.get(m).explicit else p["hs"]
-            out += [Task(c, m, p["k"], h, T) for h in hs]
+            hs = p.explicit_hs if methods.get(m).explicit and p.explicit_hs is not None else p.hs
+            out += [Task(c, m, p.k, h, T) for h in hs]
     return out
 
 

@@ -3,19 +3,19 @@
 from __future__ import annotations
 
 from ..runs import Task
-from ._common import MAIN_ERROR, fit_orders, k_limit, study_methods, with_task_columns
+from ._common import MAIN_ERROR, fit_orders, k_limit, params, study_methods, with_task_columns
 
 NAME = "convergence_k"
 
 
 def tasks(ctx) -> list[Task]:
     """One run per (case, method, k) at the plan's h."""
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     return [
-        Task(c, m, k, p["h"], ctx.cases[c].scenario.duration)
-        for c in p["cases"]
+        Task(c, m, k, p.h, ctx.cases[c].scenario.duration)
+        for c in p.cases
         for m in study_methods(ctx, NAME, flexible=True)
-        for k in p["ks"]
+        for k in p.ks
         if k <= k_limit(m, NAME, ctx.plan.name)
     ]
 

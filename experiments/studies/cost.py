@@ -13,7 +13,7 @@ import pandas as pd
 from ..fit import slope
 from ..runs import Task
 from ..timing import COST_REPEATS
-from ._common import k_limit, study_methods, with_task_columns
+from ._common import k_limit, params, study_methods, with_task_columns
 
 NAME = "cost"
 REPEATS = COST_REPEATS  # timed calls per run (the sweep gives every run of this study that many)
@@ -21,12 +21,12 @@ REPEATS = COST_REPEATS  # timed calls per run (the sweep gives every run of this
 
 def tasks(ctx) -> list[Task]:
     """Each method at every k of the plan, one case, one step."""
-    p = ctx.plan.studies[NAME]
-    T = ctx.cases[p["case"]].scenario.duration
+    p = params(ctx, NAME)
+    T = ctx.cases[p.case].scenario.duration
     return [
-        Task(p["case"], m, k, p["h"], T)
+        Task(p.case, m, k, p.h, T)
         for m in study_methods(ctx, NAME, flexible=True)
-        for k in p["ks"]
+        for k in p.ks
         if k <= k_limit(m, NAME, ctx.plan.name)  # e.g. the global solver's cost grows fastest
     ]
 

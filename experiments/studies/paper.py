@@ -14,7 +14,7 @@ import pandas as pd
 
 from .. import methods, metrics
 from ..runs import Task, task_from_row
-from ._common import MAIN_ERROR, step_for, study_methods, tip_col, with_task_columns
+from ._common import MAIN_ERROR, params, step_for, study_methods, tip_col, with_task_columns
 
 NAME = "paper"
 MAX_POINTS = 1000  # time samples kept per curve in the stored series
@@ -22,33 +22,31 @@ COMPARED, ENERGY_REF = "compared", "energy reference"
 
 
 def _energy_task(p, case, T) -> Task | None:
-    e = p.get("energy_reference")
-    if not e:
+    e = p.energy_reference
+    if e is None:
         return None
-    method = e.get("method") or next(iter(methods.takes_part(NAME, needs=("energy",))), None)
-    return Task(case, method, e["k"], e["h"], T) if method else None
+    method = e.method or next(iter(methods.takes_part(NAME, needs=("energy",))), None)
+    return Task(case, method, e.k, e.h, T) if method else None
 
 
 def _compared(ctx) -> list[Task]:
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     steps = {}
     for m in study_methods(ctx, NAME):
         rec = methods.get(m)
         steps[m] = (
-            p.get("explicit_h", p["h"])
+            (p.h if p.explicit_h is None else p.explicit_h)
             if rec.explicit and rec.max_step is None
-            else step_for(m, p["k"], p["h"])
+            else step_for(m, p.k, p.h)
         )
-    return [
-        Task(c, m, p["k"], h, ctx.cases[c].scenario.duration) for c in p["cases"] for m, h in steps.items()
-    ]
+    return [Task(c, m, p.k, h, ctx.cases[c].scenario.duration) for c in p.cases for m, h in steps.items()]
 
 
 def tasks(ctx) -> list[Task]:
     """Every method at the plan's k and h (or its own h) on every case, and the energy reference."""
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     out = _compared(ctx)
-    for c in p["cases"]:
+    for c in p.cases:
         e = _energy_task(p, c, ctx.cases[c].scenario.duration)
         if e is not None and e not in out:
             out.append(e)
@@ -137,13 +135,13 @@ def analyse(ctx, table):
     method): peak tip deflection and errors; ``paper_series``: sampled angle and deflection
     histories with their differences to the reference; ``paper_loads``: load and energy errors
     per (case, method); ``paper_load_series``: the sampled load histories and differences."""
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     table = with_task_columns(table)
     keys = {t.key for t in _compared(ctx)}
     if len(table):
         table["role"] = [COMPARED if k in keys else ENERGY_REF for k in table.task]
     series, rows, loads, load_rows = [], [], [], []
-    for case in p["cases"]:
+    for case in p.cases:
         case_obj = ctx.cases[case]
         ref = ctx.references.get(case, (None, ""))[0]
         eref, eref_name = _energy_reference(ctx, p, case, ref)

@@ -11,11 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..params import SchemeParams
 from ..runs import Task
-from ._common import MAIN_ERROR, with_task_columns
+from ._common import MAIN_ERROR, params, with_task_columns
 
 NAME = "scheme"
-METHOD = "dttmm"
+METHOD = SchemeParams.method  # the method under test unless the plan names another
 
 
 def variant_label(sweep, iterations) -> str:
@@ -34,14 +35,14 @@ def _opts(v: dict) -> tuple:
 
 def tasks(ctx) -> list[Task]:
     """Every variant over k at the plan's h and over h at the plan's k."""
-    p = ctx.plan.studies[NAME]
-    method = p.get("method", METHOD)
+    p = params(ctx, NAME)
+    method = p.method
     out = []
-    for c in p["cases"]:
+    for c in p.cases:
         T = ctx.cases[c].scenario.duration
-        for v in p["variants"]:
-            out += [Task(c, method, k, p["h"], T, _opts(v)) for k in p["ks"]]
-            out += [Task(c, method, p["k"], h, T, _opts(v)) for h in p["hs"]]
+        for v in p.variants:
+            out += [Task(c, method, k, p.h, T, _opts(v)) for k in p.ks]
+            out += [Task(c, method, p.k, h, T, _opts(v)) for h in p.hs]
     return out
 
 
@@ -61,7 +62,7 @@ def analyse(ctx, table):
     summary per (case, variant): runs not ok (``failed``: every status but "ok"; ``flagged``:
     those the solver marked unconverged or ill-conditioned) and the smallest k at which the
     error exceeds ten times the converged Riccati error or the run is not ok."""
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     table = with_task_columns(table)
     if table.empty:
         return {NAME: table, f"{NAME}_summary": table}
@@ -73,8 +74,8 @@ def analyse(ctx, table):
         ]
     table["variant"] = [variant_label(s, i) for s, i in zip(table.sweep, table.iterations)]
     parts = [
-        table[np.isclose(table.h, p["h"])].assign(series="k"),
-        table[table.k == p["k"]].assign(series="h"),
+        table[np.isclose(table.h, p.h)].assign(series="k"),
+        table[table.k == p.k].assign(series="h"),
     ]
     table = pd.concat(parts, ignore_index=True)
     rows = []

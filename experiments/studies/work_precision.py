@@ -18,7 +18,7 @@ import pandas as pd
 from .. import methods
 from ..runs import Task
 from ..timing import COST_REPEATS
-from ._common import MAIN_ERROR, k_limit, step_for, study_methods, with_task_columns
+from ._common import MAIN_ERROR, k_limit, params, step_for, study_methods, with_task_columns
 from .cost import timing_columns
 
 NAME = "work_precision"
@@ -29,19 +29,19 @@ TARGETS = (1e-3, 1e-4, 1e-5)  # end-effector RMS accuracies (m) at which costs a
 def tasks(ctx) -> list[Task]:
     """Each flexible method along the (k, h) path (an explicit one at its record's ``max_step`` at
     each k), plus every rigid method at the plan's ``rigid_h`` steps."""
-    p = ctx.plan.studies[NAME]
+    p = params(ctx, NAME)
     out = []
     flex = study_methods(ctx, NAME, flexible=True)
     rigid = study_methods(ctx, NAME, flexible=False)
-    for c in p["cases"]:
+    for c in p.cases:
         T = ctx.cases[c].scenario.duration
         for m in flex:
             out += [
                 Task(c, m, k, step_for(m, k, h), T, methods.get(m).options_for(NAME))
-                for k, h in p["path"]
+                for k, h in p.path
                 if k <= k_limit(m, NAME, ctx.plan.name)
             ]
-        out += [Task(c, m, 0, h, T) for m in rigid for h in p.get("rigid_h", ())]
+        out += [Task(c, m, 0, h, T) for m in rigid for h in p.rigid_h]
     return out
 
 

@@ -1,7 +1,8 @@
 """The "Benchmark problems" report section: per problem a table (target, each method's value at
 each k, error, pass/fail at the stated tolerance, observed order in k) and one figure (error
-against k), plus the spin-up tip-deflection histories. Built from the ``benchmarks`` study tables
-only (no simulation)."""
+against k), plus the spin-up tip-deflection histories. Built from the tables of the
+benchmark-problems study (:mod:`experiments.studies.problems`, study name ``benchmarks``, whose
+table names and the section's anchor keep that name) only (no simulation)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from experiments.studies.benchmarks import K_FINE
+from experiments.studies.problems import K_FINE
 
 from . import figures
 from .render import Section

@@ -1,0 +1,478 @@
+"""Benchmark problems of the field with published, closed-form or recorded values.
+
+The study's name is ``benchmarks`` (:data:`NAME`: the plans' key, the table names, the methods
+registry's skip entries ``benchmarks:<kind>`` and ``python -m experiments.studies.benchmarks``
+keep it); the module is named for what it holds, the problems (docs/architecture.md, "Three
+meanings of benchmark").
+
+Each problem is a case file in ``experiments/cases/benchmarks/`` with a ``[provenance]`` table
+(source, parameters, the quantity compared, its value, the tolerance). This study runs every
+method that can model a problem at a few k through the sweep runner (cached, parallel), extracts
+the compared quantity from each run and reports the error, pass/fail at the stated tolerance and
+the observed order in k. The clamped-link frequencies need no time integration: they come from
+the linearised forward dynamics of the methods that expose it.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..methods import uses_k
+from ..params import ProblemsParams
+from ..runs import Task
+from ._common import fit_orders, k_limit, params
+
+NAME = "benchmarks"
+CASE_DIR = Path(__file__).resolve().parents[1] / "cases" / "benchmarks"
+
+#: The step of each kind of problem. Which methods run a kind comes from their registry records
+#: (a method sits a kind out with the reason: ``skip`` entries ``benchmarks:<kind>``); the
+#: frequencies need a method's own linearisation (the "modes" capability).
+SETTINGS = {
+    "peak_tip_deflection": {"h": 2e-3},
+    "static_tip_displacement": {"h": 1e-2},
+    "tip_deflection_rms": {"h": 1e-3},
+    "tip_path_rms": {"h": 1e-3},
+    "frequencies": {},
+}
+REQUIRED = (
+    "source",
+    "parameters",
+    "quantity",
+    "compared",
+    "value_kind",
+    "units",
+    "tolerance",
+    "tolerance_kind",
+)
+SETTLE_WINDOW = 1.0  # s: a static run is at rest when its tip moved < SETTLE_TOL over this window
+SETTLE_TOL = 1e-6  # m
+
+
+# ----------------------------------------------------------------------------- case files
+def load_problem(path) -> tuple:
+    """(dttmm.Case, provenance dict) of one benchmark-problem case file.
+
+    The ``[provenance]`` table is removed before the case is built, so the case loader never
+    sees it (whether or not it accepts the table).
+    """
+    import dttmm
+
+    path = Path(path)
+    with path.open("rb") as f:
+        data = tomllib.load(f)
+    prov = data.pop("provenance", {})
+    data.setdefault("name", path.stem)
+    return dttmm.case_from_dict(data), prov
+
+
+def problems(names=None, case_dir=CASE_DIR) -> dict:
+    """Problem name -> (Case, provenance), for every case file (or the given names)."""
+    paths = sorted(Path(case_dir).glob("*.toml"))
+    out = {p.stem: load_problem(p) for p in paths}
+    if names is not None:
+        missing = [n for n in names if n not in out]
+        if missing:
+            raise KeyError(f"no benchmark-problem case file for {missing} in {case_dir}")
+        out = {n: out[n] for n in names}
+    return out
+
+
+def missing_provenance(prov: dict) -> list:
+    """Keys a provenance table lacks: the REQUIRED ones, a value, and a reference where needed."""
+    miss = [k for k in REQUIRED if k not in prov]
+    if "value" not in prov and "values" not in prov:
+        miss.append("value")
+    if prov.get("value_kind") == "reference run" and "reference" not in prov:
+        miss.append("reference")
+    return miss
+
+
+def targets(prov: dict) -> list:
+    """[(quantity label, target value)] of a problem."""
+    if prov["quantity"] == "frequencies":
+        return [(f"f{i + 1}", float(v)) for i, v in enumerate(prov["values"])]
+    return [(prov["quantity"], float(prov["value"]))]
+
+
+def _shortened(case, duration):
+    if duration is None or duration == case.scenario.duration:
+        return case
+    return replace(case, scenario=replace(case.scenario, duration=float(duration)))
+
+
+def _reference(ctx, case, task):
+    """The problem's reference run, computed and cached like every reference
+    (``experiments.references``, under ``<data>/references/<size>/``); None when it fails."""
+    from ..references import RefSpec, reference
+
+    folder = Path(ctx.data) / "references" / ctx.plan.name
+    res, _ = reference(case, [RefSpec(task.method, task.k, task.h)], folder, size=ctx.plan.name)
+    return res
+
+
+def _ref_task(name, case, prov):
+    r = prov.get("reference")
+    if not r:
+        return None
+    return Task(name, r["method"], int(r["k"]), float(r["h"]), case.scenario.duration)
+
+
+# ----------------------------------------------------------------------------- tasks
+def _methods(p, kind: str, size: str | None = None) -> list:
+    """The methods run on a problem of this kind (every registered method that takes part,
+    :func:`experiments.methods.takes_part`), narrowed to the plan's ``methods`` when it names some."""
+    from .. import methods
+
+    if kind == "frequencies":
+        every = [m for m in methods.takes_part(NAME, kind=kind, size=size) if methods.frequencies_of(m)]
+    else:
+        every = methods.takes_part(NAME, kind=kind, size=size)
+    chosen = p.methods
+    return [m for m in every if chosen is None or m in chosen]
+
+
+def _active(ctx) -> bool:
+    """False for a report on case files given by the user (``plan.case_files``): the benchmark
+    problems belong to the default report only."""
+    return not getattr(ctx.plan, "case_files", None)
+
+
+def cases(ctx) -> dict:
+    """The problems' cases (shortened to the plan's durations), by problem name: the study's own
+    cases, which ``experiments.study.add_cases`` puts into ``ctx.cases`` before tasks are listed."""
+    if not _active(ctx):
+        return {}
+    p = params(ctx, NAME)
+    return {
+        name: _shortened(case, p.durations.get(name))
+        for name, (case, prov) in problems(p.problems).items()
+        if prov["quantity"] != "frequencies"
+    }
+
+
+def tasks(ctx) -> list:
+    """Every applicable method at every k of the plan (one run for the rigid baseline) on the
+    problems' cases (:func:`cases`, in ``ctx.cases``); listing them changes nothing.
+
+    Plan parameters (:class:`experiments.params.ProblemsParams`): ``ks`` (elements per link),
+    ``problems`` (case-file names, default all), ``durations`` (name -> shortened duration, s),
+    ``methods`` (optional: only these of each problem's methods), ``ks_by_problem`` (name -> ks
+    replacing ``ks`` for that problem)."""
+    if not _active(ctx):
+        return []
+    p = params(ctx, NAME)
+    out = []
+    for name, (_case, prov) in problems(p.problems).items():
+        kind = prov["quantity"]
+        if kind == "frequencies":
+            continue
+        T, h = ctx.cases[name].scenario.duration, SETTINGS[kind]["h"]
+        for m in _methods(p, kind, ctx.plan.name):
+            ks = [0] if not uses_k(m) else p.ks_by_problem.get(name, p.ks)
+            ks = [k for k in ks if k <= k_limit(m, NAME, ctx.plan.name)]
+            out += [Task(name, m, k, h, T) for k in ks]
+    return list(dict.fromkeys(out))
+
+
+# ----------------------------------------------------------------------------- quantities
+def peak_tip_deflection(res) -> float:
+    """Most negative tip deflection of the last link (m), the sampled minimum refined by the
+    parabola through it and its two neighbours."""
+    v = np.asarray(res.tip_deflection[:, -1], float)
+    i = int(np.argmin(v))
+    if i == 0 or i == v.size - 1:
+        return float(v[i])
+    a, b, c = v[i - 1], v[i], v[i + 1]
+    curv = a - 2 * b + c
+    if curv <= 0:
+        return float(b)
+    return float(b - (a - c) ** 2 / (8 * curv))
+
+
+def tip_displacement(res, case, component: str) -> tuple:
+    """(displacement of the end effector from the straight arm at the last output time (m),
+    its movement over the last SETTLE_WINDOW s (m))."""
+    ee = np.asarray(res.end_effector, float)
+    straight = sum(link.beam.length for link in case.model.links)
+    i = {"x": 0, "y": 1}[component]
+    start = np.array([straight, 0.0])
+    j = int(np.searchsorted(res.t, res.t[-1] - SETTLE_WINDOW))
+    moved = float(np.max(np.linalg.norm(ee[j:] - ee[-1], axis=1)))
+    return float(ee[-1, i] - start[i]), moved
+
+
+def elastica_tip(alpha: float) -> tuple:
+    """Tip of the inextensible cantilever elastica under a transverse end load (Bisshopp &
+    Drucker 1945): (x/L, deflection/L, tip angle in rad) for the load parameter
+    alpha = P L² / EI > 0.
+
+    With p = sin(π/4 + θ_L/2) and sin φ₁ = 1/(p√2): √alpha = K(p) − F(φ₁, p),
+    x/L = √(2(2p² − 1)/alpha), deflection/L = 1 − (2/√alpha)(E(p) − E(φ₁, p)), θ_L = asin(2p² − 1).
+    """
+    from scipy.optimize import brentq
+    from scipy.special import ellipe, ellipeinc, ellipk, ellipkinc
+
+    if not alpha > 0:
+        raise ValueError(f"elastica: alpha = {alpha!r} must be positive")
+
+    def phi1(p):
+        return np.arcsin(min(1.0, 1 / (p * np.sqrt(2))))
+
+    def gap(p):
+        return ellipk(p * p) - ellipkinc(phi1(p), p * p) - np.sqrt(alpha)
+
+    p = brentq(gap, 1 / np.sqrt(2), 1 - 1e-15, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    m, f1 = p * p, phi1(p)
+    x = np.sqrt(2 * (2 * m - 1) / alpha)
+    defl = 1 - 2 / np.sqrt(alpha) * (ellipe(m) - ellipeinc(f1, m))
+    return float(x), float(defl), float(np.arcsin(2 * m - 1))
+
+
+def _on_grid(res, ref):
+    n = min(len(res.t), len(ref.t))
+    if not np.allclose(res.t[:n], ref.t[:n]) or n < 2:
+        raise ValueError("run and reference are on different output grids")
+    return n
+
+
+def tip_deflection_rms(res, ref) -> float:
+    """RMS over time of the last link's tip-deflection difference to ``ref``, divided by the
+    reference's largest |tip deflection| (dimensionless)."""
+    n = _on_grid(res, ref)
+    d = res.tip_deflection[:n, -1] - ref.tip_deflection[:n, -1]
+    return float(np.sqrt(np.mean(d**2)) / np.max(np.abs(ref.tip_deflection[:n, -1])))
+
+
+def tip_path_rms(res, ref, length: float) -> float:
+    """RMS over time of the distance between the two end effectors, divided by ``length``."""
+    n = _on_grid(res, ref)
+    d = np.linalg.norm(res.end_effector[:n] - ref.end_effector[:n], axis=1)
+    return float(np.sqrt(np.mean(d**2)) / length)
+
+
+def energy_drift(res, case) -> float:
+    """max |E(t) − E(0)| / (m g L / 2) of a one-link arm; NaN when no energy is recorded."""
+    if res.energy is None or not np.all(np.isfinite(res.energy)):
+        return math.nan
+    b = case.model.links[0].beam
+    scale = b.rhoA * b.length * np.hypot(*case.model.gravity) * b.length / 2
+    return float(np.max(np.abs(res.energy - res.energy[0])) / scale)
+
+
+def frequencies(case, k: int, method: str = "dttmm", n: int = 2) -> np.ndarray:
+    """Lowest ``n`` natural frequencies (Hz) of a case at rest, held joints clamped, by the
+    method's own linearisation (its registry record's ``frequencies`` function: DT-TMM's
+    :func:`dttmm.linear.frequencies`, the global solver's M and K, Exudyn's eigenvalues)."""
+    from .. import methods
+
+    fn = methods.frequencies_of(method)
+    if fn is None:
+        raise ValueError(f"frequencies: no linearisation for method {method!r}")
+    return np.asarray(fn(case, int(k), n=n), float)
+
+
+# ----------------------------------------------------------------------------- analysis
+def _row(name, prov, quantity, target, r, value, **extra) -> dict:
+    """One result row: the value against its target, error, relative error, pass/fail."""
+    err = abs(value - target) if np.isfinite(value) else math.nan
+    tol = float(prov.get("energy_tolerance") if quantity == "energy_drift" else prov["tolerance"])
+    relative = prov["tolerance_kind"] == "relative" and quantity != "energy_drift"
+    rel = err / abs(target) if target else err
+    measure = rel if relative else err
+    return {
+        "problem": name,
+        "quantity": quantity,
+        "method": r["method"],
+        "k": int(r["k"]),
+        "h": float(r["h"]),
+        "status": r["status"],
+        "reason": r.get("reason", ""),
+        "target": target,
+        "value": value,
+        "error": err,
+        "rel_error": rel,
+        "tolerance": tol,
+        "tolerance_kind": "relative" if relative else "absolute",
+        "passed": bool(np.isfinite(measure) and measure <= tol),
+        "order_error": err,
+        **extra,
+    }
+
+
+def _values(name, case, prov, res, ref) -> list:
+    """[(quantity, value, extra columns)] of one finished run."""
+    kind = prov["quantity"]
+    if kind == "peak_tip_deflection":
+        return [(kind, peak_tip_deflection(res), {})]
+    if kind == "static_tip_displacement":
+        v, moved = tip_displacement(res, case, prov["component"])
+        return [(kind, v, {"settle_motion": moved, "settled": moved < SETTLE_TOL})]
+    if ref is None:
+        return [(kind, math.nan, {"reason": "no reference run"})]
+    if kind == "tip_deflection_rms":
+        return [(kind, tip_deflection_rms(res, ref), {})]
+    if kind == "tip_path_rms":
+        out = [(kind, tip_path_rms(res, ref, case.model.links[0].beam.length), {})]
+        drift = energy_drift(res, case)
+        if np.isfinite(drift):
+            out.append(("energy_drift", drift, {}))
+        return out
+    raise ValueError(f"{name}: unknown quantity {kind!r}")
+
+
+def _run_rows(ctx, name, case, prov, runs) -> list:
+    ref_task = _ref_task(name, case, prov)
+    ref = _reference(ctx, case, ref_task) if ref_task is not None else None
+    rows = []
+    for _, r in runs.iterrows():
+        if ref_task is not None and (r["method"], r["k"], r["h"]) == (
+            ref_task.method,
+            ref_task.k,
+            ref_task.h,
+        ):
+            continue  # the reference itself
+        res = ctx.store.history(_task_of(r)) if r["status"] == "ok" else None
+        vals = _values(name, case, prov, res, ref) if res is not None else [(prov["quantity"], math.nan, {})]
+        for quantity, value, extra in vals:
+            target = 0.0 if quantity == "energy_drift" else targets(prov)[0][1]
+            rows.append(_row(name, prov, quantity, target, r, value, **extra))
+    return rows
+
+
+def _task_of(r):
+    return Task(r["case"], r["method"], r["k"], r["h"], r["duration"])
+
+
+_FAILS = (ImportError, ValueError, ArithmeticError, np.linalg.LinAlgError)
+
+
+def frequency_rows(name, case, prov, ks, plan_params=None, size=None) -> list:
+    """Rows of the clamped-link frequency problems: every method with its own linearisation, each k."""
+    rows, n = [], len(prov["values"])
+    for m in _methods(plan_params or ProblemsParams(), "frequencies", size):
+        fine = _fine_frequencies(case, m, n)
+        for k in ks:
+            r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
+            try:
+                f = frequencies(case, k, m, n=n)
+            except _FAILS as exc:  # reported, not dropped
+                r.update(status="failed", reason=f"{type(exc).__name__}: {exc}")
+                f = [math.nan] * n
+            for (quantity, target), value, ref in zip(targets(prov), f, fine):
+                diff = abs(value - ref)
+                # below the linearisation's round-off the difference is not a discretisation error
+                diff = diff if diff > FD_NOISE * abs(ref) else math.nan
+                rows.append(_row(name, prov, quantity, target, r, float(value), order_error=diff))
+    return rows
+
+
+# relative differences below this are round-off of the linearisation (DT-TMM's lowest De Luca
+# link-1 frequency carries ~2e-7 at k = 32: its ω² is ~1e-10 of the highest one)
+FD_NOISE = 1e-6
+K_FINE = 32  # elements per link of the converged frequencies the observed order is fitted against
+
+
+def _fine_frequencies(case, method, n):
+    try:
+        return frequencies(case, K_FINE, method, n=n)
+    except _FAILS:
+        return [math.nan] * n
+
+
+def analyse(ctx, table):
+    """Tables: ``benchmarks`` (one row per problem, quantity, method, k: value, target, error,
+    pass/fail), ``benchmarks_orders`` (observed order in k of the error) and
+    ``benchmarks_problems`` (each problem's source, compared quantity, target and tolerance)."""
+    if not _active(ctx):
+        return {}
+    p = params(ctx, NAME)
+    rows, info = [], []
+    for name, (case, prov) in problems(p.problems).items():
+        info.append(_problem_info(name, prov))
+        if prov["quantity"] == "frequencies":
+            rows += frequency_rows(name, case, prov, p.ks, p, ctx.plan.name)
+            continue
+        runs = table[table.case == name] if len(table) else table
+        rows += _run_rows(ctx, name, ctx.cases.get(name, case), prov, runs)
+    res = pd.DataFrame(rows)
+    out = {NAME: res, f"{NAME}_orders": _orders(res), f"{NAME}_problems": pd.DataFrame(info)}
+    out[f"{NAME}_series"] = _series(ctx, table)
+    return out
+
+
+MAX_POINTS = 800  # time samples kept per curve in the stored series
+
+
+def _series(ctx, table) -> pd.DataFrame:
+    """Tip-deflection histories of the spin-up problems: DT-TMM (linear strain) at every k, and
+    the second-order element and the first reference method (Exudyn ANCF) at the largest k."""
+    from .. import methods
+
+    subjects = methods.by_role("subject")
+    every_k = subjects[:1]
+    at_kmax = [m for m in subjects if methods.get(m).physics.strain == "nonlinear"][:1]
+    at_kmax += [m for m in methods.reference_candidates() if m not in subjects][:1]
+    cols = ["problem", "method", "k", "t", "tip_deflection"]
+    if table is None or table.empty:
+        return pd.DataFrame(columns=cols)
+    parts = []
+    for name, g in table[table.status == "ok"].groupby("case", sort=True):
+        if not str(name).startswith("spin_up"):
+            continue
+        kmax = g.k.max()
+        keep = g[g.method.isin(every_k) | (g.method.isin(at_kmax) & (g.k == kmax))]
+        for _, r in keep.iterrows():
+            res = ctx.store.history(_task_of(r))
+            step = max(1, len(res.t) // MAX_POINTS)
+            parts.append(
+                pd.DataFrame(
+                    {
+                        "problem": name,
+                        "method": r["method"],
+                        "k": int(r["k"]),
+                        "t": res.t[::step],
+                        "tip_deflection": res.tip_deflection[::step, -1],
+                    }
+                )
+            )
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=cols)
+
+
+def _orders(res: pd.DataFrame) -> pd.DataFrame:
+    """Observed order in k of each (problem, quantity, method)'s ``order_error`` (the error
+    against the target; for the frequencies, quoted to 0.01 Hz, the difference to k = K_FINE),
+    the rigid baseline left out."""
+    cols = ["problem", "quantity", "method", "order", "n_points", "k_min", "k_max"]
+    if res.empty:
+        return pd.DataFrame(columns=cols)
+    flex = res[res.method.map(uses_k)].rename(columns={"quantity": "compared"})
+    o = fit_orders(flex, "k", "order_error", ["problem", "compared", "method"], refine_descending=False)
+    o = o.drop(columns="quantity").rename(
+        columns={"compared": "quantity", "x_min": "k_min", "x_max": "k_max"}
+    )
+    return o[cols]
+
+
+def _problem_info(name, prov) -> dict:
+    return {
+        "problem": name,
+        "source": prov.get("source", ""),
+        "compared": prov.get("compared", ""),
+        "target": ", ".join(f"{q} = {v:.6g}" for q, v in targets(prov)),
+        "value_kind": prov.get("value_kind", ""),
+        "units": prov.get("units", ""),
+        "tolerance": f"{prov.get('tolerance')} ({prov.get('tolerance_kind')})",
+    }
+
+
+if __name__ == "__main__":  # python -m experiments.studies.problems (or .benchmarks) [--quick|--full] ...
+    from experiments.study import study_main
+
+    raise SystemExit(study_main(NAME))
