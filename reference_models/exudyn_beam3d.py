@@ -705,7 +705,7 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
     ``tip_loads`` at t = duration, applied in ``load_steps`` load steps; Newton to 1e-12
     relative). Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2),
     ``twist`` (n,), ``section_loads`` (n, 6) (ForceLocal, TorqueLocal of each link's first
-    element, at x = l/2, section frame)."""
+    element, at x = l/2, section frame), ``section_rotation`` (n, 3, 3) (that section frame)."""
     if isinstance(case, str) or hasattr(case, "__fspath__"):
         case = load_case(case)
     if not isinstance(case, SpatialCase):
@@ -754,4 +754,12 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
         tip_deflection=np.array([[di @ R[:, 1], di @ R[:, 2]] for di, R in zip(d, Rl)]),
         twist=np.array([log_so3(a.T @ b)[0] for a, b in zip(Rl, Rt)]),
         section_loads=sec,
+        section_rotation=np.array(
+            [
+                np.reshape(
+                    mbs.GetObjectOutputBody(e, OV.RotationMatrix, localPosition=[0.0, 0.0, 0.0]), (3, 3)
+                )
+                for e in B["first_el"]
+            ]
+        ),
     )
