@@ -113,8 +113,13 @@ def short_arm(duration=0.2):
 
 def test_three_joint_arm_agrees_with_dttmm():
     """Exudyn at k = 4, h = 1e-3 against the DT-TMM at k = 16, h = 2.5e-4 over 0.2 s (the
-    end-effector moves 0.13 m): the gap is the GE beam's O(1/k²) error (measured 1.8e-4, 4.5e-5,
-    9.9e-6 m at k = 2, 4, 8 with h ∝ 1/k; the DT-TMM's own error at its k, h is ≈ 1e-6 m)."""
+    end-effector moves 0.13 m). Against the DT-TMM at k = 32, h = 1.25e-4 (its own change from
+    k = 16, h = 2.5e-4: 2.6e-6 m) the end-effector gap is 1.79e-4, 4.72e-5, 1.16e-5, 2.48e-6 m at
+    k = 2, 4, 8, 16 with h = 4e-3/k: second order, the GE element's O(1/k²) error (its static tip
+    deflection is F L³/3EI·(1 − 1/(4k²))); tip deflections 1.4e-3, 3.6e-4, 9.2e-5, 2.4e-5 m;
+    twist 3.3e-4, 9.0e-5, 4.0e-5, 1.1e-5 rad; joint angles 6.5e-3, 1.9e-3, 7.5e-4, 3.3e-4 rad
+    (the angle between a hub and the previous link's tip node carries the node rotations'
+    element error). Tolerances: 1.5–2× the k = 4 gaps."""
     c = short_arm()
     ref = dttmm_simulate(c, elements_per_link=16, h=2.5e-4)
     r = xb.simulate(c, elements_per_link=4, h=1e-3)
@@ -122,7 +127,7 @@ def test_three_joint_arm_agrees_with_dttmm():
     gap = np.abs(r.end_effector - ref.end_effector).max()
     assert np.abs(ref.end_effector - ref.end_effector[0]).max() > 0.1
     assert gap <= 1e-4, gap
-    assert np.abs(r.joint_angle - ref.joint_angle).max() <= 5e-4
+    assert np.abs(r.joint_angle - ref.joint_angle).max() <= 3e-3
     assert np.abs(r.tip_deflection - ref.tip_deflection).max() <= 5e-4
     assert np.abs(r.twist - ref.twist).max() <= 2e-4
     assert r.link_root.shape == ref.link_root.shape and r.twist.shape == ref.twist.shape
