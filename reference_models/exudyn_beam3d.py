@@ -629,7 +629,7 @@ def simulate(
         jr[:, c_] = np.einsum("ti,ti->t", w_root[:, i] - w_par, R_J @ a)
         if dr.kind == "motion":
             jt[:, c_] = stored(s_mot[i])[:, 2]
-            jt[0, c_] = np.nan
+            jt[0, c_] = 0.0  # no multiplier before the first step (as the planar peers)
         else:
             jt[:, c_] = [dr.torque(float(t_), t_ > 0) for t_ in t_out]
     en = None
