@@ -2,8 +2,10 @@
 
 Each link of a spatial case (docs/spatial.md §1) is meshed with k ``ObjectBeamGeometricallyExact``
 elements (linear interpolation on SE(3), one-point integration: a shear-deformable Reissner beam)
-on k + 1 ``NodeRigidBodyEP`` nodes (Euler parameters; ``node="RotVecLG"`` gives
-``NodeRigidBodyRotVecLG``). The node frames are the element frames R_link·Rx(roll) (local x along
+on k + 1 ``NodeRigidBodyEP`` nodes (Euler parameters, as Exudyn recommends for its implicit
+solvers; :func:`statics` also takes ``node="RotVecLG"``, ``NodeRigidBodyRotVecLG``, whose
+Lie-group update Exudyn's generalized-α does not run: Newton fails in the first step).
+The node frames are the element frames R_link·Rx(roll) (local x along
 the beam, y and z the section's principal axes). Section: ``exu.BeamSection()`` with
 ``stiffnessMatrix = diag(EA, GA, GA, GJ, EIy, EIz)``, ``inertia = diag(ρJ, ρIy, ρIz)``,
 ``massPerLength = ρA``, ``dampingMatrix = μ·stiffnessMatrix`` (Kelvin–Voigt). The suite's links
@@ -366,9 +368,9 @@ def simulate(
     with k = ``elements_per_link`` Exudyn 3-D geometrically exact beam elements per link, step h.
 
     Options: ``rho_inf`` (generalized-α spectral radius, 1), ``shear_ratio`` (GA/EA, 1e3),
-    ``node`` ("EP" or "RotVecLG"), ``tip_loads`` (list of dicts ``link``, ``force``, ``torque``
+    ``node`` ("EP" only here; see the module notes), ``tip_loads`` (list of dicts ``link``, ``force``, ``torque``
     (world, N and N·m), ``times``, ``factors``: the load times a piecewise-linear factor, at the
-    link's tip node), ``section_loads`` (record meta-free ``cut_loads`` (nt, n, 6) of Exudyn's
+    link's tip node), ``section_loads`` (record as ``cut_loads`` (nt, n, 6) Exudyn's
     section force and moment in the first element of each link), ``energy`` (beam kinetic +
     strain energy, rigid bodies' kinetic energy and the gravity potential at the nodes),
     ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: 1e-10·max stiffness/l), ``newton_max_iterations``
@@ -386,6 +388,13 @@ def simulate(
     k = plumbing.elements_per_link(elements_per_link)
     h = plumbing.step_size(h, case.scenario.duration)
     plumbing.choice("node", node, NODES)
+    if node != "EP":
+        raise InputError(
+            "node",
+            node,
+            "simulate needs 'EP': Exudyn's implicit generalized-alpha does not take its Lie-group nodes "
+            "(Newton fails in the first step; they are for its explicit Lie-group integrators); statics takes both",
+        )
     for name, val, lo in (("shear_ratio", shear_ratio, 0.0), ("rho_inf", rho_inf, -1e-300)):
         if (
             isinstance(val, bool)

@@ -65,6 +65,12 @@ def test_static_cantilever_both_planes_and_twist(k):
         assert abs(d[1 - col]) <= 1e-9 * eb
         if k == 64:  # converged to Euler–Bernoulli within 1e-4
             assert abs(d[col] / eb - 1) <= 1e-4
+    lie = xb.statics(
+        c, elements_per_link=k, node="RotVecLG", tip_loads=[dict(link=0, force=(0, 0, F))], load_steps=1
+    )
+    assert np.allclose(
+        lie["tip_deflection"], out["z"]["tip_deflection"], rtol=1e-6, atol=1e-12 * F
+    )  # 8e-8 measured
     tw = out["x"]["twist"][0]
     assert abs(tw / (T * L / BEAM.GJ) - 1) <= 1e-8
     assert np.abs(out["x"]["tip_deflection"]).max() <= 1e-12
@@ -228,6 +234,8 @@ def test_bad_input_is_refused():
     c = cantilever()
     with pytest.raises(InputError, match="node"):
         xb.simulate(c, elements_per_link=2, h=0.1, node="Rxyz")
+    with pytest.raises(InputError, match="Lie-group"):
+        xb.simulate(c, elements_per_link=2, h=0.1, node="RotVecLG")
     with pytest.raises(InputError, match="shear_ratio"):
         xb.simulate(c, elements_per_link=2, h=0.1, shear_ratio=-1.0)
     with pytest.raises(InputError, match=r"tip_loads\[0\]\.link"):
