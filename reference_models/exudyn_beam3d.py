@@ -732,7 +732,6 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
     s.staticSolver.numberOfLoadSteps = steps
     s.staticSolver.verboseMode = 0
     s.solution.file.write = False
-    s.solution.writeSolutionToFile = False
     s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
     if not mbs.SolveStatic(s):
         raise SimulationError(f"Exudyn {METHOD}: SolveStatic failed", t=0.0, step=0, component="newton")
