@@ -1,0 +1,775 @@
+"""Exudyn peer of the spatial cases: 3-D geometrically exact beams (ObjectBeamGeometricallyExact).
+
+Each link of a spatial case (docs/spatial.md §1) is meshed with k ``ObjectBeamGeometricallyExact``
+elements (linear interpolation on SE(3), one-point integration: a shear-deformable Reissner beam)
+on k + 1 ``NodeRigidBodyEP`` nodes (Euler parameters, as Exudyn recommends for its implicit
+solvers; :func:`statics` also takes ``node="RotVecLG"``, ``NodeRigidBodyRotVecLG``, whose
+Lie-group update Exudyn's generalized-α does not run: Newton fails in the first step).
+The node frames are the element frames R_link·Rx(roll) (local x along
+the beam, y and z the section's principal axes). Section: ``exu.BeamSection()`` with
+``stiffnessMatrix = diag(EA, GA, GA, GJ, EIy, EIz)``, ``inertia = diag(ρJ, ρIy, ρIz)``,
+``massPerLength = ρA``, ``dampingMatrix = μ·stiffnessMatrix`` (Kelvin–Voigt). The suite's links
+are Euler–Bernoulli; they are approached with the shear stiffness GA = ``shear_ratio``·EA
+(default 1e3: the shear part of a cantilever's tip deflection, 3EI/(GA L²) relative, is below
+1e-6 on the shipped cases; see docs/spatial.md "Exudyn 3-D beam"). Inextensible links get
+EA = 1e6·max(EIy, EIz)/L² (as the planar peers).
+
+Joints: an unlocked joint is an ``ObjectJointGeneric`` with the rotation about its axis free,
+between the parent marker (ground, or the tip node of link i−1, at the origin o with the joint
+frame R_J·A, A a rotation taking z to the axis a) and the root node of link i; a locked joint
+constrains all six axes at the origin's angle. Hubs and payloads are ``ObjectRigidBody`` on the
+root and tip nodes (mass, inertia about the node, centre of mass offset). Gravity:
+``LoadMassProportional`` on every element and body. Torque drives: a ``LoadTorqueVector`` pair
+(body-fixed, ±τ·a) whose values a PreStepUserFunction sets once per step at the step end (as the
+planar peers); motion drives: all six axes constrained with the angle prescribed by the joint's
+``offsetUserFunction`` (a Python call per residual evaluation); their torque is the joint's
+reaction moment about the axis. External loads at link tips (``tip_loads``) are piecewise-linear
+in time, set by the same pre-step function.
+
+Time integration: Exudyn's generalized-α (``rho_inf``, default 1: no numerical damping, as
+Exudyn's right-angle cantilever test model) with fixed step h, modified Newton with a Jacobian
+per step, EigenSparse, one thread, no files, no graphics; drive breakpoints on the step grid
+restart the integrator (as the planar peers). Output: a :class:`dttmm.spatial.SpatialResult`
+on the case's output grid (h must divide the output step) with the DT-TMM's fields (§4);
+``section_loads`` (nt, n, 6) adds Exudyn's ``ForceLocal``/``TorqueLocal`` of the first element of
+every link (constant over the element: one-point integration; the load the outboard part
+exerts on the inboard part, in the deformed section frame at x = l/2).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from dttmm import plumbing
+from dttmm.errors import InputError, SimulationError
+from dttmm.spatial import SpatialCase, SpatialResult, load_case
+from dttmm.spatial.rotation import log_so3
+
+from ._spatial_mechanics import rot_axis, rpy_matrix
+
+__all__ = ["METHOD", "SHEAR_RATIO", "NODES", "simulate", "reference_frames"]
+
+METHOD = "exudyn-beam3d"
+#: GA / EA of the Euler–Bernoulli limit
+SHEAR_RATIO = 1.0e3
+NODES = ("EP", "RotVecLG")
+#: EA of an inextensible link: ratio·max(EIy, EIz)/L²
+INEXTENSIBLE_AXIAL_RATIO = 1.0e6
+
+
+def _axis_frame(a) -> np.ndarray:
+    """A rotation A with A·e_z = a (columns: two unit vectors normal to a, then a)."""
+    a = np.asarray(a, float)
+    t = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(t, a)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(a, x), a])
+
+
+def _initial_joint_states(case: SpatialCase):
+    alpha, rate = [], []
+    drives = iter(case.scenario.drives)
+    for link in case.model.links:
+        if link.joint.locked:
+            alpha.append(0.0)
+            rate.append(0.0)
+            continue
+        d = next(drives)
+        if d.kind == "motion":
+            a = d.motion(0.0, False)
+            alpha.append(float(a[0]))
+            rate.append(float(a[1]))
+        else:
+            alpha.append(float(d.initial_angle))
+            rate.append(float(d.initial_rate))
+    return alpha, rate
+
+
+def reference_frames(case: SpatialCase):
+    """Undeformed frames at t = 0: per link (R_J, p_J, R_link, p_link, R_tip, p_tip, ω, a_W)
+    with ω the rigid angular velocity of the link (world) from the initial joint rates and a_W
+    the joint axis in the world."""
+    m = case.model
+    alpha, rate = _initial_joint_states(case)
+    R_par, p_par = rpy_matrix(m.base_rpy), np.array(m.base_xyz, float)
+    om = np.zeros(3)
+    out = []
+    for i, link in enumerate(m.links):
+        j = link.joint
+        R_J = R_par @ rpy_matrix(j.origin_rpy)
+        p_J = p_par + R_par @ np.array(j.origin_xyz, float)
+        a = np.array(j.axis, float)
+        aw = R_J @ a
+        R_l = R_J @ rot_axis(a, alpha[i])
+        om = om + aw * rate[i]
+        L = link.beam.length
+        p_t = p_J + R_l @ np.array([L, 0.0, 0.0])
+        out.append(
+            dict(R_J=R_J, p_J=p_J, R_link=R_l, p_link=p_J, R_tip=R_l, p_tip=p_t, omega=om.copy(), a_w=aw)
+        )
+        R_par, p_par = R_l, p_t
+    return out
+
+
+def _piecewise(times, values):
+    times = np.asarray(times, float)
+    values = np.asarray(values, float)
+    return lambda t: float(np.interp(t, times, values))
+
+
+def _check_tip_loads(case, tip_loads):
+    out = []
+    for n_, item in enumerate(tip_loads or ()):
+        where = f"tip_loads[{n_}]"
+        if not isinstance(item, dict) or set(item) - {"link", "force", "torque", "times", "factors"}:
+            raise InputError(where, item, "must be a dict with keys link, force, torque, times, factors")
+        i = item.get("link")
+        if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < case.model.n_links:
+            raise InputError(f"{where}.link", i, f"must be a link index in 0..{case.model.n_links - 1}")
+        vecs = []
+        for key in ("force", "torque"):
+            v = np.asarray(item.get(key, (0.0, 0.0, 0.0)), float)
+            if v.shape != (3,) or not np.isfinite(v).all():
+                raise InputError(f"{where}.{key}", item.get(key), "must be 3 finite numbers (world frame)")
+            vecs.append(v)
+        tt = np.asarray(item.get("times", (0.0, case.scenario.duration)), float)
+        ff = np.asarray(item.get("factors", (1.0, 1.0)), float)
+        if tt.ndim != 1 or tt.shape != ff.shape or tt.size < 1 or np.any(np.diff(tt) <= 0):
+            raise InputError(f"{where}.times", item.get("times"), "must increase and match factors in length")
+        out.append((i, vecs[0], vecs[1], _piecewise(tt, ff)))
+    return out
+
+
+def _build(case, k, shear_ratio, node, loads):
+    """The Exudyn system of ``case`` (not assembled) and the handles the outputs need."""
+    import exudyn as exu
+    import exudyn.itemInterface as ii
+    from exudyn.rigidBodyUtilities import (
+        AngularVelocity2EulerParameters_t,
+        RotationMatrix2EulerParameters,
+        RotationMatrix2RotationVector,
+    )
+
+    model, sc = case.model, case.scenario
+    frames = reference_frames(case)
+    g = np.array(model.gravity, float)
+    has_g = bool(np.any(g != 0.0))
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddNode(ii.NodePointGround())
+
+    ground_body = mbs.AddObject(ii.ObjectGround())
+    carrier = {}  # node -> rigid body on it (for markers away from the node)
+
+    def rigid_marker(nd, R=None, p=None):
+        R = np.eye(3) if R is None else R
+        p = np.zeros(3) if p is None else p
+        if not np.any(p):
+            return mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=nd, localHT=exu.HT(rotation=R)))
+        if nd == ground:
+            body = ground_body
+        elif nd in carrier:
+            body = carrier[nd]
+        else:  # a massless body on the node carries the offset marker
+            body = carrier[nd] = mbs.AddObject(ii.ObjectRigidBody(nodeNumber=nd, mass=0.0))
+        return mbs.AddMarker(
+            ii.MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(rotation=R, translation=list(p)))
+        )
+
+    root_nodes, tip_nodes, first_el, elements, bodies, rolls = [], [], [], [], [], []
+    kmax = 0.0
+    for i, link in enumerate(model.links):
+        b, fr = link.beam, frames[i]
+        L, l = b.length, b.length / k
+        EA = b.EA if b.EA is not None else INEXTENSIBLE_AXIAL_RATIO * max(b.EIy, b.EIz) / L**2
+        GA = shear_ratio * EA
+        C = np.diag([EA, GA, GA, b.GJ, b.EIy, b.EIz])
+        kmax = max(kmax, GA / l)
+        sec = exu.BeamSection()
+        sec.stiffnessMatrix = C
+        sec.dampingMatrix = b.damping * C
+        sec.inertia = np.diag([b.rhoJ, b.rhoIy, b.rhoIz])
+        sec.massPerLength = b.rhoA
+        Rx = rot_axis((1.0, 0.0, 0.0), b.roll)
+        rolls.append(Rx)
+        Rn = fr["R_link"] @ Rx
+        om_loc = Rn.T @ fr["omega"]
+        nodes = []
+        for j in range(k + 1):
+            p = fr["p_link"] + fr["R_link"] @ np.array([j * l, 0.0, 0.0])
+            v = sum(
+                (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * r_)
+                for m_, r_ in zip(range(i + 1), _initial_joint_states(case)[1][: i + 1])
+            ) + np.zeros(3)
+            if node == "EP":
+                ep = np.array(RotationMatrix2EulerParameters(Rn))
+                ep_t = AngularVelocity2EulerParameters_t(fr["omega"], ep)
+                nd = ii.NodeRigidBodyEP(
+                    referenceCoordinates=list(p) + list(ep), initialVelocities=list(v) + list(ep_t)
+                )
+            else:
+                rv = RotationMatrix2RotationVector(Rn)
+                nd = ii.NodeRigidBodyRotVecLG(
+                    referenceCoordinates=list(p) + list(rv), initialVelocities=list(v) + list(om_loc)
+                )
+            nodes.append(mbs.AddNode(nd))
+        els = [
+            mbs.AddObject(
+                ii.ObjectBeamGeometricallyExact(
+                    nodeNumbers=[nodes[j], nodes[j + 1]], length=l, sectionData=sec
+                )
+            )
+            for j in range(k)
+        ]
+        if has_g:
+            for e in els:
+                mbs.AddLoad(
+                    ii.LoadMassProportional(
+                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=list(g)
+                    )
+                )
+        root_nodes.append(nodes[0])
+        tip_nodes.append(nodes[-1])
+        first_el.append(els[0])
+        elements.append(els)
+        # hub: inertia about the root point in the link frame -> node frame
+        for rb in (link.hub, link.payload):
+            if rb is None or (rb.mass == 0.0 and not np.any(rb.inertia_matrix)):
+                continue
+            if rb is link.hub:
+                nd, c, J = nodes[0], np.zeros(3), Rx.T @ rb.inertia_matrix @ Rx
+            else:
+                c = Rx.T @ np.array(rb.offset, float)
+                J = Rx.T @ rb.inertia_matrix @ Rx + rb.mass * (c @ c * np.eye(3) - np.outer(c, c))
+                nd = nodes[-1]
+            body = mbs.AddObject(
+                ii.ObjectRigidBody(
+                    nodeNumber=nd,
+                    mass=float(rb.mass),
+                    inertia=[J[0, 0], J[1, 1], J[2, 2], J[1, 2], J[0, 2], J[0, 1]],
+                    centerOfMass=list(c),
+                )
+            )
+            bodies.append((body, nd, c, float(rb.mass)))
+            carrier.setdefault(nd, body)
+            if has_g and rb.mass > 0:
+                mbs.AddLoad(
+                    ii.LoadMassProportional(
+                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=list(g)
+                    )
+                )
+
+    # joints and drives
+    inputs = []  # (load, law, sign-vector) set by the pre-step function
+    motion_joints = {}
+    drives = iter(sc.drives)
+    for i, link in enumerate(model.links):
+        fr, j = frames[i], link.joint
+        if i == 0:
+            parent, R_pn, p_pn = ground, np.eye(3), np.zeros(3)
+        else:
+            parent = tip_nodes[i - 1]
+            R_pn = frames[i - 1]["R_tip"] @ rolls[i - 1]
+            p_pn = frames[i - 1]["p_tip"]
+        A = np.eye(3) if j.locked else _axis_frame(j.axis)
+        # marker 0: the joint frame R_J·A at p_J in the parent's node frame
+        m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
+        m1 = rigid_marker(root_nodes[i], rolls[i].T @ A)
+        if j.locked:
+            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1] * 6))
+            continue
+        d = next(drives)
+        if d.kind == "motion":
+
+            def offset(mbs_, t, item, par, law=d.motion, seg=None):
+                return [0.0, 0.0, 0.0, 0.0, 0.0, law(t, True)[0]]
+
+            motion_joints[i] = mbs.AddObject(
+                ii.ObjectJointGeneric(
+                    markerNumbers=[m0, m1], constrainedAxes=[1] * 6, offsetUserFunction=offset
+                )
+            )
+        else:
+            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 1, 1, 1, 0]))
+            a = np.array(j.axis, float)
+            targets = [(root_nodes[i], rolls[i].T @ a)]
+            if i > 0:
+                targets.append((parent, -(R_pn.T @ fr["R_J"] @ a)))
+            for nd, vec in targets:
+                ld = mbs.AddLoad(
+                    ii.LoadTorqueVector(
+                        markerNumber=rigid_marker(nd), loadVector=[0.0, 0.0, 0.0], bodyFixed=True
+                    )
+                )
+                inputs.append((ld, d.torque, vec))
+    for i, F, T, law in loads:
+        mk = rigid_marker(tip_nodes[i])
+        if np.any(F):
+            inputs.append(
+                (
+                    mbs.AddLoad(ii.LoadForceVector(markerNumber=mk, loadVector=[0.0] * 3)),
+                    lambda t, left, f=law: f(t),
+                    F,
+                )
+            )
+        if np.any(T):
+            inputs.append(
+                (
+                    mbs.AddLoad(ii.LoadTorqueVector(markerNumber=mk, loadVector=[0.0] * 3)),
+                    lambda t, left, f=law: f(t),
+                    T,
+                )
+            )
+
+    def set_inputs(t, left):
+        for ld, law, vec in inputs:
+            mbs.SetLoadParameter(ld, "loadVector", list(law(t, left) * vec))
+
+    return dict(
+        mbs=mbs,
+        exu=exu,
+        ii=ii,
+        frames=frames,
+        g=g,
+        has_g=has_g,
+        root_nodes=root_nodes,
+        tip_nodes=tip_nodes,
+        first_el=first_el,
+        elements=elements,
+        bodies=bodies,
+        rolls=rolls,
+        motion_joints=motion_joints,
+        inputs=inputs,
+        set_inputs=set_inputs,
+        kmax=kmax,
+    )
+
+
+def simulate(
+    case,
+    *,
+    elements_per_link,
+    h,
+    rho_inf=1.0,
+    shear_ratio=SHEAR_RATIO,
+    node="EP",
+    tip_loads=None,
+    section_loads=False,
+    energy=False,
+    newton_rel_tol=1e-8,
+    newton_abs_tol=None,
+    newton_max_iterations=25,
+    modified_newton=True,
+) -> SpatialResult:
+    """Simulate a spatial case (a :class:`dttmm.spatial.SpatialCase` or a path to its TOML file)
+    with k = ``elements_per_link`` Exudyn 3-D geometrically exact beam elements per link, step h.
+
+    Options: ``rho_inf`` (generalized-α spectral radius, 1), ``shear_ratio`` (GA/EA, 1e3),
+    ``node`` ("EP" only here; see the module notes), ``tip_loads`` (list of dicts ``link``, ``force``, ``torque``
+    (world, N and N·m), ``times``, ``factors``: the load times a piecewise-linear factor, at the
+    link's tip node), ``section_loads`` (record as ``cut_loads`` (nt, n, 6) Exudyn's
+    section force and moment in the first element of each link), ``energy`` (beam kinetic +
+    strain energy, rigid bodies' kinetic energy and the gravity potential at the nodes),
+    ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: 1e-10·max stiffness/l), ``newton_max_iterations``
+    (25), ``modified_newton`` (True). Raises InputError on bad input, SimulationError on failure.
+    """
+    if isinstance(case, (str,)) or hasattr(case, "__fspath__"):
+        case = load_case(case)
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase or a path to one")
+    for d in case.scenario.drives:
+        if d.closed_loop:
+            raise InputError(
+                "scenario.drives", d.law.name, "closed-loop drives are not supported by exudyn-beam3d"
+            )
+    k = plumbing.elements_per_link(elements_per_link)
+    h = plumbing.step_size(h, case.scenario.duration)
+    plumbing.choice("node", node, NODES)
+    if node != "EP":
+        raise InputError(
+            "node",
+            node,
+            "simulate needs 'EP': Exudyn's implicit generalized-alpha does not take its Lie-group nodes "
+            "(Newton fails in the first step; they are for its explicit Lie-group integrators); statics takes both",
+        )
+    for name, val, lo in (("shear_ratio", shear_ratio, 0.0), ("rho_inf", rho_inf, -1e-300)):
+        if (
+            isinstance(val, bool)
+            or not isinstance(val, (int, float))
+            or not (math.isfinite(val) and val > lo)
+        ):
+            raise InputError(name, val, "must be a positive number")
+    if rho_inf > 1:
+        raise InputError("rho_inf", rho_inf, "must lie in [0, 1]")
+    loads = _check_tip_loads(case, tip_loads)
+    sc = case.scenario
+    ratio = sc.output_step / h
+    per_out = int(round(ratio))
+    if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
+        raise InputError("h", h, f"must divide the output step {sc.output_step}")
+    t_out = sc.output_times
+    n_steps = (len(t_out) - 1) * per_out
+
+    B = _build(case, k, shear_ratio, node, loads)
+    mbs, exu, ii, g, has_g = B["mbs"], B["exu"], B["ii"], B["g"], B["has_g"]
+    root_nodes, tip_nodes, first_el, elements = B["root_nodes"], B["tip_nodes"], B["first_el"], B["elements"]
+    bodies, rolls, motion_joints, inputs, set_inputs = (
+        B["bodies"],
+        B["rolls"],
+        B["motion_joints"],
+        B["inputs"],
+        B["set_inputs"],
+    )
+    kmax, model, n = B["kmax"], case.model, case.model.n_links
+    seg_start = [0.0]
+    if inputs:
+
+        def pre_step(mbs_, t):
+            set_inputs(t, t > seg_start[0])
+            return True
+
+        mbs.SetPreStepUserFunction(pre_step)
+
+    OV = exu.OutputVariableType
+
+    def sens(nd, var):
+        return mbs.AddSensor(
+            ii.SensorNode(nodeNumber=nd, outputVariableType=var, storeInternal=True, writeToFile=False)
+        )
+
+    s_root = [
+        (sens(nd, OV.Position), sens(nd, OV.RotationMatrix), sens(nd, OV.AngularVelocity))
+        for nd in root_nodes
+    ]
+    s_tip = [
+        (sens(nd, OV.Position), sens(nd, OV.RotationMatrix), sens(nd, OV.AngularVelocity)) for nd in tip_nodes
+    ]
+    s_mot = {
+        i: mbs.AddSensor(
+            ii.SensorObject(
+                objectNumber=c, outputVariableType=OV.TorqueLocal, storeInternal=True, writeToFile=False
+            )
+        )
+        for i, c in motion_joints.items()
+    }
+    s_sec = []
+    if section_loads:
+        for e in first_el:
+            s_sec.append(
+                [
+                    mbs.AddSensor(
+                        ii.SensorBody(
+                            bodyNumber=e,
+                            localPosition=[0.0, 0.0, 0.0],
+                            outputVariableType=v,
+                            storeInternal=True,
+                            writeToFile=False,
+                        )
+                    )
+                    for v in (OV.ForceLocal, OV.TorqueLocal)
+                ]
+            )
+    s_en = []
+    if energy:
+        for els in elements:
+            for e in els:
+                for v in (OV.KineticEnergy, OV.PotentialEnergy):
+                    s_en.append(
+                        mbs.AddSensor(
+                            ii.SensorBody(
+                                bodyNumber=e,
+                                localPosition=[0.0, 0.0, 0.0],
+                                outputVariableType=v,
+                                storeInternal=True,
+                                writeToFile=False,
+                            )
+                        )
+                    )
+        for body, *_ in bodies:
+            s_en.append(
+                mbs.AddSensor(
+                    ii.SensorBody(
+                        bodyNumber=body,
+                        outputVariableType=OV.KineticEnergy,
+                        storeInternal=True,
+                        writeToFile=False,
+                    )
+                )
+            )
+        s_pos_all = (
+            [
+                sens(nd, OV.Position)
+                for els in elements
+                for nd in [mbs.GetObject(e)["nodeNumbers"][0] for e in els]
+                + [mbs.GetObject(els[-1])["nodeNumbers"][1]]
+            ]
+            if has_g
+            else []
+        )
+        s_body_pos = (
+            [
+                mbs.AddSensor(
+                    ii.SensorBody(
+                        bodyNumber=b_,
+                        localPosition=list(c),
+                        outputVariableType=OV.Position,
+                        storeInternal=True,
+                        writeToFile=False,
+                    )
+                )
+                for b_, _, c, _ in bodies
+            ]
+            if has_g
+            else []
+        )
+    mbs.Assemble()
+
+    s = exu.SimulationSettings()
+    ti = s.timeIntegration
+    ti.adaptiveStep = False
+    ti.verboseMode = 0
+    ti.generalizedAlpha.spectralRadius = float(rho_inf)
+    ti.generalizedAlpha.computeInitialAccelerations = True
+    ti.newton.relativeTolerance = float(newton_rel_tol)
+    abs_tol = float(newton_abs_tol) if newton_abs_tol is not None else max(1e-10 * kmax * 1e-6, 1e-10)
+    ti.newton.absoluteTolerance = abs_tol
+    ti.newton.maxIterations = int(newton_max_iterations)
+    ti.newton.useModifiedNewton = bool(modified_newton)
+    ti.newton.modifiedNewtonJacUpdatePerStep = True
+    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+    s.parallel.numberOfThreads = 1
+    s.solution.file.write = False
+    s.show.computationTime = False
+    s.show.statistics = False
+
+    t_end = n_steps * h
+    bps = [b for b in sc.breakpoints if 0 < b < t_end and abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h)]
+    idx = sorted({0, n_steps, *[int(round(b / h)) for b in bps]})
+    segments = [(a, b) for a, b in zip(idx, idx[1:]) if b > a]
+    on_grid = all(a % per_out == 0 for a, _ in segments)
+    s.solution.sensors.writePeriod = sc.output_step if on_grid else h
+    all_sensors = (
+        [x for tr in s_root + s_tip for x in tr] + list(s_mot.values()) + [x for p in s_sec for x in p] + s_en
+    )
+    if energy and has_g:
+        all_sensors += s_pos_all + s_body_pos
+    rows = {sn: [] for sn in all_sensors}
+    wall = cpu = 0.0
+    newton = steps = 0
+    failure = None
+    for a, b in segments:
+        seg_start[0] = a * h
+        set_inputs(a * h, False)
+        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
+            err = None
+        except Exception as exc:  # Exudyn raises on singular Jacobians
+            ok, err = False, exc
+        wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
+        it = mbs.sys["dynamicSolver"].it
+        steps += max(int(it.currentStepIndex) - 1, 0)
+        newton += int(it.newtonStepsCount)
+        for sn in all_sensors:
+            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
+            rows[sn].append(d if not rows[sn] else d[1:])
+        if not ok:
+            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
+            break
+        mbs.systemData.SetSystemState(
+            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
+        )
+    if failure is not None:
+        raise SimulationError(
+            f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
+        )
+
+    def stored(sn):
+        d = np.concatenate(rows[sn], axis=0)
+        x = d[:, 0] / sc.output_step
+        d = d[np.abs(x - np.round(x)) <= 1e-6 * per_out]
+        if len(d) != len(t_out):
+            raise SimulationError(
+                f"Exudyn {METHOD}: {len(d)} sensor rows for {len(t_out)} outputs",
+                t=t_end,
+                step=steps,
+                component="sensors",
+            )
+        return d[:, 1:]
+
+    nt = len(t_out)
+    root = np.stack([stored(x[0]) for x in s_root], axis=1)
+    tip = np.stack([stored(x[0]) for x in s_tip], axis=1)
+    Rl = np.stack([stored(x[1]).reshape(nt, 3, 3) @ rolls[i].T for i, x in enumerate(s_root)], axis=1)
+    Rt = np.stack([stored(x[1]).reshape(nt, 3, 3) @ rolls[i].T for i, x in enumerate(s_tip)], axis=1)
+    w_root = np.stack([stored(x[2]) for x in s_root], axis=1)
+    w_tip = np.stack([stored(x[2]) for x in s_tip], axis=1)
+    d = tip - root
+    defl = np.stack(
+        [np.einsum("tni,tni->tn", d, Rl[..., 1]), np.einsum("tni,tni->tn", d, Rl[..., 2])], axis=-1
+    )
+    twist = np.array([[log_so3(Rl[t_, i].T @ Rt[t_, i])[0] for i in range(n)] for t_ in range(nt)])
+    # joint angles, rates, torques of the unlocked joints
+    unl = list(model.unlocked)
+    ja, jr, jt = np.zeros((nt, len(unl))), np.zeros((nt, len(unl))), np.zeros((nt, len(unl)))
+    alpha0, _ = _initial_joint_states(case)
+    for c_, (i, dr) in enumerate(zip(unl, sc.drives)):
+        j = model.links[i].joint
+        a = np.array(j.axis, float)
+        R_rpy = rpy_matrix(j.origin_rpy)
+        if i == 0:
+            R_par = np.broadcast_to(rpy_matrix(model.base_rpy), (nt, 3, 3))
+            w_par = np.zeros((nt, 3))
+        else:
+            R_par, w_par = Rt[:, i - 1], w_tip[:, i - 1]
+        R_J = R_par @ R_rpy
+        rel = np.einsum("tji,tjk->tik", R_J, Rl[:, i])
+        vee = 0.5 * np.stack(
+            [rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], -1
+        )
+        ang = np.unwrap(np.arctan2(vee @ a, 0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0)))
+        ang += 2 * np.pi * round((alpha0[i] - ang[0]) / (2 * np.pi))
+        ja[:, c_] = ang
+        jr[:, c_] = np.einsum("ti,ti->t", w_root[:, i] - w_par, R_J @ a)
+        if dr.kind == "motion":
+            jt[:, c_] = stored(s_mot[i])[:, 2]
+            jt[0, c_] = 0.0  # no multiplier before the first step (as the planar peers)
+        else:
+            jt[:, c_] = [dr.torque(float(t_), t_ > 0) for t_ in t_out]
+    en = None
+    if energy:
+        en = np.zeros(nt)
+        for sn in s_en:
+            en += stored(sn)[:, 0]
+        if has_g:
+            ptr = 0
+            for i in range(len(elements)):
+                b = model.links[i].beam
+                l = b.length / k
+                pos = np.stack([stored(s_pos_all[ptr + j]) for j in range(k + 1)], axis=1)
+                ptr += k + 1
+                mid = 0.5 * (pos[:, 1:] + pos[:, :-1])
+                en -= b.rhoA * l * np.einsum("tjx,x->t", mid, g)
+            for sn, (_, _, _, mass) in zip(s_body_pos, bodies):
+                en -= mass * stored(sn) @ g
+    cut = None
+    if section_loads:
+        cut = np.stack([np.concatenate([stored(f), stored(m_)], axis=1) for f, m_ in s_sec], axis=1)
+    meta = dict(
+        method=METHOD,
+        elements_per_link=k,
+        h=h,
+        element="ObjectBeamGeometricallyExact",
+        node=f"NodeRigidBody{node}",
+        shear_ratio=float(shear_ratio),
+        integrator="generalized-alpha",
+        rho_inf=float(rho_inf),
+        newton_rel_tol=float(newton_rel_tol),
+        newton_abs_tol=abs_tol,
+        modified_newton=bool(modified_newton),
+        jacobian_per_step=True,
+        linear_solver="EigenSparse",
+        newton_iterations_per_step=newton / max(steps, 1),
+        ode2_size=int(mbs.systemData.ODE2Size()),
+        ae_size=int(mbs.systemData.AEsize()),
+        restarts=[float(x) for x in bps],
+        wall_time_solve=wall,
+        cpu_time=cpu,
+        exudyn=exu.__version__,
+        section_loads="ForceLocal/TorqueLocal of the first element of each link (section frame, x = l/2)"
+        if section_loads
+        else None,
+        energy="beam kinetic + strain (Exudyn), rigid-body kinetic, gravity potential at element midpoints"
+        if energy
+        else None,
+    )
+    return SpatialResult(
+        t=t_out,
+        joint_angle=ja,
+        joint_rate=jr,
+        joint_torque=jt,
+        link_root=root,
+        link_tip=tip,
+        tip_deflection=defl,
+        end_effector=tip[:, -1].copy(),
+        wall_time=wall,
+        n_steps=steps,
+        meta=meta,
+        cut_loads=cut,
+        cut_load_t=t_out if section_loads else None,
+        energy=en,
+        twist=twist,
+        link_rotation=Rl,
+        tip_rotation=Rt,
+    )
+
+
+def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_loads=None, load_steps=10):
+    """Static equilibrium of ``case`` by Exudyn's ``SolveStatic`` (gravity, the torque drives and
+    ``tip_loads`` at t = duration, applied in ``load_steps`` load steps; Newton to 1e-12
+    relative). Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2),
+    ``twist`` (n,), ``section_loads`` (n, 6) (ForceLocal, TorqueLocal of each link's first
+    element, at x = l/2, section frame), ``section_rotation`` (n, 3, 3) (that section frame)."""
+    if isinstance(case, str) or hasattr(case, "__fspath__"):
+        case = load_case(case)
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase or a path to one")
+    k = plumbing.elements_per_link(elements_per_link)
+    plumbing.choice("node", node, NODES)
+    steps = plumbing.positive_integer("load_steps", load_steps)
+    B = _build(case, k, shear_ratio, node, _check_tip_loads(case, tip_loads))
+    mbs, exu = B["mbs"], B["exu"]
+    B["set_inputs"](case.scenario.duration, True)
+    mbs.Assemble()
+    s = exu.SimulationSettings()
+    s.staticSolver.newton.relativeTolerance = 1e-12
+    s.staticSolver.newton.absoluteTolerance = 1e-14 * B["kmax"]
+    s.staticSolver.numberOfLoadSteps = steps
+    s.staticSolver.verboseMode = 0
+    s.solution.file.write = False
+    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+    if not mbs.SolveStatic(s):
+        raise SimulationError(f"Exudyn {METHOD}: SolveStatic failed", t=0.0, step=0, component="newton")
+    OV = exu.OutputVariableType
+    root = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["root_nodes"]])
+    tip = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["tip_nodes"]])
+    Rl = [
+        np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) @ r.T
+        for nd, r in zip(B["root_nodes"], B["rolls"])
+    ]
+    Rt = [
+        np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) @ r.T
+        for nd, r in zip(B["tip_nodes"], B["rolls"])
+    ]
+    d = tip - root
+    sec = np.array(
+        [
+            np.concatenate(
+                [
+                    mbs.GetObjectOutputBody(e, v, localPosition=[0.0, 0.0, 0.0])
+                    for v in (OV.ForceLocal, OV.TorqueLocal)
+                ]
+            )
+            for e in B["first_el"]
+        ]
+    )
+    return dict(
+        link_root=root,
+        link_tip=tip,
+        tip_deflection=np.array([[di @ R[:, 1], di @ R[:, 2]] for di, R in zip(d, Rl)]),
+        twist=np.array([log_so3(a.T @ b)[0] for a, b in zip(Rl, Rt)]),
+        section_loads=sec,
+        section_rotation=np.array(
+            [
+                np.reshape(
+                    mbs.GetObjectOutputBody(e, OV.RotationMatrix, localPosition=[0.0, 0.0, 0.0]), (3, 3)
+                )
+                for e in B["first_el"]
+            ]
+        ),
+    )
