@@ -37,7 +37,7 @@ from .build import STRAINS, build_model, make_work
 from .rotation import left_jacobian
 from .solver import _kernel, as_spatial_case
 
-__all__ = ["StaticResult", "generalized_loads", "statics"]
+__all__ = ["StaticResult", "elastic_forces", "generalized_loads", "statics"]
 
 LOAD_KEYS = ("force", "moment")
 
@@ -119,6 +119,7 @@ class _Problem:
                 pad = np.arange(off, 6)
                 self.cols.append((i, el, pad, md.ie[el] + pad - off))
         self.grav = np.array(case.model.gravity, float)
+        self.cs0 = np.einsum("ig,igj->ij", md.mg, md.s0[:, :4])  # Σ_g m_g s0_g per link
 
     def set(self, e_free):
         q = self.q.copy()
@@ -167,9 +168,9 @@ class _Problem:
                 rO = p + R @ (md.s0[i, 4] + md.Sig[i, 4] @ e)
                 move(rO)
                 qe = md.Sig[i, 4].T @ (R.T @ Fo) + (left_jacobian(e[3:]) @ md.Psi[i, 4]).T @ (R.T @ Mo)
-                for b in range(4):
-                    qe += md.Sig[i, b].T @ (R.T @ (md.mg[i, b] * g))
-                    add(md.mg[i, b], p + R @ (md.s0[i, b] + md.Sig[i, b] @ e))
+                # the Gauss bodies: Σ_g m_g Σ_gᵀ = CSᵀ, their weight at the mass centre
+                qe += md.CS[i].T @ (R.T @ g)
+                add(md.mel[i], p + R @ (self.cs0[i] + md.CS[i] @ e) / md.mel[i])
                 Q[self.cols[el][3]] = qe[self.cols[el][2]]
                 move(p.copy())
             if i == 0:
@@ -190,19 +191,33 @@ class _Problem:
         return np.array(pts)
 
 
-def generalized_loads(case, elements_per_link, q, *, loads=None, engine=None):
-    """Generalized force Q (n_dof,) of gravity and the tip loads (``loads``: ``force`` and/or
-    ``moment``, world components) at the coordinates q (entries of the unlocked joints are 0:
-    the joints are held); and the root section loads (6,) that balance them."""
+def _at(case, elements_per_link, q, strain, engine):
     case = as_spatial_case(case)
     k = plumbing.elements_per_link(elements_per_link)
-    F, M = _loads(loads)
-    pb = _Problem(case, k, "linear", engine, None)
+    plumbing.choice("strain", strain, STRAINS)
+    pb = _Problem(case, k, strain, engine, None)
     q = np.array(q, float)
     if q.shape != (pb.md.ndof,):
         raise InputError("q", q.shape, f"must have shape ({pb.md.ndof},)")
     pb.q = q.copy()
     pb.set(q[pb.free])
+    return pb, q
+
+
+def elastic_forces(case, elements_per_link, q, *, strain="linear", engine=None):
+    """(f_el (n_dof,), K_T (n_dof, n_dof)): the elastic force ∂U/∂q of every element and its
+    tangent at q (zero in the rows and columns of the joint angles)."""
+    pb, q = _at(case, elements_per_link, q, strain, engine)
+    return pb.elastic(q)
+
+
+def generalized_loads(case, elements_per_link, q, *, loads=None, engine=None):
+    """Generalized force Q (n_dof,) of gravity and the tip loads (``loads``: ``force`` and/or
+    ``moment``, world components) at the coordinates q (the joint angles taken as given; the
+    entries of the unlocked joints are 0: the joints are held), and the root section loads (6,)
+    that balance them."""
+    F, M = _loads(loads)
+    pb, _ = _at(case, elements_per_link, q, "linear", engine)
     return pb.external(F, M)
 
 
@@ -242,6 +257,7 @@ def statics(
         lam = s / steps
         pb.grav = lam * g_full
         Fs, Ms = lam * F, lam * M
+        rn_prev = np.inf
         for it in range(max_iterations + 1):
             q = pb.set(x)
             f, KT = pb.elastic(q)
@@ -252,7 +268,8 @@ def statics(
                 raise SimulationError(
                     "statics: non-finite residual", t=lam, step=s - 1, component="elastic coordinates"
                 )
-            if np.linalg.norm(r) <= tol * scale:
+            rn = np.linalg.norm(r)
+            if rn <= tol * scale:
                 break
             if it == max_iterations:
                 raise SimulationError(
@@ -262,15 +279,19 @@ def statics(
                     step=s - 1,
                     component="elastic coordinates",
                 )
-            # load stiffness −∂Q/∂e by forward differences
-            A = KT[np.ix_(fr, fr)].copy()
-            for c in range(fr.size):
-                h = 1e-7 * max(1.0, abs(x[c]))
-                xc = x.copy()
-                xc[c] += h
-                pb.set(xc)
-                A[:, c] -= (pb.external(Fs, Ms)[0][fr] - Q[fr]) / h
-            x = x - np.linalg.solve(A, r)
+            if rn > 0.05 * rn_prev:
+                # a fresh tangent (else the last one is kept while the residual falls fast):
+                # the load stiffness −∂Q/∂e by forward differences
+                A = KT[np.ix_(fr, fr)].copy()
+                for c in range(fr.size):
+                    h = 1e-7 * max(1.0, abs(x[c]))
+                    xc = x.copy()
+                    xc[c] += h
+                    pb.set(xc)
+                    A[:, c] -= (pb.external(Fs, Ms)[0][fr] - Q[fr]) / h
+                lu = np.linalg.inv(A)
+            rn_prev = rn
+            x = x - lu @ r
         factors.append(lam)
         path.append(pb.ws.pT[pb.md.n].copy())
         its.append(it)
