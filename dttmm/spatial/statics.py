@@ -279,7 +279,7 @@ def statics(
                     step=s - 1,
                     component="elastic coordinates",
                 )
-            if rn > 0.05 * rn_prev:
+            if it == 0 or rn > 0.05 * rn_prev:
                 # a fresh tangent (else the last one is kept while the residual falls fast):
                 # the load stiffness −∂Q/∂e by forward differences
                 A = KT[np.ix_(fr, fr)].copy()
