@@ -10,6 +10,7 @@ experiments/cases/spatial/princeton_beam.toml and bend_45deg.toml, every expecte
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -127,57 +128,70 @@ def test_bad_input_is_one_line_input_error(kwargs, field):
 # ------------------------------------------------------------------------ the Princeton beam --
 
 PV = PRINCETON.provenance
-#: measured gap of the Euler–Bernoulli model to ANSYS in |u_y| at F = 13.345 N and β ≥ 30°
-#: (k = 32: 1.9 … 3.4 %; docs/spatial.md); the published 2 % target holds elsewhere
+#: measured gap of the model to ANSYS in |u_y| with GJ = G (Iyy + Izz) 0.198 at β ≥ 60° (F =
+#: 8.896 N) and β ≥ 30° (F = 13.345 N) (k = 32: up to 2.3 % and 3.4 %; docs/spatial.md); the
+#: published 2 % target holds elsewhere, and everywhere with the Saint-Venant GJ
 UY_GAP = 0.035
 
 
-def _princeton(F, beta_deg, k, steps=4):
+def _with_gj(gj):
+    link = PRINCETON.model.links[0]
+    if gj == "0.198":
+        return PRINCETON
+    beam = replace(link.beam, GJ=PV["GJ_saint_venant"])
+    return replace(PRINCETON, model=SpatialManipulator((replace(link, beam=beam),)))
+
+
+def _princeton(F, beta_deg, k, gj, steps=4):
     b = np.radians(beta_deg)
     r = statics(
-        PRINCETON, elements_per_link=k, loads={"force": [0.0, -F * np.cos(b), F * np.sin(b)]}, steps=steps
+        _with_gj(gj), elements_per_link=k, loads={"force": [0.0, -F * np.cos(b), F * np.sin(b)]}, steps=steps
     )
     u = r.tip_position - [PRINCETON.model.links[0].beam.length, 0.0, 0.0]
     return abs(u[1]), u[2]
 
 
-def _princeton_errors(F, j, k):
+def _princeton_errors(F, j, k, gj):
     """Relative errors (|u_y|, u_z) against the ANSYS values of the provenance table; the zero
     entries (u_z at β = 0, |u_y| at β = 90°) measured against the component's other end."""
     tag = "F8896" if F == PV["force"][0] else "F13345"
     uy_ref, uz_ref = PV[f"uy_abs_{tag}"], PV[f"uz_{tag}"]
-    uy, uz = _princeton(F, PV["beta_deg"][j], k)
+    uy, uz = _princeton(F, PV["beta_deg"][j], k, gj)
     return (uy - uy_ref[j]) / (uy_ref[j] or uy_ref[0]), (uz - uz_ref[j]) / (uz_ref[j] or uz_ref[-1])
 
 
-def _tolerance(F, beta, component):
-    if component == "uy" and F == PV["force"][1] and beta >= 30.0:
+def _tolerance(F, beta, component, gj):
+    heavy = F == PV["force"][1]
+    if gj == "0.198" and component == "uy" and beta >= (30.0 if heavy else 60.0):
         return UY_GAP
     return PV["tolerance"]
 
 
+@pytest.mark.parametrize("gj", ["0.198", "saint-venant"])
 @pytest.mark.parametrize("F", [8.896, 13.345])
-@pytest.mark.parametrize("j", [0, 3, 6])
-def test_princeton_beam_against_ansys(F, j):
+@pytest.mark.parametrize("j", [0, 4, 6])
+def test_princeton_beam_against_ansys(F, j, gj):
     """Princeton beam (ANSYS beam values from Obrezkov, Mikkola, Matikainen et al., Nonlinear
     Dyn. 109 (2022), and Bauchau, Han, Mikkola, Matikainen, Gruber, Multibody Syst. Dyn. (2014),
-    doi:10.1007/s11044-014-9430-y; provenance of princeton_beam.toml), β = 0, 45, 90°, k = 8:
-    within the published 2 %, except |u_y| at F = 13.345 N, β ≥ 30° (the measured model gap)."""
-    ey, ez = _princeton_errors(F, j, 8)
+    doi:10.1007/s11044-014-9430-y; provenance of princeton_beam.toml), β = 0, 60, 90°, k = 8,
+    GJ of the case file (G (Iyy + Izz) 0.198) or the Saint-Venant GJ of the provenance: within
+    the published 2 %, except |u_y| with the first GJ at large β (the measured gap, UY_GAP)."""
+    ey, ez = _princeton_errors(F, j, 8, gj)
     beta = PV["beta_deg"][j]
-    assert abs(ey) <= _tolerance(F, beta, "uy")
-    assert abs(ez) <= _tolerance(F, beta, "uz")
+    assert abs(ey) <= _tolerance(F, beta, "uy", gj)
+    assert abs(ez) <= _tolerance(F, beta, "uz", gj)
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("gj", ["0.198", "saint-venant"])
 @pytest.mark.parametrize("k", [4, 8, 16, 32])
 @pytest.mark.parametrize("F", [8.896, 13.345])
-def test_princeton_beam_sweep_and_convergence(F, k):
+def test_princeton_beam_sweep_and_convergence(F, k, gj):
     """The full β sweep of the same ANSYS table at k = 4, 8, 16, 32."""
     for j, beta in enumerate(PV["beta_deg"]):
-        ey, ez = _princeton_errors(F, j, k)
-        assert abs(ey) <= _tolerance(F, beta, "uy"), (beta, ey)
-        assert abs(ez) <= _tolerance(F, beta, "uz"), (beta, ez)
+        ey, ez = _princeton_errors(F, j, k, gj)
+        assert abs(ey) <= _tolerance(F, beta, "uy", gj), (beta, ey)
+        assert abs(ez) <= _tolerance(F, beta, "uz", gj), (beta, ez)
 
 
 # -------------------------------------------------------------------- the 45-degree bend ------
