@@ -2,7 +2,8 @@
 
 The model (:class:`SpatialManipulator` and its parts), cases (:class:`SpatialCase`: a spatial
 manipulator with the planar suite's :class:`dttmm.Scenario`), the embedding of a planar arm
-(:func:`embed_planar`) and the rotation helpers of the discretisation.
+(:func:`embed_planar`), the rotation helpers of the discretisation and the static equilibrium
+with the joints held (:func:`statics`).
 """
 
 from .case import SpatialCase, case_from_dict, load_case
@@ -38,6 +39,9 @@ __all__ = [
     "left_jacobian",
     "log_so3",
     "rpy_matrix",
+    "StaticResult",
+    "statics",
 ]
 
 from .solver import accelerations, simulate  # noqa: E402
+from .statics import StaticResult, statics  # noqa: E402

@@ -1,0 +1,227 @@
+"""Static spatial benchmark problems (docs/spatial.md, "Spatial benchmark problems").
+
+:func:`dttmm.spatial.statics` (Newton on the elastic coordinates, joints held, load stepping):
+its elastic and gravity forces against the independent spatial global solver, small loads
+against the closed forms F L³/3EI (both bending planes) and T L/GJ, the root section loads
+against the global solver's cut loads; then the published problems of
+experiments/cases/spatial/princeton_beam.toml and bend_45deg.toml, every expected value from the
+``[provenance]`` table of the case file (sources cited there and below).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dttmm import InputError, Scenario
+from dttmm.spatial import SpatialCase, SpatialJoint, SpatialLink, SpatialManipulator, load_case, statics
+from dttmm.spatial.statics import elastic_forces, generalized_loads
+from reference_models import spatial_global as sg
+
+CASES = Path(__file__).resolve().parent.parent / "experiments/cases/spatial"
+PRINCETON = load_case(CASES / "princeton_beam.toml")
+BEND = load_case(CASES / "bend_45deg.toml")
+BEAM = load_case(CASES / "cantilever_3d.toml").model.links[0].beam
+
+
+def _clamped(gravity=(0.0, 0.0, 0.0)):
+    link = SpatialLink(BEAM, SpatialJoint(locked=True))
+    return SpatialCase(SpatialManipulator((link,), gravity=gravity), Scenario(1.0, 0.5, ()))
+
+
+# ------------------------------------------------------------------ forces and closed forms --
+
+
+@pytest.mark.parametrize("name", ["cantilever_3d", "three_joint_arm"])
+@pytest.mark.parametrize("strain", ["linear", "second-order"])
+def test_elastic_and_gravity_forces_equal_the_global_solver(name, strain):
+    """f_el, K_T and the gravity force Q_g (hubs, payloads off the axis, held joints at non-zero
+    angles) equal reference_models/spatial_global.py's elastic_forces and generalized_forces at
+    q̇ = 0 at a random deformed state."""
+    case = load_case(CASES / f"{name}.toml")
+    k = 3
+    rng = np.random.default_rng(7)
+    n = len(sg.coordinate_names(case, k))
+    q = 0.05 * rng.standard_normal(n)
+    f, KT = elastic_forces(case, k, q, strain=strain)
+    _, f_ref, K_ref = sg.elastic_forces(case, k, q, strain=strain)
+    names = sg.coordinate_names(case, k)
+    el = np.array([not s.startswith("alpha") for s in names])
+    assert np.abs(f - f_ref).max() <= 1e-10 * np.abs(f_ref).max()
+    assert np.abs(KT - K_ref)[np.ix_(el, el)].max() <= 1e-10 * np.abs(K_ref).max()
+    Q, _ = generalized_loads(case, k, q)
+    Q_ref = sg.generalized_forces(case, k, q, np.zeros(n))
+    assert np.abs(Q - Q_ref)[el].max() <= 1e-10 * np.abs(Q_ref).max()
+
+
+@pytest.mark.parametrize("plane", ["y", "z"])
+def test_small_tip_force_deflects_by_FL3_over_3EI(plane):
+    """Tip force 1e-4 N along y (EIz) or z (EIy), EIy ≠ EIz: δ = F L³/3EI (cubic Hermite elements
+    are nodally exact; the tolerance is the geometric nonlinearity, (δ/L)² ≈ 1e-11)."""
+    F = np.zeros(3)
+    F["yz".index(plane) + 1] = 1e-4
+    r = statics(_clamped(), elements_per_link=4, loads={"force": F})
+    ei = BEAM.EIz if plane == "y" else BEAM.EIy
+    ref = 1e-4 * BEAM.length**3 / (3 * ei)
+    d = r.tip_position - [BEAM.length, 0.0, 0.0]
+    assert abs(d["yz".index(plane) + 1] - ref) <= 1e-8 * ref
+    assert abs(d["zy".index(plane) + 1]) <= 1e-14
+    # the base holds the force and its moment: −F and −L x̂ × F
+    assert np.allclose(r.root_loads[:3], -F, rtol=0, atol=1e-15)
+    assert np.allclose(r.root_loads[3:], -np.cross(r.tip_position, F), rtol=1e-12, atol=1e-18)
+
+
+def test_small_tip_moment_twists_by_TL_over_GJ():
+    """Tip moment T = 1e-4 N·m about x: twist T L/GJ (the linear torsion element is exact)."""
+    from dttmm.spatial.rotation import log_so3
+
+    r = statics(_clamped(), elements_per_link=4, loads={"moment": [1e-4, 0.0, 0.0]})
+    ref = 1e-4 * BEAM.length / BEAM.GJ
+    tw = log_so3(r.tip_rotation)
+    assert abs(tw[0] - ref) <= 1e-10 * ref
+    assert np.abs(tw[1:]).max() <= 1e-14
+    assert np.abs(r.tip_position - [BEAM.length, 0.0, 0.0]).max() <= 1e-14
+
+
+def test_equilibrium_under_gravity_has_the_global_solvers_cut_loads():
+    """cantilever_3d (gravity in y and z, payload off the axis, large enough to rotate the tip
+    visibly): at the equilibrium the global solver's accelerations vanish and its root cut load
+    equals root_loads; the load stepping reaches the same state."""
+    case = load_case(CASES / "cantilever_3d.toml")
+    k = 4
+    r = statics(case, elements_per_link=k, steps=3)
+    r1 = statics(case, elements_per_link=k)
+    assert np.abs(r.q - r1.q).max() <= 1e-9 * np.abs(r.q).max()
+    z = np.zeros_like(r.q)
+    assert np.abs(sg.accelerations(case, k, r.q, z)).max() <= 1e-6
+    cut = sg.cut_loads(case, k, r.q, z)
+    assert np.allclose(r.root_loads, cut[0], rtol=1e-8, atol=1e-9 * np.abs(cut[0]).max())
+    assert r.shape.shape == (k + 1, 3) and np.allclose(r.shape[-1], r.tip_position)
+    assert r.tip_path.shape == (3, 3) and np.allclose(r.tip_path[-1], r.tip_position)
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"loads": {"force": [1.0, 0.0]}}, "loads['force']"),
+        ({"loads": {"moment": "x"}}, "loads['moment']"),
+        ({"loads": {"torque": [0.0, 0.0, 1.0]}}, "loads['torque']"),
+        ({"loads": [0.0, 0.0, 1.0]}, "loads"),
+        ({"steps": 0}, "steps"),
+        ({"tol": -1.0}, "tol"),
+        ({"max_iterations": 2.5}, "max_iterations"),
+        ({"strain": "cubic"}, "strain"),
+        ({"elements_per_link": 0}, "elements_per_link"),
+        ({"angles": [0.1]}, "angles"),
+    ],
+)
+def test_bad_input_is_one_line_input_error(kwargs, field):
+    args = {"elements_per_link": 2, **kwargs}
+    with pytest.raises(InputError) as exc:
+        statics(_clamped(), **args)
+    assert exc.value.field == field and "\n" not in str(exc.value)
+
+
+# ------------------------------------------------------------------------ the Princeton beam --
+
+PV = PRINCETON.provenance
+#: measured gap of the model to ANSYS in |u_y| with GJ = G (Iyy + Izz) 0.198 at β ≥ 60° (F =
+#: 8.896 N) and β ≥ 30° (F = 13.345 N) (k = 32: up to 2.3 % and 3.4 %; docs/spatial.md); the
+#: published 2 % target holds elsewhere, and everywhere with the Saint-Venant GJ
+UY_GAP = 0.035
+
+
+def _with_gj(gj):
+    link = PRINCETON.model.links[0]
+    if gj == "0.198":
+        return PRINCETON
+    beam = replace(link.beam, GJ=PV["GJ_saint_venant"])
+    return replace(PRINCETON, model=SpatialManipulator((replace(link, beam=beam),)))
+
+
+def _princeton(F, beta_deg, k, gj, steps=4):
+    b = np.radians(beta_deg)
+    r = statics(
+        _with_gj(gj), elements_per_link=k, loads={"force": [0.0, -F * np.cos(b), F * np.sin(b)]}, steps=steps
+    )
+    u = r.tip_position - [PRINCETON.model.links[0].beam.length, 0.0, 0.0]
+    return abs(u[1]), u[2]
+
+
+def _princeton_errors(F, j, k, gj):
+    """Relative errors (|u_y|, u_z) against the ANSYS values of the provenance table; the zero
+    entries (u_z at β = 0, |u_y| at β = 90°) measured against the component's other end."""
+    tag = "F8896" if F == PV["force"][0] else "F13345"
+    uy_ref, uz_ref = PV[f"uy_abs_{tag}"], PV[f"uz_{tag}"]
+    uy, uz = _princeton(F, PV["beta_deg"][j], k, gj)
+    return (uy - uy_ref[j]) / (uy_ref[j] or uy_ref[0]), (uz - uz_ref[j]) / (uz_ref[j] or uz_ref[-1])
+
+
+def _tolerance(F, beta, component, gj):
+    heavy = F == PV["force"][1]
+    if gj == "0.198" and component == "uy" and beta >= (30.0 if heavy else 60.0):
+        return UY_GAP
+    return PV["tolerance"]
+
+
+@pytest.mark.parametrize("gj", ["0.198", "saint-venant"])
+@pytest.mark.parametrize("F", [8.896, 13.345])
+@pytest.mark.parametrize("j", [0, 4, 6])
+def test_princeton_beam_against_ansys(F, j, gj):
+    """Princeton beam (ANSYS beam values from Obrezkov, Mikkola, Matikainen et al., Nonlinear
+    Dyn. 109 (2022), and Bauchau, Han, Mikkola, Matikainen, Gruber, Multibody Syst. Dyn. (2014),
+    doi:10.1007/s11044-014-9430-y; provenance of princeton_beam.toml), β = 0, 60, 90°, k = 8,
+    GJ of the case file (G (Iyy + Izz) 0.198) or the Saint-Venant GJ of the provenance: within
+    the published 2 %, except |u_y| with the first GJ at large β (the measured gap, UY_GAP)."""
+    ey, ez = _princeton_errors(F, j, 8, gj)
+    beta = PV["beta_deg"][j]
+    assert abs(ey) <= _tolerance(F, beta, "uy", gj)
+    assert abs(ez) <= _tolerance(F, beta, "uz", gj)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("gj", ["0.198", "saint-venant"])
+@pytest.mark.parametrize("F", [8.896, 13.345])
+def test_princeton_beam_sweep_and_convergence(F, gj):
+    """The full β sweep of the same ANSYS table at k = 8, 16, 32 within the tolerances above
+    (k = 4 is reported in docs/spatial.md, up to 2.3 % off), converging at second order in k:
+    |e(32) − e(16)| ≤ 0.3 |e(16) − e(8)|."""
+    for j, beta in enumerate(PV["beta_deg"]):
+        e = {k: np.array(_princeton_errors(F, j, k, gj)) for k in (8, 16, 32)}
+        for k in e:
+            assert abs(e[k][0]) <= _tolerance(F, beta, "uy", gj), (beta, k, e[k])
+            assert abs(e[k][1]) <= _tolerance(F, beta, "uz", gj), (beta, k, e[k])
+        assert np.all(np.abs(e[32] - e[16]) <= 0.3 * np.abs(e[16] - e[8]) + 1e-4), (beta, e)
+
+
+# -------------------------------------------------------------------- the 45-degree bend ------
+
+BV = BEND.provenance
+R_BEND = 100.0
+
+
+def test_bend_geometry_is_the_arc():
+    """Undeformed tip of the 8 chords at (R sin 45°, R (1 − cos 45°), 0), the last chord at
+    45° − 45°/16 from x, every node on the arc."""
+    r = statics(BEND, elements_per_link=2)
+    s = np.sqrt(0.5)
+    assert np.allclose(r.tip_position, [R_BEND * s, R_BEND * (1 - s), 0.0], rtol=0, atol=1e-12)
+    a = np.pi / 4 - np.pi / 64
+    assert np.allclose(r.tip_rotation[:, 0], [np.cos(a), np.sin(a), 0.0], rtol=0, atol=1e-12)
+    link_ends = r.shape[::2] - [0.0, R_BEND, 0.0]
+    assert np.allclose(np.linalg.norm(link_ends, axis=1), R_BEND, rtol=1e-13)
+
+
+@pytest.mark.parametrize("k", [1, pytest.param(4, marks=pytest.mark.slow)])
+def test_bend_45deg_against_simo_vu_quoc(k):
+    """Bathe–Bolourchi 45° bend, tip force P = 300, 450, 600 lbf along z (one run, 8 load steps
+    of 75 lbf): tip positions of Simo & Vu-Quoc, Comput. Methods Appl. Mech. Eng. 58 (1986),
+    8 elements (provenance of bend_45deg.toml), within 1 % of R (measured 0.42–0.57 %; of the
+    tip displacement 0.7–1.3 %)."""
+    r = statics(BEND, elements_per_link=k, loads={"force": [0.0, 0.0, BV["P"][-1]]}, steps=8)
+    for P, ref in zip(BV["P"], BV["tip_position"]):
+        i = int(round(8 * P / BV["P"][-1])) - 1
+        assert np.linalg.norm(r.tip_path[i] - ref) <= BV["tolerance"] * R_BEND, P
