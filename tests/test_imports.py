@@ -185,7 +185,9 @@ def _env():
 # fresh interpreter reaches after importing the parent alone) and forks again for each module
 # below it not loaded yet. Every module thus starts from exactly the state of a fresh import, and
 # each module body runs once per branch instead of once per module. The root preloads the heavy
-# outside libraries (their import time would dominate) and no project module.
+# outside libraries (their import time would dominate) and no project module; a preload hides only
+# a module-level use of an outside submodule that its module never imports (``scipy.sparse.x``
+# after a bare ``import scipy``).
 _PROBE = """
 import importlib, json, os, sys
 for lib in ("numpy", "scipy.interpolate", "scipy.optimize", "scipy.sparse", "numba", "pandas", "pydantic",
