@@ -117,12 +117,18 @@ def test_elastica_recorded_value_is_the_closed_form():
 
 # ----------------------------------------------------------------------------- DT-TMM converges
 def test_deluca_frequencies_dttmm():
-    """Clamped-link frequencies match the quoted values to their rounding; f2 of link 2
-    converges at about fourth order in k (difference to k = 32)."""
+    """Clamped-link frequencies match the quoted values to their rounding."""
     for name in ("deluca_link1_clamped", "deluca_link2_clamped"):
         case, prov = _problem(name)
         f = B.frequencies(case, 8)
         assert np.all(np.abs(f - prov["values"]) <= prov["tolerance"]), (name, f)
+
+
+@pytest.mark.slow
+def test_deluca_link2_f2_converges_at_fourth_order():
+    """f2 of link 2 converges at about fourth order in k (difference to k = 32); the default
+    tier checks the order of the same linearisation on a cantilever against its closed form
+    (test_modes.py::test_cantilever_converges_at_fourth_order)."""
     case, _ = _problem("deluca_link2_clamped")
     fine = B.frequencies(case, 32)[1]
     ks = [2, 4, 8]

@@ -49,13 +49,20 @@ def test_bad_input_exit_code_and_message(short_case, tmp_path, capsys):
 
 
 def test_console_script_runs(short_case, tmp_path):
+    import os
+
     exe = Path(sys.executable).with_name("dttmm")
+    # the script imports this checkout's code (not another one the environment's package points
+    # to), so it loads the kernel from the on-disk cache the tests have filled, not compiling anew
+    root = str(Path(__file__).resolve().parents[1])
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
     r = subprocess.run(
         [str(exe), "simulate", str(short_case), "-k", "1", "--h", "1e-3", "--out", str(tmp_path)],
         capture_output=True,
         text=True,
         timeout=300,
         check=False,
+        env=env,
     )
     assert r.returncode == 0, r.stderr
     assert "wrote" in r.stdout

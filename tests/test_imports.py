@@ -179,38 +179,69 @@ def _env():
     return {**os.environ, "PYTHONPATH": str(ROOT), "OPENBLAS_NUM_THREADS": "1", "MPLBACKEND": "Agg"}
 
 
-# One interpreter preloads the outside libraries (their import time dominates), then imports
-# each project module in a forked child: every child starts with no project module loaded.
+# Importing ``a.b.c`` into a fresh interpreter runs ``import a``, then ``import a.b`` unless ``a``
+# loaded it, then ``import a.b.c`` unless loaded by then. So the probe walks the package tree in
+# forked processes: a child imports one package or module into its parent's state (the state a
+# fresh interpreter reaches after importing the parent alone) and forks again for each module
+# below it not loaded yet. Every module thus starts from exactly the state of a fresh import, and
+# each module body runs once per branch instead of once per module. The root preloads the heavy
+# outside libraries (their import time would dominate) and no project module; a preload hides only
+# a module-level use of an outside submodule that its module never imports (``scipy.sparse.x``
+# after a bare ``import scipy``).
 _PROBE = """
 import importlib, json, os, sys
-for lib in ("numpy", "scipy", "numba", "pandas", "pyarrow", "matplotlib.pyplot", "tqdm", "dask.distributed",
+for lib in ("numpy", "scipy.interpolate", "scipy.optimize", "scipy.sparse", "numba", "pandas", "pydantic",
+            "pyarrow", "matplotlib.pyplot", "tqdm", "dask.distributed",
             "exudyn", "pinocchio", "mujoco"):
     try:
         importlib.import_module(lib)
     except ImportError:
         pass
-assert not any(m.split(".")[0] in {packages!r} for m in sys.modules), "project module preloaded"
-results = {{}}
-for name in sys.argv[1:]:
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:
-        os.close(r)
-        try:
-            importlib.import_module(name)
-            msg = ""
-        except ModuleNotFoundError as exc:
-            msg = "MISSING " + str(exc.name) + ": " + str(exc)
-        except BaseException as exc:
-            msg = type(exc).__name__ + ": " + str(exc)
-        os.write(w, msg.encode() or b"ok")
-        os._exit(0)
-    os.close(w)
-    with os.fdopen(r, "rb") as f:
-        msg = f.read().decode()
-    _, status = os.waitpid(pid, 0)
-    results[name] = None if msg == "ok" else (msg or "child died (status %d)" % status)
-print(json.dumps(results))
+PROJECT = {packages!r}
+assert not any(m.split(".")[0] in PROJECT for m in sys.modules), "project module preloaded"
+
+
+def error(exc):
+    if isinstance(exc, ModuleNotFoundError):
+        return "MISSING " + str(exc.name) + ": " + str(exc)
+    return type(exc).__name__ + ": " + str(exc)
+
+
+def walk(prefix, names):
+    # name -> None or error, for the modules `names` below `prefix` (loaded already by this process)
+    out = {{n: None for n in names if n in sys.modules}}
+    depth = 0 if prefix is None else prefix.count(".") + 1
+    branches = {{}}
+    for n in names:
+        if n not in out:
+            branches.setdefault(".".join(n.split(".")[: depth + 1]), []).append(n)
+    for head, members in branches.items():
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            os.close(r)
+            try:
+                try:
+                    importlib.import_module(head)
+                    res = walk(head, [m for m in members if m != head])
+                    res[head] = None
+                except BaseException as exc:  # the head fails: so does every module below it alone
+                    res = dict.fromkeys(members, error(exc))
+                with os.fdopen(w, "w") as f:
+                    f.write(json.dumps(res))
+            finally:
+                os._exit(0)
+        os.close(w)
+        with os.fdopen(r) as f:
+            text = f.read()
+        _, status = os.waitpid(pid, 0)
+        got = json.loads(text) if text else {{}}
+        for m in members:
+            out[m] = got.get(m, "child died (status %d)" % status)
+    return out
+
+
+print(json.dumps({{n: v for n, v in walk(None, sys.argv[1:]).items() if n in sys.argv[1:]}}))
 """
 
 
@@ -222,22 +253,43 @@ def _why(msg: str | None) -> str | None:
     return msg
 
 
-@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
-def test_every_module_imports_alone():
+def _probe(names, packages, cwd, env) -> dict[str, str | None]:
+    """Module -> None (imported alone) or its error, from one run of :data:`_PROBE`."""
     import json
 
-    names = [n for n in project_modules() if not n.endswith("__main__")]
-    code = _PROBE.format(packages=set(PACKAGES))
     out = subprocess.run(
-        [sys.executable, "-c", code, *names],
+        [sys.executable, "-c", _PROBE.format(packages=set(packages)), *names],
         check=False,
         capture_output=True,
         text=True,
-        cwd=ROOT,
-        env=_env(),
+        cwd=cwd,
+        env=env,
+        timeout=600,
     )
     assert out.returncode == 0, out.stderr[-3000:]
-    results = {n: _why(m) for n, m in json.loads(out.stdout.strip().splitlines()[-1]).items()}
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+def test_the_probe_sees_a_module_that_needs_another_imported_first(tmp_path):
+    pkg = tmp_path / "orderpkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("import json\nVALUE = 1\n")
+    (pkg / "b.py").write_text("import sys\nVALUE = sys.modules['orderpkg.a'].VALUE + 1\n")  # needs a first
+    (pkg / "c.py").write_text("from orderpkg.a import VALUE\n")
+    (pkg / "d.py").write_text("import no_such_outside_module_xyz\n")
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    got = _probe(["orderpkg.a", "orderpkg.b", "orderpkg.c", "orderpkg.d"], ["orderpkg"], tmp_path, env)
+    assert got["orderpkg.a"] is None and got["orderpkg.c"] is None
+    assert got["orderpkg.b"].startswith("KeyError") and "orderpkg.a" in got["orderpkg.b"]
+    assert got["orderpkg.d"].startswith("MISSING no_such_outside_module_xyz")
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+def test_every_module_imports_alone():
+    names = [n for n in project_modules() if not n.endswith("__main__")]
+    results = {n: _why(m) for n, m in _probe(names, PACKAGES, ROOT, _env()).items()}
     assert set(results) == set(names)
     failed = {n: why for n, why in results.items() if why and not why.startswith("skip")}
     assert failed == {}

@@ -1,5 +1,6 @@
 """URDF export of the rigid arm (dttmm.urdf) and the ``dttmm urdf`` command."""
 
+import os
 import shutil
 import subprocess
 import sys
@@ -91,7 +92,11 @@ def test_console_script():
     exe = str(exe) if exe.exists() else shutil.which("dttmm")
     if exe is None:
         pytest.skip("the dttmm console script is not installed")
-    out = subprocess.run([exe, "urdf", str(THREE)], capture_output=True, text=True, check=True).stdout
+    root = str(Path(__file__).resolve().parents[1])  # this checkout's code, whatever the package points to
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run(
+        [exe, "urdf", str(THREE)], capture_output=True, text=True, check=True, env=env
+    ).stdout
     assert ET.fromstring(out).get("name") == "three_link"
 
 
