@@ -114,10 +114,17 @@ def _library_versions(names: tuple) -> dict:
     return out
 
 
+@functools.cache
+def _packages_distributions() -> dict:
+    """Top-level package -> distributions, read once per process: it reads every installed
+    package's file list (most of a small sweep's time when read per run)."""
+    return importlib.metadata.packages_distributions()
+
+
 def _distribution_of(module: str) -> str | None:
     """The installed distribution that provides ``module``'s top-level package (None: not installed)."""
     top = module.split(".")[0]
-    dists = importlib.metadata.packages_distributions().get(top) or []
+    dists = _packages_distributions().get(top) or []
     return dists[0] if dists else None
 
 
