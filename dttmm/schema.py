@@ -344,13 +344,3 @@ def check_fields(model, where: str, **values) -> dict:
         v = getattr(m, k)
         out[k] = tuple(v) if isinstance(v, list) else v
     return out
-
-
-def __getattr__(name: str):
-    """The file models (``CaseFile``, ``ScenarioFile``, …) live in :mod:`dttmm.case`: they are
-    composed from the classes' declarations, and those classes import this module."""
-    if name in ("CaseFile", "LinkFile", "ModelFile", "ScenarioFile", "validate_case_file"):
-        from . import case
-
-        return getattr(case, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -10,10 +10,10 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import Field, Strict, ValidationError
 
-from ..case import _drive, read_case_text
+from ..case import ScenarioFile, _drive, read_case_text
 from ..errors import InputError
 from ..scenario import Scenario
-from ..schema import Finite, NonNegative, Positive, ScenarioFile, _short, _Strict, input_error
+from ..schema import Finite, NonNegative, Positive, _short, _Strict, input_error
 from .model import (
     BoundedVector3,
     InertiaValue,
