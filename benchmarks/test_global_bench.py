@@ -44,7 +44,7 @@ def test_global_engines(benchmark, engine, k):
     res = run_benchmark(
         benchmark,
         "global",
-        case("three_link", _steps(9 * k) // (20 if engine == "python" else 1)),
+        case("three_link", max(1, _steps(9 * k) // (20 if engine == "python" else 1))),
         k,
         H,
         None,
