@@ -35,6 +35,27 @@ __all__ = [
 MAX_FILE_BYTES = 16 * 2**20
 
 
+def check_case(case, model_type: type, model_name: str, count: str, joint: str) -> None:
+    """The checks every case class makes on construction: ``case.model`` a ``model_type``, a
+    Scenario with one drive per ``joint`` (the model's attribute ``count`` says how many), a
+    string name, and a provenance dict with string keys (kept as a copy) or None."""
+    if not isinstance(case.model, model_type):
+        raise InputError("case.model", case.model, f"must be a {model_name}")
+    if not isinstance(case.scenario, Scenario):
+        raise InputError("case.scenario", case.scenario, "must be a dttmm.Scenario")
+    if not isinstance(case.name, str):
+        raise InputError("case.name", case.name, "must be a string")
+    if case.provenance is not None:
+        if not isinstance(case.provenance, dict) or not all(isinstance(k, str) for k in case.provenance):
+            raise InputError("case.provenance", case.provenance, "must be a dict with string keys or None")
+        object.__setattr__(case, "provenance", dict(case.provenance))
+    n_joints, m = getattr(case.model, count), len(case.scenario.drives)
+    if n_joints != m:
+        raise InputError(
+            "scenario.drives", f"{m} drives", f"needs exactly one drive per {joint} ({n_joints} joints)"
+        )
+
+
 @dataclass(frozen=True)
 class Case:
     """The physical problem every method solves: a manipulator and a scenario.
@@ -49,23 +70,7 @@ class Case:
     provenance: dict | None = field(default=None, compare=False)
 
     def __post_init__(self):
-        if not isinstance(self.model, Manipulator):
-            raise InputError("case.model", self.model, "must be a dttmm.Manipulator")
-        if not isinstance(self.scenario, Scenario):
-            raise InputError("case.scenario", self.scenario, "must be a dttmm.Scenario")
-        if not isinstance(self.name, str):
-            raise InputError("case.name", self.name, "must be a string")
-        if self.provenance is not None:
-            if not isinstance(self.provenance, dict) or not all(isinstance(k, str) for k in self.provenance):
-                raise InputError(
-                    "case.provenance", self.provenance, "must be a dict with string keys or None"
-                )
-            object.__setattr__(self, "provenance", dict(self.provenance))
-        n, m = self.model.n_links, len(self.scenario.drives)
-        if n != m:
-            raise InputError(
-                "scenario.drives", f"{m} drives", f"needs exactly one drive per joint ({n} joints)"
-            )
+        check_case(self, Manipulator, "dttmm.Manipulator", "n_links", "joint")
 
     @property
     def n_joints(self) -> int:

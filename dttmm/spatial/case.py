@@ -10,7 +10,7 @@ from typing import Annotated, Any, Literal, Union
 
 from pydantic import Field, Strict, ValidationError
 
-from ..case import ScenarioFile, _drive, read_case_text
+from ..case import ScenarioFile, _drive, check_case, read_case_text
 from ..errors import InputError
 from ..scenario import Scenario
 from ..schema import Finite, NonNegative, Positive, _short, _Strict, input_error
@@ -40,23 +40,7 @@ class SpatialCase:
     provenance: dict | None = field(default=None, compare=False)
 
     def __post_init__(self):
-        if not isinstance(self.model, SpatialManipulator):
-            raise InputError("case.model", self.model, "must be a dttmm.spatial.SpatialManipulator")
-        if not isinstance(self.scenario, Scenario):
-            raise InputError("case.scenario", self.scenario, "must be a dttmm.Scenario")
-        if not isinstance(self.name, str):
-            raise InputError("case.name", self.name, "must be a string")
-        if self.provenance is not None:
-            if not isinstance(self.provenance, dict) or not all(isinstance(k, str) for k in self.provenance):
-                raise InputError(
-                    "case.provenance", self.provenance, "must be a dict with string keys or None"
-                )
-            object.__setattr__(self, "provenance", dict(self.provenance))
-        n, m = self.model.n_joints, len(self.scenario.drives)
-        if n != m:
-            raise InputError(
-                "scenario.drives", f"{m} drives", f"needs exactly one drive per unlocked joint ({n} joints)"
-            )
+        check_case(self, SpatialManipulator, "dttmm.spatial.SpatialManipulator", "n_joints", "unlocked joint")
 
     @property
     def n_joints(self) -> int:
