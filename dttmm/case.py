@@ -258,11 +258,22 @@ def load_case(path) -> Case:
         raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
     if "name" not in data:
         data["name"] = Path(path).stem
+    if data.get("kind") == "spatial":  # docs/cases.md "Spatial cases"
+        from .spatial.case import case_from_dict as spatial_from_dict
+
+        return spatial_from_dict(data)
     return case_from_dict(data)
 
 
-def case_to_dict(case: Case) -> dict:
-    """The case as a document in the file format (what :func:`save_case` writes)."""
+def case_to_dict(case) -> dict:
+    """The case as a document in the file format (what :func:`save_case` writes); a spatial
+    case as a spatial case document (``dttmm.spatial.case.case_to_dict``)."""
+    if not isinstance(case, Case):
+        from .spatial.case import SpatialCase
+        from .spatial.case import case_to_dict as spatial_to_dict
+
+        if isinstance(case, SpatialCase):
+            return spatial_to_dict(case)
     links = []
     for link in case.model.links:
         b = link.beam
@@ -276,21 +287,25 @@ def case_to_dict(case: Case) -> dict:
         if link.payload is not None:
             d["payload"] = {"mass": link.payload.mass, "inertia": link.payload.inertia}
         links.append(d)
-    drives = []
-    for dr in case.scenario.drives:
-        d = {"kind": dr.kind, "law": dr.law.name, **dr.law.params()}
-        if dr.kind == "torque":
-            d["initial_angle"], d["initial_rate"] = dr.initial_angle, dr.initial_rate
-        drives.append(d)
-    s = case.scenario
     out = {
         "name": case.name,
         "model": {"gravity": list(case.model.gravity), "links": links},
-        "scenario": {"duration": s.duration, "output_step": s.output_step, "drives": drives},
+        "scenario": scenario_to_dict(case.scenario),
     }
     if case.provenance is not None:
         out["provenance"] = dict(case.provenance)
     return out
+
+
+def scenario_to_dict(s: Scenario) -> dict:
+    """The ``[scenario]`` table of a case document (planar and spatial cases share it)."""
+    drives = []
+    for dr in s.drives:
+        d = {"kind": dr.kind, "law": dr.law.name, **dr.law.params()}
+        if dr.kind == "torque":
+            d["initial_angle"], d["initial_rate"] = dr.initial_angle, dr.initial_rate
+        drives.append(d)
+    return {"duration": s.duration, "output_step": s.output_step, "drives": drives}
 
 
 def _key(k: str) -> str:

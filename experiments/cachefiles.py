@@ -96,12 +96,14 @@ def result_bytes(result) -> bytes:
 
 
 def result_from_bytes(data: bytes):
-    """The Result stored as parquet bytes."""
+    """The Result stored as parquet bytes (a SpatialResult when the table has 3-D columns)."""
     import pandas as pd
 
     from dttmm import Result
+    from dttmm.spatial import SpatialResult
 
-    return Result.from_frame(pd.read_parquet(io.BytesIO(data)))
+    df = pd.read_parquet(io.BytesIO(data))
+    return (SpatialResult if "end_effector_z" in df.columns else Result).from_frame(df)
 
 
 def _sealed(record: dict) -> str:

@@ -149,6 +149,10 @@ class Method:
     frequencies : ``module:function`` with ``f(case, k, n) -> Hz`` (lowest n natural frequencies at
         rest, held joints clamped), for methods with the "modes" capability
     label, style : legend label and plot style
+    spatial : ``module:function`` that runs spatial cases (``dttmm.spatial.SpatialCase``) with
+        the same common call, '' when the method runs planar arms only; ``spatial_options``:
+        the (name, value) pairs its spatial calls get instead of ``options`` (None: the same);
+        ``spatial_max_k``: the largest k its spatial runs take in the studies (their cost)
     """
 
     name: str
@@ -177,6 +181,9 @@ class Method:
     entry: str = "simulate"
     simulate: Callable | None = None  # a function given directly (outside methods)
     timeout: float = math.inf  # s per call; a run past it is an omission
+    spatial: str = ""
+    spatial_options: tuple[tuple[str, object], ...] | None = None
+    spatial_max_k: float = math.inf
 
     def __post_init__(self):
         from dttmm.errors import InputError
@@ -196,6 +203,16 @@ class Method:
             )
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
         object.__setattr__(self, "skip", tuple(dict(self.skip).items()))
+        if self.spatial and (self.spatial.count(":") != 1 or not all(self.spatial.split(":"))):
+            raise InputError(f"method {self.name}: spatial", self.spatial, "must be 'module:function'")
+
+    def runs_on(self, case, k: int | None = None) -> bool:
+        """Whether the method runs ``case`` (at k elements per link, when given): every method
+        runs planar cases, those with a ``spatial`` entry spatial ones too, up to
+        ``spatial_max_k``."""
+        if not is_spatial(case):
+            return True
+        return bool(self.spatial) and (k is None or k <= self.spatial_max_k)
 
     def options_for(self, study: str) -> tuple:
         """Extra options the method's runs get in ``study``."""
@@ -282,6 +299,7 @@ _EXUDYN_SHARED = (
     ),
 )
 _DTTMM_LIBS = ("numpy", "scipy", "numba")
+_DTTMM_SPATIAL = "dttmm.spatial:simulate"  # the spatial kernel (docs/spatial.md), same options
 _NO_MODES = _ALL_CAPS - {"modes"}
 _SAME_DISCRETISATION = "the same discretisation as {0}, equal to it to round-off (the cross-checks show it)"
 _EXPLICIT_K = (
@@ -321,6 +339,7 @@ _BUILTIN = (
         check_rank=1,
         frequencies="dttmm.linear:frequencies",
         scans=("links",),  # its element scans are the converged and one-shot variants below
+        spatial=_DTTMM_SPATIAL,
         label="DT-TMM (Newmark)",
         style=Style("C0", "o", "-", 7, hollow=True),
     ),
@@ -341,6 +360,7 @@ _BUILTIN = (
         ),
         base="dttmm",
         scans=("elements",),
+        spatial=_DTTMM_SPATIAL,
         label="DT-TMM (RK4)",
         style=Style("C4", "v", "-", 5),
     ),
@@ -362,6 +382,7 @@ _BUILTIN = (
             ),
         ),
         scans=("elements",),
+        spatial=_DTTMM_SPATIAL,
         label="DT-TMM (2nd-order strain, gen-α 0.8)",
         style=Style("C9", "P", "-", 6),
     ),
@@ -383,6 +404,11 @@ _BUILTIN = (
             ("control:gains", _SAME_DISCRETISATION.format("DT-TMM")),
         ),
         scans=("elements", "links"),
+        spatial="reference_models.spatial_global:simulate",
+        spatial_options=(("integrator", "newmark"),),
+        # the spatial global solver is the readable numpy one: 12 ms a step at k = 4 on
+        # three_joint_arm, 92 ms at k = 16 (measured); it checks DT-TMM at small k
+        spatial_max_k=4,
         label="global equations (Newmark, compiled)",
         style=Style("C3", "^", "--", 4),
     ),
@@ -403,6 +429,9 @@ _BUILTIN = (
             (s, _SAME_DISCRETISATION.format("DT-TMM with the second-order strain"))
             for s in ("convergence_k", "convergence_h", "paper", "cost", "benchmarks", "control:gains")
         ),
+        spatial="reference_models.spatial_global:simulate",
+        spatial_options=(("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
+        spatial_max_k=4,
         label="global equations (2nd-order strain, gen-α 0.8, compiled)",
         style=Style("C6", "<", "--", 5),
     ),
@@ -462,6 +491,10 @@ _BUILTIN = (
             *_EXUDYN_SHARED,
         ),
         scans=("elements",),
+        # spatial arms: ObjectBeamGeometricallyExact (3-D) at its adapter's settings
+        # (generalized-α ρ∞ = 1: with 0.8 Newton failed on three_joint_arm at k = 4, h = 5e-4, measured)
+        spatial="reference_models.exudyn_beam3d:simulate",
+        spatial_options=(),
         label="Exudyn GE beam",
         style=Style("C2", "D", "-", 5),
     ),
@@ -558,6 +591,7 @@ _BUILTIN = (
             ("benchmarks:static_tip_displacement", "rigid links: no deflection"),
         ),
         scans=("elements",),
+        spatial="reference_models.pinocchio_spatial:simulate",
         label="Pinocchio rigid",
         style=Style("k", "*", ":", 9),
     ),
@@ -595,6 +629,22 @@ _EXTRA: dict[str, Method] = {}  # registered at run time (outside, user or test 
 
 
 # ----------------------------------------------------------------------------- lookups
+def is_spatial(case) -> bool:
+    """Whether ``case`` is a spatial arm (a ``dttmm.spatial.SpatialCase``)."""
+    from dttmm.spatial.case import SpatialCase
+
+    return isinstance(case, SpatialCase)
+
+
+def runs_on(name: str, case, k: int | None = None) -> bool:
+    """Whether method ``name`` runs ``case`` at k (a spatial case needs a ``spatial`` entry;
+    see :meth:`Method.runs_on`). An unknown name runs nothing."""
+    try:
+        return get(name).runs_on(case, k)
+    except MethodUnavailable:
+        return False
+
+
 def get(name: str) -> Method:
     """The record of ``name`` (built-in, shown or registered); raises MethodUnavailable."""
     m = _EXTRA.get(name) or METHODS.get(name) or _LOOKS.get(name)
@@ -920,8 +970,9 @@ def entry_points() -> dict:
 def resolve(name: str) -> Callable:
     """The method as ``f(case, k, h, **options) -> Result``; raises MethodUnavailable."""
     m = get(name)
+    spatial = (m.spatial, m.options if m.spatial_options is None else m.spatial_options)
     if m.simulate is not None:
-        return _Bound(m.simulate, m.options, m.uses_k, m.timeout)
+        return _Bound(m.simulate, m.options, m.uses_k, m.timeout, *spatial)
     if m.module is None:
         raise MethodUnavailable(f"{name!r} is shown in figures but not run")
     try:
@@ -931,28 +982,44 @@ def resolve(name: str) -> Callable:
     sim = getattr(module, m.entry, None)
     if sim is None:
         raise MethodUnavailable(f"{m.module} has no {m.entry}()")
-    return _Bound(sim, m.options, m.uses_k, m.timeout)
+    return _Bound(sim, m.options, m.uses_k, m.timeout, *spatial)
 
 
 @dataclass(frozen=True)
 class _Bound:
     """A resolved method; picklable when ``simulate`` is a module-level function. ``timeout``:
-    seconds a call may take before the sweep records it as an omission (inf: no limit)."""
+    seconds a call may take before the sweep records it as an omission (inf: no limit).
+    ``spatial`` (``module:function``) and ``spatial_options`` run spatial cases (imported at
+    the first spatial call)."""
 
     simulate: Callable
     options: tuple
     uses_k: bool
     timeout: float = math.inf
+    spatial: str = ""
+    spatial_options: tuple = ()
+
+    def _target(self, case):
+        if not is_spatial(case):
+            return self.simulate, dict(self.options)
+        if not self.spatial:
+            raise MethodUnavailable("runs planar arms only (its record has no spatial entry)")
+        mod, fn = self.spatial.split(":")
+        try:
+            sim = getattr(importlib.import_module(mod), fn)
+        except Exception as exc:  # noqa: BLE001 - the reason it cannot run spatial arms here
+            raise MethodUnavailable(f"cannot load {self.spatial}: {type(exc).__name__}: {exc}") from None
+        return sim, dict(self.spatial_options)
 
     def __call__(self, case, k, h, **options):
-        opts = dict(self.options)
+        sim, opts = self._target(case)
         opts.update(options)
-        if getattr(self.simulate, "__module__", "").startswith("dttmm."):
+        if getattr(sim, "__module__", "").startswith("dttmm.") and not is_spatial(case):
             # runs of a sweep report through the sweep's own progress bar, not one bar each
             opts.setdefault("progress", False)
         kk = int(k) if self.uses_k else None
         try:
-            return self.simulate(case, elements_per_link=kk, h=float(h), **opts)
+            return sim(case, elements_per_link=kk, h=float(h), **opts)
         except NotImplementedError as exc:
             raise MethodUnavailable(f"not implemented yet{': ' + str(exc) if str(exc) else ''}") from None
 

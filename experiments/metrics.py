@@ -1,7 +1,8 @@
 """Errors of a Result against a reference Result — the one place they are computed.
 
 Quantities: ``ee`` (end-effector position, norm of the difference, m), ``tip{i}`` (tip
-transverse deflection of link i, m) and ``angle{i}`` (joint angle i, rad). Kinds: ``l2`` (RMS
+transverse deflection of link i, m; on a spatial arm the norm of the difference of both
+planes' deflections) and ``angle{i}`` (joint angle i, rad). Kinds: ``l2`` (RMS
 over the output times), ``linf`` (max abs) and ``final`` (at the last output time). Column
 names are ``{quantity}_{kind}``, e.g. ``ee_l2``, ``tip3_linf``, ``angle1_final``.
 """
@@ -66,10 +67,17 @@ def difference_series(result, reference) -> tuple[np.ndarray, dict[str, np.ndarr
     if reference.n_joints != n:
         raise ValueError(f"result has {n} joints, reference {reference.n_joints}")
     d = {"ee": np.linalg.norm(result.end_effector[keep] - _on_grid(rt, reference.end_effector, t), axis=1)}
-    tips = result.tip_deflection[keep] - _on_grid(rt, reference.tip_deflection, t)
+    tip, ref_tip = np.asarray(result.tip_deflection), np.asarray(reference.tip_deflection)
+    if tip.ndim == 3:  # a spatial arm: the deflections in both planes, as one vector per link
+        nt, n_links, _ = tip.shape
+        diff = tip[keep] - _on_grid(rt, ref_tip.reshape(len(rt), -1), t).reshape(-1, n_links, 2)
+        tips = np.linalg.norm(diff, axis=2)
+    else:
+        tips = tip[keep] - _on_grid(rt, ref_tip, t)
     angles = result.joint_angle[keep] - _on_grid(rt, reference.joint_angle, t)
-    for i in range(n):
+    for i in range(tips.shape[1]):
         d[f"tip{i + 1}"] = tips[:, i]
+    for i in range(n):
         d[f"angle{i + 1}"] = angles[:, i]
     return t, d
 

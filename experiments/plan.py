@@ -31,6 +31,8 @@ __all__ = ["CASE_DIR", "PLANS", "SHIPPED", "Plan", "case_fingerprint", "load_cas
 
 CASE_DIR = Path(__file__).resolve().parent / "cases"
 SHIPPED = ("single_link", "three_link", "spin_up")  # the cases of the default report, in order
+#: the spatial arms of the default report (files in ``CASE_DIR/spatial``)
+SPATIAL_SHIPPED = ("three_joint_arm",)
 QUICK_MAX_DURATION = 6.0  # s: the quick size shortens longer cases to this
 
 
@@ -75,7 +77,9 @@ def case_fingerprint(case) -> str:
 
 
 def _case_path(plan: Plan, name: str, case_dir) -> Path:
-    return Path(plan.case_files.get(name) or Path(case_dir) / f"{name}.toml")
+    if name in plan.case_files:
+        return Path(plan.case_files[name])
+    return Path(case_dir) / ("spatial" if name in SPATIAL_SHIPPED else "") / f"{name}.toml"
 
 
 def load_cases(plan: Plan, case_dir=CASE_DIR) -> dict:
@@ -198,6 +202,7 @@ def _plan(
 ):
     ref, chk = _refs(*ref_kh)
     cases = list(durations)
+    planar = [c for c in cases if c not in SPATIAL_SHIPPED]  # the scheme variants are planar-kernel options
     return Plan(
         name,
         durations,
@@ -209,7 +214,7 @@ def _plan(
             "convergence_k": ConvergenceKParams(cases=cases, ks=ks, h=1e-3),
             "convergence_h": ConvergenceHParams(cases=cases, hs=hs, k=k_h, explicit_hs=rk4_h),
             "work_precision": WorkPrecisionParams(cases=cases, path=path, rigid_h=[1e-3]),
-            "scheme": SchemeParams(cases=cases, variants=variants, ks=scheme_ks, h=1e-3, hs=hs, k=k_h),
+            "scheme": SchemeParams(cases=planar, variants=variants, ks=scheme_ks, h=1e-3, hs=hs, k=k_h),
             "paper": PaperParams(
                 cases=cases,
                 k=8,
@@ -267,7 +272,12 @@ _GRID_NOTE = {
 PLANS = {
     "quick": _plan(
         "quick",
-        durations={"single_link": None, "three_link": None, "spin_up": QUICK_MAX_DURATION},
+        durations={
+            "single_link": None,
+            "three_link": None,
+            "spin_up": QUICK_MAX_DURATION,
+            "three_joint_arm": 0.6,
+        },
         ref_kh=(32, 2.5e-4),
         ks=[1, 2, 4, 8, 16],
         hs=[4e-3, 2e-3, 1e-3, 5e-4],
@@ -276,7 +286,8 @@ PLANS = {
         rk4_h=[1e-4, 2e-5, 1e-5],
         cost_ks=[1, 2, 4, 8, 16, 32],
         scheme_ks=[1, 2, 4, 8, 16],
-        note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s; "
+        note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s, the spatial "
+        "three_joint_arm to its first 0.6 s (the torque pulses and 0.1 s of free motion); "
         + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
         bench=_BENCH["quick"],
@@ -284,7 +295,7 @@ PLANS = {
     ),
     "full": _plan(
         "full",
-        durations={"single_link": None, "three_link": None, "spin_up": None},
+        durations={"single_link": None, "three_link": None, "spin_up": None, "three_joint_arm": None},
         ref_kh=(32, 1e-4),
         ks=[1, 2, 4, 8, 16, 32],
         hs=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4],

@@ -129,6 +129,9 @@ def reference(case, candidates, folder, *, check=(), size="", recompute=False):
     jpath.parent.mkdir(parents=True, exist_ok=True)
     failures, res, used, wall = [], None, None, math.nan
     for spec in candidates:
+        if not methods.runs_on(spec.method, case, spec.k):
+            failures.append(f"{spec.describe()}: does not run this case (a spatial arm)")
+            continue
         res, why, wall = _try(spec, case)
         if res is not None:
             used = spec
@@ -158,15 +161,18 @@ def reference(case, candidates, folder, *, check=(), size="", recompute=False):
         n_steps=res.n_steps,
         versions=_versions(res),
         id=f"{used.describe()} @ {prov['date']} #{key[:12]}",
-        cross_check=_cross_check(case, res, check),
+        cross_check=_cross_check(case, res, check, used.method),
     )
     return res, cachefiles.write_entry(jpath, ppath, prov, cachefiles.result_bytes(res))
 
 
-def _cross_check(case, ref, check) -> dict:
-    """Errors of the first working check method against the reference."""
+def _cross_check(case, ref, check, ref_method="") -> dict:
+    """Errors of the first working check method against the reference: the reference's own
+    method, and methods that do not run the case, are passed over."""
     tried = []
     for spec in check:
+        if spec.method == ref_method or not methods.runs_on(spec.method, case, spec.k):
+            continue
         res, why, _ = _try(spec, case)
         if res is None:
             tried.append(why)

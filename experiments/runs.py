@@ -78,7 +78,7 @@ class Outcome:
     timing: dict = field(default_factory=dict)
 
 
-_SHAPES = {  # Result field -> its shape, from (nt, n joints)
+_SHAPES = {  # Result field -> its shape, from (nt, n joints), planar cases
     "joint_angle": lambda nt, n: (nt, n),
     "joint_rate": lambda nt, n: (nt, n),
     "joint_torque": lambda nt, n: (nt, n),
@@ -105,11 +105,18 @@ def malformed(result, case) -> str:
             f"time grid {span} is not the case's output grid "
             f"(0…{grid[-1]:g} s every {case.scenario.output_step:g} s, {grid.size} samples)"
         )
-    n = case.n_joints
-    for name, shape in _SHAPES.items():
+    if methods.is_spatial(case):
+        nt, m, n = t.size, case.n_joints, case.model.n_links
+        want = {"joint_angle": (nt, m), "joint_rate": (nt, m), "joint_torque": (nt, m)}
+        want.update(
+            link_root=(nt, n, 3), link_tip=(nt, n, 3), tip_deflection=(nt, n, 2), end_effector=(nt, 3)
+        )
+    else:
+        want = {name: shape(t.size, case.n_joints) for name, shape in _SHAPES.items()}
+    for name, shape in want.items():
         got = np.shape(getattr(result, name))
-        if got != shape(t.size, n):
-            return f"{name} has shape {got}, expected {shape(t.size, n)}"
+        if got != shape:
+            return f"{name} has shape {got}, expected {shape}"
     return ""
 
 

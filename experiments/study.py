@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from . import methods
 from .context import prepare
 from .plan import PLANS
 from .studies import STUDIES
@@ -32,7 +33,12 @@ def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True)
     """Run the studies ``names`` (default: every study of the plan) and return their tables."""
     names = [n for n in (names or STUDIES) if n in ctx.plan.studies]
     add_cases(ctx, names)
-    per_study = {n: STUDIES[n].tasks(ctx) for n in names}
+    # one rule for every study: a method runs the cases it can (a spatial arm needs a method
+    # with a spatial entry, experiments/methods.py)
+    per_study = {
+        n: [t for t in STUDIES[n].tasks(ctx) if methods.runs_on(t.method, ctx.cases[t.case], t.k)]
+        for n in names
+    }
     every = [t for ts in per_study.values() for t in ts]
     repeats = {}  # timed calls per run: the most any study that reports cost asks for
     for n, ts in per_study.items():

@@ -57,6 +57,9 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
     t0 = time.perf_counter()
     rows = []
     for name, case in cases.items():
+        if methods.is_spatial(case):
+            log(f"motion: {name} skipped (a spatial arm: the animations draw planar link shapes only)")
+            continue
         for m in s["methods"]:
             try:
                 r = methods.run(m, case, s["k"], s["h"], shape_points=s["points"])

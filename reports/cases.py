@@ -18,6 +18,8 @@ def _g(v) -> str:
 
 def link_table(case: dict) -> pd.DataFrame:
     """One row per link (base first) with its beam data, hub, payload and drive, SI units."""
+    if case.get("kind") == "spatial":
+        return spatial_link_table(case)
     rows = []
     drives = case["scenario"]["drives"]
     for i, link in enumerate(case["model"]["links"]):
@@ -33,6 +35,43 @@ def link_table(case: dict) -> pd.DataFrame:
                 "hub m (kg), J (kg·m²)": f"{_g(hub['mass'])}, {_g(hub['inertia'])}" if hub else _NONE,
                 "payload m (kg), J (kg·m²)": f"{_g(pay['mass'])}, {_g(pay['inertia'])}" if pay else _NONE,
                 "drive of joint": drive_text(drives[i]) if i < len(drives) else _NONE,
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def _diag(m) -> str:
+    """A 3×3 inertia as its diagonal, or in full when it has products of inertia."""
+    off = any(m[r][c] for r in range(3) for c in range(3) if r != c)
+    return _value([[float(x) for x in r] for r in m]) if off else _value([float(m[i][i]) for i in range(3)])
+
+
+def spatial_link_table(case: dict) -> pd.DataFrame:
+    """A spatial case's links: joint frame and axis, the section's stiffnesses and inertias,
+    hub and payload (inertias as diagonals when they have no products), drive; SI units."""
+    rows, drives = [], list(case["scenario"]["drives"])
+    for i, link in enumerate(case["model"]["links"]):
+        j, hub, pay = link["joint"], link.get("hub") or {}, link.get("payload") or {}
+        drive = _NONE if j["locked"] else (drive_text(drives.pop(0)) if drives else _NONE)
+        rows.append(
+            {
+                "link": i + 1,
+                "joint axis; origin xyz (m), rpy (rad)": "locked"
+                if j["locked"]
+                else _value(j["axis"]) + f"; {_value(j['origin_xyz'])}, {_value(j['origin_rpy'])}",
+                "L (m)": _g(link["length"]),
+                "EA, GJ (N, N·m²)": f"{_g(link.get('EA')) if link.get('EA') is not None else 'inextensible'}, "
+                f"{_g(link['GJ'])}",
+                "EIy, EIz (N·m²)": f"{_g(link['EIy'])}, {_g(link['EIz'])}",
+                "ρA (kg/m); ρJ, ρIy, ρIz (kg·m)": f"{_g(link['rhoA'])}; {_g(link['rhoJ'])}, {_g(link['rhoIy'])}, "
+                f"{_g(link['rhoIz'])}",
+                "roll (rad), damping (s)": f"{_g(link['roll'])}, {_g(link['damping'])}",
+                "hub m (kg), J (kg·m²)": f"{_g(hub['mass'])}, {_diag(hub['inertia'])}" if hub else _NONE,
+                "payload m (kg), offset (m), J (kg·m²)": f"{_g(pay['mass'])}, {_value(pay['offset'])}, "
+                f"{_diag(pay['inertia'])}"
+                if pay
+                else _NONE,
+                "drive of joint": drive,
             }
         )
     return pd.DataFrame(rows)
@@ -63,10 +102,11 @@ def case_section(meta: dict) -> Section | None:
     files = meta.get("case_files") or {}
     for name, c in cases.items():
         s, g = c["scenario"], c["model"]["gravity"]
-        grav = "none" if not any(g) else f"({_value(float(g[0]))}, {_value(float(g[1]))}) m/s²"
+        grav = "none" if not any(g) else "(" + ", ".join(_value(float(x)) for x in g) + ") m/s²"
         src = f" from {files[name]}" if name in files else ""
+        kind = "a spatial arm, " if c.get("kind") == "spatial" else ""
         text.append(
-            f"{name}{src}: {len(c['model']['links'])} link(s), gravity {grav}, simulated for "
+            f"{name}{src}: {kind}{len(c['model']['links'])} link(s), gravity {grav}, simulated for "
             f"{_value(float(s['duration']))} s with output every {_value(float(s['output_step']) * 1e3)} ms."
         )
         tables.append((f"case_{name}", link_table(c), f"Parameters of {name} (SI units), one row per link"))

@@ -26,7 +26,14 @@ from .model import (
     Vector3,
 )
 
-__all__ = ["SpatialCase", "SpatialCaseFile", "case_from_dict", "load_case", "validate_spatial_file"]
+__all__ = [
+    "SpatialCase",
+    "SpatialCaseFile",
+    "case_from_dict",
+    "case_to_dict",
+    "load_case",
+    "validate_spatial_file",
+]
 
 
 @dataclass(frozen=True)
@@ -169,3 +176,55 @@ def load_case(path) -> SpatialCase:
     if "name" not in data:
         data["name"] = Path(path).stem
     return case_from_dict(data)
+
+
+def case_to_dict(case: SpatialCase) -> dict:
+    """The spatial case as a spatial case document (``kind = "spatial"``): what
+    :func:`case_from_dict` builds the same case from (inertias as full 3×3 rows)."""
+    from ..case import scenario_to_dict
+
+    def rows(m):
+        return [list(r) for r in m]
+
+    links = []
+    for link in case.model.links:
+        b, j = link.beam, link.joint
+        d = {
+            "length": b.length,
+            **({"EA": b.EA} if b.EA is not None else {}),
+            "GJ": b.GJ,
+            "EIy": b.EIy,
+            "EIz": b.EIz,
+            "rhoA": b.rhoA,
+            "rhoJ": b.rhoJ,
+            "rhoIy": b.rhoIy,
+            "rhoIz": b.rhoIz,
+            "roll": b.roll,
+            "damping": b.damping,
+            "joint": {
+                "axis": list(j.axis),
+                "origin_xyz": list(j.origin_xyz),
+                "origin_rpy": list(j.origin_rpy),
+                "locked": j.locked,
+            },
+        }
+        if link.hub is not None:
+            d["hub"] = {"mass": link.hub.mass, "inertia": rows(link.hub.inertia)}
+        if link.payload is not None:
+            p = link.payload
+            d["payload"] = {"mass": p.mass, "offset": list(p.offset), "inertia": rows(p.inertia)}
+        links.append(d)
+    m = case.model
+    out = {
+        "kind": "spatial",
+        "name": case.name,
+        "model": {
+            "gravity": list(m.gravity),
+            "base": {"xyz": list(m.base_xyz), "rpy": list(m.base_rpy)},
+            "links": links,
+        },
+        "scenario": scenario_to_dict(case.scenario),
+    }
+    if case.provenance is not None:
+        out["provenance"] = dict(case.provenance)
+    return out

@@ -28,5 +28,98 @@ class SpatialResult(Result):
     link_rotation: np.ndarray | None = None
     tip_rotation: np.ndarray | None = None
 
-    def to_frame(self):  # pragma: no cover - the planar table has 2-D columns
-        raise NotImplementedError("SpatialResult has no tidy table yet; read its arrays")
+    @property
+    def n_links(self) -> int:
+        return self.link_root.shape[1]
+
+    def to_frame(self):
+        """Tidy table: one row per output time, one column per scalar quantity.
+
+        Columns: t; joint_angle_j, joint_rate_j, joint_torque_j (unlocked joint j = 1..m);
+        per link i = 1..n: link_root_{x,y,z}_i, link_tip_{x,y,z}_i, tip_deflection_{y,z}_i,
+        twist_i and, when recorded, link_rotation_{rc}_i and tip_rotation_{rc}_i (row r,
+        column c of the 3×3 matrix, 1-based); end_effector_{x,y,z}; energy (if computed).
+        ``meta`` goes to ``DataFrame.attrs`` (cut loads are not part of the table).
+        """
+        import pandas as pd
+
+        cols = {"t": self.t}
+        for j in range(self.n_joints):
+            for name in ("joint_angle", "joint_rate", "joint_torque"):
+                cols[f"{name}_{j + 1}"] = getattr(self, name)[:, j]
+        for i in range(self.n_links):
+            for part in ("link_root", "link_tip"):
+                for c, ax in enumerate("xyz"):
+                    cols[f"{part}_{ax}_{i + 1}"] = getattr(self, part)[:, i, c]
+            for c, ax in enumerate("yz"):
+                cols[f"tip_deflection_{ax}_{i + 1}"] = self.tip_deflection[:, i, c]
+            if self.twist is not None:
+                cols[f"twist_{i + 1}"] = self.twist[:, i]
+            for part in ("link_rotation", "tip_rotation"):
+                rot = getattr(self, part)
+                if rot is not None:
+                    for r in range(3):
+                        for c in range(3):
+                            cols[f"{part}_{r + 1}{c + 1}_{i + 1}"] = rot[:, i, r, c]
+        for c, ax in enumerate("xyz"):
+            cols[f"end_effector_{ax}"] = self.end_effector[:, c]
+        if self.energy is not None:
+            cols["energy"] = self.energy
+        df = pd.DataFrame(cols)
+        df.attrs.update(
+            {k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))}
+        )
+        df.attrs.update(kind="spatial", wall_time=self.wall_time, n_steps=self.n_steps, status=self.status)
+        df.attrs["warnings"] = "\n".join(self.warnings)
+        return df
+
+    @classmethod
+    def from_frame(cls, df, meta: dict | None = None) -> SpatialResult:
+        """Rebuild a SpatialResult (without cut loads) from :meth:`to_frame`'s table."""
+        m_j = sum(1 for c in df.columns if c.startswith("joint_angle_"))
+        n = sum(1 for c in df.columns if c.startswith("tip_deflection_y_"))
+        col = lambda name: df[name].to_numpy()
+        per_joint = lambda p: np.column_stack([col(f"{p}_{j}") for j in range(1, m_j + 1)]).reshape(-1, m_j)
+        per_link = lambda p, axes: np.stack(
+            [np.column_stack([col(f"{p}_{a}_{i}") for a in axes]) for i in range(1, n + 1)], axis=1
+        )
+
+        def rotation(p):
+            if f"{p}_11_1" not in df:
+                return None
+            return np.stack(
+                [
+                    np.stack(
+                        [np.column_stack([col(f"{p}_{r}{c}_{i}") for c in (1, 2, 3)]) for r in (1, 2, 3)],
+                        axis=1,
+                    )
+                    for i in range(1, n + 1)
+                ],
+                axis=1,
+            )
+
+        m = dict(df.attrs)
+        m.update(meta or {})
+        m.pop("kind", None)
+        status = m.pop("status", "ok" if m.get("success", True) else "failed")
+        warns = m.pop("warnings", ())
+        warns = tuple(w for w in warns.split("\n") if w) if isinstance(warns, str) else tuple(warns)
+        return cls(
+            t=col("t"),
+            joint_angle=per_joint("joint_angle"),
+            joint_rate=per_joint("joint_rate"),
+            joint_torque=per_joint("joint_torque"),
+            link_root=per_link("link_root", "xyz"),
+            link_tip=per_link("link_tip", "xyz"),
+            tip_deflection=per_link("tip_deflection", "yz"),
+            end_effector=df[["end_effector_x", "end_effector_y", "end_effector_z"]].to_numpy(),
+            wall_time=float(m.pop("wall_time", np.nan)),
+            n_steps=int(m.pop("n_steps", 0)),
+            meta=m,
+            energy=col("energy") if "energy" in df else None,
+            status=status,
+            warnings=warns,
+            twist=np.column_stack([col(f"twist_{i}") for i in range(1, n + 1)]) if "twist_1" in df else None,
+            link_rotation=rotation("link_rotation"),
+            tip_rotation=rotation("tip_rotation"),
+        )
