@@ -3,9 +3,11 @@
 Each method's cost of one call is modelled as ``a · steps · size^p`` CPU seconds, with
 ``steps = duration / h`` and ``size = joints · (k + 1)`` (``joints`` for a rigid method), and
 ``a``, ``p`` fitted by least squares on log CPU time over the runs a report has timed (the
-cached run rows). The fit is stored in ``data/run_costs.json`` (committed, with its provenance)
-and refreshed by ``python -m experiments.estimate --fit``. A method with no fit gets the median
-``a`` with ``p = 1``. A run's estimate counts the calls the timing rule will make
+cached run rows). A method's runs of spatial arms are fitted on their own, under the key
+``<method>@spatial`` (the spatial kernel's element costs several times the planar one's).
+The fit is stored in ``data/run_costs.json`` (committed, with its provenance) and refreshed
+by ``python -m experiments.estimate --fit``. A method with no fit gets the median ``a`` with
+``p = 1``. A run's estimate counts the calls the timing rule will make
 (:mod:`experiments.timing`): one for a run of at least ``LONG_CPU``, else enough to reach
 ``MIN_CPU``, at least the repeats asked for.
 
@@ -32,6 +34,11 @@ COSTS_FILE = Path(__file__).resolve().parents[1] / "data" / "run_costs.json"
 MIN_FIT_CPU = 0.02  # s: runs shorter than this are dominated by per-call overhead, left out of the fit
 
 
+def cost_key(method: str, spatial: bool) -> str:
+    """The key of a method's fitted cost: ``method``, or ``method@spatial`` for spatial arms."""
+    return f"{method}@spatial" if spatial else method
+
+
 def work(task, case) -> tuple[float, float]:
     """(steps, size) of a task: steps = duration / h, size = joints · (k + 1)."""
     n = case.n_joints
@@ -48,7 +55,9 @@ def fit(rows) -> dict:
             continue
         n, k = int(r["n_joints"]), int(r["k"])
         steps, size = float(r["duration"]) / float(r["h"]), n * (k + 1) if k else n
-        by.setdefault(r["method"], []).append((math.log(steps), math.log(size), math.log(cpu)))
+        by.setdefault(cost_key(r["method"], r.get("space") == "spatial"), []).append(
+            (math.log(steps), math.log(size), math.log(cpu))
+        )
     out = {}
     for m, pts in sorted(by.items()):
         x = np.array(pts)
@@ -85,8 +94,10 @@ def load_costs(path=COSTS_FILE) -> dict:
 
 def one_call(task, case, costs: dict) -> float:
     """Estimated CPU seconds of one call of ``task``."""
+    from .methods import is_spatial
+
     steps, size = work(task, case)
-    c = costs.get(task.method)
+    c = costs.get(cost_key(task.method, is_spatial(case)))
     if c is None:
         a = statistics.median([v["a"] for v in costs.values()]) if costs else 1e-6
         c = {"a": a, "p": 1.0}

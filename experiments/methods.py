@@ -406,9 +406,9 @@ _BUILTIN = (
         scans=("elements", "links"),
         spatial="reference_models.spatial_global:simulate",
         spatial_options=(("integrator", "newmark"),),
-        # the spatial global solver is the readable numpy one: 12 ms a step at k = 4 on
-        # three_joint_arm, 92 ms at k = 16 (measured); it checks DT-TMM at small k
-        spatial_max_k=4,
+        # the spatial global solver is the readable numpy one: 6 ms a step at k = 2 on
+        # three_joint_arm, 12 ms at k = 4, 92 ms at k = 16 (measured); it checks DT-TMM at small k
+        spatial_max_k=2,
         label="global equations (Newmark, compiled)",
         style=Style("C3", "^", "--", 4),
     ),
@@ -431,7 +431,7 @@ _BUILTIN = (
         ),
         spatial="reference_models.spatial_global:simulate",
         spatial_options=(("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
-        spatial_max_k=4,
+        spatial_max_k=2,
         label="global equations (2nd-order strain, gen-α 0.8, compiled)",
         style=Style("C6", "<", "--", 5),
     ),

@@ -115,9 +115,12 @@ def load_series(result, case) -> dict[str, np.ndarray]:
     """Load quantities of ``result`` on its output times: name -> (nt,) array (see above)."""
     t = np.asarray(result.t, float)
     out = {}
-    if result.cut_loads is not None and result.cut_load_t is not None:
+    planar = np.shape(result.end_effector)[-1] == 2  # a spatial arm's root moment is a vector: not compared
+    if planar and result.cut_loads is not None and result.cut_load_t is not None:
         out["moment1"] = np.interp(t, result.cut_load_t, result.cut_loads[:, 0, 0])
-    elif t.size >= 3 and case.model.links[0].hub_inertia > 0:  # without a hub it is joint 1's torque
+    elif (
+        planar and t.size >= 3 and case.model.links[0].hub_inertia > 0
+    ):  # without a hub it is joint 1's torque
         J = case.model.links[0].hub_inertia
         out["moment1"] = result.joint_torque[:, 0] - J * np.gradient(result.joint_rate[:, 0], t, edge_order=2)
     for i, d in enumerate(case.scenario.drives):

@@ -120,6 +120,12 @@ def malformed(result, case) -> str:
     return ""
 
 
+def _is_spatial_result(result) -> bool:
+    from dttmm.spatial.result import SpatialResult
+
+    return isinstance(result, SpatialResult)
+
+
 def _check(result, case=None) -> str:
     """Why a returned Result is not usable ('' when it is).
 
@@ -375,6 +381,7 @@ class RunStore:
             "reason": reason,
             "warnings": "; ".join(getattr(res, "warnings", ())),
             "n_joints": n_joints,
+            "space": "spatial" if _is_spatial_result(res) else "planar",
             "wall_time": float(res.wall_time) if res is not None else math.nan,
             "run_time": outcome.run_time,
             "n_steps": int(res.n_steps) if res is not None else -1,

@@ -38,6 +38,13 @@ def tiny_spatial_plan() -> Plan:
                 "path": [(1, 4e-3), (2, 2e-3)],
                 "rigid_h": [2e-3],
             },
+            "paper": {
+                "cases": [CASE],
+                "methods": [*SPATIAL, "pinocchio-rigid"],
+                "k": 2,
+                "h": 2e-3,
+                "energy_reference": {"method": "dttmm", "k": 4, "h": 5e-4},
+            },
         },
         "tiny spatial test size",
         output_step=4e-3,
@@ -93,4 +100,16 @@ def test_runs_on_rules():
     planar = dttmm.load_case("experiments/cases/three_link.toml")
     assert methods.runs_on("amm", planar) and not methods.runs_on("amm", arm)
     assert methods.runs_on("dttmm", arm, 64)
-    assert methods.runs_on("global", arm, 4) and not methods.runs_on("global", arm, 8)
+    assert methods.runs_on("global", arm, 2) and not methods.runs_on("global", arm, 4)
+
+
+def test_spatial_paper_series(report):
+    _, tables, md, _ = report
+    summ = tables["paper_summary"]
+    assert set(summ.method) == {*SPATIAL, "pinocchio-rigid", "reference"}
+    # energy against the reference's (DT-TMM records it): the coarse DT-TMM run is off by a
+    # small fraction of it, the rigid arm (which has no strain energy) by far more
+    loads = tables["paper_loads"].set_index("method")
+    assert 0 < loads.energy_rel["dttmm"] < 1e-3
+    assert loads.energy_rel["pinocchio-rigid"] > 10 * loads.energy_rel["dttmm"]
+    assert "paper_three_joint_arm.png" in md
