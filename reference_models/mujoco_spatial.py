@@ -3,12 +3,12 @@ three-hinge elastic stations (docs/mujoco.md, "Spatial chain").
 
 Lumping rule, link of length L, k segments of length l = L/k (the planar chain's rule in 3-D):
 
-* k elastic stations at x_j = (j − ½) l, j = 1 … k. Each is three hinges through one point, in
-  this order: bending about the section's z axis (stiffness EIz/l: deflection along y), bending
-  about its y axis (EIy/l: deflection along z), twist about x (GJ/l); each with a damper of μ
-  times its stiffness (the beam's Kelvin–Voigt D = μK). The section axes are the link frame's
-  turned by ``roll`` about x. Axial stiffness: rigid (EA is not used; the pieces keep their
-  lengths).
+* k elastic stations at x_j = (j − ½) l, j = 1 … k. Each is three hinges through one point:
+  bending about the section's z axis (stiffness EIz/l: deflection along y), bending about its y
+  axis (EIy/l: deflection along z) and twist about x (GJ/l), in this order at odd stations and
+  in the reverse order at even ones; each with a damper of μ times its stiffness (the beam's
+  Kelvin–Voigt D = μK). The section axes are the link frame's turned by ``roll`` about x.
+  Axial stiffness: rigid (EA is not used; the pieces keep their lengths).
 * k + 1 rigid pieces between the stations: [0, l/2] behind the arm joint (the hub body), k − 1
   full pieces [(j − ½) l, (j + ½) l] and the half piece [L − l/2, L] at the tip. Each piece
   carries its share of the beam: mass ρA·len at its centre, the rod inertia ρA·len³/12 about
@@ -20,11 +20,16 @@ Lumping rule, link of length L, k segments of length l = L/k (the planar chain's
 Each spring stands for the compliance of the segment of length l centred on it (the midpoint
 rule for ∫ M/EI ds and ∫ T/GJ ds): a tip force deflects the chain by F L³/(3EI)·(1 − 1/(4k²)),
 a tip torque twists it by exactly T L/GJ; the natural frequencies and the dynamics converge at
-O(1/k²) (measured, docs/mujoco.md). Three hinges rather than a ball joint: MuJoCo's ball-joint
-stiffness is one scalar (isotropic), so EIy ≠ EIz ≠ GJ would need three actuators per ball;
-three hinges give the three stiffnesses directly and cost no more per step (measured). The
-hinge triple is a Cardan chart of the station's relative rotation, singular only at a 90°
-bend of one station.
+O(1/k²) (measured, docs/mujoco.md).
+
+Why three hinges, and why the alternating order: a hinge triple is a Cardan chart of the
+station's relative rotation; its twist angle differs from the rotation vector's by ½ θz θy
+(second order per station, so first order in 1/k summed over a link bent in both planes): with
+one order at every station the twist converged at first order (measured); reversing it at every
+other station flips the sign of that term and restores second order. A ball joint (the exact
+rotation vector) needs three affine-bias actuators for EIy ≠ EIz ≠ GJ, since MuJoCo's ball
+stiffness is one scalar; it was measured as accurate as the alternating hinges, and no cheaper
+(docs/mujoco.md). The chart is singular only at a 90° bend of one station.
 
 MuJoCo's compiler requires every body inertia to satisfy the triangle inequality; a short piece
 of a beam with ρJ > ρIy + ρIz (e.g. the bending rotary inertia neglected) violates it. The
