@@ -241,8 +241,10 @@ def _free_controls(st, T):
 
 def _bad_rows(X, T, h):
     """Indices of state rows (time first) that are non-finite or whose time is not the node's
-    (MuJoCo resets the data, time included, when it finds the state unstable)."""
-    off = np.abs(X[:, 0] - T) > 1e-6 * h
+    (MuJoCo resets the data, time included, when it finds the state unstable: its time then
+    falls back by at least one step). MuJoCo's time is a running sum of steps, so after 1e5 and
+    more steps it drifts from the node's by many ulps; half a step is the tolerance."""
+    off = np.abs(X[:, 0] - T) > 0.5 * h
     return np.flatnonzero(off | ~np.isfinite(X).all(axis=1))
 
 

@@ -1,0 +1,661 @@
+"""MuJoCo peer for spatial arms: every flexible link a chain of k rigid pieces joined by
+three-hinge elastic stations (docs/mujoco.md, "Spatial chain").
+
+Lumping rule, link of length L, k segments of length l = L/k (the planar chain's rule in 3-D):
+
+* k elastic stations at x_j = (j − ½) l, j = 1 … k. Each is three hinges through one point:
+  bending about the section's z axis (stiffness EIz/l: deflection along y), bending about its y
+  axis (EIy/l: deflection along z) and twist about x (GJ/l), in this order at odd stations and
+  in the reverse order at even ones; each with a damper of μ times its stiffness (the beam's
+  Kelvin–Voigt D = μK). The section axes are the link frame's turned by ``roll`` about x.
+  Axial stiffness: rigid (EA is not used; the pieces keep their lengths).
+* k + 1 rigid pieces between the stations: [0, l/2] behind the arm joint (the hub body), k − 1
+  full pieces [(j − ½) l, (j + ½) l] and the half piece [L − l/2, L] at the tip. Each piece
+  carries its share of the beam: mass ρA·len at its centre, the rod inertia ρA·len³/12 about
+  the two transverse axes and the section inertia len·Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ.
+  The rigid-body inertia of every link is therefore exact at any k. The hub (mass at the root
+  point, full inertia about it, link frame) joins piece 0; the payload (mass at its offset in
+  the tip frame, full inertia about its centre) joins piece k.
+
+Each spring stands for the compliance of the segment of length l centred on it (the midpoint
+rule for ∫ M/EI ds and ∫ T/GJ ds): a tip force deflects the chain by F L³/(3EI)·(1 − 1/(4k²)),
+a tip torque twists it by exactly T L/GJ; the natural frequencies and the dynamics converge at
+O(1/k²) (measured, docs/mujoco.md).
+
+Why three hinges, and why the alternating order: a hinge triple is a Cardan chart of the
+station's relative rotation; its twist angle differs from the rotation vector's by ½ θz θy
+(second order per station, so first order in 1/k summed over a link bent in both planes): with
+one order at every station the twist converged at first order (measured); reversing it at every
+other station flips the sign of that term and restores second order. A ball joint (the exact
+rotation vector) needs three affine-bias actuators for EIy ≠ EIz ≠ GJ, since MuJoCo's ball
+stiffness is one scalar; it was measured as accurate as the alternating hinges, and no cheaper
+(docs/mujoco.md). The chart is singular only at a 90° bend of one station.
+
+MuJoCo's compiler requires every body inertia to satisfy the triangle inequality; a short piece
+of a beam with ρJ > ρIy + ρIz (e.g. the bending rotary inertia neglected) violates it. The
+model is therefore compiled with placeholder inertias and the exact mass, centre and principal
+inertia (its eigen-decomposition) of every body are written into the compiled model
+(``body_mass``, ``body_ipos``, ``body_iquat``, ``body_inertia``; ``mj_setConst`` after). The
+dynamics do not need the inequality: the mass matrix stays positive definite.
+
+Joints as in URDF (docs/spatial.md §1): the hub body of link i sits at the parent frame (the
+base frame, a fixed body at ``base_xyz``/``base_rpy``, for link 1; else the tip frame of link
+i − 1, a point l/2 beyond its last station) moved by ``origin_xyz`` and turned by
+``origin_rpy``; an unlocked joint is a hinge about ``axis`` (joint frame) at the body origin, a
+locked one welds the body (no joint). Gravity is MuJoCo's ``gravity`` option (the case's
+vector).
+
+Time integration, drives and the fast loop are the planar chain's (:mod:`mujoco_chain`):
+``implicitfast`` with a fixed step h (the springs explicit: h < 2/ω_max, ``meta["h_stable"]``),
+torque drives as motors with the control τ(t_k + Δt/2) stepped by ``mujoco.rollout``, motion
+drives by Newton on the motor torque of each step so that the joint angle at the step end is the
+law's. Closed-loop drives are refused (the spatial suite has no closed-loop state yet).
+
+Outputs as :func:`dttmm.spatial.simulate`: joint angles, rates and torques of the unlocked
+joints; link roots (the hub bodies' origins) and link frames (their orientation), tips (a site at
+the end of the last piece) and tip frames (the last piece's orientation); tip deflections
+(components of tip − root along the link frame's y and z axes), twist (x component of
+log(R_rootᵀ R_tip)), end effector, energy (MuJoCo's kinetic + gravity + spring energy; gravity
+zero at the world origin). Cut loads: not computed (None).
+
+MuJoCo is imported here only.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from dttmm import plumbing
+from dttmm.drives import require_open_loop
+from dttmm.errors import InputError, SimulationError
+from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
+from dttmm.spatial.rotation import log_so3, rpy_matrix
+from dttmm.timegrid import step_schedule
+
+from ._mujoco_model import _MJCF_NAME, INTEGRATORS
+from .mujoco_chain import _free_controls, _run_motion, _run_torque
+
+__all__ = [
+    "INTEGRATORS",
+    "SpatialLayout",
+    "build",
+    "natural_frequencies",
+    "piece_properties",
+    "simulate",
+    "stability_limit",
+    "statics",
+    "xml",
+]
+
+METHOD = "mujoco-spatial"
+_OPTIONS = {"motion_tol": 1e-12, "motion_max_iter": 10, "station": "hinges"}
+STATIONS = ("hinges", "hinges-zyx", "ball")
+#: the three hinges of an elastic station: name suffix, axis in the section frame, stiffness key
+STATION = (("bz", (0.0, 0.0, 1.0), "EIz"), ("by", (0.0, 1.0, 0.0), "EIy"), ("tx", (1.0, 0.0, 0.0), "GJ"))
+
+
+@dataclass(frozen=True)
+class SpatialLayout:
+    """Where things are in the compiled model (m unlocked joints, n links, k stations).
+
+    arm_qpos, arm_dof : (m,) qpos and dof index of each unlocked joint, in drive order
+    flex_qpos : (n, k, 3) qpos indices of the hinges (bend z, bend y, twist) of every station
+        (−1 for ball stations)
+    hub_body, tip_body : (n,) body id of each link's root piece and tip piece
+    tip_site : (n,) site id of each link tip
+    """
+
+    arm_qpos: np.ndarray
+    arm_dof: np.ndarray
+    flex_qpos: np.ndarray
+    hub_body: np.ndarray
+    tip_body: np.ndarray
+    tip_site: np.ndarray
+
+
+def _rx(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _combine(parts):
+    """(mass, centre (3,), inertia (3, 3) about the centre) of parts (mass, centre, own inertia)."""
+    m = sum(p[0] for p in parts)
+    c = sum(p[0] * np.asarray(p[1], float) for p in parts) / m
+    J = np.zeros((3, 3))
+    for mp, cp, Jp in parts:
+        d = np.asarray(cp, float) - c
+        J += np.asarray(Jp, float) + mp * (d @ d * np.eye(3) - np.outer(d, d))
+    return m, c, 0.5 * (J + J.T)
+
+
+def piece_properties(link, k: int):
+    """The rigid pieces of one link: list of (body offset (3,), mass, centre (3,), inertia (3, 3)).
+
+    Offsets and centres (m) are in the piece's own frame, whose origin is the station in front
+    of it (the joint for piece 0) and whose axes are the link frame's when undeformed; the
+    inertia (kg·m²) is about the centre. Piece 0 includes the hub, piece k the payload.
+    """
+    b = link.beam
+    l = b.length / k
+    Rr = _rx(b.roll)
+    section = Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
+    out = []
+    for j in range(k + 1):
+        ln = l / 2 if j in (0, k) else l
+        rod = b.rhoA * ln**3 / 12
+        parts = [(b.rhoA * ln, (ln / 2, 0.0, 0.0), np.diag([0.0, rod, rod]) + ln * section)]
+        if j == 0 and link.hub is not None and link.hub.mass > 0:
+            parts.append((link.hub.mass, (0.0, 0.0, 0.0), link.hub_inertia))
+        elif j == 0 and link.hub is not None:  # inertia without mass: a pure rotor at the root
+            parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.hub_inertia)
+        if j == k and link.payload is not None:
+            c = np.array([ln, 0.0, 0.0]) + link.payload_offset
+            if link.payload.mass > 0:
+                parts.append((link.payload.mass, c, link.payload_inertia))
+            else:
+                parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.payload_inertia)
+        offset = 0.0 if j == 0 else (l / 2 if j == 1 else l)
+        out.append((np.array([offset, 0.0, 0.0]), *_combine(parts)))
+    return out
+
+
+def _f(x) -> str:
+    return " ".join(repr(float(v)) for v in np.atleast_1d(x))
+
+
+def _quat(R) -> np.ndarray:
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
+    return q
+
+
+def xml(
+    manipulator: SpatialManipulator,
+    k: int,
+    h: float,
+    integrator: str = "implicitfast",
+    station: str = "hinges",
+) -> str:
+    """MJCF of the spatial arm (undeformed links, every joint angle 0); body inertias are
+    placeholders (see the module notes: :func:`build` writes the exact ones).
+
+    ``station``: ``"hinges"`` (three hinges, the order bend z, bend y, twist at odd stations and
+    reversed at even ones), ``"hinges-zyx"`` (the same order everywhere) or ``"ball"`` (a ball
+    joint whose three stiffnesses and dampers are affine-bias actuators on the section axes, the
+    torque −(K φ + μ K ω) with φ the ball's rotation vector). The last two exist for the
+    comparison in docs/mujoco.md."""
+    g = manipulator.gravity
+    lines = [
+        '<mujoco model="dttmm-spatial-chain">',
+        '  <compiler angle="radian" autolimits="true"/>',
+        f'  <option timestep="{_f(h)}" integrator="{_MJCF_NAME[integrator]}" gravity="{_f(g)}">',
+        '    <flag contact="disable" energy="enable"/>',
+        "  </option>",
+        "  <worldbody>",
+        f'    <body name="base" pos="{_f(manipulator.base_xyz)}" quat="{_f(_quat(manipulator.base_rotation))}">',
+    ]
+    closers = ["    </body>"]
+    acts = []
+    depth = 6
+    parent_tip = 0.0  # the tip frame of the parent link: l/2 beyond its last station
+    for i, link in enumerate(manipulator.links):
+        b, jn = link.beam, link.joint
+        l = b.length / k
+        Rr = _rx(b.roll)
+        for j, (offset, m, c, J) in enumerate(piece_properties(link, k)):
+            pad = " " * depth
+            if j == 0:
+                pos = np.array([parent_tip, 0.0, 0.0]) + np.array(jn.origin_xyz)
+                quat = _quat(rpy_matrix(jn.origin_rpy))
+                lines.append(f'{pad}<body name="link{i}_0" pos="{_f(pos)}" quat="{_f(quat)}">')
+                if not jn.locked:
+                    lines.append(f'{pad}  <joint name="arm{i}" type="hinge" axis="{_f(jn.axis)}"/>')
+            else:
+                lines.append(f'{pad}<body name="link{i}_{j}" pos="{_f(offset)}">')
+                seq = STATION if (station == "hinges-zyx" or j % 2 == 1) else STATION[::-1]
+                if station == "ball":
+                    seq = ()
+                    lines.append(f'{pad}  <joint name="ball{i}_{j}" type="ball"/>')
+                    for _, axis, key in STATION:
+                        stiff = getattr(b, key) / l
+                        acts.append(
+                            f'    <general joint="ball{i}_{j}" gear="{_f(Rr @ np.array(axis))} 0 0 0" gainprm="0" '
+                            f'biastype="affine" biasprm="0 {_f(-stiff)} {_f(-b.damping * stiff)}"/>'
+                        )
+                for tag, axis, key in seq:
+                    stiff = getattr(b, key) / l
+                    lines.append(
+                        f'{pad}  <joint name="{tag}{i}_{j}" type="hinge" axis="{_f(Rr @ np.array(axis))}" '
+                        f'stiffness="{_f(stiff)}" damping="{_f(b.damping * stiff)}" springref="0"/>'
+                    )
+            ev = max(float(np.trace(J)) / 3.0, 1e-12)
+            lines.append(f'{pad}  <inertial pos="{_f(c)}" mass="{_f(m)}" diaginertia="{_f([ev, ev, ev])}"/>')
+            if j == k:
+                lines.append(f'{pad}  <site name="tip{i}" pos="{_f(l / 2 if k > 0 else 0.0)} 0 0"/>')
+            closers.append(f"{pad}</body>")
+            depth += 2
+        parent_tip = l / 2
+    lines += closers[::-1]
+    lines.append("  </worldbody>")
+    lines.append("  <actuator>")
+    for i in manipulator.unlocked:
+        lines.append(f'    <motor name="drive{i}" joint="arm{i}" gear="1"/>')
+    lines += acts
+    lines += ["  </actuator>", "</mujoco>"]
+    return "\n".join(lines)
+
+
+def _set_inertias(m, manipulator, k):
+    """Write the exact mass properties of every piece into the compiled model."""
+    for i, link in enumerate(manipulator.links):
+        for j, (_, mass, c, J) in enumerate(piece_properties(link, k)):
+            bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}")
+            w, V = np.linalg.eigh(J)
+            if np.linalg.det(V) < 0:
+                V[:, 0] = -V[:, 0]
+            m.body_mass[bid] = mass
+            m.body_ipos[bid] = c
+            m.body_iquat[bid] = _quat(V)
+            m.body_inertia[bid] = np.maximum(w, 0.0)
+
+
+def layout(m, manipulator, k: int) -> SpatialLayout:
+    """Index maps of a compiled :func:`xml` model."""
+
+    def jq(name):
+        return int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)])
+
+    def bid(name):
+        return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
+
+    n = manipulator.n_links
+    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "bz0_1") < 0:  # ball stations
+        flex = np.full((n, k, 3), -1, int)
+    else:
+        flex = [[[jq(f"{tag}{i}_{j}") for tag, _, _ in STATION] for j in range(1, k + 1)] for i in range(n)]
+    arm = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"arm{i}") for i in manipulator.unlocked]
+    return SpatialLayout(
+        arm_qpos=np.array([jq(f"arm{i}") for i in manipulator.unlocked], int),
+        arm_dof=np.array([m.jnt_dofadr[j] for j in arm], int),
+        flex_qpos=np.array(flex, int).reshape(n, k, 3),
+        hub_body=np.array([bid(f"link{i}_0") for i in range(n)], int),
+        tip_body=np.array([bid(f"link{i}_{k}") for i in range(n)], int),
+        tip_site=np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"tip{i}") for i in range(n)], int),
+    )
+
+
+def build(
+    manipulator: SpatialManipulator,
+    k: int,
+    h: float = 1e-3,
+    integrator: str = "implicitfast",
+    station="hinges",
+):
+    """Compile the chain with the exact piece inertias: returns (MjModel, MjData, SpatialLayout)."""
+    plumbing.choice("station", station, STATIONS)
+    if not isinstance(manipulator, SpatialManipulator):
+        raise InputError("model", manipulator, "must be a dttmm.spatial.SpatialManipulator")
+    k = plumbing.elements_per_link(k)
+    m = mujoco.MjModel.from_xml_string(xml(manipulator, k, h, integrator, station))
+    _set_inertias(m, manipulator, k)
+    d = mujoco.MjData(m)
+    mujoco.mj_setConst(m, d)
+    return m, d, layout(m, manipulator, k)
+
+
+def _eig_mk(m, d, dofs=None):
+    """Generalised eigenpairs (ω², modes) of (K, M) at the state in d over ``dofs`` (all if None)."""
+    import scipy.linalg
+
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    K = np.diag(m.jnt_stiffness[m.dof_jntid])
+    if dofs is not None:
+        M, K = M[np.ix_(dofs, dofs)], K[np.ix_(dofs, dofs)]
+    return scipy.linalg.eigh(K, M)
+
+
+def stability_limit(m, d, integrator: str = "implicitfast") -> tuple[float, float]:
+    """(ω_max rad/s, the largest stable step c/ω_max s) of the undamped linearised chain at d."""
+    w2 = _eig_mk(m, d)[0]
+    wmax = math.sqrt(max(float(w2[-1]), 0.0))
+    return wmax, (INTEGRATORS[integrator] / wmax if wmax > 0 else math.inf)
+
+
+def natural_frequencies(link, k: int, n_modes: int = 3) -> dict:
+    """The lowest ``n_modes`` natural frequencies (rad/s) of one link clamped at its root (joint
+    locked, no gravity, hub and payload included), per family: ``"EIz"`` (bending along the
+    section's y axis), ``"EIy"`` (along z) and ``"GJ"`` (torsion). A mode belongs to the family
+    whose hinges carry most of its (mass-normalised) shape; at rest the families decouple for a
+    straight link whose payload sits on its axis."""
+    import dataclasses
+
+    from dttmm.spatial import SpatialJoint
+
+    link = dataclasses.replace(link, joint=SpatialJoint(locked=True))
+    manip = SpatialManipulator((link,))
+    m, d, lay = build(manip, k)
+    w2, V = _eig_mk(m, d)
+    fam = np.argmax([np.sum(V[lay.flex_qpos[0, :, c]] ** 2, axis=0) for c in range(3)], axis=0)
+    out = {}
+    for c, (_, _, key) in enumerate(STATION):
+        sel = np.sqrt(np.clip(w2[fam == c], 0.0, None))
+        out[key] = sel[:n_modes]
+    return out
+
+
+def _vector3(field, value):
+    try:
+        v = np.array(value, float)
+    except (TypeError, ValueError):
+        raise InputError(field, value, "must be 3 finite numbers") from None
+    if isinstance(value, (str, bool)) or v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise InputError(field, value, "must be 3 finite numbers")
+    return v
+
+
+def _frames(m, d, lay):
+    """(root (n, 3), R_link (n, 3, 3), tip (n, 3), R_tip (n, 3, 3)) at the kinematics in d."""
+    root = d.xpos[lay.hub_body].copy()
+    Rl = d.xmat[lay.hub_body].reshape(-1, 3, 3).copy()
+    tip = d.site_xpos[lay.tip_site].copy()
+    Rt = d.xmat[lay.tip_body].reshape(-1, 3, 3).copy()
+    return root, Rl, tip, Rt
+
+
+def _deflection_twist(root, Rl, tip, Rt):
+    dv = tip - root
+    defl = np.stack(
+        [np.einsum("...i,...i->...", dv, Rl[..., 1]), np.einsum("...i,...i->...", dv, Rl[..., 2])], -1
+    )
+    twist = np.array([log_so3(a.T @ b)[0] for a, b in zip(Rl.reshape(-1, 3, 3), Rt.reshape(-1, 3, 3))])
+    return defl, twist.reshape(defl.shape[:-1])
+
+
+def statics(case, elements_per_link: int, *, loads=None, angles=None, tol: float = 1e-12, max_iter: int = 30):
+    """Static equilibrium of the chain with the joints held at ``angles`` (the unlocked joints,
+    default 0): Newton's method on the elastic hinges, residual MuJoCo's spring forces
+    (``qfrc_passive``) minus its gravity forces (``qfrc_bias`` at rest) plus the tip loads, the
+    Jacobian by central differences. ``loads``: {"force": F, "moment": M} (world components), a
+    dead force at the tip point of the last link and a moment on its tip piece.
+
+    Returns a dict: ``qpos``, ``tip_deflection`` (n, 2), ``twist`` (n,), ``link_tip`` (n, 3),
+    ``tip_rotation`` (n, 3, 3), ``iterations``.
+    """
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
+    loads = {} if loads is None else dict(loads)
+    for key in loads:
+        if key not in ("force", "moment"):
+            raise InputError(f"loads.{key}", loads[key], "unknown load (one of: force, moment)")
+    F = _vector3("loads.force", loads.get("force", (0.0, 0.0, 0.0)))
+    Mo = _vector3("loads.moment", loads.get("moment", (0.0, 0.0, 0.0)))
+    m, d, lay = build(case.model, elements_per_link)
+    q0 = np.zeros(m.nq)
+    if angles is not None:
+        a = np.array(angles, float)
+        if a.shape != lay.arm_qpos.shape or not np.all(np.isfinite(a)):
+            raise InputError("angles", angles, f"must be {lay.arm_qpos.size} finite joint angles")
+        q0[lay.arm_qpos] = a
+    free = lay.flex_qpos.ravel()
+    tip_b, tip_s = int(lay.tip_body[-1]), int(lay.tip_site[-1])
+
+    def residual(x):
+        d.qpos[:] = q0
+        d.qpos[free] = x
+        d.qvel[:] = 0.0
+        mujoco.mj_forward(m, d)
+        r = d.qfrc_passive - d.qfrc_bias
+        qf = np.zeros(m.nv)
+        mujoco.mj_applyFT(m, d, F, Mo, d.site_xpos[tip_s].copy(), tip_b, qf)
+        return (r + qf)[free]
+
+    x = np.zeros(free.size)
+    scale = np.abs(residual(x)).max() + 1e-300
+    for it in range(1, max_iter + 1):  # noqa: B007 (the count is read after the loop)
+        r = residual(x)
+        eps = 1e-7
+        J = np.empty((free.size, free.size))
+        for c in range(free.size):
+            e = np.zeros(free.size)
+            e[c] = eps
+            J[:, c] = (residual(x + e) - residual(x - e)) / (2 * eps)
+        dx = np.linalg.solve(J, -r)
+        x = x + dx
+        if np.abs(dx).max() <= tol * max(1.0, np.abs(x).max()):
+            break
+    r = residual(x)
+    if not np.abs(r).max() <= 1e-8 * scale:
+        raise SimulationError(
+            f"{METHOD} statics: Newton did not converge (residual {np.abs(r).max():.3g})",
+            t=0.0,
+            step=it,
+            component="state",
+        )
+    root, Rl, tip, Rt = _frames(m, d, lay)
+    defl, twist = _deflection_twist(root, Rl, tip, Rt)
+    return {
+        "qpos": d.qpos.copy(),
+        "tip_deflection": defl,
+        "twist": twist,
+        "link_tip": tip,
+        "tip_rotation": Rt,
+        "iterations": it,
+    }
+
+
+class _Stepper:
+    """Model, data, drives and state handling of one run (the interface of the planar chain's
+    stepping loops)."""
+
+    def __init__(self, case, k, h, integrator, station):
+        self.mj = mujoco
+        self.m, self.d, self.lay = build(case.model, k, h, integrator, station)
+        self.h = h
+        self.k = k
+        self.drives = case.scenario.drives
+        self.n = len(self.drives)
+        self.free = np.array([i for i, dr in enumerate(self.drives) if dr.kind == "torque"], int)
+        self.pres = np.array([i for i, dr in enumerate(self.drives) if dr.kind == "motion"], int)
+        self.closed = np.zeros(0, int)
+        self.spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        self.nstate = mujoco.mj_stateSize(self.m, self.spec)
+        self.messages = []
+
+    def initial_state(self):
+        """Straight links, joint angles and rates from the drives."""
+        d, lay = self.d, self.lay
+        d.qpos[:] = self.m.qpos0
+        d.qvel[:] = 0.0
+        d.time = 0.0
+        for i, dr in enumerate(self.drives):
+            d.qpos[lay.arm_qpos[i]] = dr.initial_angle
+            d.qvel[lay.arm_dof[i]] = dr.initial_rate
+        mujoco.mj_forward(self.m, d)
+        x = np.empty(self.nstate)
+        mujoco.mj_getState(self.m, d, x, self.spec)
+        return x
+
+    def step(self, x, dt, ctrl):
+        """One mj_step of size dt from the state x with the motor controls ctrl."""
+        m, d = self.m, self.d
+        mujoco.mj_setState(m, d, x, self.spec)
+        m.opt.timestep = dt
+        d.ctrl[:] = ctrl
+        mujoco.mj_step(m, d)
+        m.opt.timestep = self.h
+        out = np.empty(self.nstate)
+        mujoco.mj_getState(m, d, out, self.spec)
+        return out
+
+
+def _outputs(st, X, t, ctrl, T):
+    """Result fields at the output times t from the kept states X (rows)."""
+    m, d, lay = st.m, st.d, st.lay
+    nt, nj, nl = t.size, st.n, lay.hub_body.size
+    q, v, tau = np.empty((nt, nj)), np.empty((nt, nj)), np.empty((nt, nj))
+    root, tip = np.empty((nt, nl, 3)), np.empty((nt, nl, 3))
+    Rl, Rt = np.empty((nt, nl, 3, 3)), np.empty((nt, nl, 3, 3))
+    energy = np.empty(nt)
+    node = np.clip(np.searchsorted(T, t - 1e-9 * st.h), 0, T.size - 1)
+    for s in range(nt):
+        mujoco.mj_setState(m, d, X[s], st.spec)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        mujoco.mj_makeM(m, d)
+        mujoco.mj_energyPos(m, d)
+        mujoco.mj_energyVel(m, d)
+        q[s], v[s] = d.qpos[lay.arm_qpos], d.qvel[lay.arm_dof]
+        root[s], Rl[s], tip[s], Rt[s] = _frames(m, d, lay)
+        energy[s] = d.energy[0] + d.energy[1]
+        for i in st.free:  # the law (left limit; right limit at t = 0), as every method reports it
+            tau[s, i] = st.drives[i].torque(float(t[s]), t[s] > 0)
+        for i in st.pres:  # the law's angle and rate; torque: mean of the steps around the node
+            a, ad, _ = st.drives[i].motion(float(t[s]))
+            q[s, i], v[s, i] = a, ad
+            kk = node[s]
+            around = ctrl[max(kk - 1, 0) : min(kk + 1, ctrl.shape[0]), i]
+            tau[s, i] = around.mean() if around.size else 0.0
+    defl, twist = _deflection_twist(root, Rl, tip, Rt)
+    return {
+        "joint_angle": q,
+        "joint_rate": v,
+        "joint_torque": tau,
+        "link_root": root,
+        "link_tip": tip,
+        "tip_deflection": defl,
+        "end_effector": tip[:, -1].copy(),
+        "twist": twist,
+        "link_rotation": Rl,
+        "tip_rotation": Rt,
+        "energy": energy,
+    }
+
+
+def _check(case, k, h, integrator, options):
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
+    k = plumbing.elements_per_link(k)
+    h = plumbing.step_size(h, case.scenario.duration)
+    if integrator not in INTEGRATORS:
+        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
+    for key in options:
+        if key not in _OPTIONS:
+            raise InputError(
+                key, options[key], f"is not an option of {METHOD} (options: {', '.join(_OPTIONS)})"
+            )
+    opts = {**_OPTIONS, **options}
+    opts["motion_tol"] = plumbing.positive_number("motion_tol", opts["motion_tol"])
+    opts["motion_max_iter"] = plumbing.positive_integer("motion_max_iter", opts["motion_max_iter"])
+    plumbing.choice("station", opts["station"], STATIONS)
+    require_open_loop(case, METHOD)
+    return k, h, opts
+
+
+def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options) -> SpatialResult:
+    """Simulate a spatial case with MuJoCo, every link a chain of ``elements_per_link`` elastic
+    stations (three hinges each).
+
+    Parameters
+    ----------
+    case : dttmm.spatial.SpatialCase
+    elements_per_link : int
+        k, the number of elastic stations (segments of length L/k) per link.
+    h : float
+        Step size (s); it must divide the case's output step (outputs are step nodes).
+    integrator : ``"implicitfast"`` (default) | ``"euler"`` | ``"implicit"`` | ``"rk4"``
+    **options
+        motion_tol (1e-12, relative angle tolerance of a motion drive), motion_max_iter (10);
+        station (``"hinges"``; ``"hinges-zyx"``, ``"ball"``: the alternatives of :func:`xml`, for
+        comparison; with ``"ball"`` no stability bound is computed, ``meta["h_stable"]`` None).
+
+    Returns
+    -------
+    dttmm.spatial.SpatialResult on ``case.scenario.output_times`` (``cut_loads`` None);
+    ``wall_time`` covers the time stepping only, ``meta["cpu_time_solve"]`` its CPU time,
+    ``meta["omega_max"]``, ``meta["h_stable"]`` the explicit stability bound (a larger h adds
+    a warning).
+
+    Raises
+    ------
+    dttmm.InputError
+        not a SpatialCase; bad k, h, integrator or option; h not dividing the output step; a
+        closed-loop drive.
+    dttmm.SimulationError
+        non-finite state, MuJoCo's instability reset, or a motion drive not imposed; ``partial``
+        holds the outputs up to the last good step.
+    """
+    k, h, opts = _check(case, elements_per_link, h, integrator, dict(options))
+    scen = case.scenario
+    T_end, _ = step_schedule(scen.duration, h, scen.breakpoints)
+    T = np.concatenate([[0.0], T_end])
+    t_out = scen.output_times
+    node = np.clip(np.searchsorted(T, t_out - 1e-9 * h), 0, T.size - 1)
+    if np.any(np.abs(T[node] - t_out) > 1e-9 * h):
+        raise InputError("h", h, f"must divide the output step {scen.output_step} (outputs are step nodes)")
+    keep = np.zeros(T.size, bool)
+    keep[node] = True
+
+    st = _Stepper(case, k, h, integrator, opts["station"])
+    x0 = st.initial_state()
+    wmax, h_stable = stability_limit(st.m, st.d, integrator) if st.m.nq == st.m.nv else (None, None)
+    warnings = []
+    if h_stable is not None and h > h_stable:
+        warnings.append(
+            f"h = {h:g} s exceeds the explicit stability limit {h_stable:.3g} s of the "
+            f"joint springs (ω_max = {wmax:.4g} rad/s)"
+        )
+    ctrl = _free_controls(st, T)
+    if st.m.nu > st.n:
+        ctrl = np.hstack([ctrl, np.zeros((ctrl.shape[0], st.m.nu - st.n))])
+    stats = {}
+    old = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(st.messages.append)
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        if st.pres.size:
+            X, n_steps, ctrl = _run_motion(st, x0, T, keep, ctrl, opts, stats)
+        else:
+            X, n_steps = _run_torque(st, x0, T, keep, ctrl, stats)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    finally:
+        mujoco.set_mju_user_warning(old)
+    meta = {
+        "method": METHOD,
+        "h": h,
+        "integrator": integrator,
+        "elements_per_link": k,
+        "versions": {**plumbing.versions(), "mujoco": mujoco.__version__},
+        "n_dof": int(st.m.nv),
+        "omega_max": wmax,
+        "h_stable": h_stable,
+        "n_steps": int(n_steps),
+        "cpu_time_solve": cpu,
+        "success": "fail" not in stats,
+        **opts,
+    }
+    if st.pres.size and "motion_iterations_mean" in stats:
+        meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
+    tg = t_out[: X.shape[0]]
+    fields = _outputs(st, X, tg, ctrl[:n_steps], T)
+    res = SpatialResult(
+        t=tg,
+        **fields,
+        wall_time=wall,
+        n_steps=int(n_steps),
+        meta=meta,
+        status="ok" if "fail" not in stats else "failed",
+        warnings=tuple(warnings + [f"MuJoCo: {w}" for w in st.messages]),
+    )
+    if "fail" in stats:
+        j, tf, *why = stats["fail"]
+        msg = why[0] if why else ("; ".join(st.messages) or "non-finite state")
+        raise SimulationError(f"{METHOD}: {msg}", t=float(tf), step=int(j), component="state", partial=res)
+    return res
