@@ -34,7 +34,7 @@ def tiny_spatial_plan() -> Plan:
             },
             "work_precision": {
                 "cases": [CASE],
-                "methods": [*SPATIAL, "pinocchio-rigid"],
+                "methods": [*SPATIAL, "mujoco-chain", "pinocchio-rigid"],
                 "path": [(1, 4e-3), (2, 2e-3)],
                 "rigid_h": [2e-3],
             },
@@ -86,11 +86,15 @@ def test_spatial_reference_and_cross_check(report):
     assert 0 < cc["errors"]["ee_l2"] < 1e-3
 
 
-def test_spatial_rigid_baseline_runs(report):
+def test_spatial_rigid_baseline_and_explicit_chain(report):
     _, tables, _, _ = report
     wp = tables["work_precision"]
     rigid = wp[wp.method == "pinocchio-rigid"]
     assert len(rigid) == 1 and rigid.status.iloc[0] == "ok"
+    # the MuJoCo chain runs at its spatial step rule (stable on this arm), not the planar one
+    mj = wp[wp.method == "mujoco-chain"].sort_values("k")
+    assert list(mj.h) == [methods.get("mujoco-chain").spatial_max_step(k) for k in (1, 2)] == [2e-3, 1e-3]
+    assert (mj.status == "ok").all() and (mj.ee_l2 < 0.05).all()
 
 
 def test_runs_on_rules():

@@ -70,14 +70,18 @@ def study_methods(ctx, study: str, **filters) -> list[str]:
     return [m for m in chosen if flexible is None or methods.uses_k(m) == flexible]
 
 
-def step_for(method: str, k: int, h: float) -> float:
-    """The step a method runs at in place of ``h``: at most its record's ``max_step(k)``."""
+def step_for(method: str, k: int, h: float, case=None) -> float:
+    """The step a method runs at in place of ``h``: at most its record's ``max_step(k)``
+    (``spatial_max_step(k)`` on a spatial ``case``, where the record has one)."""
     from .. import methods
 
     try:
-        rule = methods.get(method).max_step
+        rec = methods.get(method)
     except methods.MethodUnavailable:
         return h
+    rule = rec.max_step
+    if case is not None and methods.is_spatial(case) and rec.spatial_max_step is not None:
+        rule = rec.spatial_max_step
     return min(h, rule(k)) if rule is not None else h
 
 

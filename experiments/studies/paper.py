@@ -31,15 +31,18 @@ def _energy_task(p, case, T) -> Task | None:
 
 def _compared(ctx) -> list[Task]:
     p = params(ctx, NAME)
-    steps = {}
-    for m in study_methods(ctx, NAME):
-        rec = methods.get(m)
-        steps[m] = (
-            (p.h if p.explicit_h is None else p.explicit_h)
-            if rec.explicit and rec.max_step is None
-            else step_for(m, p.k, p.h)
-        )
-    return [Task(c, m, p.k, h, ctx.cases[c].scenario.duration) for c in p.cases for m, h in steps.items()]
+    out = []
+    for c in p.cases:
+        case = ctx.cases[c]
+        for m in study_methods(ctx, NAME):
+            rec = methods.get(m)
+            h = (
+                (p.h if p.explicit_h is None else p.explicit_h)
+                if rec.explicit and rec.max_step is None
+                else step_for(m, p.k, p.h, case)
+            )
+            out.append(Task(c, m, p.k, h, case.scenario.duration))
+    return out
 
 
 def tasks(ctx) -> list[Task]:

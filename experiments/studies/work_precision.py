@@ -37,7 +37,7 @@ def tasks(ctx) -> list[Task]:
         T = ctx.cases[c].scenario.duration
         for m in flex:
             out += [
-                Task(c, m, k, step_for(m, k, h), T, methods.get(m).options_for(NAME))
+                Task(c, m, k, step_for(m, k, h, ctx.cases[c]), T, methods.get(m).options_for(NAME))
                 for k, h in p.path
                 if k <= k_limit(m, NAME, ctx.plan.name)
             ]
