@@ -54,11 +54,14 @@ from dttmm.spatial.rotation import log_so3
 from ._spatial_mechanics import rot_axis, rpy_matrix
 from .exudyn_beam3d import _axis_frame, _check_tip_loads, _initial_joint_states, reference_frames
 
-__all__ = ["METHOD", "check_case", "frequencies", "simulate", "statics"]
+__all__ = ["METHOD", "TWIST_LOCKS", "check_case", "frequencies", "simulate", "statics"]
 
 METHOD = "exudyn-ancf3d"
 #: EA of an inextensible link: ratio·EI/L²
 INEXTENSIBLE_AXIAL_RATIO = 1.0e6
+#: where the twist-free frames sit: at every cable node (discrete parallel transport, zero twist
+#: strain) or only at the link's ends (one lock: zero log-twist between root and tip)
+TWIST_LOCKS = ("nodes", "ends")
 #: relative tolerance of EIy = EIz and of the rest-twist tests
 _REL = 1e-9
 
@@ -207,7 +210,7 @@ def _twist_lock_functions():
     return constraint, jacobian
 
 
-def _build(case, k, loads, reduced_integration=False):
+def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
     """The Exudyn system of ``case`` (not assembled) and the handles the outputs need."""
     import exudyn as exu
     import exudyn.itemInterface as ii
@@ -278,7 +281,9 @@ def _build(case, k, loads, reduced_integration=False):
         kmax = max(kmax, EA / l)
         eis.append(EI)
         Rr = rot_axis((1.0, 0.0, 0.0), b.roll)
-        lumped = 0.5 * L * (Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T)
+        per_length = Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
+        # rotary inertia lumped into the twist-free frames (trapezoidal: l/2 at the ends, l inside)
+        lumped = 0.5 * (l if twist_lock == "nodes" else L) * per_length
         # root frame: hub (about the root point) + half the link's rotary inertia
         J = lumped + (link.hub.inertia_matrix if link.hub is not None else 0.0)
         root = frame_node(i, fr["p_link"], fr["R_link"], link.hub_mass, np.zeros(3), J)
@@ -321,8 +326,22 @@ def _build(case, k, loads, reduced_integration=False):
                         markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=list(g)
                     )
                 )
-        # clamps: position (spherical joint) and slope along the frame's x axis (user constraint)
-        for fnode, snode in ((root, nodes[0]), (tip, nodes[-1])):
+        # the twist-free frames: root, (every interior node,) tip; each clamped to its cable node
+        # (position: spherical joint; slope along the frame's x axis: user constraint), each
+        # locked about x to the next (the relative rotation has no x component)
+        chain = [(root, nodes[0])]
+        if twist_lock == "nodes":
+            for j in range(1, k):
+                chain.append(
+                    (
+                        frame_node(
+                            i, fr["p_link"] + x * (j * l), fr["R_link"], 0.0, np.zeros(3), l * per_length
+                        ),
+                        nodes[j],
+                    )
+                )
+        chain.append((tip, nodes[-1]))
+        for fnode, snode in chain:
             mbs.AddObject(
                 ii.ObjectJointSpherical(
                     markerNumbers=[
@@ -342,18 +361,18 @@ def _build(case, k, loads, reduced_integration=False):
                     jacobianUserFunction=clamp_j,
                 )
             )
-        # torsionally rigid link: the x component of the relative rotation root -> tip is zero
-        mbs.AddObject(
-            ii.ObjectConnectorCoordinateVector(
-                markerNumbers=[
-                    mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=root)),
-                    mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=tip)),
-                ],
-                scalingMarker0=np.zeros((1, 14)),
-                constraintUserFunction=twist_c,
-                jacobianUserFunction=twist_j,
+        for (fa, _), (fb, _) in zip(chain, chain[1:]):
+            mbs.AddObject(
+                ii.ObjectConnectorCoordinateVector(
+                    markerNumbers=[
+                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fa)),
+                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fb)),
+                    ],
+                    scalingMarker0=np.zeros((1, 14)),
+                    constraintUserFunction=twist_c,
+                    jacobianUserFunction=twist_j,
+                )
             )
-        )
         root_nodes.append(root)
         tip_nodes.append(tip)
         cables.append(els)
@@ -438,6 +457,40 @@ def _abs_tol(case, B, value):
     return max(1e3 * np.finfo(float).eps * B["kmax"] * chain, 1e-8)
 
 
+def _run_segments(mbs, exu, s, ti, segments, h, seg_start, B, sensors, rows):
+    """SolveDynamic over the segments (restarting at each); the sensor rows go to ``rows``.
+    Returns (wall, cpu, Newton iterations, steps, Jacobians, failure message or None, it)."""
+    wall = cpu = 0.0
+    newton = steps = jacobians = 0
+    failure = it = None
+    for a, b in segments:
+        seg_start[0] = a * h
+        B["set_inputs"](a * h, False)
+        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
+            err = None
+        except Exception as exc:  # Exudyn raises on singular Jacobians
+            ok, err = False, exc
+        wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
+        it = mbs.sys["dynamicSolver"].it
+        steps += max(int(it.currentStepIndex) - 1, 0)
+        newton += int(it.newtonStepsCount)
+        jacobians += int(it.newtonJacobiCount)
+        for sn in sensors:
+            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
+            rows[sn].append(d if not rows[sn] else d[1:])
+        if not ok:
+            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
+            break
+        mbs.systemData.SetSystemState(
+            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
+        )
+    return wall, cpu, newton, steps, jacobians, failure, it
+
+
 def simulate(
     case,
     *,
@@ -445,6 +498,7 @@ def simulate(
     h,
     rho_inf=0.8,
     reduced_integration=False,
+    twist_lock="nodes",
     tip_loads=None,
     newton_rel_tol=1e-8,
     newton_abs_tol=None,
@@ -478,7 +532,8 @@ def simulate(
     t_out = sc.output_times
     n_steps = (len(t_out) - 1) * per_out
 
-    B = _build(case, k, loads, reduced_integration)
+    plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
+    B = _build(case, k, loads, reduced_integration, twist_lock)
     mbs, exu, ii = B["mbs"], B["exu"], B["ii"]
     root_nodes, tip_nodes, motion_joints = B["root_nodes"], B["tip_nodes"], B["motion_joints"]
     model, n = case.model, case.model.n_links
@@ -536,34 +591,17 @@ def simulate(
     s.solution.sensors.writePeriod = sc.output_step if on_grid else h
     all_sensors = [x for tr in s_root + s_tip for x in tr] + list(s_mot.values())
     rows = {sn: [] for sn in all_sensors}
-    wall = cpu = 0.0
-    newton = steps = jacobians = 0
-    failure = None
-    for a, b in segments:
-        seg_start[0] = a * h
-        B["set_inputs"](a * h, False)
-        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
-        t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
-            err = None
-        except Exception as exc:  # Exudyn raises on singular Jacobians
-            ok, err = False, exc
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        it = mbs.sys["dynamicSolver"].it
-        steps += max(int(it.currentStepIndex) - 1, 0)
-        newton += int(it.newtonStepsCount)
-        jacobians += int(it.newtonJacobiCount)
-        for sn in all_sensors:
-            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
-            rows[sn].append(d if not rows[sn] else d[1:])
-        if not ok:
-            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
-            break
-        mbs.systemData.SetSystemState(
-            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
-        )
+    import exudyn.solver as exu_solver
+
+    # the clamp and twist user functions return new arrays at every call, which Exudyn's
+    # allocation check reports as a warning after each solve: expected here, so not printed
+    check_allocations = exu_solver.solverCheckMemoryAllocations
+    exu_solver.solverCheckMemoryAllocations = False
+    try:
+        segments_run = _run_segments(mbs, exu, s, ti, segments, h, seg_start, B, all_sensors, rows)
+    finally:
+        exu_solver.solverCheckMemoryAllocations = check_allocations
+    wall, cpu, newton, steps, jacobians, failure, it = segments_run
     if failure is not None:
         raise SimulationError(
             f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
@@ -625,8 +663,11 @@ def simulate(
         h=h,
         element="ObjectANCFCable",
         node="NodePointSlope1",
-        torsion="rigid: twist not modelled (GJ ignored); end frames locked about the link axis",
-        rotary_inertia="(rhoJ, rhoIy, rhoIz)·L lumped half at each end frame",
+        torsion="rigid: twist not modelled (GJ ignored)",
+        twist_lock=twist_lock,
+        rotary_inertia="(rhoJ, rhoIy, rhoIz) lumped into the twist-free frames (l/2 at the ends, l inside)"
+        if twist_lock == "nodes"
+        else "(rhoJ, rhoIy, rhoIz)·L lumped half at each end frame",
         reduced_integration=bool(reduced_integration),
         integrator="generalized-alpha",
         rho_inf=float(rho_inf),
@@ -663,7 +704,7 @@ def simulate(
     )
 
 
-def statics(case, *, elements_per_link, tip_loads=None, load_steps=10):
+def statics(case, *, elements_per_link, tip_loads=None, load_steps=10, twist_lock="nodes"):
     """Static equilibrium of ``case`` by Exudyn's ``SolveStatic`` (gravity, the torque drives and
     ``tip_loads`` at t = duration, in ``load_steps`` load steps; Newton to 1e-12 relative).
     Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2) (tip − root
@@ -672,7 +713,8 @@ def statics(case, *, elements_per_link, tip_loads=None, load_steps=10):
     loads = check_case(case, tip_loads)
     k = plumbing.elements_per_link(elements_per_link)
     steps = plumbing.positive_integer("load_steps", load_steps)
-    B = _build(case, k, loads)
+    plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
+    B = _build(case, k, loads, twist_lock=twist_lock)
     mbs, exu = B["mbs"], B["exu"]
     B["set_inputs"](case.scenario.duration, True)
     mbs.Assemble()
@@ -699,7 +741,7 @@ def statics(case, *, elements_per_link, tip_loads=None, load_steps=10):
     )
 
 
-def frequencies(case, *, elements_per_link, count=8):
+def frequencies(case, *, elements_per_link, count=8, twist_lock="nodes"):
     """The ``count`` lowest natural frequencies (Hz) of ``case`` linearised at t = 0 (its initial
     configuration, joints as built: the torque-driven joints free), from Exudyn's
     ``ComputeODE2Eigenvalues`` with the constraints projected out (dense SVD null space)."""
@@ -707,7 +749,8 @@ def frequencies(case, *, elements_per_link, count=8):
     check_case(case)
     k = plumbing.elements_per_link(elements_per_link)
     count = plumbing.positive_integer("count", count)
-    B = _build(case, k, [])
+    plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
+    B = _build(case, k, [], twist_lock=twist_lock)
     mbs, exu = B["mbs"], B["exu"]
     mbs.Assemble()
     s = exu.SimulationSettings()
