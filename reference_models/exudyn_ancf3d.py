@@ -7,29 +7,37 @@ bending stiffness EI (a round section), an axial stiffness EA, mass per length �
 torsion and no rotary inertia**: its nodes carry no rotation about the centre line. Hence:
 
 - a case with EIy ≠ EIz is refused (the cable has one bending stiffness);
-- every link is **torsionally rigid**: its twist is not modelled. The rigid frames at the link's
-  two ends are tied by a twist lock (an ``ObjectConnectorCoordinateVector`` with Python user
-  functions: the x component of the relative Euler parameters of the two frames is zero, i.e.
-  the relative rotation R_rootᵀ R_tip has no component about x), so the link's GJ is ignored
-  (the reported ``twist`` is zero to round-off). A case whose twist is loaded at rest is refused: gravity (or a ``tip_loads`` load)
-  with a moment about a link's axis at t = 0, or an unlocked joint whose axis has a component
-  along its parent link's axis (its drive torque twists the parent). Twist excited by motion
-  (the Coriolis and tangential loads of an outboard link) is allowed and neglected; see
-  docs/peers.md "Exudyn ANCF cable 3-D" for its measured size on ``two_joint_arm``;
-- the link's polar and bending mass moments of inertia (ρJ, ρIy, ρIz)·L are lumped, half and
-  half, into the rigid end frames (exact for the link's rigid motion; the cable carries no
-  distributed rotary inertia).
+- every link is **torsionally rigid** (zero twist strain): its twist is not modelled and GJ is
+  ignored. Each cable node j carries a rigid frame F_j (``NodeRigidBodyEP``, R_link at t = 0):
+  F_0 is the root frame (the hub's body), F_k the tip frame (the payload's body), the interior
+  ones massless. F_j is clamped to node j: its origin by an ``ObjectJointSpherical``, its x axis
+  along the slope r′ by an ``ObjectConnectorCoordinateVector`` with Python constraint and
+  Jacobian user functions (r′·F_j e_y = r′·F_j e_z = 0; Exudyn has no built-in connector between
+  a 3-D slope node and a rigid body, and the cable offers no rigid marker). Consecutive frames
+  are twist-locked by a second such connector: the relative rotation F_jᵀ F_j+1 has no x
+  component (the x component of the relative Euler parameters, bilinear, is zero), so F_j+1 is
+  F_j carried by the minimal rotation from one slope to the next: discrete parallel transport,
+  the frame of a rod without twist strain (as the DT-TMM element with GJ → ∞: φx = 0 per
+  element). The reported ``twist`` (the log-twist between root and tip) is therefore the
+  geometric twist of a bent rod, second order in the bending angles (7.1e-5 rad on
+  ``two_joint_arm``, as the DT-TMM with GJ × 10⁴), not an elastic one. ``twist_lock="ends"``
+  keeps only F_0 and F_k with one lock between them (zero log-twist: a different, cruder rigid
+  rod, kept for comparison);
+- a case whose twist is loaded at rest is refused: gravity (or a ``tip_loads`` load) with a
+  moment about a link's axis at t = 0, or an unlocked joint whose axis has a component along
+  its parent link's axis (its drive torque twists the parent). Twist excited by motion (the
+  Coriolis and tangential loads of an outboard link) is allowed and neglected; docs/peers.md
+  "Exudyn ANCF cable 3-D" states its measured size on ``two_joint_arm``;
+- the link's polar and bending mass moments of inertia per length (ρJ, ρIy, ρIz) are lumped
+  into the frames F_j (l/2 at the ends, l = L/k inside; all L/2 at the ends with
+  ``twist_lock="ends"``): exact for the link's rigid motion, and the cable's rotary inertia as
+  k grows (the cable element itself carries none).
 
-End frames and joints: each link has a root and a tip ``NodeRigidBodyEP`` (frames R_link) with one
-``ObjectRigidBody`` each (the hub at the root, the payload at the tip, plus the lumped inertia).
-A cable end is clamped to its frame by an ``ObjectJointSpherical`` (position) and an
-``ObjectConnectorCoordinateVector`` with Python constraint and Jacobian user functions (the slope
-r′ normal to the frame's y and z axes: 2 equations; Exudyn has no built-in connector between a
-3-D slope node and a rigid body, and the cable offers no rigid marker). Joints, hubs, payloads,
-gravity, torque drives (a body-fixed ``LoadTorqueVector`` pair set once per step by a
-PreStepUserFunction), motion drives (the joint's ``offsetUserFunction``; torque = the joint's
-reaction moment about its axis) and ``tip_loads`` are built as in
-:mod:`reference_models.exudyn_beam3d`. Inextensible links get EA = 1e6·EI/L².
+Joints, hubs, payloads, gravity, torque drives (a body-fixed ``LoadTorqueVector`` pair set once
+per step by a PreStepUserFunction), motion drives (the joint's ``offsetUserFunction``; torque =
+the joint's reaction moment about its axis) and ``tip_loads`` are built as in
+:mod:`reference_models.exudyn_beam3d`, on the root and tip frames. Inextensible links get
+EA = 1e6·EI/L².
 
 Time integration: Exudyn's generalized-α (``rho_inf``, default 0.8 as the planar ANCF peer) with
 fixed step h, modified Newton with a Jacobian per step, EigenSparse, one thread, no files, no
