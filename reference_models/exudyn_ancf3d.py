@@ -76,7 +76,8 @@ _REL = 1e-9
 
 def _loads_at_rest(case, loads):
     """(point, force, torque) of every static load at t = 0 (world): gravity on the links' mass
-    centres, hubs and payloads, and the ``tip_loads`` at their largest factor."""
+    centres, hubs and payloads, and the ``tip_loads`` vectors (factor 1: a load whose direction
+    twists a link is refused whatever its time factors)."""
     frames = reference_frames(case)
     g = np.array(case.model.gravity, float)
     out = []
@@ -87,9 +88,8 @@ def _loads_at_rest(case, loads):
             out.append((fr["p_link"], link.hub.mass * g, None))
         if link.payload is not None:
             out.append((fr["p_tip"] + fr["R_tip"] @ link.payload_offset, link.payload.mass * g, None))
-    for i, F, T, law in loads:
-        f = max(abs(law(0.0)), abs(law(case.scenario.duration)))
-        out.append((frames[i]["p_tip"], f * F, f * T))
+    for i, F, T, _ in loads:
+        out.append((frames[i]["p_tip"], F, T))
     return frames, out
 
 
