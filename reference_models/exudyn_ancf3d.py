@@ -1,0 +1,774 @@
+"""Exudyn peer of the spatial cases: 3-D ANCF cable elements (ObjectANCFCable), a bending check.
+
+Each link of a spatial case (docs/spatial.md §1) is meshed with k ``ObjectANCFCable`` elements
+(Euler–Bernoulli ANCF cable: cubic Hermite centre line in absolute position and slope coordinates)
+on k + 1 ``NodePointSlope1`` nodes (position r and slope r′, 6 coordinates). The element has one
+bending stiffness EI (a round section), an axial stiffness EA, mass per length ρA, and **no
+torsion and no rotary inertia**: its nodes carry no rotation about the centre line. Hence:
+
+- a case with EIy ≠ EIz is refused (the cable has one bending stiffness);
+- every link is **torsionally rigid** (zero twist strain): its twist is not modelled and GJ is
+  ignored. Each cable node j carries a rigid frame F_j (``NodeRigidBodyEP``, R_link at t = 0):
+  F_0 is the root frame (the hub's body), F_k the tip frame (the payload's body), the interior
+  ones massless. F_j is clamped to node j: its origin by an ``ObjectJointSpherical``, its x axis
+  along the slope r′ by an ``ObjectConnectorCoordinateVector`` with Python constraint and
+  Jacobian user functions (r′·F_j e_y = r′·F_j e_z = 0; Exudyn has no built-in connector between
+  a 3-D slope node and a rigid body, and the cable offers no rigid marker). Consecutive frames
+  are twist-locked by a second such connector: the relative rotation F_jᵀ F_j+1 has no x
+  component (the x component of the relative Euler parameters, bilinear, is zero), so F_j+1 is
+  F_j carried by the minimal rotation from one slope to the next: discrete parallel transport,
+  the frame of a rod without twist strain (as the DT-TMM element with GJ → ∞: φx = 0 per
+  element). The reported ``twist`` (the log-twist between root and tip) is therefore the
+  geometric twist of a bent rod, second order in the bending angles (7.1e-5 rad on
+  ``two_joint_arm``, as the DT-TMM with GJ × 10⁴), not an elastic one. ``twist_lock="ends"``
+  keeps only F_0 and F_k with one lock between them (zero log-twist: a different, cruder rigid
+  rod, kept for comparison);
+- a case whose twist is loaded at rest is refused: gravity (or a ``tip_loads`` load) with a
+  moment about a link's axis at t = 0, or an unlocked joint whose axis has a component along
+  its parent link's axis (its drive torque twists the parent). Twist excited by motion (the
+  Coriolis and tangential loads of an outboard link) is allowed and neglected; docs/peers.md
+  "Exudyn ANCF cable 3-D" states its measured size on ``two_joint_arm``;
+- the link's polar and bending mass moments of inertia per length (ρJ, ρIy, ρIz) are lumped
+  into the frames F_j (l/2 at the ends, l = L/k inside; all L/2 at the ends with
+  ``twist_lock="ends"``): exact for the link's rigid motion, and the cable's rotary inertia as
+  k grows (the cable element itself carries none).
+
+Joints, hubs, payloads, gravity, torque drives (a body-fixed ``LoadTorqueVector`` pair set once
+per step by a PreStepUserFunction), motion drives (the joint's ``offsetUserFunction``; torque =
+the joint's reaction moment about its axis) and ``tip_loads`` are built as in
+:mod:`reference_models.exudyn_beam3d`, on the root and tip frames. Inextensible links get
+EA = 1e6·EI/L².
+
+Time integration: Exudyn's generalized-α (``rho_inf``, default 0.8 as the planar ANCF peer) with
+fixed step h, modified Newton with a Jacobian per step, EigenSparse, one thread, no files, no
+graphics; drive breakpoints on the step grid restart the integrator. Output: a
+:class:`dttmm.spatial.SpatialResult` on the case's output grid (h must divide the output step);
+no cut loads or energy. :func:`statics` runs ``SolveStatic``; :func:`frequencies` the
+constrained eigenvalues at t = 0.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from dttmm import plumbing
+from dttmm.errors import InputError, SimulationError
+from dttmm.spatial import SpatialCase, SpatialResult, load_case
+from dttmm.spatial.rotation import log_so3
+
+from ._spatial_mechanics import rot_axis, rpy_matrix
+from .exudyn_beam3d import _axis_frame, _check_tip_loads, _initial_joint_states, reference_frames
+
+__all__ = ["METHOD", "TWIST_LOCKS", "check_case", "frequencies", "simulate", "statics"]
+
+METHOD = "exudyn-ancf3d"
+#: EA of an inextensible link: ratio·EI/L²
+INEXTENSIBLE_AXIAL_RATIO = 1.0e6
+#: where the twist-free frames sit: at every cable node (discrete parallel transport, zero twist
+#: strain) or only at the link's ends (one lock: zero log-twist between root and tip)
+TWIST_LOCKS = ("nodes", "ends")
+#: relative tolerance of EIy = EIz and of the rest-twist tests
+_REL = 1e-9
+
+
+def _loads_at_rest(case, loads):
+    """(point, force, torque) of every static load at t = 0 (world): gravity on the links' mass
+    centres, hubs and payloads, and the ``tip_loads`` vectors (factor 1: a load whose direction
+    twists a link is refused whatever its time factors)."""
+    frames = reference_frames(case)
+    g = np.array(case.model.gravity, float)
+    out = []
+    for i, link in enumerate(case.model.links):
+        b, fr = link.beam, frames[i]
+        out.append((fr["p_link"] + fr["R_link"] @ [0.5 * b.length, 0.0, 0.0], b.rhoA * b.length * g, None))
+        if link.hub is not None:
+            out.append((fr["p_link"], link.hub.mass * g, None))
+        if link.payload is not None:
+            out.append((fr["p_tip"] + fr["R_tip"] @ link.payload_offset, link.payload.mass * g, None))
+    for i, F, T, _ in loads:
+        out.append((frames[i]["p_tip"], F, T))
+    return frames, out
+
+
+def check_case(case, tip_loads=None):
+    """Refuse (InputError) what the torsion-free cable cannot model: EIy ≠ EIz, closed-loop
+    drives, and a twist loaded at rest (module notes). Returns the checked tip loads."""
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase or a path to one")
+    for d in case.scenario.drives:
+        if d.closed_loop:
+            raise InputError(
+                "scenario.drives", d.law.name, f"closed-loop drives are not supported by {METHOD}"
+            )
+    for i, link in enumerate(case.model.links):
+        b = link.beam
+        if abs(b.EIy - b.EIz) > _REL * max(b.EIy, b.EIz):
+            raise InputError(
+                f"model.links[{i}].beam.EIy",
+                b.EIy,
+                f"must equal EIz = {b.EIz}: Exudyn's ObjectANCFCable has one bending stiffness ({METHOD})",
+            )
+    loads = _check_tip_loads(case, tip_loads)
+    frames, rest = _loads_at_rest(case, loads)
+    # owner link of every load of ``rest`` (same order as _loads_at_rest), and its source
+    owner, source = [], []
+    for i, link in enumerate(case.model.links):
+        n_ = 1 + (link.hub is not None) + (link.payload is not None)
+        owner += [i] * n_
+        source += ["model.gravity"] * n_
+    owner += [i_ for i_, *_ in loads]
+    source += [f"tip_loads[{j}]" for j in range(len(loads))]
+    scale = sum(float(np.linalg.norm(F)) for _, F, _ in rest) * sum(l.beam.length for l in case.model.links)
+    scale += sum(float(np.linalg.norm(T)) for _, _, T in rest if T is not None)
+    for i in range(case.model.n_links):
+        x, p0 = frames[i]["R_link"][:, 0], frames[i]["p_link"]
+        by = {}
+        for (p, F, T), j, src in zip(rest, owner, source):
+            if j >= i:
+                by[src] = by.get(src, 0.0) + x @ np.cross(p - p0, F) + (x @ T if T is not None else 0.0)
+        for src, moment in by.items():
+            if abs(moment) > _REL * max(scale, 1e-300):
+                raise InputError(
+                    src,
+                    f"link {i}",
+                    f"loads the twist of link {i} at rest ({moment:.3g} N·m about its axis at t = 0): "
+                    f"{METHOD} has no torsion (ObjectANCFCable); use exudyn-beam3d",
+                )
+    for i in range(1, case.model.n_links):
+        j = case.model.links[i].joint
+        if j.locked:
+            continue
+        c = float(frames[i]["a_w"] @ frames[i - 1]["R_tip"][:, 0])
+        if abs(c) > _REL:
+            raise InputError(
+                f"model.links[{i}].joint.axis",
+                j.axis,
+                f"has a component {c:.3g} along link {i - 1}'s axis: its drive would twist that link, "
+                f"and {METHOD} has no torsion (ObjectANCFCable)",
+            )
+    return loads
+
+
+def _slope_clamp_functions():
+    """Constraint and Jacobian user functions of a slope clamp: q = [frame node (p, e0..e3),
+    slope node (r, r′)] (reference values included); c = [r′·(R(e) e_y), r′·(R(e) e_z)] with the
+    homogeneous quadratic form of R(e) (equal to Exudyn's at |e| = 1)."""
+
+    def constraint(mbs, t, item, q, q_t, velocity_level):
+        e0, e1, e2, e3 = q[3], q[4], q[5], q[6]
+        sx, sy, sz = q[10], q[11], q[12]
+        return [
+            2.0 * (e1 * e2 - e0 * e3) * sx
+            + (e0 * e0 - e1 * e1 + e2 * e2 - e3 * e3) * sy
+            + 2.0 * (e2 * e3 + e0 * e1) * sz,
+            2.0 * (e1 * e3 + e0 * e2) * sx
+            + 2.0 * (e2 * e3 - e0 * e1) * sy
+            + (e0 * e0 - e1 * e1 - e2 * e2 + e3 * e3) * sz,
+        ]
+
+    def jacobian(mbs, t, item, q, q_t, velocity_level):
+        e0, e1, e2, e3 = q[3], q[4], q[5], q[6]
+        sx, sy, sz = q[10], q[11], q[12]
+        J = np.zeros((2, 13))
+        J[0, 3:7] = (
+            2.0 * (-e3 * sx + e0 * sy + e1 * sz),
+            2.0 * (e2 * sx - e1 * sy + e0 * sz),
+            2.0 * (e1 * sx + e2 * sy + e3 * sz),
+            2.0 * (-e0 * sx - e3 * sy + e2 * sz),
+        )
+        J[0, 10:13] = (
+            2.0 * (e1 * e2 - e0 * e3),
+            e0 * e0 - e1 * e1 + e2 * e2 - e3 * e3,
+            2.0 * (e2 * e3 + e0 * e1),
+        )
+        J[1, 3:7] = (
+            2.0 * (e2 * sx - e1 * sy + e0 * sz),
+            2.0 * (e3 * sx - e0 * sy - e1 * sz),
+            2.0 * (e0 * sx + e3 * sy - e2 * sz),
+            2.0 * (e1 * sx + e2 * sy + e3 * sz),
+        )
+        J[1, 10:13] = (
+            2.0 * (e1 * e3 + e0 * e2),
+            2.0 * (e2 * e3 - e0 * e1),
+            e0 * e0 - e1 * e1 - e2 * e2 + e3 * e3,
+        )
+        return J
+
+    return constraint, jacobian
+
+
+def _twist_lock_functions():
+    """Constraint and Jacobian user functions of the twist lock between a link's root and tip
+    frames: q = [root (p, a0..a3), tip (p, b0..b3)]; c = the x component of the vector part of
+    the relative Euler parameters a* ⊗ b (bilinear), zero exactly when the relative rotation
+    R_rootᵀ R_tip has no x component (log-twist 0)."""
+
+    def constraint(mbs, t, item, q, q_t, velocity_level):
+        return [q[3] * q[11] - q[10] * q[4] - q[5] * q[13] + q[6] * q[12]]
+
+    def jacobian(mbs, t, item, q, q_t, velocity_level):
+        J = np.zeros((1, 14))
+        J[0, 3:7] = (q[11], -q[10], -q[13], q[12])
+        J[0, 10:14] = (-q[4], q[3], q[6], -q[5])
+        return J
+
+    return constraint, jacobian
+
+
+def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
+    """The Exudyn system of ``case`` (not assembled) and the handles the outputs need."""
+    import exudyn as exu
+    import exudyn.itemInterface as ii
+    from exudyn.rigidBodyUtilities import AngularVelocity2EulerParameters_t, RotationMatrix2EulerParameters
+
+    model, sc = case.model, case.scenario
+    frames = reference_frames(case)
+    _, rates = _initial_joint_states(case)
+    g = np.array(model.gravity, float)
+    has_g = bool(np.any(g != 0.0))
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddNode(ii.NodePointGround())
+    ground_body = mbs.AddObject(ii.ObjectGround())
+    clamp_c, clamp_j = _slope_clamp_functions()
+    twist_c, twist_j = _twist_lock_functions()
+
+    def velocity(i, p):
+        """Rigid velocity at t = 0 of the point p of link i (from the initial joint rates)."""
+        return sum(
+            (np.cross(frames[m]["a_w"], p - frames[m]["p_J"]) * rates[m] for m in range(i + 1)), np.zeros(3)
+        )
+
+    body_of = {}  # frame node -> its rigid body
+
+    def frame_node(i, p, R, mass, com, J):
+        ep = np.array(RotationMatrix2EulerParameters(R))
+        ep_t = AngularVelocity2EulerParameters_t(frames[i]["omega"], ep)
+        nd = mbs.AddNode(
+            ii.NodeRigidBodyEP(
+                referenceCoordinates=list(p) + list(ep), initialVelocities=list(velocity(i, p)) + list(ep_t)
+            )
+        )
+        body = mbs.AddObject(
+            ii.ObjectRigidBody(
+                nodeNumber=nd,
+                mass=float(mass),
+                inertia=[J[0, 0], J[1, 1], J[2, 2], J[1, 2], J[0, 2], J[0, 1]],
+                centerOfMass=list(com),
+            )
+        )
+        body_of[nd] = body
+        if has_g and mass > 0:
+            mbs.AddLoad(
+                ii.LoadMassProportional(
+                    markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=list(g)
+                )
+            )
+        return nd
+
+    def rigid_marker(nd, R=None, p=None):
+        R = np.eye(3) if R is None else R
+        p = np.zeros(3) if p is None else p
+        if not np.any(p):
+            return mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=nd, localHT=exu.HT(rotation=R)))
+        body = ground_body if nd == ground else body_of[nd]
+        return mbs.AddMarker(
+            ii.MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(rotation=R, translation=list(p)))
+        )
+
+    root_nodes, tip_nodes, cables, slope_ends = [], [], [], []
+    kmax, eis = 0.0, []
+    for i, link in enumerate(model.links):
+        b, fr = link.beam, frames[i]
+        L, l = b.length, b.length / k
+        EI = b.EIz
+        EA = b.EA if b.EA is not None else INEXTENSIBLE_AXIAL_RATIO * EI / L**2
+        kmax = max(kmax, EA / l)
+        eis.append(EI)
+        Rr = rot_axis((1.0, 0.0, 0.0), b.roll)
+        per_length = Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
+        # rotary inertia lumped into the twist-free frames (trapezoidal: l/2 at the ends, l inside)
+        lumped = 0.5 * (l if twist_lock == "nodes" else L) * per_length
+        # root frame: hub (about the root point) + half the link's rotary inertia
+        J = lumped + (link.hub.inertia_matrix if link.hub is not None else 0.0)
+        root = frame_node(i, fr["p_link"], fr["R_link"], link.hub_mass, np.zeros(3), J)
+        c = link.payload_offset
+        m_p = link.payload_mass
+        J = lumped + link.payload_inertia + m_p * (c @ c * np.eye(3) - np.outer(c, c))
+        tip = frame_node(i, fr["p_tip"], fr["R_tip"], m_p, c, J)
+        x = fr["R_link"][:, 0]
+        om = fr["omega"]
+        nodes = []
+        for j in range(k + 1):
+            p = fr["p_link"] + x * (j * l)
+            nodes.append(
+                mbs.AddNode(
+                    ii.NodePointSlope1(
+                        referenceCoordinates=list(p) + list(x),
+                        initialVelocities=list(velocity(i, p)) + list(np.cross(om, x)),
+                    )
+                )
+            )
+        els = [
+            mbs.AddObject(
+                ii.ObjectANCFCable(
+                    nodeNumbers=[nodes[j], nodes[j + 1]],
+                    length=l,
+                    massPerLength=b.rhoA,
+                    bendingStiffness=EI,
+                    axialStiffness=EA,
+                    bendingDamping=b.damping * EI,
+                    axialDamping=b.damping * EA,
+                    useReducedOrderIntegration=int(bool(reduced_integration)),
+                )
+            )
+            for j in range(k)
+        ]
+        if has_g:
+            for e in els:
+                mbs.AddLoad(
+                    ii.LoadMassProportional(
+                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=list(g)
+                    )
+                )
+        # the twist-free frames: root, (every interior node,) tip; each clamped to its cable node
+        # (position: spherical joint; slope along the frame's x axis: user constraint), each
+        # locked about x to the next (the relative rotation has no x component)
+        chain = [(root, nodes[0])]
+        if twist_lock == "nodes":
+            for j in range(1, k):
+                chain.append(
+                    (
+                        frame_node(
+                            i, fr["p_link"] + x * (j * l), fr["R_link"], 0.0, np.zeros(3), l * per_length
+                        ),
+                        nodes[j],
+                    )
+                )
+        chain.append((tip, nodes[-1]))
+        for fnode, snode in chain:
+            mbs.AddObject(
+                ii.ObjectJointSpherical(
+                    markerNumbers=[
+                        mbs.AddMarker(ii.MarkerNodePosition(nodeNumber=fnode)),
+                        mbs.AddMarker(ii.MarkerNodePosition(nodeNumber=snode)),
+                    ]
+                )
+            )
+            mbs.AddObject(
+                ii.ObjectConnectorCoordinateVector(
+                    markerNumbers=[
+                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fnode)),
+                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=snode)),
+                    ],
+                    scalingMarker0=np.zeros((2, 13)),
+                    constraintUserFunction=clamp_c,
+                    jacobianUserFunction=clamp_j,
+                )
+            )
+        for (fa, _), (fb, _) in zip(chain, chain[1:]):
+            mbs.AddObject(
+                ii.ObjectConnectorCoordinateVector(
+                    markerNumbers=[
+                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fa)),
+                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fb)),
+                    ],
+                    scalingMarker0=np.zeros((1, 14)),
+                    constraintUserFunction=twist_c,
+                    jacobianUserFunction=twist_j,
+                )
+            )
+        root_nodes.append(root)
+        tip_nodes.append(tip)
+        cables.append(els)
+        slope_ends.append((nodes[0], nodes[-1]))
+
+    inputs = []
+    motion_joints = {}
+    drives = iter(sc.drives)
+    for i, link in enumerate(model.links):
+        fr, j = frames[i], link.joint
+        if i == 0:
+            parent, R_pn, p_pn = ground, np.eye(3), np.zeros(3)
+        else:
+            parent, R_pn, p_pn = tip_nodes[i - 1], frames[i - 1]["R_tip"], frames[i - 1]["p_tip"]
+        A = np.eye(3) if j.locked else _axis_frame(j.axis)
+        m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
+        m1 = rigid_marker(root_nodes[i], fr["R_link"].T @ fr["R_J"] @ A)
+        if j.locked:
+            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1] * 6))
+            continue
+        d = next(drives)
+        if d.kind == "motion":
+
+            def offset(mbs_, t, item, par, law=d.motion):
+                return [0.0, 0.0, 0.0, 0.0, 0.0, law(t, True)[0]]
+
+            motion_joints[i] = mbs.AddObject(
+                ii.ObjectJointGeneric(
+                    markerNumbers=[m0, m1], constrainedAxes=[1] * 6, offsetUserFunction=offset
+                )
+            )
+        else:
+            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 1, 1, 1, 0]))
+            a = np.array(j.axis, float)
+            targets = [(root_nodes[i], fr["R_link"].T @ fr["R_J"] @ a)]
+            if i > 0:
+                targets.append((parent, -(R_pn.T @ fr["R_J"] @ a)))
+            for nd, vec in targets:
+                ld = mbs.AddLoad(
+                    ii.LoadTorqueVector(
+                        markerNumber=rigid_marker(nd), loadVector=[0.0, 0.0, 0.0], bodyFixed=True
+                    )
+                )
+                inputs.append((ld, d.torque, vec))
+    for i, F, T, law in loads:
+        mk = rigid_marker(tip_nodes[i])
+        for vec, cls in ((F, ii.LoadForceVector), (T, ii.LoadTorqueVector)):
+            if np.any(vec):
+                ld = mbs.AddLoad(cls(markerNumber=mk, loadVector=[0.0] * 3))
+                inputs.append((ld, lambda t, left, f=law: f(t), vec))
+
+    def set_inputs(t, left):
+        for ld, law, vec in inputs:
+            mbs.SetLoadParameter(ld, "loadVector", list(law(t, left) * vec))
+
+    return dict(
+        mbs=mbs,
+        exu=exu,
+        ii=ii,
+        frames=frames,
+        root_nodes=root_nodes,
+        tip_nodes=tip_nodes,
+        cables=cables,
+        slope_ends=slope_ends,
+        motion_joints=motion_joints,
+        inputs=inputs,
+        set_inputs=set_inputs,
+        kmax=kmax,
+    )
+
+
+def _as_case(case):
+    if isinstance(case, str) or hasattr(case, "__fspath__"):
+        case = load_case(case)
+    return case
+
+
+def _abs_tol(case, B, value):
+    if value is not None:
+        return plumbing.positive_number("newton_abs_tol", value)
+    chain = sum(link.beam.length for link in case.model.links)
+    return max(1e3 * np.finfo(float).eps * B["kmax"] * chain, 1e-8)
+
+
+def _run_segments(mbs, exu, s, ti, segments, h, seg_start, B, sensors, rows):
+    """SolveDynamic over the segments (restarting at each); the sensor rows go to ``rows``.
+    Returns (wall, cpu, Newton iterations, steps, Jacobians, failure message or None, it)."""
+    wall = cpu = 0.0
+    newton = steps = jacobians = 0
+    failure = it = None
+    for a, b in segments:
+        seg_start[0] = a * h
+        B["set_inputs"](a * h, False)
+        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
+            err = None
+        except Exception as exc:  # Exudyn raises on singular Jacobians
+            ok, err = False, exc
+        wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
+        it = mbs.sys["dynamicSolver"].it
+        steps += max(int(it.currentStepIndex) - 1, 0)
+        newton += int(it.newtonStepsCount)
+        jacobians += int(it.newtonJacobiCount)
+        for sn in sensors:
+            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
+            rows[sn].append(d if not rows[sn] else d[1:])
+        if not ok:
+            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
+            break
+        mbs.systemData.SetSystemState(
+            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
+        )
+    return wall, cpu, newton, steps, jacobians, failure, it
+
+
+def simulate(
+    case,
+    *,
+    elements_per_link,
+    h,
+    rho_inf=0.8,
+    reduced_integration=False,
+    twist_lock="nodes",
+    tip_loads=None,
+    newton_rel_tol=1e-8,
+    newton_abs_tol=None,
+    newton_max_iterations=25,
+    modified_newton=True,
+) -> SpatialResult:
+    """Simulate a spatial case (a :class:`dttmm.spatial.SpatialCase` or a path to its TOML file)
+    with k = ``elements_per_link`` Exudyn 3-D ANCF cable elements per link, step h.
+
+    The links are torsionally rigid and EIy = EIz is required (module notes). Options:
+    ``rho_inf`` (generalized-α spectral radius, 0.8), ``reduced_integration`` (the element's
+    ``useReducedOrderIntegration``, False), ``tip_loads`` (as :mod:`exudyn_beam3d`: a list of
+    dicts ``link``, ``force``, ``torque`` (world), ``times``, ``factors``), ``newton_rel_tol``
+    (1e-8), ``newton_abs_tol`` (None: 10³·ε·max(EA k/L)·chain length, at least 1e-8),
+    ``newton_max_iterations`` (25), ``modified_newton`` (True). Raises InputError on bad input
+    or a case the cable cannot model, SimulationError on failure.
+    """
+    case = _as_case(case)
+    loads = check_case(case, tip_loads)
+    k = plumbing.elements_per_link(elements_per_link)
+    h = plumbing.step_size(h, case.scenario.duration)
+    if isinstance(rho_inf, bool) or not isinstance(rho_inf, (int, float)) or not (0.0 <= rho_inf <= 1.0):
+        raise InputError("rho_inf", rho_inf, "must be a number in [0, 1]")
+    newton_rel_tol = plumbing.positive_number("newton_rel_tol", newton_rel_tol)
+    newton_max_iterations = plumbing.positive_integer("newton_max_iterations", newton_max_iterations)
+    sc = case.scenario
+    ratio = sc.output_step / h
+    per_out = int(round(ratio))
+    if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
+        raise InputError("h", h, f"must divide the output step {sc.output_step}")
+    t_out = sc.output_times
+    n_steps = (len(t_out) - 1) * per_out
+
+    plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
+    B = _build(case, k, loads, reduced_integration, twist_lock)
+    mbs, exu, ii = B["mbs"], B["exu"], B["ii"]
+    root_nodes, tip_nodes, motion_joints = B["root_nodes"], B["tip_nodes"], B["motion_joints"]
+    model, n = case.model, case.model.n_links
+    seg_start = [0.0]
+    if B["inputs"]:
+
+        def pre_step(mbs_, t):
+            B["set_inputs"](t, t > seg_start[0])
+            return True
+
+        mbs.SetPreStepUserFunction(pre_step)
+    OV = exu.OutputVariableType
+
+    def sens(nd, var):
+        return mbs.AddSensor(
+            ii.SensorNode(nodeNumber=nd, outputVariableType=var, storeInternal=True, writeToFile=False)
+        )
+
+    trio = (OV.Position, OV.RotationMatrix, OV.AngularVelocity)
+    s_root = [tuple(sens(nd, v) for v in trio) for nd in root_nodes]
+    s_tip = [tuple(sens(nd, v) for v in trio) for nd in tip_nodes]
+    s_mot = {
+        i: mbs.AddSensor(
+            ii.SensorObject(
+                objectNumber=c, outputVariableType=OV.TorqueLocal, storeInternal=True, writeToFile=False
+            )
+        )
+        for i, c in motion_joints.items()
+    }
+    mbs.Assemble()
+
+    s = exu.SimulationSettings()
+    ti = s.timeIntegration
+    ti.adaptiveStep = False
+    ti.verboseMode = 0
+    ti.generalizedAlpha.spectralRadius = float(rho_inf)
+    ti.generalizedAlpha.computeInitialAccelerations = True
+    ti.newton.relativeTolerance = newton_rel_tol
+    abs_tol = _abs_tol(case, B, newton_abs_tol)
+    ti.newton.absoluteTolerance = abs_tol
+    ti.newton.maxIterations = newton_max_iterations
+    ti.newton.useModifiedNewton = bool(modified_newton)
+    ti.newton.modifiedNewtonJacUpdatePerStep = True
+    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+    s.parallel.numberOfThreads = 1
+    s.solution.file.write = False
+    s.show.computationTime = False
+    s.show.statistics = False
+
+    t_end = n_steps * h
+    bps = [b for b in sc.breakpoints if 0 < b < t_end and abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h)]
+    idx = sorted({0, n_steps, *[int(round(b / h)) for b in bps]})
+    segments = [(a, b) for a, b in zip(idx, idx[1:]) if b > a]
+    on_grid = all(a % per_out == 0 for a, _ in segments)
+    s.solution.sensors.writePeriod = sc.output_step if on_grid else h
+    all_sensors = [x for tr in s_root + s_tip for x in tr] + list(s_mot.values())
+    rows = {sn: [] for sn in all_sensors}
+    import exudyn.solver as exu_solver
+
+    # the clamp and twist user functions return new arrays at every call, which Exudyn's
+    # allocation check reports as a warning after each solve: expected here, so not printed
+    check_allocations = exu_solver.solverCheckMemoryAllocations
+    exu_solver.solverCheckMemoryAllocations = False
+    try:
+        segments_run = _run_segments(mbs, exu, s, ti, segments, h, seg_start, B, all_sensors, rows)
+    finally:
+        exu_solver.solverCheckMemoryAllocations = check_allocations
+    wall, cpu, newton, steps, jacobians, failure, it = segments_run
+    if failure is not None:
+        raise SimulationError(
+            f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
+        )
+
+    def stored(sn):
+        d = np.concatenate(rows[sn], axis=0)
+        x = d[:, 0] / sc.output_step
+        d = d[np.abs(x - np.round(x)) <= 1e-6 * per_out]
+        if len(d) != len(t_out):
+            raise SimulationError(
+                f"Exudyn {METHOD}: {len(d)} sensor rows for {len(t_out)} outputs",
+                t=t_end,
+                step=steps,
+                component="sensors",
+            )
+        return d[:, 1:]
+
+    nt = len(t_out)
+    root = np.stack([stored(x[0]) for x in s_root], axis=1)
+    tip = np.stack([stored(x[0]) for x in s_tip], axis=1)
+    Rl = np.stack([stored(x[1]).reshape(nt, 3, 3) for x in s_root], axis=1)
+    Rt = np.stack([stored(x[1]).reshape(nt, 3, 3) for x in s_tip], axis=1)
+    w_root = np.stack([stored(x[2]) for x in s_root], axis=1)
+    w_tip = np.stack([stored(x[2]) for x in s_tip], axis=1)
+    d = tip - root
+    defl = np.stack(
+        [np.einsum("tni,tni->tn", d, Rl[..., 1]), np.einsum("tni,tni->tn", d, Rl[..., 2])], axis=-1
+    )
+    twist = np.array([[log_so3(Rl[t_, i].T @ Rt[t_, i])[0] for i in range(n)] for t_ in range(nt)])
+    unl = list(model.unlocked)
+    ja, jr, jt = np.zeros((nt, len(unl))), np.zeros((nt, len(unl))), np.zeros((nt, len(unl)))
+    alpha0, _ = _initial_joint_states(case)
+    for c_, (i, dr) in enumerate(zip(unl, sc.drives)):
+        j = model.links[i].joint
+        a = np.array(j.axis, float)
+        if i == 0:
+            R_par = np.broadcast_to(rpy_matrix(model.base_rpy), (nt, 3, 3))
+            w_par = np.zeros((nt, 3))
+        else:
+            R_par, w_par = Rt[:, i - 1], w_tip[:, i - 1]
+        R_J = R_par @ rpy_matrix(j.origin_rpy)
+        rel = np.einsum("tji,tjk->tik", R_J, Rl[:, i])
+        vee = 0.5 * np.stack(
+            [rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], -1
+        )
+        ang = np.unwrap(np.arctan2(vee @ a, 0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0)))
+        ang += 2 * np.pi * round((alpha0[i] - ang[0]) / (2 * np.pi))
+        ja[:, c_] = ang
+        jr[:, c_] = np.einsum("ti,ti->t", w_root[:, i] - w_par, R_J @ a)
+        if dr.kind == "motion":
+            jt[:, c_] = stored(s_mot[i])[:, 2]
+            jt[0, c_] = 0.0  # no multiplier before the first step (as the planar peers)
+        else:
+            jt[:, c_] = [dr.torque(float(t_), t_ > 0) for t_ in t_out]
+    meta = dict(
+        method=METHOD,
+        elements_per_link=k,
+        h=h,
+        element="ObjectANCFCable",
+        node="NodePointSlope1",
+        torsion="rigid: twist not modelled (GJ ignored)",
+        twist_lock=twist_lock,
+        rotary_inertia="(rhoJ, rhoIy, rhoIz) lumped into the twist-free frames (l/2 at the ends, l inside)"
+        if twist_lock == "nodes"
+        else "(rhoJ, rhoIy, rhoIz)·L lumped half at each end frame",
+        reduced_integration=bool(reduced_integration),
+        integrator="generalized-alpha",
+        rho_inf=float(rho_inf),
+        newton_rel_tol=newton_rel_tol,
+        newton_abs_tol=abs_tol,
+        modified_newton=bool(modified_newton),
+        jacobian_per_step=True,
+        linear_solver="EigenSparse",
+        newton_iterations_per_step=newton / max(steps, 1),
+        jacobians_per_step=jacobians / max(steps, 1),
+        ode2_size=int(mbs.systemData.ODE2Size()),
+        ae_size=int(mbs.systemData.AEsize()),
+        restarts=[float(x) for x in bps],
+        wall_time_solve=wall,
+        cpu_time=cpu,
+        cpu_time_solve=cpu,
+        exudyn=exu.__version__,
+    )
+    return SpatialResult(
+        t=t_out,
+        joint_angle=ja,
+        joint_rate=jr,
+        joint_torque=jt,
+        link_root=root,
+        link_tip=tip,
+        tip_deflection=defl,
+        end_effector=tip[:, -1].copy(),
+        wall_time=wall,
+        n_steps=steps,
+        meta=meta,
+        twist=twist,
+        link_rotation=Rl,
+        tip_rotation=Rt,
+    )
+
+
+def statics(case, *, elements_per_link, tip_loads=None, load_steps=10, twist_lock="nodes"):
+    """Static equilibrium of ``case`` by Exudyn's ``SolveStatic`` (gravity, the torque drives and
+    ``tip_loads`` at t = duration, in ``load_steps`` load steps; Newton to 1e-12 relative).
+    Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2) (tip − root
+    along the root frame's y and z), ``twist`` (n,)."""
+    case = _as_case(case)
+    loads = check_case(case, tip_loads)
+    k = plumbing.elements_per_link(elements_per_link)
+    steps = plumbing.positive_integer("load_steps", load_steps)
+    plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
+    B = _build(case, k, loads, twist_lock=twist_lock)
+    mbs, exu = B["mbs"], B["exu"]
+    B["set_inputs"](case.scenario.duration, True)
+    mbs.Assemble()
+    s = exu.SimulationSettings()
+    s.staticSolver.newton.relativeTolerance = 1e-12
+    s.staticSolver.newton.absoluteTolerance = 1e-14 * B["kmax"]
+    s.staticSolver.numberOfLoadSteps = steps
+    s.staticSolver.verboseMode = 0
+    s.solution.file.write = False
+    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+    if not mbs.SolveStatic(s):
+        raise SimulationError(f"Exudyn {METHOD}: SolveStatic failed", t=0.0, step=0, component="newton")
+    OV = exu.OutputVariableType
+    root = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["root_nodes"]])
+    tip = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["tip_nodes"]])
+    Rl = [np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) for nd in B["root_nodes"]]
+    Rt = [np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) for nd in B["tip_nodes"]]
+    d = tip - root
+    return dict(
+        link_root=root,
+        link_tip=tip,
+        tip_deflection=np.array([[di @ R[:, 1], di @ R[:, 2]] for di, R in zip(d, Rl)]),
+        twist=np.array([log_so3(a.T @ b)[0] for a, b in zip(Rl, Rt)]),
+    )
+
+
+def frequencies(case, *, elements_per_link, count=8, twist_lock="nodes"):
+    """The ``count`` lowest natural frequencies (Hz) of ``case`` linearised at t = 0 (its initial
+    configuration, joints as built: the torque-driven joints free), from Exudyn's
+    ``ComputeODE2Eigenvalues`` with the constraints projected out (dense SVD null space)."""
+    case = _as_case(case)
+    check_case(case)
+    k = plumbing.elements_per_link(elements_per_link)
+    count = plumbing.positive_integer("count", count)
+    plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
+    B = _build(case, k, [], twist_lock=twist_lock)
+    mbs, exu = B["mbs"], B["exu"]
+    mbs.Assemble()
+    s = exu.SimulationSettings()
+    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
+    ev, _ = mbs.ComputeODE2Eigenvalues(
+        simulationSettings=s,
+        useSparseSolver=False,
+        ignoreAlgebraicEquations=False,
+        singularValuesTolerance=1e-10,
+    )
+    ev = np.sort(np.abs(np.asarray(ev, float)))
+    f = np.sqrt(ev) / (2.0 * math.pi)
+    return f[f > 1e-6 * max(f.max(), 1e-300)][:count]
