@@ -21,6 +21,7 @@ the ``--method`` option of ``dttmm report`` and ``dttmm validate``) or the entry
 
 from __future__ import annotations
 
+import functools
 import importlib
 import importlib.metadata
 import importlib.util
@@ -153,7 +154,9 @@ class Method:
         the same common call, '' when the method runs planar arms only; ``spatial_options``:
         the (name, value) pairs its spatial calls get instead of ``options`` (None: the same);
         ``spatial_max_k``: the largest k its spatial runs take in the studies (their cost);
-        ``spatial_max_step``: ``max_step`` for its spatial runs (None: ``max_step``)
+        ``spatial_max_step``: ``max_step`` for its spatial runs (None: ``max_step``);
+        ``spatial_check``: ``module:function`` that raises InputError for a spatial case the
+        method cannot model (its message is the reason the method sits that case out)
     """
 
     name: str
@@ -186,6 +189,7 @@ class Method:
     spatial_options: tuple[tuple[str, object], ...] | None = None
     spatial_max_k: float = math.inf
     spatial_max_step: Callable[[int], float] | None = None
+    spatial_check: str = ""
 
     def __post_init__(self):
         from dttmm.errors import InputError
@@ -205,16 +209,27 @@ class Method:
             )
         object.__setattr__(self, "capabilities", frozenset(self.capabilities))
         object.__setattr__(self, "skip", tuple(dict(self.skip).items()))
-        if self.spatial and (self.spatial.count(":") != 1 or not all(self.spatial.split(":"))):
-            raise InputError(f"method {self.name}: spatial", self.spatial, "must be 'module:function'")
+        for key in ("spatial", "spatial_check"):
+            spec = getattr(self, key)
+            if spec and (spec.count(":") != 1 or not all(spec.split(":"))):
+                raise InputError(f"method {self.name}: {key}", spec, "must be 'module:function'")
 
     def runs_on(self, case, k: int | None = None) -> bool:
         """Whether the method runs ``case`` (at k elements per link, when given): every method
-        runs planar cases, those with a ``spatial`` entry spatial ones too, up to
-        ``spatial_max_k``."""
+        runs planar cases, those with a ``spatial`` entry the spatial ones it can model (see
+        :meth:`why_not_case`), up to ``spatial_max_k``."""
+        if k is not None and is_spatial(case) and k > self.spatial_max_k:
+            return False
+        return not self.why_not_case(case)
+
+    def why_not_case(self, case) -> str:
+        """Why the method cannot run ``case`` ('' when it can): a spatial arm needs a
+        ``spatial`` entry, and passes its ``spatial_check``."""
         if not is_spatial(case):
-            return True
-        return bool(self.spatial) and (k is None or k <= self.spatial_max_k)
+            return ""
+        if not self.spatial:
+            return "no spatial engine (planar arms only)"
+        return _spatial_refusal(self.spatial_check, case) if self.spatial_check else ""
 
     def options_for(self, study: str) -> tuple:
         """Extra options the method's runs get in ``study``."""
@@ -458,6 +473,9 @@ _BUILTIN = (
         capabilities=_ALL_CAPS - {"energy", "cut_loads"},
         reference_rank=1,
         frequencies="reference_models.exudyn_modes:frequencies",
+        # spatial arms: ObjectANCFCable (3-D), torsionally rigid, one bending stiffness (docs/peers.md)
+        spatial="reference_models.exudyn_ancf3d:simulate",
+        spatial_check="reference_models.exudyn_ancf3d:check_case",
         settings=(
             Setting(
                 "element",
@@ -650,6 +668,21 @@ def is_spatial(case) -> bool:
     from dttmm.spatial.case import SpatialCase
 
     return isinstance(case, SpatialCase)
+
+
+@functools.lru_cache(maxsize=256)
+def _spatial_refusal(check: str, case) -> str:
+    """The message of the InputError ``check(case)`` raises ('' when it raises none)."""
+    from dttmm.errors import InputError
+
+    mod, fn = check.split(":")
+    try:
+        getattr(importlib.import_module(mod), fn)(case)
+    except InputError as exc:
+        return str(exc)
+    except Exception as exc:  # noqa: BLE001 - a check that cannot load or crashes: the method cannot run it
+        return f"{check} failed: {type(exc).__name__}: {exc}"
+    return ""
 
 
 def runs_on(name: str, case, k: int | None = None) -> bool:

@@ -110,6 +110,13 @@ def case_section(meta: dict) -> Section | None:
             f"{_value(float(s['duration']))} s with output every {_value(float(s['output_step']) * 1e3)} ms."
         )
         tables.append((f"case_{name}", link_table(c), f"Parameters of {name} (SI units), one row per link"))
+        out = (meta.get("sitting_out") or {}).get(name) or {}
+        if out:
+            text.append(
+                f"{name} is a spatial arm: the studies run it with every method that models it; "
+                + "; ".join(f"{m} sits it out ({why})" for m, why in out.items())
+                + "."
+            )
     text.append(
         "Torque-driven joints follow the torque law given; motion-driven joints follow the angle law and "
         "their torque is an output. Every method solves the same case: the same links, drives and output "

@@ -85,6 +85,12 @@ def run_report(
         "elapsed": time.perf_counter() - t0,
         "studies": as_dicts(plan.studies),
         "cases": {n: case_to_dict(c) for n, c in ctx.cases.items()},
+        # spatial arms: which methods sit them out, and why (the studies run the rest)
+        "sitting_out": {
+            n: {m: why for m in methods.names() if (why := methods.get(m).why_not_case(c))}
+            for n, c in ctx.cases.items()
+            if methods.is_spatial(c)
+        },
         "case_files": dict(plan.case_files),
     }
     (out / "data" / "report_meta.json").write_text(json.dumps(meta, indent=1, default=str))

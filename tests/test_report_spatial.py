@@ -117,3 +117,14 @@ def test_spatial_paper_series(report):
     assert 0 < loads.energy_rel["dttmm"] < 1e-3
     assert loads.energy_rel["pinocchio-rigid"] > 10 * loads.energy_rel["dttmm"]
     assert "paper_three_joint_arm.png" in md
+
+
+def test_methods_sitting_a_spatial_arm_out_say_why(report):
+    import dttmm
+
+    _, _, md, _ = report
+    assert "amm sits it out (no spatial engine (planar arms only))" in md
+    # the ANCF cable has one bending stiffness: the arm's EIy ≠ EIz is the reason it sits out
+    assert "exudyn-ancf sits it out (model.links[0].beam.EIy" in md
+    twin = dttmm.load_case("experiments/cases/spatial/two_joint_arm.toml")  # EIy = EIz
+    assert methods.runs_on("exudyn-ancf", twin)
