@@ -21,9 +21,12 @@ d = (l + u, v, w), and turns by ω_O = ω_I + R_I J_L(φ) φ̇ (J_L the left Jac
 **Equations.** M = Σ m J_vᵀJ_v + Σ J_ωᵀ I J_ω; the velocity terms
 h = Σ m J_vᵀ (J̇_v q̇) + Σ J_ωᵀ (I J̇_ω q̇ + ω × I ω), with J̇q̇ the exact directional derivative
 of J(q)q̇ along q̇, taken by the complex step Im[J(q + iε q̇)] q̇ / ε (ε = 1e-30; every map is
-analytic); gravity Q_g = Σ m J_vᵀ g. The elastic force is the gradient of the element strain
-energy (linear strain, or the second-order axial strain of extensible links); the
-Kelvin–Voigt damping acts on the rate of the same strain measures (D = μK for linear strain).
+analytic); gravity Q_g = Σ m J_vᵀ g. External loads (``SpatialScenario.loads``: a force F and a
+moment M at a link's tip point, world components or, for a follower load, tip-frame components
+turned by R_tip) enter by their virtual work, Q = J_r,tipᵀ F + J_ω,tipᵀ M at the configuration
+(re-evaluated at every iterate), and the cut loads of the cuts they are outboard of. The
+elastic force is the gradient of the element strain energy (linear strain, or the second-order
+axial strain of extensible links); the Kelvin–Voigt damping acts on the rate of the same strain measures (D = μK for linear strain).
 
 **Time integration.** ``"newmark"`` (β = ¼, γ = ½) and ``"generalized-alpha"`` step the shared
 schedule (:func:`dttmm.timegrid.step_schedule`) and iterate each step's accelerations with the
@@ -90,6 +93,7 @@ __all__ = [
     "energy",
     "generalized_forces",
     "kinematics",
+    "load_forces",
     "mass_matrix",
     "simulate",
 ]
@@ -428,10 +432,12 @@ def _cut_table(lay: _Layout):
     return np.concatenate([gauss, hub, pay])
 
 
-def _cut_loads(lay: _Layout, q, qd, qdd) -> np.ndarray:
+def _cut_loads(lay: _Layout, q, qd, qdd, tip_loads=None) -> np.ndarray:
     """Loads (n(k + 1), 6) at the cuts: force and moment about the cut point (W components) that
     the inboard part exerts on the outboard part, by Newton–Euler of the outboard bodies:
-    F = Σ m (a − g), M = Σ (r − r_c) × m (a − g) + Σ (I ω̇ + ω × I ω)."""
+    F = Σ m (a − g), M = Σ (r − r_c) × m (a − g) + Σ (I ω̇ + ω × I ω), less the external loads
+    ``tip_loads`` (n, 6) (world force and moment at each link's tip point, outboard of every cut
+    of its link up to and including the tip, like a payload)."""
     b = _bodies(lay, q + 1j * _EPS * qd)
     fr = _frames(lay, q)
     Jv, Jw = b.Jv.real, b.Jw.real
@@ -452,6 +458,12 @@ def _cut_loads(lay: _Layout, q, qd, qdd) -> np.ndarray:
         sel = reach > c
         out[c, :3] = force[sel].sum(axis=0)
         out[c, 3:] = np.cross(r[sel] - rc, force[sel]).sum(axis=0) + spin[sel].sum(axis=0)
+    if tip_loads is not None:
+        load_reach = reach[-n:]  # a tip load has its link's payload's reach
+        for c, rc in enumerate(points):
+            for i in np.flatnonzero(load_reach > c):
+                out[c, :3] -= tip_loads[i, :3]
+                out[c, 3:] -= np.cross(fr.p_tip[i] - rc, tip_loads[i, :3]) + tip_loads[i, 3:]
     return out
 
 
@@ -465,7 +477,7 @@ def cut_loads(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndar
     require_open_loop(case, "the spatial global solver")
     q, qd = _as_state(lay, q, "q"), _as_state(lay, qd, "qd")
     qdd = _forward(case, lay, q, qd, float(t), False)[0]
-    return _cut_loads(lay, q, qd, qdd)
+    return _cut_loads(lay, q, qd, qdd, _tip_loads(case, lay, _frames(lay, q), float(t), False))
 
 
 def _kinetic(lay: _Layout, q, qd) -> float:
@@ -550,6 +562,32 @@ def _torques(case, lay: _Layout, t, left) -> np.ndarray:
     return Q
 
 
+def _tip_loads(case, lay: _Layout, fr: _Frames, t, left) -> np.ndarray:
+    """The external loads of the case's scenario at t, per link tip (n, 6): force and moment
+    (about the tip point), world components; a follower load's tip-frame components turned by
+    the deformed tip frame R_tip."""
+    out = np.zeros((lay.n_links, 6))
+    for ld in getattr(case.scenario, "loads", ()):
+        i = ld.link_index(lay.n_links)
+        F, M = ld.value(t, left)
+        if ld.follower:
+            F, M = fr.R_tip[i] @ F, fr.R_tip[i] @ M
+        out[i, :3] += F
+        out[i, 3:] += M
+    return out
+
+
+def _load_forces(case, lay: _Layout, q, t, left) -> np.ndarray:
+    """Generalized forces (N,) of the external loads from their virtual work
+    δW = Σ (Fᵀ δr_tip + Mᵀ δθ_tip): Q = Σ J_r,tipᵀ F + J_ω,tipᵀ M (the tip point's and tip
+    frame's velocity Jacobians of :func:`_frames`), at the configuration q."""
+    if not getattr(case.scenario, "loads", ()):
+        return np.zeros(lay.n_dof)
+    fr = _frames(lay, q)
+    L = _tip_loads(case, lay, fr, t, left)
+    return np.einsum("nim,ni->m", fr.Jr_tip, L[:, :3]) + np.einsum("nim,ni->m", fr.Jw_tip, L[:, 3:])
+
+
 def _prescribed(case, t, left) -> np.ndarray:
     rows = [d.motion(t, left) for d in case.scenario.drives if d.kind == "motion"]
     return np.array(rows, float).reshape(-1, 3)
@@ -569,6 +607,7 @@ def _forward(case, lay, q, qd, t, left):
     pres = _prescribed(case, t, left)
     M, f = _assemble(lay, q, qd)
     rhs = f + _torques(case, lay, t, left) - _elastic(lay, q)[1] - _damping(lay, q, qd)[0]
+    rhs += _load_forces(case, lay, q, t, left)
     qdd = np.zeros(lay.n_dof)
     qdd[P] = pres[:, 2]
     qdd[F] = np.linalg.solve(M[np.ix_(F, F)], rhs[F] - M[np.ix_(F, P)] @ qdd[P])
@@ -616,6 +655,14 @@ def generalized_forces(case, elements_per_link, q, qd) -> np.ndarray:
     damping forces)."""
     lay = _layout(case, elements_per_link)
     return _assemble(lay, _as_state(lay, q, "q"), _as_state(lay, qd, "qd"))[1]
+
+
+def load_forces(case, elements_per_link, q, t=0.0, left=False) -> np.ndarray:
+    """Generalized forces (N,) of the scenario's external loads (``SpatialScenario.loads``) at
+    the configuration q and time t (``left``: left limits of their laws): Σ J_r,tipᵀ F +
+    J_ω,tipᵀ M from their virtual work."""
+    lay = _layout(case, elements_per_link)
+    return _load_forces(case, lay, _as_state(lay, q, "q"), float(t), bool(left))
 
 
 def elastic_forces(case, elements_per_link, q, strain="linear"):
@@ -709,7 +756,7 @@ def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv):
         fd, Dt = _damping(lay, q, qd)
         B = cq * KT + cv * Dt
         A = M + B
-        rhs = f + Qt - fi - fd + B @ qdd
+        rhs = f + Qt - fi - fd + B @ qdd + _load_forces(case, lay, q, t1, True)
         new = qdd.copy()
         new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P])
         delta = float(np.max(np.abs(new[F] - qdd[F]))) if F.size else 0.0
@@ -725,7 +772,7 @@ def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv):
     tau_p = np.zeros(P.size)
     if P.size:
         M, f = _assemble(lay, q, qd)
-        rhs = f + Qt - _elastic(lay, q)[1] - _damping(lay, q, qd)[0]
+        rhs = f + Qt - _elastic(lay, q)[1] - _damping(lay, q, qd)[0] + _load_forces(case, lay, q, t1, True)
         tau_p = M[P] @ qdd - rhs[P]
     return qdd, tau_p, i + 1, converged
 
@@ -899,7 +946,8 @@ class _Recorder:
             for i in range(n):
                 t = float(self.t[i])
                 qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0)[0]
-                loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd)
+                ext = _tip_loads(self.case, lay, _frames(lay, self.q[i]), t, t > 0.0)
+                loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd, ext)
         return SpatialResult(
             t=self.t[:n].copy(),
             joint_angle=self.q[:n, a],

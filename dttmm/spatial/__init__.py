@@ -1,7 +1,8 @@
 """dttmm.spatial — spatial (3-D) manipulators with flexible links (docs/spatial.md).
 
 The model (:class:`SpatialManipulator` and its parts), cases (:class:`SpatialCase`: a spatial
-manipulator with the planar suite's :class:`dttmm.Scenario`), the embedding of a planar arm
+manipulator with the planar suite's :class:`dttmm.Scenario`, or a :class:`SpatialScenario` that
+adds external loads, :class:`SpatialLoad`), the embedding of a planar arm
 (:func:`embed_planar`), the rotation helpers of the discretisation and the static equilibrium
 with the joints held (:func:`statics`).
 """
@@ -18,12 +19,15 @@ from .model import (
 )
 from .result import SpatialResult
 from .rotation import axis_angle_matrix, exp_so3, hat, left_jacobian, log_so3, rpy_matrix
+from .scenario import SpatialLoad, SpatialScenario
 
 __all__ = [
     "SpatialResult",
     "accelerations",
     "simulate",
     "SpatialCase",
+    "SpatialLoad",
+    "SpatialScenario",
     "SpatialHub",
     "SpatialJoint",
     "SpatialLink",

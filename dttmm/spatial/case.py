@@ -1,5 +1,5 @@
-"""A spatial case = a spatial manipulator + the planar suite's scenario (one drive per unlocked
-joint, base first)."""
+"""A spatial case = a spatial manipulator + a scenario: the planar suite's (one drive per
+unlocked joint, base first), or a :class:`SpatialScenario` that adds external loads."""
 
 from __future__ import annotations
 
@@ -8,12 +8,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import Field, Strict, ValidationError
+from pydantic import Field, Strict, ValidationError, create_model
 
 from ..case import ScenarioFile, _drive, check_case, read_case_text
+from ..drives import OPEN_LAWS, _prefixed, _tagged, _union, law_from_table
 from ..errors import InputError
 from ..scenario import Scenario
-from ..schema import Finite, NonNegative, Positive, _short, _Strict, input_error
+from ..schema import Finite, NonNegative, Positive, _short, _Strict, fields_model, input_error
 from .model import (
     BoundedVector3,
     InertiaValue,
@@ -25,6 +26,7 @@ from .model import (
     SpatialSection,
     Vector3,
 )
+from .scenario import LOAD_LAWS, SpatialLoad, SpatialLoadFields, SpatialScenario, check_load_links
 
 __all__ = [
     "SpatialCase",
@@ -38,8 +40,9 @@ __all__ = [
 
 @dataclass(frozen=True)
 class SpatialCase:
-    """The physical problem of a spatial arm: ``model`` and ``scenario``; ``provenance`` is
-    free-form metadata (no part in equality)."""
+    """The physical problem of a spatial arm: ``model`` and ``scenario`` (a :class:`dttmm.Scenario`,
+    or a :class:`SpatialScenario` with external loads); ``provenance`` is free-form metadata (no
+    part in equality)."""
 
     model: SpatialManipulator
     scenario: Scenario
@@ -48,6 +51,7 @@ class SpatialCase:
 
     def __post_init__(self):
         check_case(self, SpatialManipulator, "dttmm.spatial.SpatialManipulator", "n_joints", "unlocked joint")
+        check_load_links(self)
 
     @property
     def n_joints(self) -> int:
@@ -106,13 +110,37 @@ class SpatialModelFile(_Strict):
     links: Annotated[list[SpatialLinkFile], Strict(), Field(min_length=1)]
 
 
+def _factor_table(name: str):
+    """The table of a load factor following law ``name``; a constant's ``value`` is required
+    (its default, 0, would silently remove the load)."""
+    fields = fields_model(OPEN_LAWS[name])
+    if name == "constant":
+        fields = create_model(
+            "ConstantFactorFields", __base__=_Strict, __module__=__name__, value=(Finite, ...)
+        )
+    return _tagged(name, fields)
+
+
+FactorFile = _union(_factor_table(n) for n in LOAD_LAWS)
+
+
+class LoadFile(SpatialLoadFields):
+    """One ``[[scenario.loads]]`` table of a spatial case (docs/cases.md)."""
+
+    factor: FactorFile | None = None
+
+
+class SpatialScenarioFile(ScenarioFile):
+    loads: Annotated[list[LoadFile], Strict()] = []
+
+
 class SpatialCaseFile(_Strict):
     """A whole spatial case file; ``kind = "spatial"`` marks it (optional)."""
 
     kind: Literal["spatial"] = "spatial"
     name: str = ""
     model: SpatialModelFile
-    scenario: ScenarioFile
+    scenario: SpatialScenarioFile
     provenance: dict[str, Any] | None = None
 
 
@@ -160,8 +188,20 @@ def case_from_dict(data: dict) -> SpatialCase:
     manip = SpatialManipulator(tuple(links), tuple(m.gravity), tuple(m.base.xyz), tuple(m.base.rpy))
     sc = spec.scenario
     drives = tuple(_drive(d, i) for i, d in enumerate(sc.drives))
+    loads = tuple(_load(d, j) for j, d in enumerate(sc.loads))
     prov = None if spec.provenance is None else dict(spec.provenance)
-    return SpatialCase(manip, Scenario(sc.duration, sc.output_step, drives), spec.name, prov)
+    return SpatialCase(manip, SpatialScenario(sc.duration, sc.output_step, drives, loads), spec.name, prov)
+
+
+def _load(spec, j: int) -> SpatialLoad:
+    w = f"scenario.loads[{j}]"
+    factor = {}
+    if spec.factor is not None:
+        try:
+            factor = {"factor": law_from_table(spec.factor.law, spec.factor)}
+        except InputError as exc:
+            raise _prefixed(exc, f"{w}.factor") from None
+    return SpatialLoad(tuple(spec.force), tuple(spec.moment), spec.link, spec.frame, **factor, _where=w)
 
 
 def load_case(path) -> SpatialCase:

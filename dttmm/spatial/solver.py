@@ -14,8 +14,10 @@ from ..errors import InputError
 from ..timegrid import step_schedule
 from .build import STRAINS, build_model, make_work
 from .case import SpatialCase
+from .kernel.core import INPUT_COLS, LOAD_COL
 from .result import SpatialResult
 from .rotation import log_so3
+from .scenario import load_inputs
 
 __all__ = ["INTEGRATORS", "accelerations", "as_spatial_case", "simulate"]
 
@@ -66,12 +68,13 @@ def _motion_flags(case: SpatialCase) -> np.ndarray:
 
 
 def _drive_values(case: SpatialCase, n: int, t: float, left: bool):
-    tau, mot = np.zeros(n), np.zeros((n, 3))
+    tau, mot = np.zeros(n), np.zeros((n, INPUT_COLS))
     for d, i in zip(case.scenario.drives, case.model.unlocked):
         if d.kind == "motion":
-            mot[i] = d.motion(t, left)
+            mot[i, :3] = d.motion(t, left)
         else:
             tau[i] = d.torque(t, left)
+    load_inputs(case, t, left, mot[:, LOAD_COL:])
     return tau, mot
 
 
@@ -79,9 +82,9 @@ def _tables(case, n, t_end, restart):
     ns = t_end.size
     t_start = np.concatenate(([0.0], t_end[:-1]))
     t_mid = t_start + 0.5 * (t_end - t_start)
-    tl, ml = np.zeros((ns, n)), np.zeros((ns, n, 3))
-    tr, mr = np.zeros((ns + 1, n)), np.zeros((ns + 1, n, 3))
-    tm, mm = np.zeros((ns, n)), np.zeros((ns, n, 3))
+    tl, ml = np.zeros((ns, n)), np.zeros((ns, n, INPUT_COLS))
+    tr, mr = np.zeros((ns + 1, n)), np.zeros((ns + 1, n, INPUT_COLS))
+    tm, mm = np.zeros((ns, n)), np.zeros((ns, n, INPUT_COLS))
     for s in range(ns):
         tl[s], ml[s] = _drive_values(case, n, t_end[s], True)
         tm[s], mm[s] = _drive_values(case, n, t_mid[s], False)

@@ -820,6 +820,30 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     return ok
 
 
+#: per-link input rows (``mot`` of :func:`sweep`): columns 0–2 the motion law (α, α̇, α̈), then
+#: from LOAD_COL on the external load at the link's tip (dttmm.spatial.scenario.load_inputs):
+#: world force, world moment, tip-frame force, tip-frame moment
+LOAD_COL = 3
+INPUT_COLS = LOAD_COL + 12
+
+
+@njit(inline="always")
+def tip_load(inp, i, RO, Qi, c):
+    """The external load at the tip of link i (``inp[i, LOAD_COL:]``, when the rows have those
+    columns) into the bias c of the outboard element frame RO (world), moment about the tip point:
+    the inboard part then exerts P·A + c − (F, M). Tip-frame components x_T become Qᵀ x_T."""
+    if inp.shape[1] < INPUT_COLS:
+        return
+    k = LOAD_COL
+    for a in range(3):
+        fw = RO[0, a] * inp[i, k] + RO[1, a] * inp[i, k + 1] + RO[2, a] * inp[i, k + 2]
+        mw = RO[0, a] * inp[i, k + 3] + RO[1, a] * inp[i, k + 4] + RO[2, a] * inp[i, k + 5]
+        ft = Qi[0, a] * inp[i, k + 6] + Qi[1, a] * inp[i, k + 7] + Qi[2, a] * inp[i, k + 8]
+        mt = Qi[0, a] * inp[i, k + 9] + Qi[1, a] * inp[i, k + 10] + Qi[2, a] * inp[i, k + 11]
+        c[a] -= fw + ft
+        c[3 + a] -= mw + mt
+
+
 @njit(nrt=False)
 def backward_link(md, ws, i, cq, cv, qhat, qdhat, forces, ehat, edhat, fext):
     """The backward sweep over the elements of link i, in place on ws.P, ws.c (tip → root),
@@ -912,7 +936,8 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
     (force, moment; world components) at every element root and link tip. ``qhat``/``qdhat``:
     the known parts of the elastic coordinates and rates (Newmark predictors; the state itself
     for the acceleration solver, with cq = cv = 0). ``tau`` (n,): torques of torque joints;
-    ``mot`` (n, 3): α, α̇, α̈ of motion joints; ``forces`` (n_dof,) generalized forces on the
+    ``mot`` (n, 3) or (n, INPUT_COLS): α, α̇, α̈ of motion joints (and the tip loads, see
+    :func:`tip_load`); ``forces`` (n_dof,) generalized forces on the
     coordinates besides the drives (virtual work Qᵀδq; on a torque joint's angle they add to its
     torque). Returns ok."""
     P = np.zeros((6, 6))
@@ -939,6 +964,7 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             b[:3] = -md.pay_m[i] * gO
             b[3:] = cross(wO, mv(md.pay_J[i], wO))
             add_body(M, transfer(d), zeta, b, P, c)
+        tip_load(mot, i, RO, Qi, c)
         for r in range(6):
             for s in range(6):
                 ws.Ptip[i, r, s] = P[r, s]
