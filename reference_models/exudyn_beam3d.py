@@ -23,8 +23,11 @@ root and tip nodes (mass, inertia about the node, centre of mass offset). Gravit
 (body-fixed, ±τ·a) whose values a PreStepUserFunction sets once per step at the step end (as the
 planar peers); motion drives: all six axes constrained with the angle prescribed by the joint's
 ``offsetUserFunction`` (a Python call per residual evaluation); their torque is the joint's
-reaction moment about the axis. External loads at link tips (``tip_loads``) are piecewise-linear
-in time, set by the same pre-step function.
+reaction moment about the axis. External loads at link tips: the case's ``scenario.loads``
+(:class:`dttmm.spatial.SpatialLoad`: world components as a ``LoadForceVector``/``LoadTorqueVector``
+on the tip node, follower loads as body-fixed ones in the node frame R_tip·Rx(roll)) and the
+option ``tip_loads`` (world components, piecewise-linear in time), their values set by the same
+pre-step function.
 
 Time integration: Exudyn's generalized-α (``rho_inf``, default 1: no numerical damping, as
 Exudyn's right-angle cantilever test model) with fixed step h, modified Newton with a Jacobian
@@ -121,7 +124,15 @@ def _piecewise(times, values):
 
 
 def _check_tip_loads(case, tip_loads):
+    """The loads of the case's scenario and of the option ``tip_loads``: (link, F, T, law(t,
+    left), follower) per load."""
     out = []
+    n = case.model.n_links
+    for ld in getattr(case.scenario, "loads", ()):
+        law = lambda t, left, f=ld.factor: float(f(t, left))  # noqa: E731
+        out.append(
+            (ld.link_index(n), np.array(ld.force, float), np.array(ld.moment, float), law, ld.follower)
+        )
     for n_, item in enumerate(tip_loads or ()):
         where = f"tip_loads[{n_}]"
         if not isinstance(item, dict) or set(item) - {"link", "force", "torque", "times", "factors"}:
@@ -139,7 +150,8 @@ def _check_tip_loads(case, tip_loads):
         ff = np.asarray(item.get("factors", (1.0, 1.0)), float)
         if tt.ndim != 1 or tt.shape != ff.shape or tt.size < 1 or np.any(np.diff(tt) <= 0):
             raise InputError(f"{where}.times", item.get("times"), "must increase and match factors in length")
-        out.append((i, vecs[0], vecs[1], _piecewise(tt, ff)))
+        pw = _piecewise(tt, ff)
+        out.append((i, vecs[0], vecs[1], lambda t, left, f=pw: f(t), False))
     return out
 
 
@@ -305,24 +317,14 @@ def _build(case, k, shear_ratio, node, loads):
                     )
                 )
                 inputs.append((ld, d.torque, vec))
-    for i, F, T, law in loads:
+    for i, F, T, law, follower in loads:
         mk = rigid_marker(tip_nodes[i])
-        if np.any(F):
-            inputs.append(
-                (
-                    mbs.AddLoad(ii.LoadForceVector(markerNumber=mk, loadVector=[0.0] * 3)),
-                    lambda t, left, f=law: f(t),
-                    F,
-                )
-            )
-        if np.any(T):
-            inputs.append(
-                (
-                    mbs.AddLoad(ii.LoadTorqueVector(markerNumber=mk, loadVector=[0.0] * 3)),
-                    lambda t, left, f=law: f(t),
-                    T,
-                )
-            )
+        if follower:  # tip-frame components -> the node frame R_tip Rx(roll)
+            F, T = rolls[i].T @ F, rolls[i].T @ T
+        for vec, Load in ((F, ii.LoadForceVector), (T, ii.LoadTorqueVector)):
+            if np.any(vec):
+                ld = mbs.AddLoad(Load(markerNumber=mk, loadVector=[0.0] * 3, bodyFixed=bool(follower)))
+                inputs.append((ld, law, vec))
 
     def set_inputs(t, left):
         for ld, law, vec in inputs:
@@ -368,9 +370,10 @@ def simulate(
     with k = ``elements_per_link`` Exudyn 3-D geometrically exact beam elements per link, step h.
 
     Options: ``rho_inf`` (generalized-α spectral radius, 1), ``shear_ratio`` (GA/EA, 1e3),
-    ``node`` ("EP" only here; see the module notes), ``tip_loads`` (list of dicts ``link``, ``force``, ``torque``
-    (world, N and N·m), ``times``, ``factors``: the load times a piecewise-linear factor, at the
-    link's tip node), ``section_loads`` (record as ``cut_loads`` (nt, n, 6) Exudyn's
+    ``node`` ("EP" only here; see the module notes), ``tip_loads`` (list of dicts ``link``,
+    ``force``, ``torque`` (world, N and N·m), ``times``, ``factors``: the load times a
+    piecewise-linear factor, at the link's tip node; in addition to the case's own
+    ``scenario.loads``), ``section_loads`` (record as ``cut_loads`` (nt, n, 6) Exudyn's
     section force and moment in the first element of each link), ``energy`` (beam kinetic +
     strain energy, rigid bodies' kinetic energy and the gravity potential at the nodes),
     ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: 1e-10·max stiffness/l), ``newton_max_iterations``
@@ -710,8 +713,8 @@ def simulate(
 
 
 def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_loads=None, load_steps=10):
-    """Static equilibrium of ``case`` by Exudyn's ``SolveStatic`` (gravity, the torque drives and
-    ``tip_loads`` at t = duration, applied in ``load_steps`` load steps; Newton to 1e-12
+    """Static equilibrium of ``case`` by Exudyn's ``SolveStatic`` (gravity, the torque drives, the
+    case's ``scenario.loads`` and ``tip_loads`` at t = duration, applied in ``load_steps`` load steps; Newton to 1e-12
     relative). Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2),
     ``twist`` (n,), ``section_loads`` (n, 6) (ForceLocal, TorqueLocal of each link's first
     element, at x = l/2, section frame), ``section_rotation`` (n, 3, 3) (that section frame)."""

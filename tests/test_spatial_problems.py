@@ -4,8 +4,10 @@
 its elastic and gravity forces against the independent spatial global solver, small loads
 against the closed forms F L³/3EI (both bending planes) and T L/GJ, the root section loads
 against the global solver's cut loads; then the published problems of
-experiments/cases/spatial/princeton_beam.toml and bend_45deg.toml, every expected value from the
-``[provenance]`` table of the case file (sources cited there and below).
+experiments/cases/spatial/princeton_beam.toml and bend_45deg.toml, loaded by their own
+``[[scenario.loads]]`` (the Princeton sweep replaces the file's load by each published point),
+every expected value from the ``[provenance]`` table of the case file (sources cited there and
+below).
 """
 
 from __future__ import annotations
@@ -17,7 +19,15 @@ import numpy as np
 import pytest
 
 from dttmm import InputError, Scenario
-from dttmm.spatial import SpatialCase, SpatialJoint, SpatialLink, SpatialManipulator, load_case, statics
+from dttmm.spatial import (
+    SpatialCase,
+    SpatialJoint,
+    SpatialLink,
+    SpatialLoad,
+    SpatialManipulator,
+    load_case,
+    statics,
+)
 from dttmm.spatial.statics import elastic_forces, generalized_loads
 from reference_models import spatial_global as sg
 
@@ -134,21 +144,28 @@ PV = PRINCETON.provenance
 UY_GAP = 0.035
 
 
-def _with_gj(gj):
-    link = PRINCETON.model.links[0]
+def _with_gj(gj, case=PRINCETON):
+    link = case.model.links[0]
     if gj == "0.198":
-        return PRINCETON
+        return case
     beam = replace(link.beam, GJ=PV["GJ_saint_venant"])
-    return replace(PRINCETON, model=SpatialManipulator((replace(link, beam=beam),)))
+    return replace(case, model=SpatialManipulator((replace(link, beam=beam),)))
+
+
+def _princeton_case(F, beta_deg, gj):
+    """The case file with its load replaced by F [0, −cos β, sin β] (world, fixed direction)."""
+    b = np.radians(beta_deg)
+    load = SpatialLoad(force=(0.0, -F * np.cos(b), F * np.sin(b)))
+    return _with_gj(gj, replace(PRINCETON, scenario=replace(PRINCETON.scenario, loads=(load,))))
+
+
+def _tip_displacement(r):
+    u = r.tip_position - [PRINCETON.model.links[0].beam.length, 0.0, 0.0]
+    return abs(u[1]), u[2]
 
 
 def _princeton(F, beta_deg, k, gj, steps=4):
-    b = np.radians(beta_deg)
-    r = statics(
-        _with_gj(gj), elements_per_link=k, loads={"force": [0.0, -F * np.cos(b), F * np.sin(b)]}, steps=steps
-    )
-    u = r.tip_position - [PRINCETON.model.links[0].beam.length, 0.0, 0.0]
-    return abs(u[1]), u[2]
+    return _tip_displacement(statics(_princeton_case(F, beta_deg, gj), elements_per_link=k, steps=steps))
 
 
 def _princeton_errors(F, j, k, gj):
@@ -182,6 +199,21 @@ def test_princeton_beam_against_ansys(F, j, gj):
     assert abs(ez) <= _tolerance(F, beta, "uz", gj)
 
 
+def test_princeton_case_file_carries_its_load():
+    """The file's own [[scenario.loads]] entry is the published point F = 13.345 N, β = 45°
+    (F [0, −cos β, sin β], world): statics of the file as it is equals the replaced-load run and
+    is within the tolerances of the ANSYS table (measured at k = 8: |u_y| +2.08 %, u_z +0.30 %)."""
+    (ld,) = PRINCETON.scenario.loads
+    b = np.radians(45.0)
+    assert ld.frame == "world" and ld.link is None
+    assert np.allclose(ld.force, [0.0, -13.345 * np.cos(b), 13.345 * np.sin(b)], rtol=1e-15)
+    uy, uz = _tip_displacement(statics(PRINCETON, elements_per_link=8, steps=4))
+    assert (uy, uz) == _princeton(13.345, 45.0, 8, "0.198")
+    j = PV["beta_deg"].index(45.0)
+    assert abs(uy / PV["uy_abs_F13345"][j] - 1) <= _tolerance(13.345, 45.0, "uy", "0.198")
+    assert abs(uz / PV["uz_F13345"][j] - 1) <= _tolerance(13.345, 45.0, "uz", "0.198")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("gj", ["0.198", "saint-venant"])
 @pytest.mark.parametrize("F", [8.896, 13.345])
@@ -205,8 +237,8 @@ R_BEND = 100.0
 
 def test_bend_geometry_is_the_arc():
     """Undeformed tip of the 8 chords at (R sin 45°, R (1 − cos 45°), 0), the last chord at
-    45° − 45°/16 from x, every node on the arc."""
-    r = statics(BEND, elements_per_link=2)
+    45° − 45°/16 from x, every node on the arc (the file's load ramp is 0 at t = 0)."""
+    r = statics(BEND, elements_per_link=2, t=0.0)
     s = np.sqrt(0.5)
     assert np.allclose(r.tip_position, [R_BEND * s, R_BEND * (1 - s), 0.0], rtol=0, atol=1e-12)
     a = np.pi / 4 - np.pi / 64
@@ -217,11 +249,21 @@ def test_bend_geometry_is_the_arc():
 
 @pytest.mark.parametrize("k", [1, pytest.param(4, marks=pytest.mark.slow)])
 def test_bend_45deg_against_simo_vu_quoc(k):
-    """Bathe–Bolourchi 45° bend, tip force P = 300, 450, 600 lbf along z (one run, 8 load steps
-    of 75 lbf): tip positions of Simo & Vu-Quoc, Comput. Methods Appl. Mech. Eng. 58 (1986),
-    8 elements (provenance of bend_45deg.toml), within 1 % of R (measured 0.42–0.57 %; of the
-    tip displacement 0.7–1.3 %)."""
-    r = statics(BEND, elements_per_link=k, loads={"force": [0.0, 0.0, BV["P"][-1]]}, steps=8)
+    """Bathe–Bolourchi 45° bend, tip force P = 300, 450, 600 lbf along z (the file's own load at
+    t = 1, one run, 8 load steps of 75 lbf): tip positions of Simo & Vu-Quoc, Comput. Methods
+    Appl. Mech. Eng. 58 (1986), 8 elements (provenance of bend_45deg.toml), within 1 % of R
+    (measured 0.42–0.57 %; of the tip displacement 0.7–1.3 %)."""
+    (ld,) = BEND.scenario.loads
+    assert ld.link == 7 and ld.frame == "world" and ld.value(1.0)[0][2] == BV["P"][-1]
+    r = statics(BEND, elements_per_link=k, steps=8)
     for P, ref in zip(BV["P"], BV["tip_position"]):
         i = int(round(8 * P / BV["P"][-1])) - 1
         assert np.linalg.norm(r.tip_path[i] - ref) <= BV["tolerance"] * R_BEND, P
+
+
+def test_bend_load_ramp_in_time_is_the_load_steps():
+    """The file's load ramps 0 → 600 lbf over t ∈ [0, 1]: the statics at t = 0.5 (P = 300 lbf,
+    4 steps of 75) is the 4th increment of the run at t = 1, to Newton's tolerance."""
+    full = statics(BEND, elements_per_link=1, steps=8)
+    half = statics(BEND, elements_per_link=1, steps=4, t=0.5)
+    assert np.abs(half.tip_position - full.tip_path[3]).max() <= 1e-8 * R_BEND

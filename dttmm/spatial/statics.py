@@ -8,12 +8,16 @@ values, 0 by default: a clamped base and rigidly held joints). The residual is
 
 f_el the elastic force of the discretisation (the kernel's ``elastic_into``, linear or
 second-order strain) and Q the generalized force of gravity (the Gauss bodies of every element,
-hubs and payloads) and of the tip loads: a force F with a fixed direction in the world frame,
-applied at the tip point of the last link, and a moment M (world components). Q follows from
+hubs and payloads) and of the external loads: the case's ``scenario.loads``
+(:class:`dttmm.spatial.SpatialLoad`, at the tip point of their link, world components or
+follower loads in the deformed tip frame, their factor laws taken at the time ``t``) and the
+``loads`` argument (a force F with a fixed direction in the world frame at the tip point of the
+last link and a moment M, world components). Q follows from
 virtual work, with the kinematics of the kernel (``kinematics``): perturbing the coordinates e of
 one element moves its Gauss bodies by R_I Σ_g δe and everything outboard of it rigidly with its
 outboard node, δr_O = R_I Σ_O δe, δθ_O = R_I J_L(φ) δφ. So, with (F_O, M_O) the resultant of
-the loads outboard of the node (the moment about r_O),
+the loads outboard of the node (the moment about r_O, follower loads turned by the current tip
+frame),
 
     Q_e = Σ_g Σ_gᵀ R_Iᵀ m_g g + Σ_Oᵀ R_Iᵀ F_O + (J_L(φ) Ψ_O)ᵀ R_Iᵀ M_O,
 
@@ -35,6 +39,7 @@ from .. import plumbing
 from ..errors import InputError, SimulationError
 from .build import STRAINS, build_model, make_work
 from .rotation import left_jacobian
+from .scenario import load_inputs
 from .solver import _kernel, as_spatial_case
 
 __all__ = ["StaticResult", "elastic_forces", "generalized_loads", "statics"]
@@ -139,9 +144,11 @@ class _Problem:
             KT[np.ix_(idx, idx)] = K6[np.ix_(pad, pad)]
         return f, KT
 
-    def external(self, F, M):
-        """(Q (n_dof,), root loads (6,)) of gravity and the tip loads (F, M) at the current
-        kinematics."""
+    def external(self, F, M, tips=None):
+        """(Q (n_dof,), root loads (6,)) of gravity, the force F and moment M (world) at the last
+        tip and the per-link tip loads ``tips`` ((n, 12) rows of
+        :func:`dttmm.spatial.scenario.load_inputs`: world force and moment, tip-frame force and
+        moment) at the current kinematics."""
         md, ws, g = self.md, self.ws, self.grav
         Q = np.zeros(md.ndof)
         Fo, Mo, po = F.copy(), M.copy(), ws.pT[md.n].copy()
@@ -161,6 +168,10 @@ class _Problem:
         for i in range(md.n - 1, -1, -1):
             tip = ws.pT[i + 1]
             move(tip.copy())
+            if tips is not None:
+                RT = ws.RT[i + 1]
+                Fo = Fo + tips[i, 0:3] + RT @ tips[i, 6:9]
+                Mo = Mo + tips[i, 3:6] + RT @ tips[i, 9:12]
             add(md.pay_m[i], tip + ws.RT[i + 1] @ (md.Q[i] @ md.pay_d[i]))
             for j in range(md.k[i] - 1, -1, -1):
                 el = md.el0[i] + j
@@ -211,14 +222,24 @@ def elastic_forces(case, elements_per_link, q, *, strain="linear", engine=None):
     return pb.elastic(q)
 
 
-def generalized_loads(case, elements_per_link, q, *, loads=None, engine=None):
-    """Generalized force Q (n_dof,) of gravity and the tip loads (``loads``: ``force`` and/or
-    ``moment``, world components) at the coordinates q (the joint angles taken as given; the
-    entries of the unlocked joints are 0: the joints are held), and the root section loads (6,)
-    that balance them."""
+def _load_time(case, t) -> float:
+    if t is None:
+        return float(case.scenario.duration)
+    if isinstance(t, bool) or not isinstance(t, (int, float, np.floating, np.integer)) or not np.isfinite(t):
+        raise InputError("t", t, "must be a finite number (s)")
+    return float(t)
+
+
+def generalized_loads(case, elements_per_link, q, *, loads=None, t=None, engine=None):
+    """Generalized force Q (n_dof,) of gravity, the case's ``scenario.loads`` at time ``t``
+    (default: the scenario's duration) and the tip loads ``loads`` (``force`` and/or
+    ``moment``, world components, at the last link's tip) at the coordinates q (the joint angles
+    taken as given; the entries of the unlocked joints are 0: the joints are held), and the root
+    section loads (6,) that balance them."""
     F, M = _loads(loads)
     pb, _ = _at(case, elements_per_link, q, "linear", engine)
-    return pb.external(F, M)
+    tl = _load_time(pb.case, t)
+    return pb.external(F, M, load_inputs(pb.case, tl, tl > 0.0))
 
 
 def statics(
@@ -226,6 +247,7 @@ def statics(
     *,
     elements_per_link: int,
     loads=None,
+    t: float | None = None,
     strain: str = "linear",
     tol: float = 1e-10,
     max_iterations: int = 30,
@@ -234,10 +256,12 @@ def statics(
     engine: str | None = None,
 ) -> StaticResult:
     """Static equilibrium of ``case`` (a :class:`SpatialCase` or a (SpatialManipulator,
-    Scenario) pair; the scenario is not used) under its gravity and the tip ``loads``
-    (``{"force": (3,), "moment": (3,)}``, world components, fixed in direction), by Newton's
-    method on the elastic coordinates with the joints held at ``angles`` (one per unlocked
-    joint, default 0). The loads and gravity are applied in ``steps`` equal increments; each
+    Scenario) pair; its drives are not used) under its gravity, the external loads of its
+    scenario (``SpatialScenario.loads``, their factor laws at time ``t``, default the scenario's
+    duration) and the extra tip ``loads`` (``{"force": (3,), "moment": (3,)}``, world
+    components, fixed in direction, at the last link's tip), by Newton's method on the elastic
+    coordinates with the joints held at ``angles`` (one per unlocked joint, default 0). The
+    loads and gravity are applied in ``steps`` equal increments; each
     increment iterates until ‖r‖ ≤ tol·‖Q‖ (Q the generalized load of that increment) or
     ``max_iterations`` (then SimulationError). Returns a :class:`StaticResult`."""
     case = as_spatial_case(case)
@@ -247,7 +271,9 @@ def statics(
     tol = plumbing.positive_number("tol", tol)
     max_iterations = plumbing.positive_integer("max_iterations", max_iterations)
     steps = plumbing.positive_integer("steps", steps)
+    tl = _load_time(case, t)
     pb = _Problem(case, k, strain, engine, angles)
+    tips = load_inputs(case, tl, tl > 0.0)
     g_full = pb.grav.copy()
     x = np.zeros(pb.free.size)
     fr = pb.free
@@ -261,7 +287,7 @@ def statics(
         for it in range(max_iterations + 1):
             q = pb.set(x)
             f, KT = pb.elastic(q)
-            Q, root = pb.external(Fs, Ms)
+            Q, root = pb.external(Fs, Ms, lam * tips)
             r = (f - Q)[fr]
             scale = max(np.linalg.norm(Q[fr]), np.linalg.norm(f[fr]), 1e-300)
             if not np.all(np.isfinite(r)):
@@ -288,7 +314,7 @@ def statics(
                     xc = x.copy()
                     xc[c] += h
                     pb.set(xc)
-                    A[:, c] -= (pb.external(Fs, Ms)[0][fr] - Q[fr]) / h
+                    A[:, c] -= (pb.external(Fs, Ms, lam * tips)[0][fr] - Q[fr]) / h
                 lu = np.linalg.inv(A)
             rn_prev = rn
             x = x - lu @ r
