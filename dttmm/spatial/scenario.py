@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Strict
+from pydantic import BeforeValidator, Strict
 
 from ..drives import OPEN_LAWS, Constant, law_from_dict
 from ..errors import InputError
@@ -33,7 +33,14 @@ LOAD_LAWS = tuple(n for n, c in OPEN_LAWS.items() if "torque" in c.kinds)
 #: columns of :func:`load_inputs`: world force, world moment, tip-frame force, tip-frame moment
 LOAD_COLUMNS = 12
 
-LinkIndex = Annotated[int, Strict()]
+
+def _integer(value):
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InputError("", _short(value), "must be an integer (an index into model.links)")
+    return value
+
+
+LinkIndex = Annotated[int, BeforeValidator(_integer), Strict()]
 
 
 class SpatialLoadFields(_Strict):
