@@ -116,7 +116,8 @@ def test_docs_tables_are_the_schema_fields():
         rows = [[c.strip() for c in line.strip().strip("|").split("|")] for line in m[2].splitlines()][2:]
         tables[m[1]] = {r[0].strip("`") for r in rows}
     models = {
-        n: getattr(sc, n) for n in ("SpatialCaseFile", "SpatialModelFile", "SpatialLinkFile", "JointFile")
+        n: getattr(sc, n)
+        for n in ("SpatialCaseFile", "SpatialModelFile", "SpatialLinkFile", "JointFile", "LoadFile")
     }
     assert set(tables) == set(models)
     for name, keys in tables.items():
@@ -126,3 +127,9 @@ def test_docs_tables_are_the_schema_fields():
 
     case = case_from_dict(tomllib.loads(example))
     assert case.n_joints == 1
+    load = re.search(r"then 0:\n\n```text\n(.*?)```", doc, flags=re.DOTALL)[1]
+    doc_case = tomllib.loads(example + "\n" + load)
+    doc_case["model"]["links"][0]["joint"] = {"locked": True}
+    doc_case["scenario"]["drives"] = []
+    (ld,) = case_from_dict(doc_case).scenario.loads
+    assert ld == load_case(ROOT / "spatial" / "right_angle_cantilever.toml").scenario.loads[0]
