@@ -35,9 +35,9 @@ torsion and no rotary inertia**: its nodes carry no rotation about the centre li
 
 Joints, hubs, payloads, gravity, torque drives (a body-fixed ``LoadTorqueVector`` pair set once
 per step by a PreStepUserFunction), motion drives (the joint's ``offsetUserFunction``; torque =
-the joint's reaction moment about its axis) and ``tip_loads`` are built as in
-:mod:`reference_models.exudyn_beam3d`, on the root and tip frames. Inextensible links get
-EA = 1e6·EI/L².
+the joint's reaction moment about its axis), the case's world-frame ``scenario.loads`` (follower
+loads are refused) and ``tip_loads`` are built as in :mod:`reference_models.exudyn_beam3d`, on
+the root and tip frames. Inextensible links get EA = 1e6·EI/L².
 
 Time integration: Exudyn's generalized-α (``rho_inf``, default 0.8 as the planar ANCF peer) with
 fixed step h, modified Newton with a Jacobian per step, EigenSparse, one thread, no files, no

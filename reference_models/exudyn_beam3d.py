@@ -123,16 +123,26 @@ def _piecewise(times, values):
     return lambda t: float(np.interp(t, times, values))
 
 
-def _check_tip_loads(case, tip_loads):
-    """The loads of the case's scenario and of the option ``tip_loads``: (link, F, T, law(t,
-    left), follower) per load."""
+def _case_load(ld, n: int):
+    """(link, F, T, law(t, left=False)) of a SpatialLoad of the case's scenario."""
+    law = lambda t, left=False, f=ld.factor: float(f(t, left))  # noqa: E731
+    return ld.link_index(n), np.array(ld.force, float), np.array(ld.moment, float), law
+
+
+def _check_tip_loads(case, tip_loads, followers=False):
+    """The world loads at link tips: the case's ``scenario.loads`` in the world frame, then the
+    option ``tip_loads``, as (link, F, T, law(t, left=False)) per load. A follower load of the
+    case (frame "tip") is refused unless ``followers`` (then it is left to
+    :func:`_follower_loads`)."""
     out = []
     n = case.model.n_links
-    for ld in getattr(case.scenario, "loads", ()):
-        law = lambda t, left, f=ld.factor: float(f(t, left))  # noqa: E731
-        out.append(
-            (ld.link_index(n), np.array(ld.force, float), np.array(ld.moment, float), law, ld.follower)
-        )
+    for j, ld in enumerate(getattr(case.scenario, "loads", ())):
+        if not ld.follower:
+            out.append(_case_load(ld, n))
+        elif not followers:
+            raise InputError(
+                f"scenario.loads[{j}].frame", ld.frame, "follower loads are not supported by this peer"
+            )
     for n_, item in enumerate(tip_loads or ()):
         where = f"tip_loads[{n_}]"
         if not isinstance(item, dict) or set(item) - {"link", "force", "torque", "times", "factors"}:
@@ -151,8 +161,21 @@ def _check_tip_loads(case, tip_loads):
         if tt.ndim != 1 or tt.shape != ff.shape or tt.size < 1 or np.any(np.diff(tt) <= 0):
             raise InputError(f"{where}.times", item.get("times"), "must increase and match factors in length")
         pw = _piecewise(tt, ff)
-        out.append((i, vecs[0], vecs[1], lambda t, left, f=pw: f(t), False))
+        out.append((i, vecs[0], vecs[1], lambda t, left=False, f=pw: f(t)))
     return out
+
+
+def _follower_loads(case):
+    """The case's follower loads (frame "tip"), as (link, F, T, law(t, left=False)) with F, T in
+    the tip frame."""
+    n = case.model.n_links
+    return [_case_load(ld, n) for ld in getattr(case.scenario, "loads", ()) if ld.follower]
+
+
+def _all_loads(case, tip_loads):
+    """(link, F, T, law, follower) of every tip load of a run."""
+    world = [(*x, False) for x in _check_tip_loads(case, tip_loads, followers=True)]
+    return world + [(*x, True) for x in _follower_loads(case)]
 
 
 def _build(case, k, shear_ratio, node, loads):
@@ -407,7 +430,7 @@ def simulate(
             raise InputError(name, val, "must be a positive number")
     if rho_inf > 1:
         raise InputError("rho_inf", rho_inf, "must lie in [0, 1]")
-    loads = _check_tip_loads(case, tip_loads)
+    loads = _all_loads(case, tip_loads)
     sc = case.scenario
     ratio = sc.output_step / h
     per_out = int(round(ratio))
@@ -725,7 +748,7 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
     k = plumbing.elements_per_link(elements_per_link)
     plumbing.choice("node", node, NODES)
     steps = plumbing.positive_integer("load_steps", load_steps)
-    B = _build(case, k, shear_ratio, node, _check_tip_loads(case, tip_loads))
+    B = _build(case, k, shear_ratio, node, _all_loads(case, tip_loads))
     mbs, exu = B["mbs"], B["exu"]
     B["set_inputs"](case.scenario.duration, True)
     mbs.Assemble()

@@ -75,6 +75,7 @@ from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
 from dttmm.spatial.rotation import log_so3, rpy_matrix
+from dttmm.spatial.scenario import require_no_loads
 from dttmm.timegrid import step_schedule
 
 from ._mujoco_model import _MJCF_NAME, INTEGRATORS
@@ -391,6 +392,7 @@ def statics(case, elements_per_link: int, *, loads=None, angles=None, tol: float
     """
     if not isinstance(case, SpatialCase):
         raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
+    require_no_loads(case, f"{METHOD} statics (its ``loads`` argument takes a tip load)")
     loads = {} if loads is None else dict(loads)
     for key in loads:
         if key not in ("force", "moment"):
@@ -556,6 +558,7 @@ def _check(case, k, h, integrator, options):
     opts["motion_max_iter"] = plumbing.positive_integer("motion_max_iter", opts["motion_max_iter"])
     plumbing.choice("station", opts["station"], STATIONS)
     require_open_loop(case, METHOD)
+    require_no_loads(case, METHOD)
     return k, h, opts
 
 

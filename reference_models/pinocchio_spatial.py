@@ -39,6 +39,7 @@ from dttmm import plumbing
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
 from dttmm.spatial import SpatialCase, SpatialResult
+from dttmm.spatial.scenario import require_no_loads
 from dttmm.timegrid import step_schedule
 
 from ._spatial_mechanics import rot_axis, rpy_matrix
@@ -312,6 +313,7 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) ->
         opts["tol"] = plumbing.positive_number("tol", opts["tol"])
         opts["max_iter"] = plumbing.positive_integer("max_iter", opts["max_iter"])
     require_open_loop(case, "pinocchio-spatial")
+    require_no_loads(case, "pinocchio-spatial")
     arm = _Arm(case)
     scen = case.scenario
     T, restart = step_schedule(scen.duration, h, scen.breakpoints)

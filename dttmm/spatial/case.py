@@ -218,6 +218,14 @@ def load_case(path) -> SpatialCase:
     return case_from_dict(data)
 
 
+def _load_to_dict(ld: SpatialLoad) -> dict:
+    """A ``[[scenario.loads]]`` table of the load ``ld``."""
+    d = {} if ld.link is None else {"link": ld.link}
+    d.update(force=list(ld.force), moment=list(ld.moment), frame=ld.frame)
+    d["factor"] = {"law": ld.factor.name, **ld.factor.params()}
+    return d
+
+
 def case_to_dict(case: SpatialCase) -> dict:
     """The spatial case as a spatial case document (``kind = "spatial"``): what
     :func:`case_from_dict` builds the same case from (inertias as full 3×3 rows)."""
@@ -265,6 +273,9 @@ def case_to_dict(case: SpatialCase) -> dict:
         },
         "scenario": scenario_to_dict(case.scenario),
     }
+    loads = [_load_to_dict(ld) for ld in getattr(case.scenario, "loads", ())]
+    if loads:
+        out["scenario"]["loads"] = loads
     if case.provenance is not None:
         out["provenance"] = dict(case.provenance)
     return out

@@ -25,7 +25,7 @@ from ..scenario import Scenario
 from ..schema import _short, _Strict, check_fields
 from .model import Vector3
 
-__all__ = ["LOAD_FRAMES", "LOAD_LAWS", "SpatialLoad", "SpatialScenario", "load_inputs"]
+__all__ = ["LOAD_FRAMES", "LOAD_LAWS", "SpatialLoad", "SpatialScenario", "load_inputs", "require_no_loads"]
 
 LOAD_FRAMES = ("world", "tip")
 #: the laws a load's factor can follow (open-loop torque laws: a value of time)
@@ -150,6 +150,15 @@ def check_load_links(case) -> None:
     for j, ld in enumerate(case_loads(case)):
         if ld.link is not None and not ld.link < n:
             raise InputError(f"scenario.loads[{j}].link", ld.link, f"must be a link index in 0..{n - 1}")
+
+
+def require_no_loads(case, method: str) -> None:
+    """Refuse a case with external loads for an engine that does not apply them."""
+    loads = case_loads(case)
+    if loads:
+        raise InputError(
+            "scenario.loads", f"{len(loads)} load(s)", f"external loads are not supported by {method} yet"
+        )
 
 
 def load_inputs(case, t: float, left: bool = False, out=None) -> np.ndarray:
