@@ -364,3 +364,36 @@ def test_power_balance_with_loads_is_second_order():
     (e1, w1), (e2, _) = _balance(5e-4), _balance(2.5e-4)
     assert e1 <= 3e-5 and 3.5 <= e1 / e2 <= 5.0, (e1, e2)
     assert w1 > 0.1
+
+
+# ------------------------------------------------------------- engines without the loads --
+
+
+@pytest.mark.parametrize(
+    ("module", "call"),
+    [
+        ("reference_models.pinocchio_spatial", lambda m, c: m.simulate(c, elements_per_link=2, h=0.1)),
+        ("reference_models.mujoco_spatial", lambda m, c: m.simulate(c, elements_per_link=2, h=0.1)),
+        ("reference_models.mujoco_spatial", lambda m, c: m.statics(c, 2)),
+    ],
+)
+def test_engines_that_do_not_apply_loads_refuse_them(module, call):
+    """A peer that has no external loads refuses a case with some (rather than ignoring them)."""
+    mod = pytest.importorskip(module)
+    with pytest.raises(InputError) as exc:
+        call(mod, _cantilever(SpatialLoad(force=(0.0, 0.0, 1.0))))
+    assert exc.value.field == "scenario.loads" and "\n" not in str(exc.value)
+
+
+def test_exudyn_cable_refuses_follower_loads():
+    """The Exudyn ANCF cable peer takes the case's world loads, and refuses a follower load."""
+    xa = pytest.importorskip("reference_models.exudyn_ancf3d")
+    link = SpatialLink(replace(BEAM, EIy=BEAM.EIz), SpatialJoint(locked=True))  # one bending stiffness
+
+    def case(*loads):
+        return _loaded(SpatialManipulator((link,)), loads)
+
+    with pytest.raises(InputError) as exc:
+        xa.check_case(case(SpatialLoad(force=(0.0, 0.0, 1.0), frame="tip")))
+    assert exc.value.field == "scenario.loads[0].frame"
+    assert len(xa.check_case(case(SpatialLoad(force=(0.0, 0.0, 1.0))))) == 1
