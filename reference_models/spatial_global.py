@@ -34,7 +34,22 @@ elastic and damping forces linearised at the iterate,
 [M + c_v D_t + c_q K_T] q̈⁽ⁱ⁺¹⁾ = Q − h − f_int − f_d + (c_q K_T + c_v D_t) q̈⁽ⁱ⁾, stopped by
 :func:`dttmm.iteration.stop_rule`; ``"rk4"`` integrates the forward dynamics. Motion drives
 prescribe their joint (their torque is the equation's residual on α); open-loop torque
-drives give Q. Closed-loop drive laws are refused.
+drives give Q.
+
+**Closed-loop drives** (``pd``, ``pid``, user laws; docs/control.md), Newmark family only, as
+the planar global solver (:mod:`reference_models._global_control`): joint i adds its law's
+torque to the generalized force of α_i, evaluated implicitly at the step end with the state
+there and the integral state of ``pid`` by the trapezoidal rule. The root bending moment of
+the law is M_root = τ − H, H = a·(J_h ω̇ + ω × J_h ω) (the hub's moment balance about the root
+point along the world joint axis a = R_link·axis; J_h in world components, ω̇ = J_ω q̈ + J̇_ω q̇
+of the link frame: an exact row h of q̈ plus h₀), so τ = clip((L0 + g_M H)/(1 + g_M), ±limit).
+The step iteration adds the law's linearisation in q̈ to the iteration matrix — its slope in
+α̈_i (through α, α̇ and z) on the diagonal and ∂τ/∂H · h along the row — and solves the
+unsymmetric system by LU. A user law sees a :class:`dttmm.drives.ControlState` at the latest
+iterate (M_root = τ_used − H, τ_used the torque its last solve applied; ``angles``, ``rates``
+of every unlocked joint; ``tip_deflections`` the component of every link's tip deflection along
+the link frame's y axis). The forward dynamics at t = 0 and at restarts solve the laws with the
+state's integral states by the same iteration.
 
 **Outputs** (docs/spatial.md §4), on the scenario's output grid (cubic Hermite between step
 ends): a :class:`dttmm.spatial.SpatialResult` whose ``joint_*`` arrays have one column per
@@ -63,7 +78,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from dttmm import plumbing
-from dttmm.drives import require_open_loop
+from dttmm.control import pd_torque, time_tables
+from dttmm.control_state import ControlState
+from dttmm.drives import ComputedTorque, UserLaw, require_open_loop
 from dttmm.errors import InputError, SimulationError
 from dttmm.iteration import stop_rule
 from dttmm.spatial import SpatialCase, SpatialResult
@@ -557,7 +574,7 @@ def _damping(lay: _Layout, q, qd):
 def _torques(case, lay: _Layout, t, left) -> np.ndarray:
     Q = np.zeros(lay.n_dof)
     for j, d in enumerate(case.scenario.drives):
-        if d.kind == "torque":
+        if d.kind == "torque" and not d.closed_loop:
             Q[lay.alpha_idx[lay.joints[j]]] = d.torque(t, left)
     return Q
 
@@ -601,26 +618,181 @@ def _initial_state(case, lay: _Layout):
     return q, qd
 
 
-def _forward(case, lay, q, qd, t, left):
-    """q̈ of M q̈ = Q − h − f_int − f_d with the motion joints prescribed; their torques."""
+def _forward(case, lay, q, qd, t, left, tau_closed=None):
+    """q̈ of M q̈ = Q − h − f_int − f_d with the motion joints prescribed; their torques.
+    ``tau_closed`` (n_joints,): the torques of the closed-loop joints (as recorded)."""
     P, F = lay.presc, lay.free
     pres = _prescribed(case, t, left)
     M, f = _assemble(lay, q, qd)
     rhs = f + _torques(case, lay, t, left) - _elastic(lay, q)[1] - _damping(lay, q, qd)[0]
     rhs += _load_forces(case, lay, q, t, left)
+    if tau_closed is not None:
+        for j, d in enumerate(case.scenario.drives):
+            if d.closed_loop:
+                rhs[lay.alpha_idx[lay.joints[j]]] += tau_closed[j]
     qdd = np.zeros(lay.n_dof)
     qdd[P] = pres[:, 2]
     qdd[F] = np.linalg.solve(M[np.ix_(F, F)], rhs[F] - M[np.ix_(F, P)] @ qdd[P])
     return qdd, M[P] @ qdd - rhs[P]
 
 
-def _joint_torques(case, lay, t, left, tau_p) -> np.ndarray:
+def _joint_torques(case, lay, t, left, tau_p, tau_c=None) -> np.ndarray:
+    """Per unlocked joint: open-loop torques, the motion joints' ``tau_p``, the closed-loop
+    joints' ``tau_c`` (the laws' torques)."""
     tau = np.zeros(lay.joints.size)
     for j, d in enumerate(case.scenario.drives):
-        if d.kind == "torque":
+        if d.kind == "torque" and not d.closed_loop:
             tau[j] = d.torque(t, left)
     tau[lay.motion] = tau_p
+    if tau_c is not None:
+        for j, d in enumerate(case.scenario.drives):
+            if d.closed_loop:
+                tau[j] = tau_c[j]
     return tau
+
+
+# ----------------------------------------------------------------------------------------------
+# Closed-loop drive laws
+# ----------------------------------------------------------------------------------------------
+
+
+class _Control:
+    """The closed-loop joints of a case: their laws, integral states z and errors α_ref − α,
+    and the torques the user laws applied in their last solve."""
+
+    def __init__(self, case, lay: _Layout):
+        drives = case.scenario.drives
+        self.case, self.lay = case, lay
+        self.joints = [j for j, d in enumerate(drives) if d.closed_loop]
+        self.links = lay.joints[self.joints]
+        self.rows = lay.alpha_idx[self.links]
+        self.laws = [drives[j].law for j in self.joints]
+        self.user = np.array([isinstance(law, UserLaw) for law in self.laws], bool)
+        nc = len(self.joints)
+        self.z, self.e, self.used = np.zeros(nc), np.zeros(nc), np.zeros(nc)
+        self.unconverged_solves = 0
+
+    def __bool__(self):
+        return bool(self.joints)
+
+    def tables(self, times, left):
+        """Feedforward (nt, nc) and reference (nt, nc, 2) of the closed-loop joints."""
+        ff, ref = time_tables(self.case, np.atleast_1d(times), left)
+        return ff[:, self.joints], ref[:, self.joints]
+
+    def hub(self, q, qd):
+        """(h (nc, N), h₀ (nc,)): H = h q̈ + h₀ of every closed-loop joint at (q, q̇)."""
+        lay = self.lay
+        fr = _frames(lay, q + 1j * _EPS * qd)
+        rows, h0 = np.zeros((len(self.joints), lay.n_dof)), np.zeros(len(self.joints))
+        for c, i in enumerate(self.links):
+            Jw = fr.Jw_link[i].real
+            Jd = (fr.Jw_link[i] @ qd).imag / _EPS  # J̇_ω q̇
+            R = fr.R_link[i].real
+            a = R @ lay.axis[i]
+            I = R @ lay.hub_J[i] @ R.T
+            w = Jw @ qd
+            rows[c] = a @ I @ Jw
+            h0[c] = a @ (I @ Jd + np.cross(w, I @ w))
+        return rows, h0
+
+    def laws_at(self, t, left, q, qd, x, ff, ref, zc, dz, cq, cv, A=None, rhs=None):
+        """The laws at the iterate x (q, q̇ its coordinates) at time t: torques (nc,) and, with
+        A, their linearisation added to A q̈ = rhs (the slope in α̈ through α, α̇ and
+        z = zc + dz·α on the diagonal, ∂τ/∂H along the row h). Also returns the user laws'
+        slopes (nc,)."""
+        hrow, h0 = self.hub(q, qd)
+        tau, slope = np.zeros(len(self.joints)), np.zeros(len(self.joints))
+        tips = None
+        for c, (r, law) in enumerate(zip(self.rows, self.laws)):
+            H = float(hrow[c] @ x + h0[c])
+            if not self.user[c]:
+                z = zc[c] + dz[c] * q[r]
+                t_c, da, dv, dzz, dw = pd_torque(
+                    law.kp, law.kd, law.gain_integral, law.moment_gain, law.limit, 1.0,
+                    ff[c], ref[c, 0], ref[c, 1], z, q[r], qd[r], H,
+                )  # fmt: skip
+                tau[c] = t_c
+                if A is not None:
+                    s = da * cq + dv * cv + dzz * dz[c] * cq
+                    A[r, r] -= s
+                    A[r] -= dw * hrow[c]
+                    rhs[r] += t_c - s * x[r] - dw * (hrow[c] @ x)
+                continue
+            if tips is None:
+                tips = tuple(float(v) for v in _link_frames(self.lay, q)["tip_deflection"][:, 0])
+            a = self.lay.alpha_idx[self.lay.joints]
+            state = ControlState(
+                joint=self.joints[c],
+                angle=float(q[r]),
+                rate=float(qd[r]),
+                moment=float(self.used[c] - H),
+                integral=0.0,
+                angles=tuple(float(v) for v in q[a]),
+                rates=tuple(float(v) for v in qd[a]),
+                tip_deflections=tips,
+            )
+            tau[c], da, dv, _ = law.evaluate(float(t), state, left)
+            slope[c] = da * cq + dv * cv
+            if A is not None:
+                A[r, r] -= slope[c]
+                rhs[r] += tau[c] - slope[c] * x[r]
+        return tau, slope
+
+    def applied(self, tau, slope, new, x):
+        """The torques the user laws applied in a solve that moved the iterate from x to new."""
+        for c, r in enumerate(self.rows):
+            if self.user[c]:
+                self.used[c] = tau[c] + slope[c] * (new[r] - x[r])
+
+    def full(self, tau_c):
+        """(n_joints,) with the closed-loop joints' torques ``tau_c`` (nc,), 0 elsewhere."""
+        out = np.zeros(self.lay.joints.size)
+        out[self.joints] = tau_c
+        return out
+
+
+def _solve_closed(lay, ctl, A, rhs, x, P, F, t, left, q, qd, ff, ref, zc, dz, cq, cv):
+    """One solve of A q̈ = rhs with the laws linearised at x (motion joints prescribed in x).
+    Returns (new q̈, the laws' τ at x)."""
+    A, rhs = A.copy(), rhs.copy()
+    tau, slope = ctl.laws_at(t, left, q, qd, x, ff, ref, zc, dz, cq, cv, A, rhs)
+    new = x.copy()
+    new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ x[P])
+    ctl.applied(tau, slope, new, x)
+    return new, tau
+
+
+def _forward_closed(case, lay, ctl, q, qd, t, left, opt):
+    """:func:`_forward` with the closed-loop laws at time t and the integral states ctl.z: the
+    laws' dependence on q̈ (through H; user laws: also their moment) is iterated until
+    :func:`dttmm.iteration.stop_rule` holds. Returns (q̈, τ_p, τ of the closed-loop joints
+    (n_joints,), converged)."""
+    P, F = lay.presc, lay.free
+    pres = _prescribed(case, t, left)
+    M, f = _assemble(lay, q, qd)
+    rhs = f + _torques(case, lay, t, left) - _elastic(lay, q)[1] - _damping(lay, q, qd)[0]
+    rhs += _load_forces(case, lay, q, t, left)
+    ff, ref = ctl.tables([t], left)
+    zc, dz = ctl.z.copy(), np.zeros(ctl.z.size)
+    x = np.zeros(lay.n_dof)
+    x[P] = pres[:, 2]
+    prev, converged = math.inf, False
+    ctl.used[:] = 0.0
+    for i in range(opt["max_iterations"]):
+        new, _ = _solve_closed(lay, ctl, M, rhs, x, P, F, t, left, q, qd, ff[0], ref[0], zc, dz, 0.0, 0.0)
+        delta = float(np.max(np.abs(new - x)))
+        x = new
+        if i > 0:
+            stop, converged = stop_rule(i, delta, prev, float(np.max(np.abs(x))), opt["tol"])
+            if stop:
+                break
+            prev = delta
+    tau_c, _ = ctl.laws_at(t, left, q, qd, x, ff[0], ref[0], zc, dz, 0.0, 0.0)
+    full = ctl.full(tau_c)
+    rhs2 = rhs.copy()
+    rhs2[ctl.rows] += tau_c
+    return x, M[P] @ x - rhs2[P], full, converged
 
 
 # ----------------------------------------------------------------------------------------------
@@ -738,8 +910,10 @@ class _State:
     tau: np.ndarray
 
 
-def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv):
-    """The step's iteration (left-limit drive values at t1); returns (q̈, τ_p, solves, ok)."""
+def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv, ctl=None, h=0.0):
+    """The step's iteration (left-limit drive values at t1); returns (q̈, τ_p, solves, ok, τ of
+    the closed-loop joints (n_joints,) or None). Closed-loop laws (``ctl``) at t1 with the
+    iterate's state, z_{n+1} = z_n + h/2 (e_n + α_ref(t1) − α_{n+1}); ctl.z, ctl.e move to t1."""
     P, F = lay.presc, lay.free
     pres = _prescribed(case, t1, True)
     Qt = _torques(case, lay, t1, True)
@@ -747,6 +921,12 @@ def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv):
     qdd[P] = pres[:, 2]
     prev = math.inf
     converged = False
+    if ctl:
+        ff, ref = ctl.tables([t1], True)
+        ff, ref = ff[0], ref[0]
+        zc = ctl.z + 0.5 * h * (ctl.e + ref[:, 0])
+        dz = np.full(zc.size, -0.5 * h)
+        ctl.used[:] = 0.0
     for i in range(opt["max_iterations"]):
         q = qt + cq * qdd
         qd = qtd + cv * qdd
@@ -757,38 +937,59 @@ def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv):
         B = cq * KT + cv * Dt
         A = M + B
         rhs = f + Qt - fi - fd + B @ qdd + _load_forces(case, lay, q, t1, True)
-        new = qdd.copy()
-        new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P])
+        if ctl:
+            new, _ = _solve_closed(lay, ctl, A, rhs, qdd, P, F, t1, True, q, qd, ff, ref, zc, dz, cq, cv)
+        else:
+            new = qdd.copy()
+            new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P])
         delta = float(np.max(np.abs(new[F] - qdd[F]))) if F.size else 0.0
         qdd = new
         stop, converged = stop_rule(i, delta, prev, float(np.max(np.abs(new))), opt["tol"])
         if stop:
             break
         prev = delta
-    # the motion joints' torques: the residual of their rows at the converged state
+    # the motion joints' torques: the residual of their rows at the converged state; the
+    # closed-loop joints' torques: their laws there
     q = qt + cq * qdd
     qd = qtd + cv * qdd
     q[P], qd[P] = pres[:, 0], pres[:, 1]
     tau_p = np.zeros(P.size)
+    full = None
+    tau_c = np.zeros(0)
+    if ctl:
+        tau_c, _ = ctl.laws_at(t1, True, q, qd, qdd, ff, ref, zc, dz, cq, cv)
+        full = ctl.full(tau_c)
+        pd_ = ~ctl.user
+        ctl.z[pd_] = (zc + dz * q[ctl.rows])[pd_]
+        ctl.e[pd_] = (ref[:, 0] - q[ctl.rows])[pd_]
     if P.size:
         M, f = _assemble(lay, q, qd)
         rhs = f + Qt - _elastic(lay, q)[1] - _damping(lay, q, qd)[0] + _load_forces(case, lay, q, t1, True)
+        if ctl:
+            rhs[ctl.rows] += tau_c
         tau_p = M[P] @ qdd - rhs[P]
-    return qdd, tau_p, i + 1, converged
+    return qdd, tau_p, i + 1, converged, full
 
 
-def _initial(case, lay) -> _State:
+def _initial(case, lay, ctl=None, opt=None) -> _State:
     q, qd = _initial_state(case, lay)
     pres = _prescribed(case, 0.0, False)
     q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
+    if ctl:
+        qdd, tau_p, tau_c, ok = _forward_closed(case, lay, ctl, q, qd, 0.0, False, opt)
+        if not ok:
+            ctl.unconverged_solves += 1
+        _, ref = ctl.tables([0.0], False)
+        ctl.e[:] = np.where(ctl.user, 0.0, ref[0, :, 0] - q[ctl.rows])
+        return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p, tau_c))
     qdd, tau_p = _forward(case, lay, q, qd, 0.0, False)
     return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p))
 
 
-def _newmark_run(case, lay, h, opt, coef, rec):
+def _newmark_run(case, lay, h, opt, coef, rec, ctl=None):
     beta, gamma, am, af = coef.beta, coef.gamma, coef.alpha_m, coef.alpha_f
     t_end, restart = step_schedule(case.scenario.duration, h, case.scenario.breakpoints)
-    st = _initial(case, lay)
+    st = _initial(case, lay, ctl, opt)
     rec.start(st)
     solves, unconverged = [], []
     for n, t1 in enumerate(t_end):
@@ -798,7 +999,7 @@ def _newmark_run(case, lay, h, opt, coef, rec):
         qtd = st.qd + dt * (1 - gamma) * st.a + gamma * dt * mix
         cq = beta * dt * dt * (1 - af) / (1 - am)
         cv = gamma * dt * (1 - af) / (1 - am)
-        qdd, tau_p, n_solves, ok = _iterate(case, lay, opt, t1, qt, qtd, st.qdd, cq, cv)
+        qdd, tau_p, n_solves, ok, tau_c = _iterate(case, lay, opt, t1, qt, qtd, st.qdd, cq, cv, ctl, dt)
         solves.append(n_solves)
         if not ok:
             unconverged.append(n)
@@ -807,11 +1008,16 @@ def _newmark_run(case, lay, h, opt, coef, rec):
         pres = _prescribed(case, t1, True)
         P = lay.presc
         q[P], qd[P], a[P] = pres[:, 0], pres[:, 1], pres[:, 2]
-        new = _State(t1, q, qd, qdd, a, _joint_torques(case, lay, t1, True, tau_p))
+        new = _State(t1, q, qd, qdd, a, _joint_torques(case, lay, t1, True, tau_p, tau_c))
         rec.check(new, n)
         rec.emit(st, new)
         if restart[n]:
-            qdd_r, _ = _forward(case, lay, new.q, new.qd, t1, False)
+            if ctl:
+                qdd_r, _, _, ok_r = _forward_closed(case, lay, ctl, new.q, new.qd, t1, False, opt)
+                if not ok_r:
+                    ctl.unconverged_solves += 1
+            else:
+                qdd_r, _ = _forward(case, lay, new.q, new.qd, t1, False)
             new = _State(t1, new.q, new.qd, qdd_r, qdd_r.copy(), new.tau)
         st = new
     return {
@@ -912,7 +1118,7 @@ class _Recorder:
             s = (t - s0.t) / (s1.t - s0.t)
             tau = (1 - s) * s0.tau + s * s1.tau
             for j, d in enumerate(self.case.scenario.drives):
-                if d.kind == "torque":
+                if d.kind == "torque" and not d.closed_loop:  # closed loop: linear, as DT-TMM
                     tau[j] = d.torque(t, False)
             self.add(q, qd, tau)
 
@@ -945,7 +1151,7 @@ class _Recorder:
             loads = np.zeros((n, nl * (lay.k + 1), 6))
             for i in range(n):
                 t = float(self.t[i])
-                qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0)[0]
+                qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0, self.tau[i])[0]
                 ext = _tip_loads(self.case, lay, _frames(lay, self.q[i]), t, t > 0.0)
                 loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd, ext)
         return SpatialResult(
@@ -989,6 +1195,28 @@ def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
     return opt
 
 
+def _check_closed_loop(case, integrator: str) -> None:
+    """Refuse the closed-loop drives this solver cannot run: any with RK4 (the laws are solved
+    implicitly with a Newmark step) and the ``computed_torque`` feedforward."""
+    for j, d in enumerate(case.scenario.drives):
+        if not d.closed_loop:
+            continue
+        if integrator not in _STEPPED:
+            raise InputError(
+                f"scenario.drives[{j}].law",
+                d.law.name,
+                f"closed-loop drive on joint {j + 1}: integrator {integrator!r} of the spatial global "
+                f"solver cannot run it (its integrators {' and '.join(map(repr, _STEPPED))} can)",
+            )
+        if isinstance(getattr(d.law, "feedforward", None), ComputedTorque):
+            raise InputError(
+                f"scenario.drives[{j}].feedforward",
+                "computed_torque",
+                f"the computed_torque feedforward on joint {j + 1} is not supported by the spatial "
+                "global solver (it has no rigid inverse dynamics of a spatial arm)",
+            )
+
+
 def simulate(
     case,
     *,
@@ -1028,15 +1256,17 @@ def simulate(
     Raises
     ------
     dttmm.InputError
-        Bad case, k, h, integrator, strain or option; a closed-loop drive law.
+        Bad case, k, h, integrator, strain or option; a closed-loop drive law with RK4 or the
+        ``computed_torque`` feedforward.
     dttmm.SimulationError
         Non-finite state (``partial`` holds the outputs so far).
     """
     case = _check_case(case)
     h = plumbing.step_size(h, case.scenario.duration)
     opt = _check_options(integrator, tol, max_iterations, options)
-    require_open_loop(case, "the spatial global solver")
+    _check_closed_loop(case, integrator)
     lay = _layout(case, elements_per_link, strain)
+    ctl = _Control(case, lay)
     meta = {
         "method": "spatial-global",
         "elements_per_link": lay.k,
@@ -1060,7 +1290,7 @@ def simulate(
             )
             meta.update(beta=coef.beta, gamma=coef.gamma, alpha_m=coef.alpha_m, alpha_f=coef.alpha_f)
             meta.update(tol=opt["tol"], max_iterations=opt["max_iterations"])
-            stats = _newmark_run(case, lay, h, opt, coef, rec)
+            stats = _newmark_run(case, lay, h, opt, coef, rec, ctl if ctl else None)
     wall = time.perf_counter() - wall0
     unc = stats["unconverged"]
     meta.update(
@@ -1070,6 +1300,12 @@ def simulate(
         time_per_step=wall / stats["n_steps"],
     )
     warns = []
+    if ctl and ctl.unconverged_solves:
+        meta["unconverged_solves"] = ctl.unconverged_solves
+        warns.append(
+            f"{ctl.unconverged_solves} forward-dynamics solves with closed-loop laws (t = 0, restarts) "
+            f"did not converge (tol {opt['tol']:g}) within {opt['max_iterations']} solves"
+        )
     if unc:
         warns.append(
             f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "

@@ -509,8 +509,11 @@ def test_bad_input():
         sg.mass_matrix(case, 1, np.zeros(3))
     pd = Drive("torque", PD(1.0, 0.1, Constant(0.0)))
     closed = _case(arm(2), [pd, _torque_drives(1)[0]])
+    with pytest.raises(dttmm.InputError, match=r"scenario\.drives\[0\]\.law.*closed-loop.*'rk4'"):
+        sg.simulate(closed, elements_per_link=1, h=1e-3, integrator="rk4")
     with pytest.raises(dttmm.InputError, match="closed-loop"):
-        sg.simulate(closed, elements_per_link=1, h=1e-3)
+        n_dof = len(sg.coordinate_names(closed, 1))
+        sg.accelerations(closed, 1, np.zeros(n_dof), np.zeros(n_dof))
 
 
 # ----------------------------------------------------------------------------------------------

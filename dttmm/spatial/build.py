@@ -209,6 +209,8 @@ def make_work(md: Model) -> Work:
         PF=z((n, 6, 7)),
         zJ=z((n, 6)),
         acc=z((n, 3)),
+        slope=z(n),
+        wdF=z((n, 3)),
         H=z((3, 12)),
         B=z((3, 12)),
         M12=z((12, 12)),

@@ -38,8 +38,10 @@ class SpatialResult(Result):
         Columns: t; joint_angle_j, joint_rate_j, joint_torque_j (unlocked joint j = 1..m);
         per link i = 1..n: link_root_{x,y,z}_i, link_tip_{x,y,z}_i, tip_deflection_{y,z}_i,
         twist_i and, when recorded, link_rotation_{rc}_i and tip_rotation_{rc}_i (row r,
-        column c of the 3×3 matrix, 1-based); end_effector_{x,y,z}; energy (if computed).
-        ``meta`` goes to ``DataFrame.attrs`` (cut loads are not part of the table).
+        column c of the 3×3 matrix, 1-based); end_effector_{x,y,z}; energy (if computed); with
+        cut loads recorded on the output grid, per cut c = 1..n_cuts (k + 1 per link, base link
+        first) cut_force_{x,y,z}_c and cut_moment_{x,y,z}_c (world components). ``meta`` goes to
+        ``DataFrame.attrs``.
         """
         import pandas as pd
 
@@ -65,6 +67,13 @@ class SpatialResult(Result):
             cols[f"end_effector_{ax}"] = self.end_effector[:, c]
         if self.energy is not None:
             cols["energy"] = self.energy
+        if self.cut_loads is not None:
+            if self.cut_load_t is None or not np.array_equal(self.cut_load_t, self.t):
+                raise ValueError("SpatialResult.to_frame: the cut loads are not on the output grid")
+            for cut in range(self.cut_loads.shape[1]):
+                for part, off in (("force", 0), ("moment", 3)):
+                    for c, ax in enumerate("xyz"):
+                        cols[f"cut_{part}_{ax}_{cut + 1}"] = self.cut_loads[:, cut, off + c]
         df = pd.DataFrame(cols)
         df.attrs.update(
             {k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))}
@@ -75,7 +84,7 @@ class SpatialResult(Result):
 
     @classmethod
     def from_frame(cls, df, meta: dict | None = None) -> SpatialResult:
-        """Rebuild a SpatialResult (without cut loads) from :meth:`to_frame`'s table."""
+        """Rebuild a SpatialResult from :meth:`to_frame`'s table."""
         m_j = sum(1 for c in df.columns if c.startswith("joint_angle_"))
         n = sum(1 for c in df.columns if c.startswith("tip_deflection_y_"))
         col = lambda name: df[name].to_numpy()
@@ -98,6 +107,18 @@ class SpatialResult(Result):
                 axis=1,
             )
 
+        n_cuts = sum(1 for c in df.columns if c.startswith("cut_force_x_"))
+        loads = None
+        if n_cuts:
+            loads = np.stack(
+                [
+                    np.column_stack(
+                        [col(f"cut_{part}_{ax}_{c}") for part in ("force", "moment") for ax in "xyz"]
+                    )
+                    for c in range(1, n_cuts + 1)
+                ],
+                axis=1,
+            )
         m = dict(df.attrs)
         m.update(meta or {})
         m.pop("kind", None)
@@ -122,4 +143,6 @@ class SpatialResult(Result):
             twist=np.column_stack([col(f"twist_{i}") for i in range(1, n + 1)]) if "twist_1" in df else None,
             link_rotation=rotation("link_rotation"),
             tip_rotation=rotation("tip_rotation"),
+            cut_loads=loads,
+            cut_load_t=col("t").copy() if loads is not None else None,
         )

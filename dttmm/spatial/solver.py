@@ -3,13 +3,16 @@ forward dynamics at one state) of a spatial arm (docs/spatial.md)."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 
 import numpy as np
 
-from .. import plumbing
+from .. import control, plumbing
 from ..case import Case
+from ..control_state import is_jitted
+from ..drives import ComputedTorque, UserLaw, require_open_loop
 from ..errors import InputError
 from ..timegrid import step_schedule
 from .build import STRAINS, build_model, make_work
@@ -56,29 +59,121 @@ def as_spatial_case(case) -> SpatialCase:
 def _motion_flags(case: SpatialCase) -> np.ndarray:
     flags = np.zeros(case.model.n_links, np.int64)
     for d, i in zip(case.scenario.drives, case.model.unlocked):
-        if d.closed_loop:
-            j = case.model.unlocked.index(i)
-            raise InputError(
-                f"scenario.drives[{j}].law",
-                d.law.name,
-                f"closed-loop drive law {d.law.name!r} on joint {j + 1} is not supported by the spatial kernel yet",
-            )
         flags[i] = d.kind == "motion"
     return flags
 
 
+def _check_closed_loop(case: SpatialCase, engine: str) -> None:
+    """Refuse the closed-loop drives the kernel does not run: user laws that are plain Python
+    functions with the compiled kernel (numba-jitted ones run) and the ``computed_torque``
+    feedforward (the spatial kernel has no rigid inverse dynamics)."""
+    for j, d in enumerate(case.scenario.drives):
+        if not d.closed_loop:
+            continue
+        if isinstance(d.law, UserLaw) and engine != "python" and not is_jitted(d.law.fn):
+            raise InputError(
+                f"scenario.drives[{j}].law",
+                d.law.label,
+                f"user law on joint {j + 1} is a plain Python function: it runs with "
+                "engine='python' only (the compiled kernel calls no Python function; write the law "
+                "as a numba-jitted function of (t, JitState) to run it compiled)",
+            )
+        if isinstance(getattr(d.law, "feedforward", None), ComputedTorque):
+            raise InputError(
+                f"scenario.drives[{j}].feedforward",
+                "computed_torque",
+                f"the computed_torque feedforward on joint {j + 1} is not supported by the spatial "
+                "kernel (it has no rigid inverse dynamics of a spatial arm)",
+            )
+
+
 def _drive_values(case: SpatialCase, n: int, t: float, left: bool):
+    """(torques (n,), inputs (n, INPUT_COLS): the motion laws and the tip loads) per link at time
+    t; torque 0 for closed-loop joints (the kernel evaluates their laws)."""
     tau, mot = np.zeros(n), np.zeros((n, INPUT_COLS))
     for d, i in zip(case.scenario.drives, case.model.unlocked):
         if d.kind == "motion":
             mot[i, :3] = d.motion(t, left)
-        else:
+        elif not d.closed_loop:
             tau[i] = d.torque(t, left)
     load_inputs(case, t, left, mot[:, LOAD_COL:])
     return tau, mot
 
 
-def _tables(case, n, t_end, restart):
+def _gains(case: SpatialCase, md):
+    """Per link: the law code (dttmm.control.CODE_*) and the constants of loop.Drives.gain (kp,
+    kd, ki, g_M, limit, 1 where the hub has an inertia)."""
+    n = md.n
+    code = np.zeros(n, np.int64)
+    gain = np.zeros((n, 6))
+    gain[:, 4] = np.inf
+    for d, i in zip(case.scenario.drives, case.model.unlocked):
+        law = d.law
+        gain[i, 5] = float(np.any(case.model.links[i].hub_inertia != 0.0))
+        if isinstance(law, UserLaw):
+            code[i] = control.CODE_USER
+        elif getattr(law, "closed_loop", False):  # pd, pid
+            code[i] = control.CODE_PD
+            gain[i, :5] = law.kp, law.kd, law.gain_integral, law.moment_gain, law.limit
+    return code, gain
+
+
+def _law_tables(case: SpatialCase, n: int, times, left: bool):
+    """Feedforward (nt, n) and reference (α_ref, α̇_ref) (nt, n, 2) per link of the pd/pid
+    joints on ``times`` (:func:`dttmm.control.time_tables`, open-loop torques removed)."""
+    times = np.asarray(times, float)
+    ff, ref = np.zeros((times.size, n)), np.zeros((times.size, n, 2))
+    if times.size == 0:
+        return ff, ref
+    f, r = control.time_tables(case, times, left)
+    for j, (d, i) in enumerate(zip(case.scenario.drives, case.model.unlocked)):
+        if d.closed_loop:
+            ff[:, i], ref[:, i] = f[:, j], r[:, j]
+    return ff, ref
+
+
+def _user_tables(case: SpatialCase, md, code, engine: str):
+    """``loop.Drives.user``: the user laws per link (engine "python": a tuple, None where not;
+    compiled: a :class:`dttmm.kernel.userlaw.UserTables` of the jitted laws), else an empty
+    array."""
+    if not np.any(code == control.CODE_USER):
+        return np.zeros(0)
+    laws = [None] * md.n
+    for d, i in zip(case.scenario.drives, case.model.unlocked):
+        if isinstance(d.law, UserLaw):
+            laws[i] = d.law
+    if engine == "python":
+        return tuple(laws)
+    from ..kernel import userlaw
+
+    fns, slot, seen = [], np.full(md.n, -1, np.int64), {}
+    for j, (d, i) in enumerate(zip(case.scenario.drives, case.model.unlocked)):
+        if not isinstance(d.law, UserLaw):
+            continue
+        key = id(d.law.fn)
+        if key not in seen:
+            seen[key] = len(fns)
+            fns.append(userlaw.compiled(d.law.fn, f"scenario.drives[{j}].law"))
+        slot[i] = seen[key]
+    m = len(case.model.unlocked)
+    return userlaw.UserTables(
+        fns=tuple(fns),
+        slot=slot,
+        angles=np.zeros(m),
+        rates=np.zeros(m),
+        tips=np.zeros(md.n),
+        root=np.zeros((1, md.n, 2)),
+        tip=np.zeros((1, md.n, 2)),
+        root_angle=np.zeros((1, md.n)),
+        energy=np.zeros(0),
+    )
+
+
+def _tables(loop, case, md, t_end, restart, engine):
+    """The :class:`loop.Drives` of a run: open-loop torques and motions at the step ends (left
+    limits), the right limits at restarts (row n_steps: t = 0), the mid-step values (RK4); the
+    closed-loop codes, gains, feedforwards and references at the same instants."""
+    n = md.n
     ns = t_end.size
     t_start = np.concatenate(([0.0], t_end[:-1]))
     t_mid = t_start + 0.5 * (t_end - t_start)
@@ -91,9 +186,37 @@ def _tables(case, n, t_end, restart):
         if restart[s]:
             tr[s], mr[s] = _drive_values(case, n, t_end[s], False)
     # the last row of the right limits holds t = 0
-    t0r, m0r = _drive_values(case, n, 0.0, False)
-    tr[ns], mr[ns] = t0r, m0r
-    return tl, ml, tr, mr, tm, mm, t0r, m0r
+    tr[ns], mr[ns] = _drive_values(case, n, 0.0, False)
+    code, gain = _gains(case, md)
+    one = lambda: (np.zeros((1, n)), np.zeros((1, n, 2)))
+    (ffl, refl), (ffm, refm) = one(), one()
+    ffr, refr = np.zeros((ns + 1, n)), np.zeros((ns + 1, n, 2))
+    if code.any():
+        ffl, refl = _law_tables(case, n, t_end, True)
+        ffm, refm = _law_tables(case, n, t_mid, False)
+        rs = np.flatnonzero(restart)
+        ffr[rs], refr[rs] = _law_tables(case, n, t_end[rs], False)
+        ffr[ns], refr[ns] = (a[0] for a in _law_tables(case, n, [0.0], False))
+    c = lambda a: np.ascontiguousarray(a, float)
+    return loop.Drives(
+        t_end=c(t_end),
+        restart=np.asarray(restart, np.bool_),
+        tau_l=tl,
+        mot_l=ml,
+        tau_r=tr,
+        mot_r=mr,
+        tau_m=tm,
+        mot_m=mm,
+        code=code,
+        gain=gain,
+        ff_l=c(ffl),
+        ref_l=c(refl),
+        ff_r=c(ffr),
+        ref_r=c(refr),
+        ff_m=c(ffm),
+        ref_m=c(refm),
+        user=_user_tables(case, md, code, engine),
+    )
 
 
 def initial_state(case: SpatialCase, md):
@@ -127,6 +250,7 @@ def accelerations(
     ``loads`` returns (q̈, torques (n_links,), cut loads (n_el + n_links, 6)).
     """
     case = as_spatial_case(case)
+    require_open_loop(case, "dttmm.spatial.accelerations")
     k = plumbing.elements_per_link(elements_per_link)
     plumbing.choice("strain", strain, STRAINS)
     engine, core, _ = _kernel(engine)
@@ -159,6 +283,10 @@ def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads):
     qdd = np.zeros(md.ndof)
     zero = np.zeros(md.ndof)
     el0 = md.el0
+    ws.slope[:] = 0.0
+    closed = np.zeros(n, bool)
+    for d, i in zip(case.scenario.drives, case.model.unlocked):
+        closed[i] = d.closed_loop
     for j in range(nt):
         core.kinematics(md, ws, oq[j], oqd[j])
         root[j] = ws.pw[el0]
@@ -169,6 +297,7 @@ def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads):
             en[j] = core.energy(md, ws)
         if want_loads:
             tau, mot = _drive_values(case, n, case.scenario.output_times[j], True)
+            tau[closed] = otau[j][closed]  # the laws' torques as recorded
             core.accelerations(md, ws, oq[j].copy(), oqd[j].copy(), tau, mot, zero, qdd, True, loads[j])
     d = tip - root
     defl = np.stack(
@@ -181,6 +310,37 @@ def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads):
     return root, tip, Rl, Rt, defl, twist, en, loads
 
 
+#: fixed sweep counts and "auto": the residual check (one extra sweep, not applied) runs at
+#: the first step, every CHECK_EVERY-th step and the last step (the planar kernel's rule)
+CHECK_EVERY = 64
+#: energy growth with no input, relative to the run's energy scale, that fails the energy check
+#: (the planar kernel's bound, :data:`dttmm.kernel.driver.ENERGY_GROWTH`)
+ENERGY_GROWTH = 1e-3
+
+
+def _energy_growth(case: SpatialCase, t, energy, torque, rate):
+    """The planar kernel's energy check (:func:`dttmm.kernel.driver._energy_growth`): on every
+    stretch of output samples where all joint torques are zero the energy must not grow;
+    returns (largest growth relative to the energy scale, its time or None). The scale is the
+    largest of the energy's range, the torque work ∫Σ|τα̇|dt and m|g|L."""
+    links = case.model.links
+    mass = sum(lk.beam.mass + lk.hub_mass + lk.payload_mass for lk in links)
+    mgl = mass * float(np.linalg.norm(case.model.gravity)) * sum(lk.beam.length for lk in links)
+    p = np.sum(np.abs(torque * rate), axis=1)
+    work = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))) if t.size > 1 else 0.0
+    rng = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
+    scale = max(rng, work, mgl)
+    idx = np.flatnonzero(np.all(torque == 0.0, axis=1))
+    if idx.size < 2 or scale <= 0.0:
+        return 0.0, None
+    starts = idx[np.concatenate(([True], np.diff(idx) > 1))]
+    first = starts[np.searchsorted(starts, idx, side="right") - 1]
+    growth = (energy[idx] - energy[first]) / scale
+    growth[~np.isfinite(growth)] = 0.0
+    i = int(np.argmax(growth))
+    return (float(growth[i]), float(t[idx[i]])) if growth[i] > 0.0 else (0.0, None)
+
+
 def simulate(
     case,
     *,
@@ -188,7 +348,7 @@ def simulate(
     h: float,
     integrator: str = "newmark",
     strain: str = "linear",
-    iterations: int | None = None,
+    iterations: int | str | None = None,
     tol: float = 1e-10,
     max_iterations: int = 50,
     beta: float | None = None,
@@ -197,6 +357,7 @@ def simulate(
     cut_loads: bool = False,
     energy: bool = True,
     engine: str | None = None,
+    auto_fraction: float = 0.1,
     **planar_options,
 ):
     """Simulate a spatial case by DT-TMM with k = ``elements_per_link`` elements per link and
@@ -206,8 +367,13 @@ def simulate(
     :class:`dttmm.Case` runs on the planar kernel (:func:`dttmm.simulate`, its Result shapes).
     ``integrator``: "newmark" (β = ¼, γ = ½ unless given), "generalized-alpha" (``rho_inf``) or
     "rk4"; ``iterations``: None (each step to max|Δq̈| ≤ tol·max(1, max|q̈|), the suite's stop
-    rule, at most ``max_iterations`` sweeps) or m ≥ 0 (m + 1 sweeps per step); ``strain``:
-    "linear" or "second-order"; ``cut_loads``, ``energy``: record them on the output grid.
+    rule, at most ``max_iterations`` sweeps), m ≥ 0 (m + 1 sweeps per step) or "auto" (the
+    planar kernel's rule: at least 2 sweeps, then stop once the iteration error predicted from
+    the contraction ρ = |Δq̈_m|/|Δq̈_{m−1}|, |Δq̈_m|·ρ/(1 − ρ), is below ``auto_fraction`` × the
+    local truncation error estimate |β − 1/6|/β · max|q̈_{n+1} − q̈_n|, or the ``tol`` rule is
+    met; a residual check every 64 steps); ``strain``: "linear" or "second-order";
+    ``cut_loads``, ``energy``: record them on the output grid. Closed-loop drives (pd, pid, user
+    laws; docs/control.md) run as in the planar kernel.
     Returns a :class:`SpatialResult`; raises InputError for bad settings, SimulationError (with
     ``.partial``) when the run diverges.
     """
@@ -229,6 +395,7 @@ def simulate(
             cut_loads=cut_loads,
             energy=energy,
             engine=engine,
+            auto_fraction=auto_fraction,
             **planar_options,
         )
     if planar_options:
@@ -240,25 +407,54 @@ def simulate(
     plumbing.choice("integrator", integrator, INTEGRATORS)
     plumbing.choice("strain", strain, STRAINS)
     iters = plumbing.iterations_setting(iterations)
-    if iters == "auto":
-        raise InputError("iterations", iters, "the spatial kernel iterates to tolerance or a fixed count")
     tol = plumbing.open_fraction("tol", tol)
     max_iterations = plumbing.positive_integer("max_iterations", max_iterations)
+    auto_fraction = plumbing.positive_number("auto_fraction", auto_fraction)
     fam = (
         None
         if integrator == "rk4"
         else plumbing.newmark_family(integrator, beta=beta, gamma=gamma, rho_inf=rho_inf)
     )
     engine, core, loop = _kernel(engine)
+    _check_closed_loop(case, engine)
     md = build_model(case.model, k, strain, _motion_flags(case))
     ws = make_work(md)
     sc = case.scenario
     t_end, restart = step_schedule(sc.duration, h, sc.breakpoints)
-    tl, ml, tr, mr, tm, mm, t0r, m0r = _tables(case, md.n, t_end, restart)
+    drv = _tables(loop, case, md, t_end, restart, engine)
+    closed = bool(drv.code.any())
+    coupled = bool(np.any((drv.code == control.CODE_PD) & (drv.gain[:, 3] != 0.0) & (drv.gain[:, 5] != 0.0)))
+    if fam is None:
+        b, g, am, af, lte = 0.25, 0.5, 0.0, 0.0, 0.0
+    else:
+        b, g, am, af = fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f
+        lte = abs(b - 1.0 / 6.0) / b
+    mode = loop.IT_TOL if iters is None else loop.IT_AUTO if iters == "auto" else loop.IT_FIXED
+    opts = loop.Options(
+        integrator=loop.INT_RK4 if fam is None else loop.INT_NEWMARK,
+        beta=float(b),
+        gamma=float(g),
+        alpha_m=float(am),
+        alpha_f=float(af),
+        tol=float(tol),
+        max_it=int(max_iterations),
+        iteration=mode,
+        n_fixed=int(iters) if mode == loop.IT_FIXED else 0,
+        auto_fraction=float(auto_fraction),
+        lte=float(lte),
+        check_every=CHECK_EVERY if fam is not None and mode != loop.IT_TOL else 0,
+        closed=closed,
+        coupled=coupled,
+    )
+    cw = loop.new_loop(md.n, md.ndof)
     q, qd = initial_state(case, md)
     qdd = np.zeros(md.ndof)
     torque0 = np.zeros(md.n)
-    if not loop.accel(md, ws, q, qd, t0r, m0r, np.zeros(md.ndof), qdd, torque0):
+    z, zerr = np.zeros(md.n), np.zeros(md.n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ok0 = loop.start(md, ws, opts, drv, cw, q, qd, qdd, torque0, z, zerr)
+    if not ok0:
         raise InputError("case", case.name or "<case>", "the system is singular at t = 0")
     aux = qdd.copy()
     ts = sc.output_times
@@ -268,44 +464,21 @@ def simulate(
         np.full((nt, md.ndof), np.nan),
         np.full((nt, md.n), np.nan),
     )
-    stats = np.zeros(6, np.int64)
-    b, g, am, af = (0.25, 0.5, 0.0, 0.0) if fam is None else (fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f)
+    stats = np.zeros(loop.N_STATS, np.int64)
+    stats[loop.S_FIRST_FLAG] = stats[loop.S_WORST] = -1
+    fstats = np.zeros(2)
     t_start = time.perf_counter()
     c0 = time.process_time()
     with warnings.catch_warnings():
+        # numpy's warnings of a diverging state (caught and reported below); numba's note that
+        # its first-class function type (the calls of jitted user laws) is experimental
         warnings.simplefilter("ignore")
         n_steps = loop.run(
-            md,
-            ws,
-            loop.INT_RK4 if fam is None else loop.INT_NEWMARK,
-            b,
-            g,
-            am,
-            af,
-            tol,
-            max_iterations,
-            -1 if iters is None else iters,
-            t_end,
-            restart,
-            tl,
-            ml,
-            tr,
-            mr,
-            tm,
-            mm,
-            q,
-            qd,
-            qdd,
-            aux,
-            ts,
-            oq,
-            oqd,
-            otau,
-            stats,
+            md, ws, opts, drv, cw, q, qd, qdd, aux, torque0, z, zerr, ts, oq, oqd, otau, stats, fstats
         )
     wall = time.perf_counter() - t_start
     cpu = time.process_time() - c0
-    upto = int(stats[5])
+    upto = int(stats[loop.S_SAMPLES])
     meta = {
         "method": "dttmm-spatial",
         "elements_per_link": k,
@@ -316,25 +489,30 @@ def simulate(
         "n_dof": md.ndof,
         "iterations": iters,
         "tol": tol,
-        "sweeps_per_step": float(stats[0]) / max(int(n_steps), 1),
-        "max_sweeps": int(stats[1]),
-        "unconverged_steps": int(stats[2]),
+        "sweeps_per_step": float(stats[loop.S_SWEEPS]) / max(int(n_steps), 1),
+        "max_sweeps": int(stats[loop.S_MAX]),
+        "unconverged_steps": int(stats[loop.S_UNCONV]),
         "cpu_time": cpu,
         "versions": plumbing.versions(),
     }
+    if iters == "auto":
+        meta["auto_fraction"] = auto_fraction
     if fam is not None:
         meta.update(beta=fam.beta, gamma=fam.gamma, alpha_m=fam.alpha_m, alpha_f=fam.alpha_f)
-    status = "ok"
-    warns = []
-    if iters is not None or stats[2] > 0:
-        status = "unconverged"
-        warns.append(
-            f"{int(stats[2])} steps stopped at max_iterations"
-            if iters is None
-            else "fixed sweep count per step"
+    if cw.fd[0]:
+        meta["unconverged_solves"] = int(cw.fd[0])
+    if stats[loop.S_CHECKS]:
+        t_of = lambda j: float(t_end[j]) if j >= 0 else None
+        meta.update(
+            residual_checks=int(stats[loop.S_CHECKS]),
+            residual_flagged=int(stats[loop.S_FLAGGED]),
+            residual_first_t=t_of(int(stats[loop.S_FIRST_FLAG])),
+            residual_worst_t=t_of(int(stats[loop.S_WORST])),
+            residual_worst_ratio=float(fstats[0]),
+            residual_worst=float(fstats[1]),
         )
 
-    def result(upto_, meta_, status_):
+    def result(upto_, meta_, status_, warns_):
         sel = slice(0, upto_)
         root, tip, Rl, Rt, defl, twist, en, loads = _outputs(
             core, md, ws, case, oq[sel], oqd[sel], otau[sel], upto_, energy, cut_loads
@@ -356,20 +534,70 @@ def simulate(
             cut_load_t=ts[sel] if cut_loads else None,
             energy=en,
             status=status_,
-            warnings=tuple(warns),
+            warnings=tuple(warns_),
             twist=twist,
             link_rotation=Rl,
             tip_rotation=Rt,
         )
 
-    if stats[3] != 0:
-        s = int(stats[4])
+    if stats[loop.S_STATUS] != 0:
+        st = int(stats[loop.S_FAILED])
         raise plumbing.simulation_failure(
-            _STATUS.get(int(stats[3]), "failure"),
-            t=float(t_end[s]),
-            step=s,
+            _STATUS.get(int(stats[loop.S_STATUS]), "failure"),
+            t=float(t_end[st]),
+            step=st,
             component="state",
             meta=meta,
-            partial=lambda m: result(upto, m, "failed"),
+            partial=lambda m: result(upto, m, "failed", ()),
         )
-    return result(nt, meta, status)
+    res = result(nt, meta, "ok", ())
+    status, warns = _verdict(meta, case, res, iters, tol, max_iterations, int(n_steps))
+    return dataclasses.replace(res, status=status, warnings=tuple(warns), meta=dict(meta))
+
+
+def _verdict(meta, case, res, iters, tol, max_iterations, n_steps):
+    """(status, warnings) as the planar kernel's :func:`dttmm.kernel.driver.verdict`:
+    "unconverged" when a tolerance-driven step used all ``max_iterations`` sweeps, when a
+    forward-dynamics solve with closed-loop laws did, when the residual check of "auto" or a fixed
+    count flagged a step, or when the energy grew with no input in a run with ``iterations`` set;
+    a fixed sweep count is always "unconverged" (the step equations are not iterated)."""
+    warns = []
+    status = "ok"
+    n_unconv = meta.get("unconverged_steps", 0)
+    if n_unconv:
+        status = "unconverged"
+        warns.append(
+            f"{n_unconv} of {n_steps} steps stopped after max_iterations = {max_iterations} "
+            f"sweeps before reaching tol = {tol:g}"
+        )
+    n_fd = meta.get("unconverged_solves", 0)
+    if n_fd:
+        status = "unconverged"
+        warns.append(
+            f"{n_fd} forward-dynamics solves with closed-loop laws (t = 0, restarts, RK4 stages) "
+            f"stopped after max_iterations = {max_iterations} sweeps before reaching tol = {tol:g}"
+        )
+    if iters is not None and iters != "auto":
+        status = "unconverged"
+        warns.append("fixed sweep count per step")
+    n_flag = meta.get("residual_flagged", 0)
+    if n_flag:
+        status = "unconverged"
+        warns.append(
+            f"iterations={iters!r}: the step equations are not solved to the time-discretisation "
+            f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
+            f"{meta['residual_first_t']:.6g} s; worst at t = {meta['residual_worst_t']:.6g} s: one more "
+            f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
+            f"{meta['residual_worst_ratio']:.3g} × the truncation error)"
+        )
+    if res.energy is not None and not any(d.kind == "motion" for d in case.scenario.drives):
+        growth, when = _energy_growth(case, res.t, res.energy, res.joint_torque, res.joint_rate)
+        meta["energy_growth"], meta["energy_growth_t"] = growth, when
+        if growth > ENERGY_GROWTH:
+            if iters is not None:
+                status = "unconverged"
+            warns.append(
+                f"the energy grew with no input: by {growth:.3g} × the run's energy scale "
+                f"(> {ENERGY_GROWTH:g}) by t = {when:.6g} s"
+            )
+    return status, warns

@@ -3,7 +3,7 @@
 The sources of this folder are compiled by numba when they import; imported a second time as
 the package ``dttmm.spatial.kernel_python`` they run uncompiled (``njit`` is the identity):
 the engine "python", the same algorithm line for line. numba's on-disk cache lives in a folder
-named by a hash of the sources of this folder (and of the stop rule it inlines), so an edit to
+named by a hash of the sources of this folder (and of the stop rule and the pd law it inlines), so an edit to
 any of them starts a fresh cache.
 """
 
@@ -23,7 +23,7 @@ except ImportError:  # pragma: no cover
 
 PURE = not HAVE_NUMBA or __name__.startswith("dttmm.spatial.kernel_python")
 KERNEL_DIR = Path(__file__).resolve().parent
-OUTSIDE = (KERNEL_DIR.parent.parent / "iteration.py",)
+OUTSIDE = tuple(KERNEL_DIR.parent.parent / f for f in ("iteration.py", "control.py", "control_state.py"))
 
 
 def source_hash() -> str:

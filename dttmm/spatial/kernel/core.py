@@ -1014,7 +1014,9 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
                 for r in range(6):
                     c[r] += Ps[r] * add
             else:
-                Dj = np.dot(s6, Ps)
+                # a closed-loop torque τ = tau + slope·α̈ (its law linearised in α̈) acts as a
+                # joint stiffness: sᵀP s − slope in the projection (0 for an open-loop torque)
+                Dj = np.dot(s6, Ps) - ws.slope[i]
                 if not Dj > 0.0:
                     ok = False
                     Dj = 1.0
@@ -1045,7 +1047,7 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
                 add = mot[i, 2]
             else:
                 Ps = mv(PF[:, :6], s6)
-                Dj = np.dot(s6, Ps)
+                Dj = np.dot(s6, Ps) - ws.slope[i]
                 add = (tau[i] + forces[md.ia[i]] - np.dot(s6, mv(PF[:, :6], A) + PF[:, 6])) / Dj
             for r in range(3):
                 A[3 + r] += aF[r] * add
@@ -1053,6 +1055,8 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             ws.acc[i, 0] = add
             fF = mv(PF[:, :6], A) + PF[:, 6]
             ws.acc[i, 1] = np.dot(s6, fF)
+        for r in range(3):  # the link root's angular acceleration (closed-loop moment feedback)
+            ws.wdF[i, r] = A[3 + r]
         ic = forward_link(md, ws, i, A, qdd, want_loads, loads, ic)
         el_last = md.el0[i] + md.k[i] - 1
         if want_loads:

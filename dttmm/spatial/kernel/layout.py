@@ -79,6 +79,8 @@ class Work(NamedTuple):
     PF: np.ndarray  # (n, 6, 7) at each link root with the hub, before the joint
     zJ: np.ndarray  # (n, 6) joint velocity-product term (root frame components)
     acc: np.ndarray  # (n, 3) per joint: α̈, torque, α̇
+    slope: np.ndarray  # (n,) per torque joint: ∂τ/∂α̈ of a closed-loop law (0: open loop)
+    wdF: np.ndarray  # (n, 3) angular acceleration of each link root (root element frame)
     # scratch of the element step (no allocation per element)
     H: np.ndarray  # (3, 12) angular velocity map of a body, [0, I, J_L Ψ]
     B: np.ndarray  # (3, 12) its inertia times H

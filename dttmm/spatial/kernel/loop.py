@@ -1,25 +1,435 @@
 """The time loop of the spatial kernel: Newmark family (generalised-α in the Arnold–Brüls form)
-on q with implicit elastic and damping forces and the suite's stop rule, or RK4 on the
-acceleration solver; output sampling on the grid by cubic Hermite interpolation between step
-ends (q from (q, q̇), q̇ from (q̇, q̈), torques linear)."""
+on q with implicit elastic and damping forces and the suite's stop rule (``iterations="auto"``:
+with the planar kernel's contraction test), or RK4 on the acceleration solver; closed-loop
+drive laws (pd, pid, user laws) solved with the step as in the planar kernel
+(:mod:`dttmm.kernel.feedback`); output sampling on the grid by cubic Hermite interpolation
+between step ends (q from (q, q̇), q̇ from (q̇, q̈), torques linear).
+
+**Closed-loop joints.** The law of joint i is τ = clip(L0 − g_M M_root, ±limit) (docs/control.md)
+with M_root the component along the joint axis a of the moment the hub exerts on the beam at
+the link's root cross-section. The hub's moment balance about the root point gives it exactly,
+M_root = τ − H, H = a·(J_h ω̇ + ω × J_h ω) (root element-frame components, ω̇ the angular
+acceleration of the link root), so τ = clip((L0 + g_M H)/(1 + g_M), ±limit)
+(:func:`dttmm.control.pd_torque` with J_hub = 1 and ω̇ → H). A Newmark step evaluates it at
+t_{n+1} with the state there (z by the trapezoidal rule); each sweep sees the law linearised
+at the latest iterate, τ ≈ τ_k + s (α̈ − α̈_k) + ∂τ/∂H (H − H_k), s = ∂τ/∂α c_q + ∂τ/∂α̇ c_v −
+∂τ/∂z h c_q/2, which the sweep takes as a joint stiffness (``ws.slope``). H responds to the
+joint torques themselves (the joint's own and, through the inboard links, the others'); the
+sweep is affine in its torques, so with moment feedback the torques of every sweep are
+corrected through the measured sensitivity ∂H/∂τ (:func:`correct`, the planar kernel's scheme
+for its inboard part; here for the whole H, whose own-α̈ part as a slope would make the
+articulated inertia of the inboard link indefinite at the acceleration level). The converged
+step satisfies the law exactly. User laws see a
+:class:`dttmm.drives.ControlState` (a numba-jitted law a :class:`dttmm.drives.JitState`):
+``joint`` the drive's index, ``angles``/``rates`` of every unlocked joint, ``tip_deflections``
+of every link (the component along the link frame's y axis), ``moment`` = τ_sweep − H of the
+last sweep, ``integral`` 0.
+"""
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
+from ... import control
 from ...iteration import stop_rule
-from ._jit import njit
-from .core import kinematics, set_rates, sweep
+from ._jit import PURE, njit
+from .core import cross, kinematics, mv, set_rates, sweep
 
 _stop_rule = njit(inline="always")(stop_rule)
+#: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
+_pd_torque = njit(inline="always")(control.pd_torque)
 
 INT_NEWMARK, INT_RK4 = 0, 1
+IT_TOL, IT_FIXED, IT_AUTO = 0, 1, 2
 ST_OK, ST_NONFINITE, ST_SINGULAR, ST_RUNAWAY = 0, 1, 2, 3
 #: an elastic rotation beyond this (rad) or a displacement beyond this many element lengths
 #: stops the run: the state is diverging
 RUNAWAY_ANGLE, RUNAWAY_LENGTHS = 2.0 * np.pi, 10.0
+#: law codes per link (dttmm.control): open loop, pd/pid, user law
+CODE_OPEN, CODE_PD, CODE_USER = control.CODE_OPEN, control.CODE_PD, control.CODE_USER
+#: columns of Drives.gain: kp, kd, ki, g_M, limit, 1 where the hub has an inertia
+KP, KD, KI, GM, LIMIT, HASJ = range(6)
+#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart)
+A_EVERY = 8
+#: stats slots (int64): sweeps, max sweeps, unconverged steps, status, failed step, samples
+#: written, forward-dynamics solves out of sweeps, residual checks, flagged checks, step of the
+#: first flag, step of the worst ratio; fstats (float): worst ratio, its relative residual
+S_SWEEPS, S_MAX, S_UNCONV, S_STATUS, S_FAILED, S_SAMPLES = range(6)
+S_FD_UNCONV, S_CHECKS, S_FLAGGED, S_FIRST_FLAG, S_WORST = range(6, 11)
+N_STATS = 11
+
+
+class Options(NamedTuple):
+    """Run settings."""
+
+    integrator: int  # INT_NEWMARK or INT_RK4
+    beta: float
+    gamma: float
+    alpha_m: float
+    alpha_f: float
+    tol: float
+    max_it: int
+    iteration: int  # IT_TOL, IT_FIXED or IT_AUTO
+    n_fixed: int  # IT_FIXED: sweeps per step − 1
+    auto_fraction: float
+    lte: float  # |β − 1/6|/β
+    check_every: int  # fixed counts and "auto": residual check every this many steps (0: never)
+    closed: bool  # some joint has a closed-loop law
+    coupled: bool  # some pd/pid joint has moment feedback on a hub inertia (:func:`correct`)
+
+
+class Drives(NamedTuple):
+    """Drive values per step, per link (the laws are Python objects, evaluated beforehand):
+    torques (n_steps, n) and motions (n_steps, n, 3) at the step end (left limits), the right
+    limits at restart steps (row n_steps: t = 0), the mid-step values (RK4). Closed-loop links
+    have ``code`` CODE_PD or CODE_USER, the constants ``gain`` (n, 7) and, at the same instants,
+    the feedforward ``ff_*`` (·, n) and the reference (α_ref, α̇_ref) ``ref_*`` (·, n, 2);
+    ``user``: the user laws (engine "python": a tuple, None where not; compiled: a
+    :class:`dttmm.kernel.userlaw.UserTables`), else an empty array."""
+
+    t_end: np.ndarray
+    restart: np.ndarray
+    tau_l: np.ndarray
+    mot_l: np.ndarray
+    tau_r: np.ndarray
+    mot_r: np.ndarray
+    tau_m: np.ndarray
+    mot_m: np.ndarray
+    code: np.ndarray
+    gain: np.ndarray
+    ff_l: np.ndarray
+    ref_l: np.ndarray
+    ff_r: np.ndarray
+    ref_r: np.ndarray
+    ff_m: np.ndarray
+    ref_m: np.ndarray
+    user: object
+
+
+class Loop(NamedTuple):
+    """Scratch of the closed-loop laws, (n,) per link unless stated."""
+
+    taul: np.ndarray  # the sweep's torques (τ_k − s α̈_k at closed-loop joints)
+    torque: np.ndarray  # the laws' τ (final evaluation of a step or solve)
+    scratch: np.ndarray  # the laws' τ of an intermediate evaluation (not recorded)
+    zs: np.ndarray  # z of an RK4 stage; z_{n+1} of a Newmark step
+    zsum: np.ndarray  # RK4's weighted sum of ż; e_{n+1} of a Newmark step
+    dw: np.ndarray  # ∂τ/∂H at the iterate
+    yk: np.ndarray  # H at the iterate, of the base sweep
+    yb: np.ndarray
+    tb: np.ndarray  # the base sweep's torques
+    amat: np.ndarray  # (n, n) ∂y/∂τ' of the sweep
+    gmat: np.ndarray  # (n, n + 1) scratch of the solve
+    xs: np.ndarray  # (n_dof,) q̈ of the sensitivity sweeps
+    xc: np.ndarray  # (n_dof,) previous iterate of the forward dynamics
+    fd: np.ndarray  # (2,) forward-dynamics solves out of sweeps, their sweeps
+
+
+def new_loop(n: int, ndof: int) -> Loop:
+    z = np.zeros
+    return Loop(
+        taul=z(n),
+        torque=z(n),
+        scratch=z(n),
+        zs=z(n),
+        zsum=z(n),
+        dw=z(n),
+        yk=z(n),
+        yb=z(n),
+        tb=z(n),
+        amat=z((n, n)),
+        gmat=z((n, n + 1)),
+        xs=z(ndof),
+        xc=z(ndof),
+        fd=np.zeros(2, np.int64),
+    )
+
+
+# ------------------------------------------------------------------ closed-loop laws --------
+
+
+@njit()
+def hub_moment(md, ws, i):
+    """H_i = a·(J_h ω̇ + ω × J_h ω): the hub's inertial moment about link i's joint axis, ω from
+    the kinematics in ``ws``, ω̇ from the last sweep (root element-frame components)."""
+    el0 = md.el0[i]
+    J = md.hub_J[i]
+    w = ws.wl[el0]
+    Jw = mv(J, w)
+    g = cross(w, Jw) + mv(J, ws.wdF[i])
+    a = md.aF[i]
+    return a[0] * g[0] + a[1] * g[1] + a[2] * g[2]
+
+
+@njit()
+def pd_law(drv, i, ff, a_ref, r_ref, z, alpha, rate, hub):
+    """(τ, ∂τ/∂α, ∂τ/∂α̇, ∂τ/∂z, ∂τ/∂H) of the pd/pid law of link i's joint with the moment
+    feedback solved in closed form (:func:`dttmm.control.pd_torque`, J_hub ω̇ → H)."""
+    g = drv.gain
+    return _pd_torque(
+        g[i, KP], g[i, KD], g[i, KI], g[i, GM], g[i, LIMIT], 1.0, ff, a_ref, r_ref, z, alpha, rate, hub
+    )
+
+
+@njit()
+def link_tips(md, ws, out):
+    """Every link's tip deflection along its link frame's y axis (R_link = R_root Rx(roll)ᵀ)
+    from the kinematics in ``ws`` into ``out`` (n,)."""
+    for i in range(md.n):
+        el0 = md.el0[i]
+        R = ws.Rw[el0]
+        Qi = md.Q[i]
+        v = 0.0
+        for r in range(3):
+            y = R[r, 0] * Qi[1, 0] + R[r, 1] * Qi[1, 1] + R[r, 2] * Qi[1, 2]
+            v += (ws.pT[i + 1, r] - ws.pw[el0, r]) * y
+        out[i] = v
+
+
+@njit()
+def drive_index(md, i):
+    """The index of link i's drive (unlocked joints in order)."""
+    j = 0
+    for r in range(i):
+        if md.locked[r] == 0:
+            j += 1
+    return j
+
+
+if PURE:
+
+    def user_laws(md, ws, drv, cw, t, q, qd, x, cq, cv, torque, first):
+        """User laws (code CODE_USER) at the iterate (q, q̇, q̈ = x) at time t, the kinematics
+        in ``ws`` at (q, q̇): each sees a ControlState (a numba-jitted law a JitState; its moment
+        τ_sweep − H of the last sweep, 0 before the first) and is linearised with s = ∂τ/∂α c_q +
+        ∂τ/∂α̇ c_v into ws.slope, cw.taul = τ − s α̈_k; its τ goes to ``torque``. Returns whether
+        there is one (its moment dependence is resolved by repeating the sweeps)."""
+        if not any(drv.code[i] == CODE_USER for i in range(md.n)):
+            return False
+        from ...control_state import ControlState, JitState, is_jitted
+
+        tips_a = np.zeros(md.n)
+        link_tips(md, ws, tips_a)
+        unl = [i for i in range(md.n) if md.locked[i] == 0]
+        angles = tuple(float(q[md.ia[i]]) for i in unl)
+        rates = tuple(float(qd[md.ia[i]]) for i in unl)
+        tips = tuple(float(v) for v in tips_a)
+        arrays = tuple(np.array(v, np.float64) for v in (angles, rates, tips))
+        for i in range(md.n):
+            if drv.code[i] != CODE_USER:
+                continue
+            j = drive_index(md, i)
+            moment = 0.0 if first else ws.acc[i, 1] - hub_moment(md, ws, i)
+            if is_jitted(drv.user[i].fn):
+                state = JitState(j, angles[j], rates[j], float(moment), 0.0, *arrays, math.nan)
+            else:
+                state = ControlState(
+                    joint=j,
+                    angle=angles[j],
+                    rate=rates[j],
+                    moment=float(moment),
+                    integral=0.0,
+                    angles=angles,
+                    rates=rates,
+                    tip_deflections=tips,
+                )
+            tau, d_a, d_r, _ = drv.user[i].evaluate(float(t), state)
+            slope = d_a * cq + d_r * cv
+            ws.slope[i] = slope
+            cw.taul[i] = tau - slope * (0.0 if first else x[md.ia[i]])
+            cw.dw[i] = 0.0
+            torque[i] = tau
+        return True
+
+else:
+    from numba import types
+    from numba.extending import overload
+
+    from ...control_state import JitState
+
+    def user_laws(md, ws, drv, cw, t, q, qd, x, cq, cv, torque, first):
+        """The user laws of the compiled kernel (numba-jitted laws in ``drv.user``, a
+        :class:`dttmm.kernel.userlaw.UserTables`), as in the uncompiled kernel; compiled by the
+        overload below, a no-op returning False where ``drv.user`` is an array (no user law)."""
+        raise NotImplementedError  # pragma: no cover - only ever compiled
+
+    @overload(user_laws)
+    def _user_laws(md, ws, drv, cw, t, q, qd, x, cq, cv, torque, first):
+        if isinstance(drv.types[drv.fields.index("user")], types.Array):
+
+            def none(md, ws, drv, cw, t, q, qd, x, cq, cv, torque, first):
+                return False
+
+            return none
+
+        def laws(md, ws, drv, cw, t, q, qd, x, cq, cv, torque, first):
+            u = drv.user
+            link_tips(md, ws, u.tips)
+            j = 0
+            for i in range(md.n):
+                if md.locked[i] == 0:
+                    u.angles[j] = q[md.ia[i]]
+                    u.rates[j] = qd[md.ia[i]]
+                    j += 1
+            for i in range(md.n):
+                if drv.code[i] != CODE_USER:
+                    continue
+                moment = 0.0
+                ak = 0.0
+                if not first:
+                    moment = ws.acc[i, 1] - hub_moment(md, ws, i)
+                    ak = x[md.ia[i]]
+                jd = drive_index(md, i)
+                state = JitState(
+                    jd, u.angles[jd], u.rates[jd], moment, 0.0, u.angles, u.rates, u.tips, np.nan
+                )
+                tau, d_a, d_r = u.fns[u.slot[i]](t, state)
+                slope = d_a * cq + d_r * cv
+                ws.slope[i] = slope
+                cw.taul[i] = tau - slope * ak
+                cw.dw[i] = 0.0
+                torque[i] = tau
+            return True
+
+        return laws
+
+
+@njit()
+def step_laws(md, ws, drv, cw, s, z, zerr, h, cq, cv, qi, qdi, x, final):
+    """The laws of the closed-loop joints at the Newmark iterate (qi, q̇i, x) of step s (size h),
+    the kinematics in ``ws`` at it and H from the last sweep: ws.slope[i] = s_i,
+    cw.taul[i] = τ_k − s_i α̈_k (the sweep's inputs); with ``final`` the laws' τ into cw.torque
+    and (z, e) of t_{n+1} into (cw.zs, cw.zsum)."""
+    for i in range(md.n):
+        if drv.code[i] != CODE_PD:
+            continue
+        ia = md.ia[i]
+        err = drv.ref_l[s, i, 0] - qi[ia]
+        zz = z[i] + 0.5 * h * (zerr[i] + err)
+        tau, d_a, d_r, d_z, d_w = pd_law(
+            drv, i, drv.ff_l[s, i], drv.ref_l[s, i, 0], drv.ref_l[s, i, 1], zz, qi[ia], qdi[ia],
+            hub_moment(md, ws, i),
+        )  # fmt: skip
+        slope = d_a * cq + d_r * cv - d_z * (0.5 * h * cq)
+        ws.slope[i] = slope
+        cw.taul[i] = tau - slope * x[ia]
+        cw.dw[i] = d_w
+        cw.yk[i] = hub_moment(md, ws, i)
+        if final:
+            cw.torque[i] = tau
+            cw.zs[i] = zz
+            cw.zsum[i] = err
+    out = cw.torque if final else cw.scratch
+    user_laws(md, ws, drv, cw, drv.t_end[s], qi, qdi, x, cq, cv, out, _flag(False))
+
+
+@njit()
+def state_laws(md, ws, drv, cw, t, ff, ref, z, q, qd, x, first, torque):
+    """The laws of the closed-loop joints at the state (q, q̇) (kinematics in ``ws``) with
+    integral states z (n,) and the laws of time ``ff`` (n,), ``ref`` (n, 2), linearised in α̈
+    through H only (the forward dynamics; :func:`correct` takes it). ``first``: no sweep at this
+    state yet, H taken as 0. Sets ws.slope, cw.taul and the laws' τ in ``torque``; returns
+    whether any law depends on the sweep (moment feedback, user laws)."""
+    loop = user_laws(md, ws, drv, cw, t, q, qd, x, 0.0, 0.0, torque, first)
+    for i in range(md.n):
+        if drv.code[i] != CODE_PD:
+            continue
+        ia = md.ia[i]
+        hub = 0.0 if first else hub_moment(md, ws, i)
+        tau, _da, _dr, _dz, d_w = pd_law(drv, i, ff[i], ref[i, 0], ref[i, 1], z[i], q[ia], qd[ia], hub)
+        ws.slope[i] = 0.0
+        cw.taul[i] = tau
+        cw.dw[i] = d_w
+        cw.yk[i] = hub
+        torque[i] = tau
+        loop |= drv.gain[i, GM] != 0.0 and drv.gain[i, HASJ] != 0.0
+    return loop
+
+
+@njit()
+def n_sensitivity(md, drv):
+    """Sweeps that measuring ∂H/∂τ takes: one per pd/pid joint, and the base."""
+    m = 1
+    for i in range(md.n):
+        if drv.code[i] == CODE_PD:
+            m += 1
+    return m
+
+
+@njit()
+def sensitivity(md, ws, drv, cw, cq, cv, qhat, qdhat, mot, zero_f, columns):
+    """Base sweep with the torques cw.taul at the kinematics in ``ws`` (its H into cw.yb, the
+    torques into cw.tb) and, with ``columns``, one sweep per pd/pid joint j with τ'_j + 1:
+    cw.amat[:, j] = ∂H/∂τ'_j (the sweep is affine in its torques). Returns ok."""
+    noload = np.zeros((0, 6))
+    ok = sweep(md, ws, cq, cv, qhat, qdhat, cw.taul, mot, zero_f, cw.xs, False, noload)
+    for i in range(md.n):
+        cw.yb[i] = hub_moment(md, ws, i) if md.locked[i] == 0 else 0.0
+        cw.tb[i] = cw.taul[i]
+    for j in range(md.n):
+        if drv.code[j] != CODE_PD or not ok or not columns:
+            continue
+        cw.taul[j] = cw.tb[j] + 1.0
+        ok = sweep(md, ws, cq, cv, qhat, qdhat, cw.taul, mot, zero_f, cw.xs, False, noload)
+        cw.taul[j] = cw.tb[j]
+        for i in range(md.n):
+            y = hub_moment(md, ws, i) if md.locked[i] == 0 else 0.0
+            cw.amat[i, j] = y - cw.yb[i]
+    return ok
+
+
+@njit()
+def correct(md, drv, cw):
+    """cw.taul ← B + δ with (I − D A) δ = T − B + D (H_B − H_k) over the pd/pid joints: the
+    sweep's torques τ' that satisfy the linearised laws τ' = T + D (H(τ') − H_k) with
+    H(τ') = H_B + A (τ' − B) (T in cw.taul, B in cw.tb, H_B in cw.yb, H_k in cw.yk, D = ∂τ/∂H in
+    cw.dw, A in cw.amat): the planar kernel's correction (:func:`dttmm.kernel.feedback.correct`);
+    Gaussian elimination with partial pivoting in cw.gmat (n, n + 1)."""
+    n = md.n
+    g = cw.gmat
+    for i in range(n):
+        cl = drv.code[i] == CODE_PD
+        for j in range(n):
+            g[i, j] = 1.0 if i == j else 0.0
+            if cl and drv.code[j] == CODE_PD:
+                g[i, j] -= cw.dw[i] * cw.amat[i, j]
+        g[i, n] = cw.taul[i] - cw.tb[i] + cw.dw[i] * (cw.yb[i] - cw.yk[i]) if cl else 0.0
+    for c in range(n):
+        p = c
+        for r in range(c + 1, n):
+            if abs(g[r, c]) > abs(g[p, c]):
+                p = r
+        if p != c:
+            for j in range(n + 1):
+                g[c, j], g[p, j] = g[p, j], g[c, j]
+        piv = g[c, c]
+        for r in range(c + 1, n):
+            f = g[r, c] / piv
+            if f != 0.0:
+                for j in range(c, n + 1):
+                    g[r, j] -= f * g[c, j]
+    for r in range(n - 1, -1, -1):
+        v = g[r, n]
+        for j in range(r + 1, n):
+            v -= g[r, j] * g[j, n]
+        g[r, n] = v / g[r, r]
+    for i in range(n):
+        if drv.code[i] == CODE_PD:
+            cw.taul[i] = cw.tb[i] + g[i, n]
+
+
+@njit(inline="always")
+def _flag(value):
+    """``value`` as a run-time bool: numba types a literal bool passed to a compiled call as its
+    own type and would compile one more version of the callee per literal (the planar kernel's
+    :func:`dttmm.kernel.loop._flag`)."""
+    return bool(value)
+
+
+# ------------------------------------------------------------------ forward dynamics --------
 
 
 @njit()
@@ -27,6 +437,7 @@ def accel(md, ws, q, qd, tau, mot, forces, out, torque):
     """q̈ at (q, q̇) with the motion joints' α, α̇ from ``mot`` (q, q̇ are updated in place);
     torques into ``torque``. Returns ok."""
     for i in range(md.n):
+        ws.slope[i] = 0.0
         if md.motion[i] == 1:
             q[md.ia[i]] = mot[i, 0]
             qd[md.ia[i]] = mot[i, 1]
@@ -34,6 +445,68 @@ def accel(md, ws, q, qd, tau, mot, forces, out, torque):
     set_rates(md, ws, qd)
     ok = sweep(md, ws, 0.0, 0.0, q, qd, tau, mot, forces, out, False, np.zeros((0, 6)))
     joint_torques(md, ws, tau, torque)
+    return ok
+
+
+@njit()
+def accel_closed(md, ws, opts, drv, cw, t, q, qd, tau, mot, ff, ref, z, out, torque, fresh):
+    """:func:`accel` with closed-loop joints: their laws at (q, q̇) and time t, integral states
+    z (n,), feedforward ``ff`` (n,) and reference ``ref`` (n, 2). A law with moment feedback
+    (or a user law) depends on the sweep: the sweeps repeat, each with the laws linearised in α̈
+    at the last one, until :func:`dttmm.iteration.stop_rule` holds (at most max_it; a solve
+    that stops there counts in cw.fd[0]); with moment feedback past the first joint the
+    sensitivity is measured anew if ``fresh``. Torques into ``torque`` (closed-loop joints: the
+    laws' τ at the final sweep). Returns ok."""
+    nd = q.shape[0]
+    zero_f = np.zeros(nd)
+    noload = np.zeros((0, 6))
+    for i in range(md.n):
+        cw.taul[i] = tau[i]
+        if md.motion[i] == 1:
+            q[md.ia[i]] = mot[i, 0]
+            qd[md.ia[i]] = mot[i, 1]
+    kinematics(md, ws, q, qd)
+    set_rates(md, ws, qd)
+    ok = True
+    converged = False
+    prev = np.inf
+    for it in range(opts.max_it):
+        if it > 0:
+            for i in range(md.n):
+                cw.tb[i] = cw.taul[i]
+        loop = state_laws(md, ws, drv, cw, t, ff, ref, z, q, qd, out, it == 0, cw.scratch)
+        if opts.coupled:
+            if it == 0:
+                if not sensitivity(md, ws, drv, cw, 0.0, 0.0, q, qd, mot, zero_f, fresh):
+                    return False
+                cw.fd[1] += n_sensitivity(md, drv) if fresh else 1
+            else:
+                for i in range(md.n):
+                    cw.yb[i] = cw.yk[i]
+            correct(md, drv, cw)
+        ok = sweep(md, ws, 0.0, 0.0, q, qd, cw.taul, mot, zero_f, out, False, noload)
+        cw.fd[1] += 1
+        if not ok:
+            return False
+        if not loop:
+            converged = True
+            break
+        if it > 0:
+            dx = 0.0
+            xmax = 0.0
+            for r in range(nd):
+                dx = max(dx, abs(out[r] - cw.xc[r]))
+                xmax = max(xmax, abs(out[r]))
+            stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
+            if stop:
+                break
+            prev = dx
+        for r in range(nd):
+            cw.xc[r] = out[r]
+    if not converged:
+        cw.fd[0] += 1
+    joint_torques(md, ws, tau, torque)
+    state_laws(md, ws, drv, cw, t, ff, ref, z, q, qd, out, _flag(False), torque)  # τ at the final H
     return ok
 
 
@@ -47,6 +520,27 @@ def joint_torques(md, ws, tau, torque):
             torque[i] = ws.acc[i, 1]
         else:
             torque[i] = tau[i]
+
+
+@njit()
+def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
+    """The state at t = 0 (right limits of the drives, integral states 0): q̈ into ``qdd``, the
+    joint torques into ``torque``, α_ref − α of the pd/pid joints into ``zerr``. Returns ok."""
+    ns = drv.t_end.shape[0]
+    nd = q.shape[0]
+    if opts.closed:
+        ok = accel_closed(
+            md, ws, opts, drv, cw, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], drv.ff_r[ns],
+            drv.ref_r[ns], z, qdd, torque, _flag(True),
+        )  # fmt: skip
+    else:
+        ok = accel(md, ws, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, torque)
+    for i in range(md.n):
+        zerr[i] = drv.ref_r[ns, i, 0] - q[md.ia[i]] if drv.code[i] == CODE_PD else 0.0
+    return ok
+
+
+# ------------------------------------------------------------------ the time loop -----------
 
 
 @njit()
@@ -77,48 +571,52 @@ def hermite(x, h):
 
 
 @njit()
-def run(
-    md,
-    ws,
-    integrator,
-    beta,
-    gamma,
-    alpha_m,
-    alpha_f,
-    tol,
-    max_it,
-    n_fixed,
-    t_end,
-    restart,
-    tau_l,
-    mot_l,
-    tau_r,
-    mot_r,
-    tau_m,
-    mot_m,
-    q,
-    qd,
-    qdd,
-    aux,
-    ts,
-    oq,
-    oqd,
-    otau,
-    stats,
-):
-    """The whole time loop from the state (q, q̇, q̈, aux) at t = 0, sampling the state on the
-    grid ``ts`` into oq, oqd (nt, n_dof) and otau (nt, n). ``n_fixed`` ≥ 0: exactly n_fixed + 1
-    sweeps per Newmark step; −1: to tolerance. stats: [sweeps, max sweeps, unconverged steps,
-    status, failed step, samples written]. Returns the number of steps taken."""
+def residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dq, d2q, s, stats, fstats):
+    """The planar kernel's residual check (docs/kernel.md, "Residual check"): one more sweep
+    at the accepted iterate (kinematics in ``ws``), not applied, gives the correction
+    d = max|Δq̈| it would make; the step is flagged when the iteration error exceeds the
+    Newmark truncation error in q or q̇, ratio = max(d / (lte·Δq̈ + tol_q̈), γ d / (|γ − ½| Δq̈ +
+    Δ²q̈/12 + γ tol_q̈)) > 1 (Δq̈ = ``dq``, Δ²q̈ = ``d2q``)."""
+    ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, np.zeros(x.shape[0]), k2, False, np.zeros((0, 6)))
+    d = 0.0
+    xmax = 0.0
+    for r in range(x.shape[0]):
+        d = max(d, abs(k2[r] - x[r]))
+        xmax = max(xmax, abs(x[r]))
+    if not ok:
+        d = np.inf
+    floor = opts.tol * max(1.0, xmax)
+    ratio = max(
+        d / (opts.lte * dq + floor),
+        opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor),
+    )
+    stats[S_CHECKS] += 1
+    if not ratio <= 1.0:  # NaN counts as flagged
+        stats[S_FLAGGED] += 1
+        if stats[S_FIRST_FLAG] < 0:
+            stats[S_FIRST_FLAG] = s
+    if stats[S_WORST] < 0 or not ratio <= fstats[0]:
+        stats[S_WORST] = s
+        fstats[0] = ratio
+        fstats[1] = d / max(1.0, xmax)
+
+
+@njit()
+def run(md, ws, opts, drv, cw, q, qd, qdd, aux, torque, z, zerr, ts, oq, oqd, otau, stats, fstats):
+    """The whole time loop from the state (q, q̇, q̈, aux, joint torques, integral states z and
+    errors α_ref − α) at t = 0, sampling the state on the grid ``ts`` into oq, oqd (nt, n_dof)
+    and otau (nt, n). Each Newmark step iterates to the stop rule (``iterations="auto"``: or the
+    contraction test), or takes n_fixed + 1 sweeps. stats, fstats: see N_STATS. Returns the
+    number of steps taken."""
     n = md.n
     nd = q.shape[0]
-    ns = t_end.shape[0]
+    ns = drv.t_end.shape[0]
     zero_f = np.zeros(nd)
-    torque = np.zeros(n)
     tq0 = np.zeros(n)
     q0 = q.copy()
     qd0 = qd.copy()
     qdd0 = qdd.copy()
+    qddm = qdd.copy()  # q̈_{n−1} (the residual check)
     qt = np.zeros(nd)
     qdt = np.zeros(nd)
     x = np.zeros(nd)
@@ -131,8 +629,6 @@ def run(
     kb = np.zeros(nd)
     kc = np.zeros(nd)
     noload = np.zeros((0, 6))
-    # torques at t = 0 (right limits)
-    ok = accel(md, ws, q.copy(), qd.copy(), tau_r[ns], mot_r[ns], zero_f, xn, torque)
     js = 0
     nt = ts.shape[0]
     while js < nt and ts[js] <= 1e-12:
@@ -144,8 +640,10 @@ def run(
         js += 1
     t0 = 0.0
     s = 0
+    last = ns - 1
+    ok = True
     while s < ns:
-        t1 = t_end[s]
+        t1 = drv.t_end[s]
         h = t1 - t0
         for r in range(nd):
             q0[r] = q[r]
@@ -153,26 +651,30 @@ def run(
             qdd0[r] = qdd[r]
         for i in range(n):
             tq0[i] = torque[i]
-        tau = tau_l[s]
-        mot = mot_l[s]
-        if integrator == INT_NEWMARK:
+        tau = drv.tau_l[s]
+        mot = drv.mot_l[s]
+        if opts.integrator == INT_NEWMARK:
             hh = h * h
-            sc = (1.0 - alpha_f) / (1.0 - alpha_m)
-            cq = beta * hh * sc
-            cv = gamma * h * sc
-            i1m = 1.0 / (1.0 - alpha_m)
+            sc = (1.0 - opts.alpha_f) / (1.0 - opts.alpha_m)
+            cq = opts.beta * hh * sc
+            cv = opts.gamma * h * sc
+            i1m = 1.0 / (1.0 - opts.alpha_m)
             for r in range(nd):
-                corr = (alpha_f * qdd[r] - alpha_m * aux[r]) * i1m
-                qt[r] = q[r] + h * qd[r] + hh * (0.5 - beta) * aux[r] + beta * hh * corr
-                qdt[r] = qd[r] + h * (1.0 - gamma) * aux[r] + gamma * h * corr
+                corr = (opts.alpha_f * qdd[r] - opts.alpha_m * aux[r]) * i1m
+                qt[r] = q[r] + h * qd[r] + hh * (0.5 - opts.beta) * aux[r] + opts.beta * hh * corr
+                qdt[r] = qd[r] + h * (1.0 - opts.gamma) * aux[r] + opts.gamma * h * corr
                 x[r] = qdd[r]
             for i in range(n):
+                ws.slope[i] = 0.0
+                cw.taul[i] = tau[i]
                 if md.motion[i] == 1:
                     x[md.ia[i]] = mot[i, 2]
+            tv = cw.taul if opts.closed else tau
             prev = np.inf
             used = 0
             converged = False
-            nmax = max_it if n_fixed < 0 else n_fixed + 1
+            fixed = opts.iteration == IT_FIXED
+            nmax = opts.n_fixed + 1 if fixed else opts.max_it
             for it in range(nmax):
                 for r in range(nd):
                     qi[r] = qt[r] + cq * x[r]
@@ -183,30 +685,69 @@ def run(
                         qdi[md.ia[i]] = mot[i, 1]
                 kinematics(md, ws, qi, qdi)
                 set_rates(md, ws, qdi)
-                ok = sweep(md, ws, cq, cv, qt, qdt, tau, mot, zero_f, xn, False, noload)
+                if opts.closed:
+                    for i in range(n):
+                        cw.tb[i] = cw.taul[i]  # the last sweep's torques (it ≥ 1)
+                    step_laws(md, ws, drv, cw, s, z, zerr, h, cq, cv, qi, qdi, x, _flag(False))
+                    if opts.coupled:
+                        if it == 0:
+                            # a base sweep about this very iterate, with the sensitivity anew
+                            # every A_EVERY steps and after a restart
+                            fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                            ok = sensitivity(md, ws, drv, cw, cq, cv, qt, qdt, mot, zero_f, fresh)
+                            used += n_sensitivity(md, drv) if fresh else 1
+                            if not ok:
+                                break
+                        else:
+                            for i in range(n):
+                                cw.yb[i] = cw.yk[i]
+                        correct(md, drv, cw)
+                ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, zero_f, xn, False, noload)
                 used += 1
                 dx = 0.0
                 xmax = 0.0
+                dq = 0.0
                 for r in range(nd):
                     dx = max(dx, abs(xn[r] - x[r]))
                     xmax = max(xmax, abs(xn[r]))
+                    dq = max(dq, abs(xn[r] - qdd[r]))
                     x[r] = xn[r]
                 if not ok:
                     break
-                if n_fixed >= 0:
+                if fixed:
                     converged = it == nmax - 1
                     continue
-                stop, converged = _stop_rule(it, dx, prev, xmax, tol)
+                stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
                 if stop:
                     break
+                if opts.iteration == IT_AUTO and it >= 1 + opts.closed and dx < prev:
+                    # the contraction ρ = dx/prev predicts the iteration error left, dx·ρ/(1 − ρ);
+                    # stop once it is below auto_fraction × the local truncation error estimate
+                    # |β − 1/6|/β · max|q̈_{n+1} − q̈_n| (the planar kernel's rule). Closed-loop
+                    # laws are linearised at the previous iterate, so their torques lag a sweep:
+                    # the contraction is judged from the third sweep on (measured on the
+                    # closed-loop arm: two sweeps left 10× the discretisation error with moment
+                    # feedback, 2.7 % of it without)
+                    rr = dx / prev
+                    if dx * rr / (1.0 - rr) <= opts.auto_fraction * opts.lte * dq:
+                        converged = True
+                        break
                 prev = dx
-            stats[0] += used
-            stats[1] = max(stats[1], used)
-            if not converged and n_fixed < 0:
-                stats[2] += 1
+            stats[S_SWEEPS] += used
+            stats[S_MAX] = max(stats[S_MAX], used)
+            if not converged and not fixed:
+                stats[S_UNCONV] += 1
+            check = ok and opts.check_every > 0 and (s % opts.check_every == 0 or s == last)
+            dqc = 0.0
+            d2q = 0.0
+            if check:
+                for r in range(nd):
+                    dqc = max(dqc, abs(x[r] - qdd[r]))
+                    d2q = max(d2q, abs(x[r] - 2.0 * qdd[r] + qddm[r]))
             joint_torques(md, ws, tau, torque)
             for r in range(nd):
-                anew = ((1.0 - alpha_f) * x[r] + alpha_f * qdd[r] - alpha_m * aux[r]) * i1m
+                qddm[r] = qdd[r]
+                anew = ((1.0 - opts.alpha_f) * x[r] + opts.alpha_f * qdd[r] - opts.alpha_m * aux[r]) * i1m
                 q[r] = qt[r] + cq * x[r]
                 qd[r] = qdt[r] + cv * x[r]
                 aux[r] = anew
@@ -216,43 +757,82 @@ def run(
                     q[md.ia[i]] = mot[i, 0]
                     qd[md.ia[i]] = mot[i, 1]
                     qdd[md.ia[i]] = mot[i, 2]
+            if ok and (opts.closed or check):
+                # the accepted iterate's kinematics (the laws' final evaluation, the check)
+                kinematics(md, ws, q, qd)
+                set_rates(md, ws, qd)
+            if ok and opts.closed:
+                step_laws(md, ws, drv, cw, s, z, zerr, h, cq, cv, q, qd, x, _flag(True))
+                for i in range(n):
+                    if drv.code[i] != CODE_OPEN:
+                        torque[i] = cw.torque[i]
+            if check:
+                residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dqc, d2q, s, stats, fstats)
+            if ok and opts.closed:
+                for i in range(n):
+                    if drv.code[i] == CODE_PD:
+                        z[i] = cw.zs[i]
+                        zerr[i] = cw.zsum[i]
         else:
             hf = 0.5 * h
+            if opts.closed:  # stage 1: ż = e_n
+                for i in range(n):
+                    cw.zsum[i] = zerr[i]
+                    cw.zs[i] = z[i] + hf * zerr[i]
+            fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+            fd0 = cw.fd[1]
             for r in range(nd):
                 qi[r] = q[r] + hf * qd[r]
                 qdi[r] = qd[r] + hf * qdd[r]
-                k2[r] = qdi[r]
-            ok = accel(md, ws, qi, qdi, tau_m[s], mot_m[s], zero_f, ka, torque)
+            ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, ka, torque, fresh)
             for r in range(nd):
                 k2[r] = qdi[r]
             if ok:
+                if opts.closed:
+                    rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, hf)
                 for r in range(nd):
                     qi[r] = q[r] + hf * k2[r]
                     qdi[r] = qd[r] + hf * ka[r]
-                ok = accel(md, ws, qi, qdi, tau_m[s], mot_m[s], zero_f, kb, torque)
+                ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, kb, torque, _flag(False))
                 for r in range(nd):
                     k3[r] = qdi[r]
             if ok:
+                if opts.closed:
+                    rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, h)
                 for r in range(nd):
                     qi[r] = q[r] + h * k3[r]
                     qdi[r] = qd[r] + h * kb[r]
-                ok = accel(md, ws, qi, qdi, tau, mot, zero_f, kc, torque)
+                ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, qi, qdi, kc, torque, _flag(False))
             if ok:
+                if opts.closed:
+                    rk4_z(md, drv, cw, z, drv.ref_l[s], qi, 1.0, 0.0)
+                    for i in range(n):
+                        if drv.code[i] == CODE_PD:
+                            z[i] += h / 6.0 * cw.zsum[i]
+                            cw.zs[i] = z[i]
                 for r in range(nd):
                     q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2[r] + 2.0 * k3[r] + qdi[r])
                     qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * kb[r] + kc[r])
-                ok = accel(md, ws, q, qd, tau, mot, zero_f, qdd, torque)
-            stats[0] += 4
-            stats[1] = 4
+                ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, q, qd, qdd, torque, _flag(False))
+                if opts.closed:
+                    for i in range(n):
+                        if drv.code[i] == CODE_PD:
+                            zerr[i] = drv.ref_l[s, i, 0] - q[md.ia[i]]
+            used = cw.fd[1] - fd0 if opts.closed else 4
+            stats[S_SWEEPS] += used
+            stats[S_MAX] = max(stats[S_MAX], used)
         status = check_state(md, q) if ok else ST_SINGULAR
         if status == ST_OK:
             for r in range(nd):
                 if not math.isfinite(qd[r]):
                     status = ST_NONFINITE
+        for i in range(n):  # a law that returned a non-finite torque
+            if not (math.isfinite(torque[i]) and math.isfinite(cw.taul[i])):
+                status = ST_NONFINITE
         if status != ST_OK:
-            stats[3] = status
-            stats[4] = s
-            stats[5] = js
+            stats[S_STATUS] = status
+            stats[S_FAILED] = s
+            stats[S_SAMPLES] = js
             return s
         # samples in (t0, t1]
         eps = 1e-9 * h
@@ -267,12 +847,54 @@ def run(
             for i in range(n):
                 otau[js, i] = (1.0 - xx) * tq0[i] + xx * torque[i]
             js += 1
-        # a drive jumps at t1: restart from the right limits
-        if restart[s]:
-            ok = accel(md, ws, q, qd, tau_r[s], mot_r[s], zero_f, qdd, torque)
+        # a drive jumps at t1: restart from the right limits (the recorded torque at t1 keeps
+        # the left limit: the step's own)
+        if drv.restart[s]:
+            if opts.closed:
+                ok = accel_closed(
+                    md, ws, opts, drv, cw, t1, q, qd, drv.tau_r[s], drv.mot_r[s], drv.ff_r[s],
+                    drv.ref_r[s], z, qdd, torque, _flag(True),
+                )  # fmt: skip
+            else:
+                ok = accel(md, ws, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, torque)
             for r in range(nd):
                 aux[r] = qdd[r]
+            if not ok:
+                stats[S_STATUS] = ST_SINGULAR
+                stats[S_FAILED] = s
+                stats[S_SAMPLES] = js
+                return s
         t0 = t1
         s += 1
-    stats[5] = js
+    stats[S_SAMPLES] = js
     return ns
+
+
+@njit()
+def rk4_accel(md, ws, opts, drv, cw, s, h, stage, q, qd, out, torque, fresh):
+    """Forward dynamics at an RK4 stage of step s (``stage`` 1: mid-step laws of time, 2: the
+    step end) into ``out``; closed-loop laws with the stage's integral states cw.zs."""
+    if stage == 1:
+        tau, mot = drv.tau_m[s], drv.mot_m[s]
+    else:
+        tau, mot = drv.tau_l[s], drv.mot_l[s]
+    if not opts.closed:
+        return accel(md, ws, q, qd, tau, mot, np.zeros(q.shape[0]), out, torque)
+    t = drv.t_end[s]
+    if stage == 1:
+        ff, ref = drv.ff_m[s], drv.ref_m[s]
+        t -= 0.5 * h
+    else:
+        ff, ref = drv.ff_l[s], drv.ref_l[s]
+    return accel_closed(md, ws, opts, drv, cw, t, q, qd, tau, mot, ff, ref, cw.zs, out, torque, fresh)
+
+
+@njit()
+def rk4_z(md, drv, cw, z, ref, q, w, c):
+    """Closed-loop integral states at an RK4 stage: ż = α_ref − α of the stage state q (its
+    reference ``ref`` (n, 2)) enters the sum with weight w and the next stage's z = z_n + c ż."""
+    for i in range(md.n):
+        if drv.code[i] == CODE_PD:
+            zd = ref[i, 0] - q[md.ia[i]]
+            cw.zsum[i] += w * zd
+            cw.zs[i] = z[i] + c * zd
