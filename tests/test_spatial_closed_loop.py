@@ -207,3 +207,18 @@ def test_jitted_user_law_runs_compiled_as_uncompiled_and_as_the_global_solver():
     _assert_equal(a, b, 1e-13)
     _assert_equal(a, g, 1e-12)
     assert np.abs(a.tip_deflection).max() > 0.0
+
+
+@pytest.mark.slow
+def test_non_finite_jitted_torque_stops_the_run_at_that_step():
+    @numba.njit
+    def bad(t, s):
+        if t > 0.0045:
+            return np.nan, -1.0, -1.0
+        return -s.angle, -1.0, 0.0
+
+    case = _arm((Drive("torque", UserLaw(bad)), *_pd_drives()[1:]), 0.02)
+    with pytest.raises(dttmm.SimulationError, match=r"non-finite.*t = 0\.005 s") as info:
+        simulate(case, elements_per_link=1, h=1e-3, engine="numba")
+    partial = info.value.partial
+    assert partial.status == "failed" and partial.t[-1] == pytest.approx(0.004)
