@@ -256,7 +256,7 @@ def axis_rotation_into(ax, ang, R):
     R[2, 2] = 1.0 + c * (z * z - t2)
 
 
-@njit(nrt=False)
+@njit(inline="always", nrt=False)
 def kin_link(md, ws, i, q, qd, R, p, v, w):
     """Frames, origins and velocities of the elements of link i into ``ws``, from the root
     element frame (R, p; v, ω in its components), which move in place to the last outboard node.
@@ -592,7 +592,7 @@ def nonzero_body(m, J):
     return False
 
 
-@njit(nrt=False)
+@njit(inline="always", nrt=False)
 def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     """Backward step over element ``el`` of link i, in place: ws.P, ws.c from the outboard node
     (outboard frame components) to the element's root (its own frame components); keeps the
@@ -1008,7 +1008,7 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     return True
 
 
-@njit(nrt=False)
+@njit(inline="always", nrt=False)
 def backward_link(md, ws, i, cq, cv, qhat, qdhat, forces, keep):
     """The backward sweep over the elements of link i, in place on ws.P, ws.c (tip → root),
     keeping each element root's (P, c) in ws.Pc with ``keep`` (for the cut loads). Returns ok."""
@@ -1055,7 +1055,7 @@ def load_world(R, f, loads, ic):
             loads[ic, 3 * bl + a] = R[a, 0] * f[3 * bl] + R[a, 1] * f[3 * bl + 1] + R[a, 2] * f[3 * bl + 2]
 
 
-@njit(nrt=False)
+@njit(inline="always", nrt=False)
 def forward_link(md, ws, i, A, qdd, want_loads, loads, ic):
     """The forward sweep over the elements of link i: A (root acceleration of the link, its own
     frame) in place to the outboard node of the last element, ë into qdd, cut loads from row
