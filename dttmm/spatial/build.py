@@ -86,11 +86,7 @@ def pattern_ok(sig, psi, s0) -> bool:
     rebuilt_psi[:, 2, 1] = d3
     rebuilt_psi[:, 1, 2] = -d3
     rebuilt_psi[:, 1, 4] = rebuilt_psi[:, 2, 5] = d4
-    return (
-        np.array_equal(sig, rebuilt_sig)
-        and np.array_equal(psi, rebuilt_psi)
-        and not np.any(s0[:, 1:])
-    )
+    return np.array_equal(sig, rebuilt_sig) and np.array_equal(psi, rebuilt_psi) and not np.any(s0[:, 1:])
 
 
 def g_matrix(l: float) -> np.ndarray:

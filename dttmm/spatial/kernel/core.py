@@ -205,8 +205,6 @@ def unpack(md, i, j, q, qd, e, ed):
             ed[c + 1] = qd[r + c]
 
 
-
-
 @njit(inline="always")
 def copy3(a, b):
     b[0] = a[0]
@@ -592,6 +590,46 @@ def nonzero_body(m, J):
     return False
 
 
+@njit(inline="always")
+def schur_into(M, r, L, Y, P, c):
+    """The Schur complement of the element's elastic block: M_ee = L Lᵀ (Cholesky; L lower with
+    1/L_jj on its diagonal, into L), Y = L⁻¹ [M_eA | r_e] (into Y), P = M_AA − YᵀY and
+    c = r_A − Yᵀ y (into P, c); M (12×12 over (A, ë)) and r (12,) hold the upper triangle and
+    the right-hand side. Returns ok (False when M_ee is not positive definite)."""
+    for j in range(6):
+        t = M[6 + j, 6 + j]
+        for k in range(j):
+            t -= L[j, k] * L[j, k]
+        if not t > 0.0:
+            return False
+        dinv = 1.0 / math.sqrt(t)
+        L[j, j] = dinv
+        for a in range(j + 1, 6):
+            u = M[6 + j, 6 + a]
+            for k in range(j):
+                u -= L[a, k] * L[j, k]
+            L[a, j] = u * dinv
+    for a in range(6):
+        dinv = L[a, a]
+        for b in range(7):
+            t = M[b, 6 + a] if b < 6 else r[6 + a]
+            for k in range(a):
+                t -= L[a, k] * Y[k, b]
+            Y[a, b] = t * dinv
+    for a in range(6):
+        t = r[a]
+        for k in range(6):
+            t -= Y[k, a] * Y[k, 6]
+        c[a] = t
+        for b in range(a, 6):
+            t = M[a, b]
+            for k in range(6):
+                t -= Y[k, a] * Y[k, b]
+            P[a, b] = t
+            P[b, a] = t
+    return True
+
+
 @njit(inline="always", nrt=False)
 def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     """Backward step over element ``el`` of link i, in place: ws.P, ws.c from the outboard node
@@ -970,42 +1008,7 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
             M[6, b] = 0.0
         M[6, 6] = 1.0
         r[6] = 0.0
-    # M_ee = L Lᵀ (L lower, 1/L_jj on its diagonal), Y = L⁻¹ [M_eA | r_e]
-    L = ws.Lc[el]
-    Y = ws.Y[el]
-    for j in range(6):
-        t = M[6 + j, 6 + j]
-        for k in range(j):
-            t -= L[j, k] * L[j, k]
-        if not t > 0.0:
-            return False
-        dinv = 1.0 / math.sqrt(t)
-        L[j, j] = dinv
-        for a in range(j + 1, 6):
-            u = M[6 + j, 6 + a]
-            for k in range(j):
-                u -= L[a, k] * L[j, k]
-            L[a, j] = u * dinv
-    for a in range(6):
-        dinv = L[a, a]
-        for b in range(7):
-            t = M[b, 6 + a] if b < 6 else r[6 + a]
-            for k in range(a):
-                t -= L[a, k] * Y[k, b]
-            Y[a, b] = t * dinv
-    # P_root = M_AA − YᵀY, c_root = r_A − Yᵀ y
-    for a in range(6):
-        t = r[a]
-        for k in range(6):
-            t -= Y[k, a] * Y[k, 6]
-        c[a] = t
-        for b in range(a, 6):
-            t = M[a, b]
-            for k in range(6):
-                t -= Y[k, a] * Y[k, b]
-            P[a, b] = t
-            P[b, a] = t
-    return True
+    return schur_into(M, r, ws.Lc[el], ws.Y[el], P, c)
 
 
 @njit(inline="always", nrt=False)
