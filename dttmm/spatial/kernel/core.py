@@ -401,6 +401,46 @@ def so3_into(x, y, z, dx, dy, dz, E, J, jd):
 
 
 @njit(inline="always")
+def so3_scalars(x, y, z, dx, dy, dz):
+    """:func:`so3_into` as scalars: the rows of exp([ψ]×) and J_L(ψ), then J̇_L ψ̇ (21 values)."""
+    t2 = x * x + y * y + z * z
+    a, b, c, db, dc = so3_coefficients(t2)
+    q00 = x * x - t2
+    q11 = y * y - t2
+    q22 = z * z - t2
+    q01 = x * y
+    q02 = x * z
+    q12 = y * z
+    pp = 2.0 * (x * dx + y * dy + z * dz)
+    u0 = y * dz - z * dy
+    u1 = z * dx - x * dz
+    u2 = x * dy - y * dx
+    return (
+        1.0 + b * q00,
+        -a * z + b * q01,
+        a * y + b * q02,
+        a * z + b * q01,
+        1.0 + b * q11,
+        -a * x + b * q12,
+        -a * y + b * q02,
+        a * x + b * q12,
+        1.0 + b * q22,
+        1.0 + c * q00,
+        -b * z + c * q01,
+        b * y + c * q02,
+        b * z + c * q01,
+        1.0 + c * q11,
+        -b * x + c * q12,
+        -b * y + c * q02,
+        b * x + c * q12,
+        1.0 + c * q22,
+        db * pp * u0 + dc * pp * (y * u2 - z * u1) + c * (dy * u2 - dz * u1),
+        db * pp * u1 + dc * pp * (z * u0 - x * u2) + c * (dz * u0 - dx * u2),
+        db * pp * u2 + dc * pp * (x * u1 - y * u0) + c * (dx * u1 - dy * u0),
+    )
+
+
+@njit(inline="always")
 def elastic_into(md, i, e, f, KT, D):
     """Elastic force f(e), tangent K_T(e) and damping matrix D(e) of an element of link i into
     f, KT, D: linear K e, K, μK; second order (ε = u/l + ½(bᵀGb + cᵀGc), b = (v, φz),
@@ -661,9 +701,6 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     w2 = ws.wl[el, 2]
     M = ws.M12
     r = ws.r12
-    E = ws.E3
-    J = ws.J3
-    jd = ws.jd3
     Iw = ws.Iw
     IJ = ws.IJ
     for a in range(12):
@@ -704,10 +741,14 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
         q0 = px * f3_
         q1 = d4 * f4_ - d3 * f2_
         q2 = d3 * f1_ + d4 * f5_
-        so3_into(p0, p1, p2, q0, q1, q2, E, J, jd)
-        j0 = J[0, 0] * q0 + J[0, 1] * q1 + J[0, 2] * q2
-        j1 = J[1, 0] * q0 + J[1, 1] * q1 + J[1, 2] * q2
-        j2 = J[2, 0] * q0 + J[2, 1] * q1 + J[2, 2] * q2
+        (
+            E00, E01, E02, E10, E11, E12, E20, E21, E22,
+            J00, J01, J02, J10, J11, J12, J20, J21, J22,
+            jd0, jd1, jd2,
+        ) = so3_scalars(p0, p1, p2, q0, q1, q2)  # fmt: skip
+        j0 = J00 * q0 + J01 * q1 + J02 * q2
+        j1 = J10 * q0 + J11 * q1 + J12 * q2
+        j2 = J20 * q0 + J21 * q1 + J22 * q2
         # accelerations: a_g = X A + S ë + ζ, ζ = (ω×(ω×s) + 2ω×ṡ, ω×(J ψ̇) + J̇ ψ̇)
         u0 = w1 * x2 - w2 * x1
         u1 = w2 * x0 - w0 * x2
@@ -715,9 +756,9 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
         zl0 = w1 * u2 - w2 * u1 + 2.0 * (w1 * d2 - w2 * d1)
         zl1 = w2 * u0 - w0 * u2 + 2.0 * (w2 * d0 - w0 * d2)
         zl2 = w0 * u1 - w1 * u0 + 2.0 * (w0 * d1 - w1 * d0)
-        za0 = w1 * j2 - w2 * j1 + jd[0]
-        za1 = w2 * j0 - w0 * j2 + jd[1]
-        za2 = w0 * j1 - w1 * j0 + jd[2]
+        za0 = w1 * j2 - w2 * j1 + jd0
+        za1 = w2 * j0 - w0 * j2 + jd1
+        za2 = w0 * j1 - w1 * j0 + jd2
         m = md.mg[i, gp]
         # translational: the blocks of m GᵀG, G = [I, −[s]×, Σ], that depend on e; the constant
         # ones (Σm I, Σ mΣ, Σ mΣᵀΣ) and −[Σ m s]× are added after the loop
@@ -763,52 +804,80 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
         I0 = Ig[0]
         I1 = Ig[1]
         I2 = Ig[2]
-        for a in range(3):
-            ea0 = E[a, 0] * I0
-            ea1 = E[a, 1] * I1
-            ea2 = E[a, 2] * I2
-            for b in range(a, 3):
-                t = ea0 * E[b, 0] + ea1 * E[b, 1] + ea2 * E[b, 2]
-                Iw[a, b] = t
-                Iw[b, a] = t
+        # Iw = E diag(I) Eᵀ (symmetric)
+        e00 = E00 * I0
+        e01 = E01 * I1
+        e02 = E02 * I2
+        e10 = E10 * I0
+        e11 = E11 * I1
+        e12 = E12 * I2
+        e20 = E20 * I0
+        e21 = E21 * I1
+        e22 = E22 * I2
+        i00 = e00 * E00 + e01 * E01 + e02 * E02
+        i01 = e00 * E10 + e01 * E11 + e02 * E12
+        i02 = e00 * E20 + e01 * E21 + e02 * E22
+        i11 = e10 * E10 + e11 * E11 + e12 * E12
+        i12 = e10 * E20 + e11 * E21 + e12 * E22
+        i22 = e20 * E20 + e21 * E21 + e22 * E22
         wg0 = w0 + j0
         wg1 = w1 + j1
         wg2 = w2 + j2
-        h0 = Iw[0, 0] * wg0 + Iw[0, 1] * wg1 + Iw[0, 2] * wg2
-        h1 = Iw[1, 0] * wg0 + Iw[1, 1] * wg1 + Iw[1, 2] * wg2
-        h2 = Iw[2, 0] * wg0 + Iw[2, 1] * wg1 + Iw[2, 2] * wg2
-        fa0 = Iw[0, 0] * za0 + Iw[0, 1] * za1 + Iw[0, 2] * za2 + wg1 * h2 - wg2 * h1
-        fa1 = Iw[1, 0] * za0 + Iw[1, 1] * za1 + Iw[1, 2] * za2 + wg2 * h0 - wg0 * h2
-        fa2 = Iw[2, 0] * za0 + Iw[2, 1] * za1 + Iw[2, 2] * za2 + wg0 * h1 - wg1 * h0
+        h0 = i00 * wg0 + i01 * wg1 + i02 * wg2
+        h1 = i01 * wg0 + i11 * wg1 + i12 * wg2
+        h2 = i02 * wg0 + i12 * wg1 + i22 * wg2
+        fa0 = i00 * za0 + i01 * za1 + i02 * za2 + wg1 * h2 - wg2 * h1
+        fa1 = i01 * za0 + i11 * za1 + i12 * za2 + wg2 * h0 - wg0 * h2
+        fa2 = i02 * za0 + i12 * za1 + i22 * za2 + wg0 * h1 - wg1 * h0
         r[3] += fa0
         r[4] += fa1
         r[5] += fa2
-        for a in range(3):
-            for b in range(a, 3):
-                M[3 + a, 3 + b] += Iw[a, b]
+        M[3, 3] += i00
+        M[3, 4] += i01
+        M[3, 5] += i02
+        M[4, 4] += i11
+        M[4, 5] += i12
+        M[5, 5] += i22
         # IJ = Iw J; Jᵀ fa; U = Jᵀ Iw J
-        matmul33(Iw, J, IJ)
-        jf0 = J[0, 0] * fa0 + J[1, 0] * fa1 + J[2, 0] * fa2
-        jf1 = J[0, 1] * fa0 + J[1, 1] * fa1 + J[2, 1] * fa2
-        jf2 = J[0, 2] * fa0 + J[1, 2] * fa1 + J[2, 2] * fa2
-        u00 = J[0, 0] * IJ[0, 0] + J[1, 0] * IJ[1, 0] + J[2, 0] * IJ[2, 0]
-        u01 = J[0, 0] * IJ[0, 1] + J[1, 0] * IJ[1, 1] + J[2, 0] * IJ[2, 1]
-        u02 = J[0, 0] * IJ[0, 2] + J[1, 0] * IJ[1, 2] + J[2, 0] * IJ[2, 2]
-        u11 = J[0, 1] * IJ[0, 1] + J[1, 1] * IJ[1, 1] + J[2, 1] * IJ[2, 1]
-        u12 = J[0, 1] * IJ[0, 2] + J[1, 1] * IJ[1, 2] + J[2, 1] * IJ[2, 2]
-        u22 = J[0, 2] * IJ[0, 2] + J[1, 2] * IJ[1, 2] + J[2, 2] * IJ[2, 2]
+        k00 = i00 * J00 + i01 * J10 + i02 * J20
+        k01 = i00 * J01 + i01 * J11 + i02 * J21
+        k02 = i00 * J02 + i01 * J12 + i02 * J22
+        k10 = i01 * J00 + i11 * J10 + i12 * J20
+        k11 = i01 * J01 + i11 * J11 + i12 * J21
+        k12 = i01 * J02 + i11 * J12 + i12 * J22
+        k20 = i02 * J00 + i12 * J10 + i22 * J20
+        k21 = i02 * J01 + i12 * J11 + i22 * J21
+        k22 = i02 * J02 + i12 * J12 + i22 * J22
+        jf0 = J00 * fa0 + J10 * fa1 + J20 * fa2
+        jf1 = J01 * fa0 + J11 * fa1 + J21 * fa2
+        jf2 = J02 * fa0 + J12 * fa1 + J22 * fa2
+        u00 = J00 * k00 + J10 * k10 + J20 * k20
+        u01 = J00 * k01 + J10 * k11 + J20 * k21
+        u02 = J00 * k02 + J10 * k12 + J20 * k22
+        u11 = J01 * k01 + J11 * k11 + J21 * k21
+        u12 = J01 * k02 + J11 * k12 + J21 * k22
+        u22 = J02 * k02 + J12 * k12 + J22 * k22
         # Ψ: columns v (d3, row 2), w (−d3, row 1), φx (px, row 0), φy (d4, row 1), φz (d4, row 2)
         r[7] += d3 * jf2
         r[8] -= d3 * jf1
         r[9] += px * jf0
         r[10] += d4 * jf1
         r[11] += d4 * jf2
-        for a in range(3):
-            M[3 + a, 7] += d3 * IJ[a, 2]
-            M[3 + a, 8] -= d3 * IJ[a, 1]
-            M[3 + a, 9] += px * IJ[a, 0]
-            M[3 + a, 10] += d4 * IJ[a, 1]
-            M[3 + a, 11] += d4 * IJ[a, 2]
+        M[3, 7] += d3 * k02
+        M[3, 8] -= d3 * k01
+        M[3, 9] += px * k00
+        M[3, 10] += d4 * k01
+        M[3, 11] += d4 * k02
+        M[4, 7] += d3 * k12
+        M[4, 8] -= d3 * k11
+        M[4, 9] += px * k10
+        M[4, 10] += d4 * k11
+        M[4, 11] += d4 * k12
+        M[5, 7] += d3 * k22
+        M[5, 8] -= d3 * k21
+        M[5, 9] += px * k20
+        M[5, 10] += d4 * k21
+        M[5, 11] += d4 * k22
         # Ψᵀ U Ψ
         t33 = d3 * d3
         t34 = d3 * d4
