@@ -65,6 +65,30 @@ def stiffness(beam, l: float) -> np.ndarray:
     return K
 
 
+#: where the padded stiffness may be nonzero: u, φx and the (v, φz), (w, φy) bending pairs
+STIFFNESS_PATTERN = np.zeros((6, 6), bool)
+STIFFNESS_PATTERN[0, 0] = STIFFNESS_PATTERN[3, 3] = True
+STIFFNESS_PATTERN[np.ix_([1, 5], [1, 5])] = STIFFNESS_PATTERN[np.ix_([2, 4], [2, 4])] = True
+
+
+def pattern_ok(sig, psi, s0) -> bool:
+    """Whether the shape tables (m, 3, 6) have the pattern the kernel's element step assumes:
+    s0 on the axis; Σ: u → x (su), v → y and w → z (n3), φz → y (n4), φy → z (−n4); Ψ: φx → x
+    (px), v → z and w → y (±d3), φy → y and φz → z (d4); nothing else."""
+    rebuilt_sig = np.zeros_like(sig)
+    rebuilt_psi = np.zeros_like(psi)
+    n3, n4, d3, d4 = sig[:, 1, 1], sig[:, 1, 5], psi[:, 2, 1], psi[:, 2, 5]
+    rebuilt_sig[:, 0, 0] = sig[:, 0, 0]
+    rebuilt_sig[:, 1, 1] = rebuilt_sig[:, 2, 2] = n3
+    rebuilt_sig[:, 1, 5] = n4
+    rebuilt_sig[:, 2, 4] = -n4
+    rebuilt_psi[:, 0, 3] = psi[:, 0, 3]
+    rebuilt_psi[:, 2, 1] = d3
+    rebuilt_psi[:, 1, 2] = -d3
+    rebuilt_psi[:, 1, 4] = rebuilt_psi[:, 2, 5] = d4
+    return np.array_equal(sig, rebuilt_sig) and np.array_equal(psi, rebuilt_psi) and not np.any(s0[:, 1:])
+
+
 def g_matrix(l: float) -> np.ndarray:
     xi, w = gauss_points()
     dN = np.stack([(6 * xi - 6 * xi**2) / l, 3 * xi**2 - 2 * xi], axis=-1)
@@ -111,10 +135,14 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         D = np.diag([1.0 if b.EA is not None else 0.0, 1.0, 1.0])
         assert np.array_equal(Sig[i, 4], np.hstack([D, np.zeros((3, 3))]))
         assert np.array_equal(Psi[i, 4], np.hstack([np.zeros((3, 3)), np.eye(3)]))
+        # ... and its Gauss-body step one entry per column of Σ_g, Ψ_g (pattern_ok), and the
+        # linear element's step the sparsity of build.stiffness
+        assert pattern_ok(Sig[i], Psi[i], s0[i])
         mel[i] = mg[i].sum()
         CS[i] = np.einsum("g,gij->ij", mg[i], Sig[i, :4])
         CSS[i] = np.einsum("g,gki,gkj->ij", mg[i], Sig[i, :4], Sig[i, :4])
         K[i] = stiffness(b, l)
+        assert not np.any(K[i][~STIFFNESS_PATTERN])
         Kb[i] = K[i]
         Kb[i, 0, 0] = 0.0
         G[i] = g_matrix(l)
@@ -193,6 +221,9 @@ def make_work(md: Model) -> Work:
         vl=z((nel, 3)),
         wl=z((nel, 3)),
         E=z((nel, 3, 3)),
+        JO=z((nel, 3, 3)),
+        jdO=z((nel, 3)),
+        sO=z((nel, 3)),
         e=z((nel, 6)),
         ed=z((nel, 6)),
         RT=z((n + 1, 3, 3)),
@@ -200,9 +231,8 @@ def make_work(md: Model) -> Work:
         vT=z((n + 1, 3)),
         wT=z((n + 1, 3)),
         C=z((n, 3, 3)),
-        Ka=z((nel, 6, 6)),
-        k0=z((nel, 6)),
-        XS=z((nel, 6, 12)),
+        Lc=z((nel, 6, 6)),
+        Y=z((nel, 6, 7)),
         zO=z((nel, 6)),
         Pc=z((nel, 6, 7)),
         Ptip=z((n, 6, 7)),
@@ -211,24 +241,31 @@ def make_work(md: Model) -> Work:
         acc=z((n, 3)),
         slope=z(n),
         wdF=z((n, 3)),
-        H=z((3, 12)),
-        B=z((3, 12)),
         M12=z((12, 12)),
         r12=z(12),
-        PW=z((6, 12)),
-        Pr=z((6, 6)),
-        cr=z(6),
-        L=z((6, 6)),
-        sol=z((6, 7)),
         E3=z((3, 3)),
         J3=z((3, 3)),
         jd3=z(3),
         Iw=z((3, 3)),
+        IJ=z((3, 3)),
+        N3=z((3, 3)),
+        Cs=z((3, 3)),
+        rho=z(6),
         P=z((6, 6)),
         c=z(6),
         KT=z((6, 6)),
         D6=z((6, 6)),
         f6=z(6),
+        eh=z(6),
+        edh=z(6),
+        fx=z(6),
+        Ps=z(6),
         A6=z(6),
         A6b=z(6),
+        Rk=z((3, 3)),
+        Tk=z((3, 3)),
+        Uk=z((3, 3)),
+        pk=z(3),
+        vk=z(3),
+        wk=z(3),
     )

@@ -63,6 +63,9 @@ class Work(NamedTuple):
     vl: np.ndarray  # (nel, 3) origin velocity, frame components
     wl: np.ndarray  # (nel, 3) angular velocity, frame components
     E: np.ndarray  # (nel, 3, 3) exp(φ): next frame in this one
+    JO: np.ndarray  # (nel, 3, 3) J_L(φ) of the outboard node
+    jdO: np.ndarray  # (nel, 3) J̇_L φ̇ of the outboard node
+    sO: np.ndarray  # (nel, 3) outboard node position, element frame components
     e: np.ndarray  # (nel, 6) padded elastic coordinates
     ed: np.ndarray  # (nel, 6)
     RT: np.ndarray  # (n + 1, 3, 3) parent frame of joint i (n: the last link's tip frame)
@@ -70,10 +73,9 @@ class Work(NamedTuple):
     vT: np.ndarray  # (n + 1, 3)
     wT: np.ndarray  # (n + 1, 3)
     C: np.ndarray  # (n, 3, 3) root element frame in the parent frame
-    Ka: np.ndarray  # (nel, 6, 6) ë = Ka A + k0
-    k0: np.ndarray  # (nel, 6)
-    XS: np.ndarray  # (nel, 6, 12) outboard maps [X_O | S_O]
-    zO: np.ndarray  # (nel, 6)
+    Lc: np.ndarray  # (nel, 6, 6) Cholesky factor L of M_ee (lower; 1/L_jj on the diagonal)
+    Y: np.ndarray  # (nel, 6, 7) L⁻¹ [M_eA | r_e]: ë = −L⁻ᵀ (Y [A; 1])
+    zO: np.ndarray  # (nel, 6) velocity-product acceleration of the outboard node
     Pc: np.ndarray  # (nel, 6, 7) articulated inertia and bias at each element root (loads)
     Ptip: np.ndarray  # (n, 6, 7) at each link tip (outboard element-frame components)
     PF: np.ndarray  # (n, 6, 7) at each link root with the hub, before the joint
@@ -81,24 +83,31 @@ class Work(NamedTuple):
     acc: np.ndarray  # (n, 3) per joint: α̈, torque, α̇
     slope: np.ndarray  # (n,) per torque joint: ∂τ/∂α̈ of a closed-loop law (0: open loop)
     wdF: np.ndarray  # (n, 3) angular acceleration of each link root (root element frame)
-    # scratch of the element step (no allocation per element)
-    H: np.ndarray  # (3, 12) angular velocity map of a body, [0, I, J_L Ψ]
-    B: np.ndarray  # (3, 12) its inertia times H
-    M12: np.ndarray  # (12, 12) the element's matrix over (A, ë)
+    # scratch of the sweeps and the kinematics (nothing is allocated per call)
+    M12: np.ndarray  # (12, 12) the element's matrix over (A, ë), upper triangle
     r12: np.ndarray  # (12,)
-    PW: np.ndarray  # (6, 12)
-    Pr: np.ndarray  # (6, 6) the outboard P in this element's frame
-    cr: np.ndarray  # (6,)
-    L: np.ndarray  # (6, 6) Cholesky factor
-    sol: np.ndarray  # (6, 7)
     E3: np.ndarray  # (3, 3)
     J3: np.ndarray  # (3, 3)
     jd3: np.ndarray  # (3,)
     Iw: np.ndarray  # (3, 3)
+    IJ: np.ndarray  # (3, 3)
+    N3: np.ndarray  # (3, 3)
+    Cs: np.ndarray  # (3, 3)
+    rho: np.ndarray  # (6,)
     P: np.ndarray  # (6, 6) the running articulated inertia
     c: np.ndarray  # (6,)
     KT: np.ndarray  # (6, 6)
     D6: np.ndarray  # (6, 6)
     f6: np.ndarray  # (6,)
+    eh: np.ndarray  # (6,)
+    edh: np.ndarray  # (6,)
+    fx: np.ndarray  # (6,)
+    Ps: np.ndarray  # (6,)
     A6: np.ndarray  # (6,)
     A6b: np.ndarray  # (6,)
+    Rk: np.ndarray  # (3, 3)
+    Tk: np.ndarray  # (3, 3)
+    Uk: np.ndarray  # (3, 3)
+    pk: np.ndarray  # (3,)
+    vk: np.ndarray  # (3,)
+    wk: np.ndarray  # (3,)
