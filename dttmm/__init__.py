@@ -9,7 +9,8 @@ Overview::
 """
 
 from ._version import __version__ as __version__
-from .case import Case, case_from_dict, case_to_dict, load_case, save_case
+from .case import Case, case_from_dict, save_case
+from .casefiles import case_to_dict, load_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
 from .errors import InputError, SimulationError
 from .linear import Linearization, Modes, linearize, modes

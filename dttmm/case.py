@@ -258,22 +258,11 @@ def load_case(path) -> Case:
         raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
     if "name" not in data:
         data["name"] = Path(path).stem
-    if data.get("kind") == "spatial":  # docs/cases.md "Spatial cases"
-        from .spatial.case import case_from_dict as spatial_from_dict
-
-        return spatial_from_dict(data)
     return case_from_dict(data)
 
 
-def case_to_dict(case) -> dict:
-    """The case as a document in the file format (what :func:`save_case` writes); a spatial
-    case as a spatial case document (``dttmm.spatial.case.case_to_dict``)."""
-    if not isinstance(case, Case):
-        from .spatial.case import SpatialCase
-        from .spatial.case import case_to_dict as spatial_to_dict
-
-        if isinstance(case, SpatialCase):
-            return spatial_to_dict(case)
+def case_to_dict(case: Case) -> dict:
+    """The case as a document in the file format (what :func:`save_case` writes)."""
     links = []
     for link in case.model.links:
         b = link.beam

@@ -69,7 +69,7 @@ def case_fingerprint(case) -> str:
     A case from outside the repository carries it in its name, so cached references and runs
     of an edited file are never mistaken for those of the earlier version.
     """
-    from dttmm.case import case_to_dict
+    from dttmm import case_to_dict
 
     d = case_to_dict(case)
     d.pop("name", None)

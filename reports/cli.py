@@ -51,7 +51,7 @@ def run_report(
     """Run the plan's studies and write the report into ``out``; returns (html, md) paths.
     ``recompute``: ignore every cached run and reference and write them again. ``prune_cache``:
     afterwards delete the cached runs of this plan's store that the report did not use."""
-    from dttmm.case import case_to_dict
+    from dttmm import case_to_dict
     from experiments import methods
     from experiments.context import prepare
     from experiments.params import as_dicts
