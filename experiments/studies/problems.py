@@ -395,21 +395,34 @@ def tip_extrema(res) -> dict:
 # ----------------------------------------------------------------------------- spatial statics
 def _dttmm_statics(case, k, steps, strain="linear"):
     from dttmm.spatial import statics
+    from dttmm.spatial.rotation import log_so3
 
-    return statics(case, elements_per_link=k, steps=steps, strain=strain).tip_position
+    r = statics(case, elements_per_link=k, steps=steps, strain=strain)
+    return {"tip": r.tip_position, "twist": float(log_so3(r.tip_rotation)[0])}
 
 
 def _exudyn_statics(module):
     def f(case, k, steps):
         mod = importlib.import_module(module)
-        return np.asarray(mod.statics(case, elements_per_link=k, load_steps=steps)["link_tip"][-1], float)
+        r = mod.statics(case, elements_per_link=k, load_steps=steps)
+        return {"tip": np.asarray(r["link_tip"][-1], float), "twist": float(r["twist"][-1])}
 
     return f
 
 
+def tip_and_twist(out) -> tuple:
+    """(tip position (3,), twist (rad, NaN when not given)) of a statics answer: a dict with
+    ``tip`` and ``twist``, or the tip position alone."""
+    if isinstance(out, dict):
+        return np.asarray(out["tip"], float).reshape(3), float(out.get("twist", math.nan))
+    return np.asarray(out, float).reshape(3), math.nan
+
+
 #: statics of the built-in spatial engines, by their records' ``spatial`` entry: f(case, k,
-#: steps) -> the last link's tip position (3,) at equilibrium under the case's gravity and
-#: loads at t = its duration, the loads applied in ``steps`` increments
+#: steps) -> {"tip": the last link's tip position (3,), "twist": the x component (rad) of the
+#: rotation vector of its tip section (the twist of a clamped link along x)} at equilibrium
+#: under the case's gravity and loads at t = its duration, the loads applied in ``steps``
+#: increments
 _STATICS = {
     "reference_models.exudyn_beam3d:simulate": _exudyn_statics("reference_models.exudyn_beam3d"),
     "reference_models.exudyn_ancf3d:simulate": _exudyn_statics("reference_models.exudyn_ancf3d"),
@@ -417,9 +430,10 @@ _STATICS = {
 
 
 def statics_of(name: str):
-    """A method's spatial statics ``f(case, k, steps) -> tip position (3,)``, or None: DT-TMM
-    methods ``dttmm.spatial.statics`` with their strain option, the Exudyn peers their
-    ``SolveStatic``; an outside method the ``statics`` attribute of its spatial function."""
+    """A method's spatial statics ``f(case, k, steps) -> {"tip": (3,), "twist": rad}`` (see
+    :data:`_STATICS`; an outside one may return the tip position alone), or None: DT-TMM methods
+    ``dttmm.spatial.statics`` with their strain option, the Exudyn peers their ``SolveStatic``;
+    an outside method the ``statics`` attribute of its spatial function."""
     import functools
 
     from .. import methods
@@ -492,7 +506,7 @@ def static_rows(name, case, prov, ks, plan_params=None, size=None) -> list:
             for c, steps, quantities in points:
                 r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
                 try:
-                    tip = np.asarray(fn(c, k, steps), float)
+                    tip, _ = tip_and_twist(fn(c, k, steps))
                     vals = [f(tip) for _, f in quantities]
                 except Exception as exc:  # noqa: BLE001 - reported, not dropped (InputError, SimulationError, an engine's own)
                     msg = " ".join(str(exc).split())[:200]
