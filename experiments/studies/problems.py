@@ -367,13 +367,17 @@ def frequencies(case, k: int, method: str = "dttmm", n: int = 2) -> np.ndarray:
     return np.asarray(fn(case, int(k), n=n), float)
 
 
-def _parabola_peak(t, y, j) -> tuple:
-    """(value, time) of the extremum at sample j of y, refined by the parabola through it and its
-    two neighbours (uniform output grid t)."""
-    j = min(max(j, 1), len(y) - 2)
+def _parabola_peak(t, y, j, sign: float) -> tuple:
+    """(value, time) of the extremum at sample j of y (a maximum for sign = 1, a minimum for
+    −1), refined by the parabola through it and its two neighbours (uniform output grid t); the
+    sample itself at either end of the run or where the three samples do not bend its way."""
+    if j == 0 or j == len(y) - 1:
+        return float(y[j]), float(t[j])
     y0, y1, y2 = y[j - 1 : j + 2]
     curv = y0 - 2.0 * y1 + y2
-    d = (y0 - y2) / (2.0 * curv) if curv else 0.0
+    if sign * curv >= 0:
+        return float(y1), float(t[j])
+    d = (y0 - y2) / (2.0 * curv)
     return float(y1 - 0.25 * (y0 - y2) * d), float(t[j] + d * (t[1] - t[0]))
 
 
@@ -381,13 +385,16 @@ def tip_extrema(res) -> dict:
     """Extrema of a spatial run's out-of-plane (z) displacements from the initial position: the
     last link's tip (``tip_z``) and the first link's tip (``elbow_z``): signal -> {"max", "min"}
     -> (value (m, or the case's length unit), time (s)), each refined by a parabola through the
-    sample and its two neighbours."""
+    sample and its two neighbours (:func:`_parabola_peak`; at an end of the run, the sample)."""
     t = np.asarray(res.t, float)
     tip = np.asarray(res.end_effector, float)
     tips = np.asarray(res.link_tip, float)
     ys = {"tip_z": tip[:, 2] - tip[0, 2], "elbow_z": tips[:, 0, 2] - tips[0, 0, 2]}
     return {
-        n: {"max": _parabola_peak(t, y, int(np.argmax(y))), "min": _parabola_peak(t, y, int(np.argmin(y)))}
+        n: {
+            "max": _parabola_peak(t, y, int(np.argmax(y)), 1.0),
+            "min": _parabola_peak(t, y, int(np.argmin(y)), -1.0),
+        }
         for n, y in ys.items()
     }
 
