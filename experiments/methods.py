@@ -623,6 +623,7 @@ _BUILTIN = (
             ("cost", "rigid links: no elements"),
             ("benchmarks:peak_tip_deflection", "rigid links: no tip deflection"),
             ("benchmarks:static_tip_displacement", "rigid links: no deflection"),
+            ("benchmarks:tip_extrema", "rigid links: a locked-joint arm does not move"),
         ),
         scans=("elements",),
         spatial="reference_models.pinocchio_spatial:simulate",

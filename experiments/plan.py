@@ -235,15 +235,28 @@ def _plan(
 
 # Benchmark problems (study "benchmarks", experiments/studies/problems.py). Quick: spin-up runs end after the peak
 # (8 s); methods that sit a size out say why in their registry record.
-# the very flexible pendulum needs k = 64 (measured: 2nd-order element)
+# the very flexible pendulum needs k = 64 (measured: 2nd-order element). The spatial problems
+# (experiments/cases/spatial/): the quick size runs short ladders, about 16 s of CPU in all
+# (measured: the Princeton sweep is 14 equilibria per k, 4 s at k = 4 for its three methods;
+# the 45° bend's 8 links cost 4 s of statics at k = 1; the right-angle cantilever 8 s at k = 4
+# and 8, most of it the ANCF cable), the full size the ladders to k = 32 (the bend to k = 8:
+# 8 links of k elements each)
 _KS_BY_PROBLEM = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
+_SPATIAL_KS = {
+    "quick": {"princeton_beam": [4], "bend_45deg": [1], "right_angle_cantilever": [4, 8]},
+    "full": {
+        "princeton_beam": [2, 4, 8, 16, 32],
+        "bend_45deg": [1, 2, 4, 8],
+        "right_angle_cantilever": [2, 4, 8, 16, 32],
+    },
+}
 _BENCH = {
     "quick": ProblemsParams(
         ks=[2, 4, 8, 16, 32],
         durations=dict.fromkeys(["spin_up_w4", "spin_up_w6", "spin_up_w10"], 8.0),
-        ks_by_problem=_KS_BY_PROBLEM,
+        ks_by_problem={**_KS_BY_PROBLEM, **_SPATIAL_KS["quick"]},
     ),
-    "full": ProblemsParams(ks=[2, 4, 8, 16, 32], ks_by_problem=_KS_BY_PROBLEM),
+    "full": ProblemsParams(ks=[2, 4, 8, 16, 32], ks_by_problem={**_KS_BY_PROBLEM, **_SPATIAL_KS["full"]}),
 }
 
 # Closed loop (experiments/studies/control.py) on its own case: every method that takes part at

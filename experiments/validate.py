@@ -12,7 +12,15 @@ For each method (built-in or outside, see :mod:`experiments.methods`) the suite 
   deflection of a cantilever against the Euler-Bernoulli closed form (:func:`static_deflection`),
   the clamped-beam natural frequencies against the β_nL closed form (:func:`clamped_frequencies`),
   the energy balance of an undamped free swing (:func:`energy_balance`), and the observed order in
-  k and in h against finer runs of the same method (:func:`order_k`, :func:`order_h`).
+  k and in h against finer runs of the same method (:func:`order_k`, :func:`order_h`);
+* for methods with a spatial entry (``spatial`` in the record, docs/methods.md) the spatial
+  benchmark problems (``experiments/cases/spatial/``: the Princeton beam, the 45° bend, the
+  right-angle cantilever, :data:`experiments.studies.problems.SPATIAL_PROBLEMS`) at their own k
+  ladders (:attr:`Size.spatial_ks`), and two spatial independent checks: the spatial rigid limit
+  against Pinocchio's rigid spatial arm (:func:`spatial_rigid_limit`) and the spatial cantilever
+  statics in both bending planes and twist against the closed forms
+  (:func:`spatial_static_deflection`). A method without a spatial entry gets these rows as not
+  run, with the reason.
 
 Each check returns rows (plain dicts, :data:`ROW_KEYS`); a check a method cannot run is a row
 with ``passed = None`` and the reason. Every simulation runs in a forked child process with a
@@ -57,6 +65,8 @@ __all__ = [
     "order_k",
     "rigid_limit",
     "scorecard_links",
+    "spatial_rigid_limit",
+    "spatial_static_deflection",
     "static_deflection",
     "validate_method",
 ]
@@ -95,6 +105,9 @@ class Size:
     order_ks, order_k_fine : k ladder of the order-in-k check and the finer run it is measured against
     order_hs, order_h_fine, order_h_k : h ladder of the order-in-h check, its finer step, its k
     timeout : s per simulation (a run past it is a failed row)
+    spatial_ks : problem -> k ladder of the spatial benchmark problems (their cost: the
+        Princeton sweep is 14 equilibria per k, the 45° bend has 8 links)
+    spatial_rigid_duration : duration (s) of the spatial rigid-limit run
     """
 
     ks: tuple = (8, 16, 32)
@@ -111,13 +124,19 @@ class Size:
     timeout: float = 600.0
     durations: tuple = ()
     explicit_ks: tuple = (8, 16, 32)
+    spatial_ks: tuple = (
+        ("princeton_beam", (8, 16, 32)),
+        ("bend_45deg", (1, 2, 4)),
+        ("right_angle_cantilever", (8, 16, 32)),
+    )
+    spatial_rigid_duration: float = 1.0
 
 
 #: The quick size drops the spin-up problems at ω_s = 6 and 10 rad/s and shortens the one at
 #: 4 rad/s to 8 s (its peak comes before 7 s), runs the self-weight cantilever 10 s (its quick
 #: size, see its provenance), halves the rigid-limit, energy and order runs, refines h only to
 #: 2.5e-4 s, gives explicit methods with a ``max_step`` the k ladder 4, 8, 16 instead of 8, 16,
-#: 32; the per-run timeout is 60 s.
+#: 32, and the spatial problems shorter ladders; the per-run timeout is 60 s.
 SIZES = {
     "full": Size(),
     "quick": Size(
@@ -130,6 +149,12 @@ SIZES = {
         timeout=60.0,
         durations=(("cantilever_self_weight", 10.0),),
         explicit_ks=(4, 8, 16),
+        spatial_ks=(
+            ("princeton_beam", (2, 4, 8)),
+            ("bend_45deg", (1, 2)),
+            ("right_angle_cantilever", (4, 8, 16)),
+        ),
+        spatial_rigid_duration=0.5,
     ),
 }
 
@@ -271,6 +296,16 @@ def malformed(res, case) -> str:
         return f"returned a {type(res).__name__}, not a dttmm.Result"
     if getattr(res, "status", "ok") == "failed":
         return "the method reported failure: " + ("; ".join(getattr(res, "warnings", ())) or "no reason")
+    if methods.is_spatial(case):
+        from .runs import malformed as spatial_malformed
+
+        why = spatial_malformed(res, case)
+        if why:
+            return f"malformed Result: {why}"
+        for a in ("end_effector", "link_tip", "joint_angle"):
+            if not np.all(np.isfinite(np.asarray(getattr(res, a), float))):
+                return f"non-finite output ({a} has NaN or inf)"
+        return ""
     n = case.model.n_links
     t = np.asarray(res.t, float)
     grid = expected_grid(case)
@@ -475,6 +510,8 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
             **kw,
         )
     kind = prov["quantity"]
+    if methods.is_spatial(case):
+        return _spatial_problem(run, problem, case, prov)
     if rec.physics.strain == "rigid":
         return [_not_run(rec.name, check, problem, q, _RIGID, reference=v, **kw)[0] for q, v in quantities]
     if kind == "frequencies":
@@ -543,10 +580,14 @@ def _nan_none(v):
     return None if v is None or not np.isfinite(v) else float(v)
 
 
-def _judge(method, check, problem, quantity, target, value, prov, reason, ks, cpu, **kw) -> dict:
-    """A row judged by the benchmark-problems study's rule (provenance tolerance, relative or absolute)."""
+def _judge(method, check, problem, quantity, target, value, prov, reason, ks, cpu, scale=None, **kw) -> dict:
+    """A row judged by the benchmark-problems study's rule (provenance tolerance, relative or
+    absolute; a relative error to ``scale`` where given)."""
     r = {"method": method, "k": ks[-1], "h": math.nan, "status": "ok" if value is not None else "failed"}
-    judged = problems_study._row(problem, prov, quantity, target, r, math.nan if value is None else value)
+    judged = problems_study._row(
+        problem, prov, quantity, target, r, math.nan if value is None else value, scale
+    )
+    kw = {**kw, "tolerance": judged["tolerance"]}
     passed = judged["passed"] if value is not None else False
     if value is None and not reason:
         reason = "no value"
@@ -563,6 +604,110 @@ def _judge(method, check, problem, quantity, target, value, prov, reason, ks, cp
         cpu_time=cpu,
         **{**kw, "tolerance_kind": judged["tolerance_kind"]},
     )
+
+
+# ----------------------------------------------------------------------------- spatial problems
+def _spatial_statics(name, case, k, steps):
+    """The method's own statics (:func:`experiments.studies.problems.statics_of`), in the worker:
+    (tip position (3,), twist (rad, NaN when not given))."""
+    fn = problems_study.statics_of(name)
+    if fn is None:
+        raise ValueError(f"{name}: no spatial statics")
+    return problems_study.tip_and_twist(fn(case, int(k), int(steps)))
+
+
+def _no_spatial(rec, case) -> str:
+    """Why the method does not run this spatial case ('' when it does)."""
+    why = rec.why_not_case(case)
+    if why:
+        return f"{rec.label or rec.name}: {why}"
+    return ""
+
+
+_NO_STATICS = (
+    "{0} has no spatial statics (DT-TMM's dttmm.spatial.statics, Exudyn's SolveStatic, or an outside "
+    "spatial function's 'statics' attribute): this problem is an equilibrium"
+)
+
+
+def _spatial_problem(run: Runner, problem: str, case, prov) -> list:
+    """Rows of a spatial benchmark problem at the problem's k ladder (:attr:`Size.spatial_ks`):
+    the static ones by the method's own statics, the right-angle cantilever by a run at the
+    study's step; each compared quantity judged at the largest k by the study's rule, the
+    observed order in k over the ladder."""
+    rec = run.rec
+    ks = tuple(dict(run.size.spatial_ks).get(problem, run.size.ks))
+    trows = problems_study.target_rows(prov)
+    check, kind = "benchmark", prov["quantity"]
+
+    def kw_of(t):
+        tol, tkind = problems_study.tolerance_of(prov, t["quantity"])
+        return dict(source=prov.get("source", ""), tolerance=tol, tolerance_kind=tkind, reference=t["target"])
+
+    def not_run(why):
+        return [_not_run(rec.name, check, problem, t["quantity"], why, **kw_of(t))[0] for t in trows]
+
+    why = _no_spatial(rec, case) or (_RIGID if rec.physics.strain == "rigid" else "")
+    if why:
+        return not_run(why)
+    vals = {t["quantity"]: [] for t in trows}
+    cpu, reason = 0.0, ""
+    if kind in problems_study.STATIC_KINDS:
+        if problems_study.statics_of(rec.name) is None:
+            return not_run(_NO_STATICS.format(rec.label or rec.name))
+        points = problems_study.static_points(case, prov)
+        for k in ks:
+            for c, steps, quantities in points:
+                got, cc, w = run.call(_spatial_statics, rec.name, c, k, steps)
+                cpu += cc if np.isfinite(cc) else 0.0
+                if w:
+                    reason = f"k = {k}: {w}"
+                for t, f in quantities:
+                    vals[t["quantity"]].append(None if w else f(got[0]))
+        h = math.nan
+    else:
+        why = run.step_unknown
+        if why:
+            return not_run(why)
+        h = problems_study.SETTINGS[kind]["h"]
+        for k in ks:
+            res, c, w = run.run(case, k, run.step(k, h))
+            cpu += c if np.isfinite(c) else 0.0
+            got = {}
+            if w:
+                reason = f"k = {k}: {w}"
+            else:
+                try:
+                    got = {q: v for q, v, _ in problems_study._values(problem, case, prov, res, None)}
+                except Exception as exc:  # noqa: BLE001 - an extractor failing on odd output is a failed row
+                    reason = f"k = {k}: {type(exc).__name__}: {exc}"
+            for t in trows:
+                vals[t["quantity"]].append(got.get(t["quantity"]))
+        h = run.step(ks[-1], h)
+    rows = []
+    for t in trows:
+        v = vals[t["quantity"]]
+        kw = kw_of(t)
+        kw.pop("reference")
+        row = _judge(
+            rec.name,
+            check,
+            problem,
+            t["quantity"],
+            t["target"],
+            v[-1],
+            prov,
+            reason,
+            ks,
+            cpu,
+            t["scale"],
+            **kw,
+        )
+        row["h"] = _nan_none(h)
+        errs = [abs(x - t["target"]) if x is not None else None for x in v]
+        row["order"] = _nan_none(order_in_k(ks, errs))
+        rows.append(row)
+    return rows
 
 
 # ----------------------------------------------------------------------------- independent checks
@@ -756,6 +901,183 @@ def _static_like(run, check, case, prov):
     if not rec.uses_k:
         row["k"] = None
     return [row]
+
+
+# ----------------------------------------------------------------------------- spatial checks
+SPATIAL_RIGID_TOL = 1e-5  # rad, max |joint angle − Pinocchio| over the run
+SPATIAL_RIGID_K = 2
+SPATIAL_RIGID_H = 1e-4  # s
+
+
+def spatial_rigid_case(duration: float):
+    """The shipped spatial three-joint arm (``experiments/cases/spatial/three_joint_arm.toml``:
+    gravity, hubs, an offset payload, torque pulses) with EIy, EIz and GJ × 1e6 and EA × 1e3
+    (as :func:`rigid_case`), run for ``duration`` s."""
+    from dttmm.spatial import load_case
+
+    case = load_case(SHIPPED / "spatial" / "three_joint_arm.toml")
+    f, fa = RIGID_STIFFEN, RIGID_STIFFEN_EA
+    links = tuple(
+        replace(
+            ln,
+            beam=replace(
+                ln.beam, EIy=ln.beam.EIy * f, EIz=ln.beam.EIz * f, GJ=ln.beam.GJ * f, EA=ln.beam.EA * fa
+            ),
+        )
+        for ln in case.model.links
+    )
+    return replace(
+        case,
+        model=replace(case.model, links=links),
+        scenario=replace(case.scenario, duration=float(duration)),
+        name="three_joint_arm_stiff",
+    )
+
+
+def _pinocchio_spatial(case):
+    """The rigid spatial arm by Pinocchio, RK4 at h = 1e-5 s."""
+    from reference_models import pinocchio_spatial
+
+    return pinocchio_spatial.simulate(case, h=1e-5, integrator="rk4")
+
+
+def spatial_rigid_limit(run: Runner) -> list:
+    """Joint angles of the spatial three-joint arm with EIy, EIz, GJ × 1e6 and EA × 1e3
+    (:func:`spatial_rigid_case`) against the rigid arm by Pinocchio (RK4, h = 1e-5 s): max |Δα|
+    ≤ 1e-5 rad at k = 2, h = 1e-4 s. Methods without a spatial entry and explicit ones sit it out."""
+    rec = run.rec
+    case = spatial_rigid_case(run.size.spatial_rigid_duration)
+    src = (
+        "rigid-body dynamics of the same spatial arm by Pinocchio (reference_models.pinocchio_spatial), "
+        f"RK4 at h = 1e-5 s; links {RIGID_STIFFEN:g}× stiffer in bending and torsion than "
+        "experiments/cases/spatial/three_joint_arm.toml"
+    )
+    kw = dict(source=src, tolerance=SPATIAL_RIGID_TOL, tolerance_kind="absolute", reference=0.0)
+    q, check, name = "max |joint angle − rigid| (rad)", "spatial rigid limit", case.name
+    why = _no_spatial(rec, case)
+    if not why and rec.explicit:
+        why = "explicit in time: its stable step falls as 1/√EI, so the stiff-link limit is out of its reach"
+    if why:
+        return _not_run(rec.name, check, name, q, why, **kw)
+    ref, _, rwhy = run.call(_pinocchio_spatial, case)
+    if rwhy:
+        return _not_run(rec.name, check, name, q, f"the Pinocchio reference: {rwhy}", **kw)
+    res, cpu, why = run.run(case, SPATIAL_RIGID_K, SPATIAL_RIGID_H)
+    value = None if why else float(np.max(np.abs(res.joint_angle - ref.joint_angle)))
+    return [
+        _row(
+            rec.name,
+            check,
+            name,
+            q,
+            value=value,
+            passed=value is not None and value <= SPATIAL_RIGID_TOL,
+            reason=why,
+            k=SPATIAL_RIGID_K if rec.uses_k else None,
+            h=SPATIAL_RIGID_H,
+            cpu_time=cpu,
+            **kw,
+        )
+    ]
+
+
+SPATIAL_STATIC_SCALE = 1e-3  # gravity factor: deflection/L ≤ 3.3e-4; the offset payload's lever arm turns with the tip (~3e-5 relative)
+SPATIAL_STATIC_TOL = 1e-4  # relative
+
+
+def spatial_static_cases() -> dict:
+    """``experiments/cases/spatial/cantilever_3d.toml`` (a clamped beam, EIy ≠ EIz, a payload
+    offset along y) under 1e-3 of its gravity, split in its two components: ``"y"`` (gravity
+    along −y: bending about z) and ``"z"`` (gravity along −z: bending about y and, through the
+    payload's offset, a twist). Split so that each equilibrium bends in one plane: the twist is
+    then the rotation's x component to second order in the small bending slope."""
+    from dttmm.spatial import load_case
+
+    case = load_case(SHIPPED / "spatial" / "cantilever_3d.toml")
+    g = np.asarray(case.model.gravity, float) * SPATIAL_STATIC_SCALE
+    out = {}
+    for axis, i in (("y", 1), ("z", 2)):
+        gi = [0.0, 0.0, 0.0]
+        gi[i] = float(g[i])
+        out[axis] = replace(case, model=replace(case.model, gravity=tuple(gi)), name=f"cantilever_3d_g{axis}")
+    return out
+
+
+def spatial_static_closed_forms(cases: dict) -> dict:
+    """Closed forms of the split cantilever (Euler-Bernoulli and Saint-Venant torsion, small
+    deflections): u_y = g_y (ρA L⁴/(8 EIz) + m L³/(3 EIz)), u_z the same with g_z and EIy, twist
+    φ = T L / GJ with T = r_y m g_z, the moment of the payload's weight about the axis (r_y its
+    offset)."""
+    out = {}
+    for axis, c in cases.items():
+        link = c.model.links[0]
+        b, m, g = link.beam, link.payload.mass, c.model.gravity
+        EI = b.EIz if axis == "y" else b.EIy
+        gi = g[1] if axis == "y" else g[2]
+        out[f"u_{axis}"] = gi * (b.rhoA * b.length**4 / (8 * EI) + m * b.length**3 / (3 * EI))
+        if axis == "z":
+            out["twist"] = link.payload.offset[1] * m * gi * b.length / b.GJ
+    return out
+
+
+def spatial_static_deflection(run: Runner) -> list:
+    """Tip displacements u_y, u_z and the tip twist of the split cantilever_3d
+    (:func:`spatial_static_cases`) by the method's own statics against the closed forms
+    (:func:`spatial_static_closed_forms`), relative 1e-4 at the largest k of the ladder (that of
+    the planar static check: 8, 16, 32)."""
+    rec = run.rec
+    cases = spatial_static_cases()
+    ref = spatial_static_closed_forms(cases)
+    src = (
+        "Euler-Bernoulli cantilever q L⁴/(8EI) + P L³/(3EI) in each bending plane and Saint-Venant "
+        "torsion φ = T L/GJ (e.g. Gere & Timoshenko, Mechanics of Materials, Appendix G)"
+    )
+    kw = dict(source=src, tolerance=SPATIAL_STATIC_TOL, tolerance_kind="relative")
+    check, name = "spatial static deflection", "cantilever_3d"
+    qs = {"u_y": "tip u_y at rest (m)", "u_z": "tip u_z at rest (m)", "twist": "tip twist at rest (rad)"}
+    why = _no_spatial(rec, cases["y"]) or (_RIGID if rec.physics.strain == "rigid" else "")
+    if not why and problems_study.statics_of(rec.name) is None:
+        why = _NO_STATICS.format(rec.label or rec.name).replace("this problem", "this check")
+    if why:
+        return [_not_run(rec.name, check, name, qs[key], why, reference=r, **kw)[0] for key, r in ref.items()]
+    ks, cpu, reason = run.ks, 0.0, ""
+    vals = {key: [] for key in ref}
+    L = cases["y"].model.links[0].beam.length
+    for k in ks:
+        for axis, c in cases.items():
+            got, cc, w = run.call(_spatial_statics, rec.name, c, k, 1)
+            cpu += cc if np.isfinite(cc) else 0.0
+            if w:
+                reason = f"k = {k}: {w}"
+            tip, twist = (None, None) if w else got
+            vals[f"u_{axis}"].append(None if w else float(tip[1 if axis == "y" else 2]))
+            if axis == "z":
+                vals["twist"].append(None if w or not np.isfinite(twist) else twist)
+                if not w and not np.isfinite(twist):
+                    reason = "its statics gives no twist"
+            if not w and abs(tip[0] - L) > 1e-3 * L:
+                reason = f"k = {k}: the tip moved {tip[0] - L:.3g} m along the axis (not the clamped beam's length)"
+    rows = []
+    for key, r in ref.items():
+        v = vals[key]
+        rel = abs(v[-1] - r) / abs(r) if v[-1] is not None else None
+        rows.append(
+            _row(
+                rec.name,
+                check,
+                name,
+                qs[key],
+                value=v[-1],
+                reference=r,
+                passed=rel is not None and rel <= SPATIAL_STATIC_TOL,
+                reason=reason,
+                order=_nan_none(order_in_k(ks, [abs(x - r) if x is not None else None for x in v])),
+                k=ks[-1],
+                cpu_time=cpu,
+                **kw,
+            )
+        )
+    return rows
 
 
 #: β_n L of the clamped-free Euler-Bernoulli beam (roots of cos βL cosh βL = −1).
@@ -1075,6 +1397,8 @@ CHECKS = {
     "energy_balance": energy_balance,
     "order_k": order_k,
     "order_h": order_h,
+    "spatial_rigid_limit": spatial_rigid_limit,
+    "spatial_static_deflection": spatial_static_deflection,
 }
 
 

@@ -88,7 +88,11 @@ class SpatialResult(Result):
         m_j = sum(1 for c in df.columns if c.startswith("joint_angle_"))
         n = sum(1 for c in df.columns if c.startswith("tip_deflection_y_"))
         col = lambda name: df[name].to_numpy()
-        per_joint = lambda p: np.column_stack([col(f"{p}_{j}") for j in range(1, m_j + 1)]).reshape(-1, m_j)
+        nt = len(df)
+        # an arm of locked joints only has no joint columns: (nt, 0)
+        per_joint = lambda p: np.column_stack(
+            [np.zeros((nt, 0)), *(col(f"{p}_{j}") for j in range(1, m_j + 1))]
+        ).reshape(nt, m_j)
         per_link = lambda p, axes: np.stack(
             [np.column_stack([col(f"{p}_{a}_{i}") for a in axes]) for i in range(1, n + 1)], axis=1
         )

@@ -11,10 +11,19 @@ method that can model a problem at a few k through the sweep runner (cached, par
 the compared quantity from each run and reports the error, pass/fail at the stated tolerance and
 the observed order in k. The clamped-link frequencies need no time integration: they come from
 the linearised forward dynamics of the methods that expose it.
+
+The spatial problems (:data:`SPATIAL_PROBLEMS`, case files in ``experiments/cases/spatial/``
+with the same ``[provenance]`` table) run with every method that runs spatial arms
+(:func:`experiments.methods.runs_on`). Their static problems are equilibria and are solved by
+the method's own statics (:func:`statics_of`: ``dttmm.spatial.statics``, Exudyn's
+``SolveStatic``), not by a damped run to rest: the equilibrium is then exact to Newton's
+tolerance at any k, and a load sweep (the Princeton beam's 14 load points) costs a few Newton
+solves instead of 14 settling runs. A method with no statics sits them out.
 """
 
 from __future__ import annotations
 
+import importlib
 import math
 import tomllib
 from dataclasses import replace
@@ -30,6 +39,11 @@ from ._common import fit_orders, k_limit, params
 
 NAME = "benchmarks"
 CASE_DIR = Path(__file__).resolve().parents[1] / "cases" / "benchmarks"
+SPATIAL_DIR = CASE_DIR.parent / "spatial"
+#: the spatial benchmark problems (case files in SPATIAL_DIR, with a [provenance] table)
+SPATIAL_PROBLEMS = ("princeton_beam", "bend_45deg", "right_angle_cantilever")
+#: kinds solved by the method's own statics (no time integration, no sweep run)
+STATIC_KINDS = ("static_tip_displacement_3d", "static_tip_position_error")
 
 #: The step of each kind of problem. Which methods run a kind comes from their registry records
 #: (a method sits a kind out with the reason: ``skip`` entries ``benchmarks:<kind>``); the
@@ -40,6 +54,9 @@ SETTINGS = {
     "tip_deflection_rms": {"h": 1e-3},
     "tip_path_rms": {"h": 1e-3},
     "frequencies": {},
+    "static_tip_displacement_3d": {},
+    "static_tip_position_error": {},
+    "tip_extrema": {"h": 5e-3},
 }
 REQUIRED = (
     "source",
@@ -69,13 +86,24 @@ def load_problem(path) -> tuple:
         data = tomllib.load(f)
     prov = data.pop("provenance", {})
     data.setdefault("name", path.stem)
+    if data.get("kind") == "spatial":
+        from dttmm.spatial.case import case_from_dict
+
+        return case_from_dict(data), prov
     return dttmm.case_from_dict(data), prov
 
 
-def problems(names=None, case_dir=CASE_DIR) -> dict:
-    """Problem name -> (Case, provenance), for every case file (or the given names)."""
+def _paths(case_dir) -> list:
     paths = sorted(Path(case_dir).glob("*.toml"))
-    out = {p.stem: load_problem(p) for p in paths}
+    if Path(case_dir) == CASE_DIR:
+        paths += [SPATIAL_DIR / f"{n}.toml" for n in SPATIAL_PROBLEMS]
+    return paths
+
+
+def problems(names=None, case_dir=CASE_DIR) -> dict:
+    """Problem name -> (Case, provenance), for every case file (or the given names): the planar
+    problems of ``case_dir`` and, for the default folder, the spatial ones (:data:`SPATIAL_PROBLEMS`)."""
+    out = {p.stem: load_problem(p) for p in _paths(case_dir)}
     if names is not None:
         missing = [n for n in names if n not in out]
         if missing:
@@ -87,18 +115,74 @@ def problems(names=None, case_dir=CASE_DIR) -> dict:
 def missing_provenance(prov: dict) -> list:
     """Keys a provenance table lacks: the REQUIRED ones, a value, and a reference where needed."""
     miss = [k for k in REQUIRED if k not in prov]
-    if "value" not in prov and "values" not in prov:
+    own = _VALUE_KEYS.get(prov.get("quantity"))
+    if own is not None:
+        miss += [k for k in own if k not in prov]
+    elif "value" not in prov and "values" not in prov:
         miss.append("value")
     if prov.get("value_kind") == "reference run" and "reference" not in prov:
         miss.append("reference")
     return miss
 
 
+#: the provenance keys holding the published values, for the kinds that have no ``value(s)``
+_VALUE_KEYS = {
+    "static_tip_displacement_3d": ("beta_deg", "force", "components", "load_steps"),
+    "static_tip_position_error": ("P", "tip_position", "load_time", "load_steps", "scale"),
+    "tip_extrema": ("extrema", "time_tolerance"),
+}
+
+
 def targets(prov: dict) -> list:
     """[(quantity label, target value)] of a problem."""
-    if prov["quantity"] == "frequencies":
-        return [(f"f{i + 1}", float(v)) for i, v in enumerate(prov["values"])]
-    return [(prov["quantity"], float(prov["value"]))]
+    return [(t["quantity"], t["target"]) for t in target_rows(prov)]
+
+
+def _princeton_key(component: str, force: float) -> str:
+    return f"{component}_F{round(force * 1000):d}"
+
+
+def target_rows(prov: dict) -> list:
+    """Every compared quantity of a problem: dicts with ``quantity``, ``target``, ``group`` (the
+    family it is plotted and summarised in) and ``scale`` (what a relative error is divided by;
+    None: the target itself)."""
+    kind = prov["quantity"]
+    if kind == "frequencies":
+        return [_t(f"f{i + 1}", v) for i, v in enumerate(prov["values"])]
+    if kind == "static_tip_displacement_3d":
+        out = []
+        for F in prov["force"]:
+            for comp, label in prov["components"]:
+                vals = prov[_princeton_key(comp, F)]
+                for j, b in enumerate(prov["beta_deg"]):
+                    # a zero entry is measured against the component's other end of the sweep
+                    scale = None if vals[j] else abs(vals[-1 - j])
+                    out.append(_t(f"{label} F={F:g} N β={b:g}°", vals[j], label, scale))
+        return out
+    if kind == "static_tip_position_error":
+        return [_t(f"tip position error P={P:g}", 0.0, "tip position error") for P in prov["P"]]
+    if kind == "tip_extrema":
+        out = []
+        for e in prov["extrema"]:
+            name = f"{e['signal']} {e['kind']}"
+            out += [_t(name, e["value"], "extremum"), _t(f"{name} time", e["time"], "extremum time")]
+        return out
+    return [_t(kind, prov["value"])]
+
+
+def _t(quantity, target, group=None, scale=None) -> dict:
+    return {"quantity": quantity, "target": float(target), "group": group or quantity, "scale": scale}
+
+
+def tolerance_of(prov: dict, quantity: str) -> tuple:
+    """(tolerance, "relative" or "absolute") a quantity of a problem is judged by: the energy
+    drift by its ``energy_tolerance`` (absolute), the times of extrema by ``time_tolerance``
+    (absolute, s), every other quantity by ``tolerance`` and ``tolerance_kind``."""
+    if quantity == "energy_drift":
+        return float(prov.get("energy_tolerance")), "absolute"
+    if quantity.endswith(" time") and "time_tolerance" in prov:
+        return float(prov["time_tolerance"]), "absolute"
+    return float(prov["tolerance"]), "relative" if prov["tolerance_kind"] == "relative" else "absolute"
 
 
 def _shortened(case, duration):
@@ -125,15 +209,20 @@ def _ref_task(name, case, prov):
 
 
 # ----------------------------------------------------------------------------- tasks
-def _methods(p, kind: str, size: str | None = None) -> list:
+def _methods(p, kind: str, size: str | None = None, case=None) -> list:
     """The methods run on a problem of this kind (every registered method that takes part,
-    :func:`experiments.methods.takes_part`), narrowed to the plan's ``methods`` when it names some."""
+    :func:`experiments.methods.takes_part`, and runs ``case``: :func:`experiments.methods.runs_on`),
+    narrowed to the plan's ``methods`` when it names some. The frequencies need the method's
+    linearisation, the static spatial problems its statics (:func:`statics_of`)."""
     from .. import methods
 
+    every = methods.takes_part(NAME, kind=kind, size=size)
     if kind == "frequencies":
-        every = [m for m in methods.takes_part(NAME, kind=kind, size=size) if methods.frequencies_of(m)]
-    else:
-        every = methods.takes_part(NAME, kind=kind, size=size)
+        every = [m for m in every if methods.frequencies_of(m)]
+    if case is not None:
+        every = [m for m in every if methods.runs_on(m, case)]
+    if kind in STATIC_KINDS:
+        every = [m for m in every if statics_of(m) is not None]
     chosen = p.methods
     return [m for m in every if chosen is None or m in chosen]
 
@@ -153,7 +242,7 @@ def cases(ctx) -> dict:
     return {
         name: _shortened(case, p.durations.get(name))
         for name, (case, prov) in problems(p.problems).items()
-        if prov["quantity"] != "frequencies"
+        if prov["quantity"] != "frequencies" and prov["quantity"] not in STATIC_KINDS
     }
 
 
@@ -171,10 +260,10 @@ def tasks(ctx) -> list:
     out = []
     for name, (_case, prov) in problems(p.problems).items():
         kind = prov["quantity"]
-        if kind == "frequencies":
+        if kind == "frequencies" or kind in STATIC_KINDS:
             continue
         T, h = ctx.cases[name].scenario.duration, SETTINGS[kind]["h"]
-        for m in _methods(p, kind, ctx.plan.name):
+        for m in _methods(p, kind, ctx.plan.name, ctx.cases[name]):
             ks = [0] if not uses_k(m) else p.ks_by_problem.get(name, p.ks)
             ks = [k for k in ks if k <= k_limit(m, NAME, ctx.plan.name)]
             out += [Task(name, m, k, h, T) for k in ks]
@@ -278,17 +367,176 @@ def frequencies(case, k: int, method: str = "dttmm", n: int = 2) -> np.ndarray:
     return np.asarray(fn(case, int(k), n=n), float)
 
 
+def _parabola_peak(t, y, j, sign: float) -> tuple:
+    """(value, time) of the extremum at sample j of y (a maximum for sign = 1, a minimum for
+    −1), refined by the parabola through it and its two neighbours (uniform output grid t); the
+    sample itself at either end of the run or where the three samples do not bend its way."""
+    if j == 0 or j == len(y) - 1:
+        return float(y[j]), float(t[j])
+    y0, y1, y2 = y[j - 1 : j + 2]
+    curv = y0 - 2.0 * y1 + y2
+    if sign * curv >= 0:
+        return float(y1), float(t[j])
+    d = (y0 - y2) / (2.0 * curv)
+    return float(y1 - 0.25 * (y0 - y2) * d), float(t[j] + d * (t[1] - t[0]))
+
+
+def tip_extrema(res) -> dict:
+    """Extrema of a spatial run's out-of-plane (z) displacements from the initial position: the
+    last link's tip (``tip_z``) and the first link's tip (``elbow_z``): signal -> {"max", "min"}
+    -> (value (m, or the case's length unit), time (s)), each refined by a parabola through the
+    sample and its two neighbours (:func:`_parabola_peak`; at an end of the run, the sample)."""
+    t = np.asarray(res.t, float)
+    tip = np.asarray(res.end_effector, float)
+    tips = np.asarray(res.link_tip, float)
+    ys = {"tip_z": tip[:, 2] - tip[0, 2], "elbow_z": tips[:, 0, 2] - tips[0, 0, 2]}
+    return {
+        n: {
+            "max": _parabola_peak(t, y, int(np.argmax(y)), 1.0),
+            "min": _parabola_peak(t, y, int(np.argmin(y)), -1.0),
+        }
+        for n, y in ys.items()
+    }
+
+
+# ----------------------------------------------------------------------------- spatial statics
+def _dttmm_statics(case, k, steps, strain="linear"):
+    from dttmm.spatial import statics
+    from dttmm.spatial.rotation import log_so3
+
+    r = statics(case, elements_per_link=k, steps=steps, strain=strain)
+    return {"tip": r.tip_position, "twist": float(log_so3(r.tip_rotation)[0])}
+
+
+def _exudyn_statics(module):
+    def f(case, k, steps):
+        mod = importlib.import_module(module)
+        r = mod.statics(case, elements_per_link=k, load_steps=steps)
+        return {"tip": np.asarray(r["link_tip"][-1], float), "twist": float(r["twist"][-1])}
+
+    return f
+
+
+def tip_and_twist(out) -> tuple:
+    """(tip position (3,), twist (rad, NaN when not given)) of a statics answer: a dict with
+    ``tip`` and ``twist``, or the tip position alone."""
+    if isinstance(out, dict):
+        return np.asarray(out["tip"], float).reshape(3), float(out.get("twist", math.nan))
+    return np.asarray(out, float).reshape(3), math.nan
+
+
+#: statics of the built-in spatial engines, by their records' ``spatial`` entry: f(case, k,
+#: steps) -> {"tip": the last link's tip position (3,), "twist": the x component (rad) of the
+#: rotation vector of its tip section (the twist of a clamped link along x)} at equilibrium
+#: under the case's gravity and loads at t = its duration, the loads applied in ``steps``
+#: increments
+_STATICS = {
+    "reference_models.exudyn_beam3d:simulate": _exudyn_statics("reference_models.exudyn_beam3d"),
+    "reference_models.exudyn_ancf3d:simulate": _exudyn_statics("reference_models.exudyn_ancf3d"),
+}
+
+
+def statics_of(name: str):
+    """A method's spatial statics ``f(case, k, steps) -> {"tip": (3,), "twist": rad}`` (see
+    :data:`_STATICS`; an outside one may return the tip position alone), or None: DT-TMM methods
+    ``dttmm.spatial.statics`` with their strain option, the Exudyn peers their ``SolveStatic``;
+    an outside method the ``statics`` attribute of its spatial function."""
+    import functools
+
+    from .. import methods
+
+    try:
+        rec = methods.get(name)
+    except methods.MethodUnavailable:
+        return None
+    if not rec.spatial or rec.physics.strain == "rigid":
+        return None
+    if rec.spatial == "dttmm.spatial:simulate":
+        opts = dict(rec.options if rec.spatial_options is None else rec.spatial_options)
+        return functools.partial(_dttmm_statics, strain=opts.get("strain", "linear"))
+    if rec.spatial in _STATICS:
+        return _STATICS[rec.spatial]
+    mod, fn = rec.spatial.split(":")
+    try:
+        return getattr(getattr(importlib.import_module(mod), fn), "statics", None)
+    except Exception:  # noqa: BLE001 - a spatial entry that does not load has no statics here
+        return None
+
+
+def static_points(case, prov) -> list:
+    """The equilibria a static spatial problem compares: [(case, load steps, [(target row, value
+    of the tip position))])]. The Princeton beam: its load replaced by F [0, −cos β, sin β]
+    (world, fixed direction) at every published (F, β), compared |u_y| and u_z of the tip from
+    the straight beam; the 45° bend: the case at each load time (its load ramp), compared the
+    distance of the tip from the published position over ``scale`` (R)."""
+    from dttmm.spatial import SpatialLoad
+
+    kind = prov["quantity"]
+    rows = {t["quantity"]: t for t in target_rows(prov)}
+    out = []
+    if kind == "static_tip_displacement_3d":
+        L = sum(link.beam.length for link in case.model.links)
+        for F in prov["force"]:
+            for b in prov["beta_deg"]:
+                r = np.radians(b)
+                load = SpatialLoad(force=(0.0, -F * np.cos(r), F * np.sin(r)))
+                c = replace(case, scenario=replace(case.scenario, loads=(load,)))
+                q = []
+                for comp, label in prov["components"]:
+                    t = rows[f"{label} F={F:g} N β={b:g}°"]
+                    axis = {"uy_abs": 1, "uz": 2}[comp]
+                    fn = abs if comp.endswith("_abs") else float
+                    q.append((t, lambda tip, a=axis, fn=fn: fn(float(tip[a] - (L if a == 0 else 0.0)))))
+                out.append((c, int(prov["load_steps"]), q))
+        return out
+    if kind == "static_tip_position_error":
+        R = float(prov["scale"])
+        for P, ref, T, n in zip(prov["P"], prov["tip_position"], prov["load_time"], prov["load_steps"]):
+            c = _shortened(case, T)
+            t = rows[f"tip position error P={P:g}"]
+            x = np.asarray(ref, float)
+            out.append((c, int(n), [(t, lambda tip, x=x: float(np.linalg.norm(tip - x) / R))]))
+        return out
+    raise ValueError(f"not a static spatial problem: {kind!r}")
+
+
+def static_rows(name, case, prov, ks, plan_params=None, size=None) -> list:
+    """Rows of a static spatial problem: every method with its own statics (:func:`statics_of`)
+    that runs the case, at each k of ``ks`` (up to its ``spatial_max_k``); a solve that fails is a
+    failed row with the reason."""
+    from .. import methods
+
+    rows, points = [], static_points(case, prov)
+    for m in _methods(plan_params or ProblemsParams(), prov["quantity"], size, case):
+        fn = statics_of(m)
+        for k in (k for k in ks if methods.runs_on(m, case, k)):
+            for c, steps, quantities in points:
+                r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
+                try:
+                    tip, _ = tip_and_twist(fn(c, k, steps))
+                    vals = [f(tip) for _, f in quantities]
+                except Exception as exc:  # noqa: BLE001 - reported, not dropped (InputError, SimulationError, an engine's own)
+                    msg = " ".join(str(exc).split())[:200]
+                    r.update(status="failed", reason=f"{type(exc).__name__}: {msg}")
+                    vals = [math.nan] * len(quantities)
+                for (t, _), v in zip(quantities, vals):
+                    rows.append(_row(name, prov, t["quantity"], t["target"], r, v, t["scale"], t["group"]))
+    return rows
+
+
 # ----------------------------------------------------------------------------- analysis
-def _row(name, prov, quantity, target, r, value, **extra) -> dict:
-    """One result row: the value against its target, error, relative error, pass/fail."""
+def _row(name, prov, quantity, target, r, value, scale=None, group=None, **extra) -> dict:
+    """One result row: the value against its target, error, relative error (to ``scale`` where
+    given, else to the target), pass/fail by :func:`tolerance_of`."""
     err = abs(value - target) if np.isfinite(value) else math.nan
-    tol = float(prov.get("energy_tolerance") if quantity == "energy_drift" else prov["tolerance"])
-    relative = prov["tolerance_kind"] == "relative" and quantity != "energy_drift"
-    rel = err / abs(target) if target else err
+    tol, kind = tolerance_of(prov, quantity)
+    relative = kind == "relative"
+    rel = err / scale if scale else (err / abs(target) if target else err)
     measure = rel if relative else err
     return {
         "problem": name,
         "quantity": quantity,
+        "group": group or quantity,
         "method": r["method"],
         "k": int(r["k"]),
         "h": float(r["h"]),
@@ -314,6 +562,14 @@ def _values(name, case, prov, res, ref) -> list:
     if kind == "static_tip_displacement":
         v, moved = tip_displacement(res, case, prov["component"])
         return [(kind, v, {"settle_motion": moved, "settled": moved < SETTLE_TOL})]
+    if kind == "tip_extrema":
+        got = tip_extrema(res)
+        out = []
+        for e in prov["extrema"]:
+            v, t = got[e["signal"]][e["kind"]]
+            name = f"{e['signal']} {e['kind']}"
+            out += [(name, v, {}), (f"{name} time", t, {})]
+        return out
     if ref is None:
         return [(kind, math.nan, {"reason": "no reference run"})]
     if kind == "tip_deflection_rms":
@@ -339,10 +595,15 @@ def _run_rows(ctx, name, case, prov, runs) -> list:
         ):
             continue  # the reference itself
         res = ctx.store.history(_task_of(r)) if r["status"] == "ok" else None
-        vals = _values(name, case, prov, res, ref) if res is not None else [(prov["quantity"], math.nan, {})]
+        every = {t["quantity"]: t for t in target_rows(prov)}
+        if res is not None:
+            vals = _values(name, case, prov, res, ref)
+        else:
+            vals = [(q, math.nan, {}) for q in every]
         for quantity, value, extra in vals:
-            target = 0.0 if quantity == "energy_drift" else targets(prov)[0][1]
-            rows.append(_row(name, prov, quantity, target, r, value, **extra))
+            t = every.get(quantity, {"target": 0.0, "group": quantity, "scale": None})
+            target = 0.0 if quantity == "energy_drift" else t["target"]
+            rows.append(_row(name, prov, quantity, target, r, value, t["scale"], t["group"], **extra))
     return rows
 
 
@@ -398,6 +659,9 @@ def analyse(ctx, table):
         info.append(_problem_info(name, prov))
         if prov["quantity"] == "frequencies":
             rows += frequency_rows(name, case, prov, p.ks, p, ctx.plan.name)
+            continue
+        if prov["quantity"] in STATIC_KINDS:
+            rows += static_rows(name, case, prov, p.ks_by_problem.get(name, p.ks), p, ctx.plan.name)
             continue
         runs = table[table.case == name] if len(table) else table
         rows += _run_rows(ctx, name, ctx.cases.get(name, case), prov, runs)
@@ -460,12 +724,20 @@ def _orders(res: pd.DataFrame) -> pd.DataFrame:
     return o[cols]
 
 
+def _targets_text(prov) -> str:
+    t = targets(prov)
+    if len(t) > 8:  # a load sweep: the range, the values are in the problem's table
+        return f"{len(t)} values ({prov.get('value_kind', '')}), see the problem's table"
+    return ", ".join(f"{q} = {v:.6g}" for q, v in t)
+
+
 def _problem_info(name, prov) -> dict:
     return {
         "problem": name,
+        "space": "spatial" if name in SPATIAL_PROBLEMS else "planar",
         "source": prov.get("source", ""),
         "compared": prov.get("compared", ""),
-        "target": ", ".join(f"{q} = {v:.6g}" for q, v in targets(prov)),
+        "target": _targets_text(prov),
         "value_kind": prov.get("value_kind", ""),
         "units": prov.get("units", ""),
         "tolerance": f"{prov.get('tolerance')} ({prov.get('tolerance_kind')})",
