@@ -125,10 +125,11 @@ def test_methods_of_the_spatial_problems():
 
 
 def test_static_rows_dttmm_princeton_and_bend():
-    """DT-TMM's statics on the Princeton sweep at k = 4 (within 2 %, measured ≤ 0.94 %) and the
-    bend at k = 1 (≤ 0.61 % of R, measured): rows in the study's format, every one passing."""
+    """DT-TMM's statics on the Princeton sweep at k = 8 (within 2 %, measured ≤ 0.39 % with the
+    case's Saint-Venant torsion constant) and the bend at k = 1 (≤ 0.61 % of R, measured): rows
+    in the study's format, every one passing."""
     p = B.ProblemsParams(methods=["dttmm"])
-    for name, k in (("princeton_beam", 4), ("bend_45deg", 1)):
+    for name, k in (("princeton_beam", 8), ("bend_45deg", 1)):
         case, prov = B.problems([name])[name]
         rows = pd.DataFrame(B.static_rows(name, case, prov, [k], p, "quick"))
         assert len(rows) == len(B.targets(prov)) and set(rows.method) == {"dttmm"}
@@ -284,20 +285,17 @@ def test_no_statics_and_rigid_rows_say_why():
 # ----------------------------------------------------------------------------- slow tier
 @pytest.mark.slow
 def test_outside_spatial_method_on_the_spatial_problems(tmp_path, cleanup):
-    """The outside wrapper on the three spatial problems at the quick ladders: the bend and the
-    right-angle cantilever pass; the Princeton beam's u_z passes everywhere, its |u_y| at large
-    β is outside 2 % at k = 8 (the case's torsion constant, docs/spatial.md)."""
+    """The outside wrapper on the three spatial problems at the quick ladders: all pass (the
+    Princeton beam within 2 % at k = 8 with the case's Saint-Venant torsion constant; with
+    Exudyn's G (Iyy + Izz) 0.198 its |u_y| at large β would not, docs/spatial.md)."""
     good = tmp_path / "good_spatial.py"
     good.write_text(textwrap.dedent(GOOD_SPATIAL))
     code, rows = _validate(tmp_path, "--quick", "--method", str(good), "--only", ",".join(SPATIAL))
     by = {}
     for r in rows:
         by.setdefault(r["problem"], []).append(r)
-    assert all(r["passed"] for r in by["bend_45deg"] + by["right_angle_cantilever"])
-    assert all(r["passed"] for r in by["princeton_beam"] if r["quantity"].startswith("u_z"))
-    bad = {r["quantity"] for r in by["princeton_beam"] if not r["passed"]}
-    assert bad and all(q.startswith("|u_y|") for q in bad)
-    assert code == V.EXIT_FAILED
+    assert all(r["passed"] for r in by["bend_45deg"] + by["right_angle_cantilever"] + by["princeton_beam"])
+    assert code == V.EXIT_OK
 
 
 @pytest.mark.slow
