@@ -486,6 +486,13 @@ _BUILTIN = (
             *_EXUDYN_SHARED,
         ),
         scans=("elements", "links"),
+        skip=(
+            (
+                "benchmarks:tip_extrema",
+                "a torsion-free cable: the right-angle cantilever's legs twist (its tip extrema came out "
+                "off by a relative 1.7, measured)",
+            ),
+        ),
         label="Exudyn ANCF",
         style=Style("C1", "s", "-", 5),
     ),
