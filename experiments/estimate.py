@@ -41,7 +41,7 @@ def cost_key(method: str, spatial: bool) -> str:
 
 def work(task, case) -> tuple[float, float]:
     """(steps, size) of a task: steps = duration / h, size = joints · (k + 1)."""
-    n = case.n_joints
+    n = max(case.n_joints, 1)  # an arm whose joints are all locked still has its links
     return task.duration / task.h, n * (task.k + 1) if task.k else n
 
 
@@ -53,7 +53,7 @@ def fit(rows) -> dict:
         cpu = float(r.get("timing_cpu_min") or math.nan)
         if r.get("status") != "ok" or not cpu >= MIN_FIT_CPU:
             continue
-        n, k = int(r["n_joints"]), int(r["k"])
+        n, k = max(int(r["n_joints"]), 1), int(r["k"])
         steps, size = float(r["duration"]) / float(r["h"]), n * (k + 1) if k else n
         by.setdefault(cost_key(r["method"], r.get("space") == "spatial"), []).append(
             (math.log(steps), math.log(size), math.log(cpu))
