@@ -21,6 +21,7 @@ the ``--method`` option of ``dttmm report`` and ``dttmm validate``) or the entry
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib
 import importlib.metadata
@@ -1108,6 +1109,28 @@ def _probe_one(name: str, case) -> str | None:
         return f"probe run failed: {type(exc).__name__}: {exc}"
 
 
+def _spatial_probe_case():
+    """A one-link spatial arm for a few steps (compiles or loads the spatial kernel)."""
+    from dttmm import Constant, Drive, Scenario
+    from dttmm.spatial import SpatialCase, SpatialLink, SpatialManipulator, SpatialSection
+
+    beam = SpatialSection(1.0, GJ=1.0, EIy=2.0, EIz=2.0, rhoA=0.3, rhoJ=1e-3, EA=7e6)
+    sc = Scenario(0.004, 0.002, (Drive("torque", Constant(0.1)),))
+    return SpatialCase(SpatialManipulator((SpatialLink(beam),)), sc, "probe")
+
+
+_WARM_SPATIAL = "spatial kernel warm-up"  # the probe's job that compiles the spatial kernel
+
+
+def _warm_spatial(names_) -> list[None]:
+    """Run the first of ``names_`` (methods sharing one spatial engine) on the spatial probe
+    case, so that a compiled spatial engine is compiled once here and its cache is on disk
+    before the sweep's workers start; a failure is left to the runs (they report it)."""
+    with contextlib.suppress(Exception):
+        resolve(names_[0])(_spatial_probe_case(), 1, 0.002)
+    return [None] * len(names_)
+
+
 def _probe_group(names_, probe: bool) -> list[str | None]:
     """:func:`_probe_one` for methods that share one engine module, in order (the first call
     compiles or loads the engine, the rest reuse it)."""
@@ -1151,11 +1174,22 @@ def available(methods=None, *, probe: bool = True, workers: int | None = 1) -> d
     if pool is None:
         reasons = _probe_group(wanted, probe)
         return dict(zip(wanted, reasons, strict=True))
-    first = ("dttmm", "reference_models.global_newmark", "reference_models.assumed_modes")
-    order = sorted(groups, key=lambda mod: first.index(mod) if mod in first else len(first))
+    # the compiled spatial kernel too, in a process of its own, so the sweep's workers load it
+    warm = [n for n in wanted if (m := _EXTRA.get(n) or METHODS.get(n)) and m.spatial == _DTTMM_SPATIAL][:1]
+    first = ("dttmm", _WARM_SPATIAL, "reference_models.global_newmark", "reference_models.assumed_modes")
+    order = sorted(
+        [*groups, *([_WARM_SPATIAL] if warm else [])], key=lambda g: first.index(g) if g in first else 9
+    )
     with pool:
-        futures = {mod: pool.submit(_probe_group, groups[mod], probe) for mod in order}
-        by_name = {
-            n: why for mod, f in futures.items() for n, why in zip(groups[mod], f.result(), strict=True)
+        futures = {
+            g: pool.submit(_warm_spatial, warm)
+            if g == _WARM_SPATIAL
+            else pool.submit(_probe_group, groups[g], probe)
+            for g in order
         }
+        by_name = {}
+        for g, f in futures.items():  # every job, the warm-up too, ends before the sweep starts
+            reasons = f.result()
+            if g != _WARM_SPATIAL:
+                by_name.update(zip(groups[g], reasons, strict=True))
     return {n: by_name[n] for n in wanted}
