@@ -459,3 +459,52 @@ def absent(records: pd.DataFrame) -> list[str]:
         if el[(el.case == c) & (el.method == m)].empty
     ]
     return out + [f"{m} (links scan)" for m in _link_methods() if ln[ln.method == m].empty]
+
+
+# --- The spatial kernel next to the planar one (benchmarks/test_bench_spatial.py) --------------
+SPATIAL_GROUP = "spatial-vs-planar:three_link"
+
+
+def spatial_table(path) -> pd.DataFrame:
+    """CPU µs per element-step of both kernels on three_link (the spatial kernel on the same arm
+    in a tilted plane), from the ``spatial-vs-planar`` group of a pytest-benchmark file: one row
+    per k with planar, spatial and their ratio (empty when the file has no such group)."""
+    data = json.loads(Path(path).read_text())
+    rows = {}
+    for b in data.get("benchmarks", []):
+        e = b.get("extra_info") or {}
+        if b.get("group") != SPATIAL_GROUP or e.get("kernel") not in ("planar", "spatial"):
+            continue
+        k = int(e["elements_per_link"])
+        rows.setdefault(k, {"k": k})[f"{e['kernel']} (µs)"] = _num(e.get("cpu_us_per_element_step"))
+        if e["kernel"] == "spatial":
+            rows[k]["sweeps per step"] = _num(e.get("sweeps_per_step"))
+    cols = ["k", "planar (µs)", "spatial (µs)", "spatial / planar", "sweeps per step"]
+    if not rows:
+        return pd.DataFrame(columns=cols)
+    t = pd.DataFrame(sorted(rows.values(), key=lambda r: r["k"]))
+    for c in cols:
+        if c not in t:
+            t[c] = np.nan
+    t["spatial / planar"] = t["spatial (µs)"] / t["planar (µs)"]
+    return t[cols]
+
+
+def spatial_text(table: pd.DataFrame, n_links: int = 3) -> list[str]:
+    """One sentence on the spatial kernel's cost against the planar one's (none without data)."""
+    d = table.dropna(subset=["planar (µs)", "spatial (µs)"])
+    if d.empty:
+        return []
+    n = n_links * d.k.to_numpy(float)
+    p = {
+        c: float(np.polyfit(np.log(n), np.log(d[c].to_numpy() * n), 1)[0])
+        for c in ("planar (µs)", "spatial (µs)")
+    }
+    r = d["spatial / planar"]
+    return [
+        f"Spatial kernel (three_link in a tilted plane, the same tolerance-driven iteration) against the planar "
+        f"kernel, CPU time per element-step: {_sig2(r.min())}–{_sig2(r.max())}× over k = {int(d.k.min())}…"
+        f"{int(d.k.max())} (table bench_spatial_us); cost ∝ elements^p with p = {p['spatial (µs)']:.2f} "
+        f"(planar {p['planar (µs)']:.2f}). The 6×6 articulated-inertia work alone costs about 4× the planar "
+        "element-step (docs/spatial.md §7)."
+    ]

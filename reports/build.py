@@ -334,6 +334,8 @@ def _bench_section(inp):
         f = inp.figure("bench_links.png", figures.bench_links(rec, ex, bench.N_MIN))
         figs.append((f, "time per step (solve only) against the number of links"))
     text = bench.costs_text(ex, per_el, ratios, k_min=bench.K_MIN, n_min=bench.N_MIN)
+    spatial = bench.spatial_table(latest)
+    text += bench.spatial_text(spatial)
     gone = bench.absent(rec)
     if gone:
         text.append("Absent from this pytest-benchmark file: " + ", ".join(gone) + ".")
@@ -347,6 +349,9 @@ def _bench_section(inp):
         *bench.provenance(info),
     ]
     tabs = [(n, tables[n]) for n in BENCH_TABLES[1:]]
+    if len(spatial):
+        tables["bench_spatial_us"] = spatial
+        tabs.append(("bench_spatial_us", spatial))
     head = next((s for s in text if s.startswith("At equal model size")), None)
     return Section(BENCH_TITLE, figs, text, tabs, "bench", head and f"pytest-benchmark: a{head[1:]}")
 

@@ -279,3 +279,43 @@ def test_code_changed_looks_at_the_timed_code_only(tmp_path):
     assert not bench.code_changed(first, docs, root=tmp_path)
     assert bench.code_changed(docs, code, root=tmp_path)
     assert bench.code_changed("0123456789", code, root=tmp_path)  # unknown commit: cannot tell
+
+
+def test_spatial_kernel_table_from_the_benchmark_file(tmp_path):
+    """The spatial-vs-planar group of a pytest-benchmark file becomes one row per k with both
+    kernels' CPU µs per element-step and their ratio; the text fits both exponents."""
+    import json
+
+    from reports import bench as B
+
+    benches = []
+    for k in (4, 8, 16):
+        for kernel, us in (("planar", 0.3), ("spatial", 3.0 * (4 / k) ** 0.1)):
+            benches.append(
+                {
+                    "name": f"test_element_step[{k}-{kernel}]",
+                    "group": B.SPATIAL_GROUP,
+                    "stats": {"mean": 1.0},
+                    "extra_info": {
+                        "kernel": kernel,
+                        "elements_per_link": k,
+                        "cpu_us_per_element_step": us,
+                        "sweeps_per_step": 4.5,
+                    },
+                }
+            )
+    benches.append(
+        {"name": "other", "group": "elements:three_link:dttmm", "stats": {"mean": 1.0}, "extra_info": {}}
+    )
+    p = tmp_path / "bench.json"
+    p.write_text(json.dumps({"benchmarks": benches}))
+    t = B.spatial_table(p)
+    assert list(t.k) == [4, 8, 16]
+    assert np.allclose(t["spatial / planar"], [10.0, 10.0 * 2**-0.1, 10.0 * 4**-0.1])
+    (text,) = B.spatial_text(t)
+    # planar cost per element-step constant: p = 1; spatial ∝ k^-0.1 per element: p = 0.9
+    assert "p = 0.90 (planar 1.00)" in text and "over k = 4…16" in text
+    assert B.spatial_table(tmp_path / "bench.json").shape[0] == 3
+    q = tmp_path / "none.json"
+    q.write_text(json.dumps({"benchmarks": benches[-1:]}))
+    assert B.spatial_table(q).empty and B.spatial_text(B.spatial_table(q)) == []
