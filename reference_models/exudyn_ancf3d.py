@@ -50,7 +50,6 @@ constrained eigenvalues at t = 0.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
@@ -60,7 +59,13 @@ from dttmm.spatial import SpatialCase, SpatialResult, load_case
 from dttmm.spatial.rotation import log_so3
 
 from ._spatial_mechanics import rot_axis, rpy_matrix
-from .exudyn_beam3d import _axis_frame, _check_tip_loads, _initial_joint_states, reference_frames
+from .exudyn_beam3d import (
+    _axis_frame,
+    _check_tip_loads,
+    _initial_joint_states,
+    reference_frames,
+    run_segments,
+)
 
 __all__ = ["METHOD", "TWIST_LOCKS", "check_case", "frequencies", "simulate", "statics"]
 
@@ -465,40 +470,6 @@ def _abs_tol(case, B, value):
     return max(1e3 * np.finfo(float).eps * B["kmax"] * chain, 1e-8)
 
 
-def _run_segments(mbs, exu, s, ti, segments, h, seg_start, B, sensors, rows):
-    """SolveDynamic over the segments (restarting at each); the sensor rows go to ``rows``.
-    Returns (wall, cpu, Newton iterations, steps, Jacobians, failure message or None, it)."""
-    wall = cpu = 0.0
-    newton = steps = jacobians = 0
-    failure = it = None
-    for a, b in segments:
-        seg_start[0] = a * h
-        B["set_inputs"](a * h, False)
-        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
-        t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
-            err = None
-        except Exception as exc:  # Exudyn raises on singular Jacobians
-            ok, err = False, exc
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        it = mbs.sys["dynamicSolver"].it
-        steps += max(int(it.currentStepIndex) - 1, 0)
-        newton += int(it.newtonStepsCount)
-        jacobians += int(it.newtonJacobiCount)
-        for sn in sensors:
-            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
-            rows[sn].append(d if not rows[sn] else d[1:])
-        if not ok:
-            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
-            break
-        mbs.systemData.SetSystemState(
-            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
-        )
-    return wall, cpu, newton, steps, jacobians, failure, it
-
-
 def simulate(
     case,
     *,
@@ -606,7 +577,9 @@ def simulate(
     check_allocations = exu_solver.solverCheckMemoryAllocations
     exu_solver.solverCheckMemoryAllocations = False
     try:
-        segments_run = _run_segments(mbs, exu, s, ti, segments, h, seg_start, B, all_sensors, rows)
+        segments_run = run_segments(
+            mbs, exu, s, ti, segments, h, seg_start, B["set_inputs"], all_sensors, rows
+        )
     finally:
         exu_solver.solverCheckMemoryAllocations = check_allocations
     wall, cpu, newton, steps, jacobians, failure, it = segments_run

@@ -373,6 +373,40 @@ def _build(case, k, shear_ratio, node, loads):
     )
 
 
+def run_segments(mbs, exu, s, ti, segments, h, seg_start, set_inputs, sensors, rows):
+    """SolveDynamic over the segments (restarting at each); the sensor rows go to ``rows``.
+    Returns (wall, cpu, Newton iterations, steps, Jacobians, failure message or None, it)."""
+    wall = cpu = 0.0
+    newton = steps = jacobians = 0
+    failure = it = None
+    for a, b in segments:
+        seg_start[0] = a * h
+        set_inputs(a * h, False)
+        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
+        t0, c0 = time.perf_counter(), time.process_time()
+        try:
+            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
+            err = None
+        except Exception as exc:  # Exudyn raises on singular Jacobians
+            ok, err = False, exc
+        wall += time.perf_counter() - t0
+        cpu += time.process_time() - c0
+        it = mbs.sys["dynamicSolver"].it
+        steps += max(int(it.currentStepIndex) - 1, 0)
+        newton += int(it.newtonStepsCount)
+        jacobians += int(it.newtonJacobiCount)
+        for sn in sensors:
+            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
+            rows[sn].append(d if not rows[sn] else d[1:])
+        if not ok:
+            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
+            break
+        mbs.systemData.SetSystemState(
+            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
+        )
+    return wall, cpu, newton, steps, jacobians, failure, it
+
+
 def simulate(
     case,
     *,
@@ -583,33 +617,9 @@ def simulate(
     if energy and has_g:
         all_sensors += s_pos_all + s_body_pos
     rows = {sn: [] for sn in all_sensors}
-    wall = cpu = 0.0
-    newton = steps = 0
-    failure = None
-    for a, b in segments:
-        seg_start[0] = a * h
-        set_inputs(a * h, False)
-        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
-        t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
-            err = None
-        except Exception as exc:  # Exudyn raises on singular Jacobians
-            ok, err = False, exc
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        it = mbs.sys["dynamicSolver"].it
-        steps += max(int(it.currentStepIndex) - 1, 0)
-        newton += int(it.newtonStepsCount)
-        for sn in all_sensors:
-            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
-            rows[sn].append(d if not rows[sn] else d[1:])
-        if not ok:
-            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
-            break
-        mbs.systemData.SetSystemState(
-            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
-        )
+    wall, cpu, newton, steps, _, failure, it = run_segments(
+        mbs, exu, s, ti, segments, h, seg_start, set_inputs, all_sensors, rows
+    )
     if failure is not None:
         raise SimulationError(
             f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"

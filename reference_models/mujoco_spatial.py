@@ -80,6 +80,7 @@ from dttmm.timegrid import step_schedule
 
 from ._mujoco_model import _MJCF_NAME, INTEGRATORS
 from .mujoco_chain import _free_controls, _run_motion, _run_torque
+from .mujoco_chain import _Stepper as _PlanarStepper
 
 __all__ = [
     "INTEGRATORS",
@@ -453,9 +454,9 @@ def statics(case, elements_per_link: int, *, loads=None, angles=None, tol: float
     }
 
 
-class _Stepper:
+class _Stepper(_PlanarStepper):
     """Model, data, drives and state handling of one run (the interface of the planar chain's
-    stepping loops)."""
+    stepping loops; its ``step`` is the planar chain's)."""
 
     def __init__(self, case, k, h, integrator, station):
         self.mj = mujoco
@@ -484,18 +485,6 @@ class _Stepper:
         x = np.empty(self.nstate)
         mujoco.mj_getState(self.m, d, x, self.spec)
         return x
-
-    def step(self, x, dt, ctrl):
-        """One mj_step of size dt from the state x with the motor controls ctrl."""
-        m, d = self.m, self.d
-        mujoco.mj_setState(m, d, x, self.spec)
-        m.opt.timestep = dt
-        d.ctrl[:] = ctrl
-        mujoco.mj_step(m, d)
-        m.opt.timestep = self.h
-        out = np.empty(self.nstate)
-        mujoco.mj_getState(m, d, out, self.spec)
-        return out
 
 
 def _outputs(st, X, t, ctrl, T):
