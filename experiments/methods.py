@@ -535,6 +535,7 @@ _BUILTIN = (
         # (generalized-α ρ∞ = 1: with 0.8 Newton failed on three_joint_arm at k = 4, h = 5e-4, measured)
         spatial="reference_models.exudyn_beam3d:simulate",
         spatial_options=(),
+        spatial_check="reference_models.exudyn_beam3d:check_case",
         label="Exudyn GE beam",
         style=Style("C2", "D", "-", 5),
     ),

@@ -274,3 +274,21 @@ def test_bad_input_is_refused():
         xb.simulate(c, elements_per_link=2, h=0.3)
     with pytest.raises(InputError, match="case"):
         xb.simulate(object(), elements_per_link=2, h=0.1)
+
+
+def test_damped_links_are_refused_and_the_method_sits_them_out():
+    """Exudyn's ObjectBeamGeometricallyExact ignores BeamSection.dampingMatrix: the peer refuses a
+    damped link instead of running it undamped, and the harness lists the case as one it cannot
+    run (the DT-TMM still runs it)."""
+    from dataclasses import replace
+
+    from experiments import methods
+
+    arm = load_case(CASES / "three_joint_arm.toml")
+    links = tuple(replace(l, beam=replace(l.beam, damping=0.01)) for l in arm.model.links)
+    damped = replace(arm, model=replace(arm.model, links=links))
+    with pytest.raises(InputError, match=r"model\.links\[0\]\.beam\.damping.*ignores"):
+        xb.simulate(damped, elements_per_link=2, h=1e-3)
+    assert methods.runs_on("exudyn-beam", arm) and not methods.runs_on("exudyn-beam", damped)
+    assert "damping" in methods.get("exudyn-beam").why_not_case(damped)
+    assert methods.runs_on("dttmm", damped)
