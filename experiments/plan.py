@@ -248,16 +248,23 @@ def _plan(
 # (experiments/cases/spatial/): the quick size runs short ladders, about 16 s of CPU in all
 # (measured: the Princeton sweep is 14 equilibria per k, 4 s at k = 4 for its three methods;
 # the 45° bend's 8 links cost 4 s of statics at k = 1; the right-angle cantilever 8 s at k = 4
-# and 8, most of it the ANCF cable), the full size the ladders to k = 32 (the bend to k = 8:
+# and 8, most of it the ANCF cable; the bang-bang arm 3 s at k = 4 and 8, most of it Exudyn's
+# beam), the full size the ladders to k = 32 (the bend to k = 8:
 # 8 links of k elements each)
 _KS_BY_PROBLEM = {"pendulum_berzeri": [2, 4, 8, 16, 32, 64]}
 _SPATIAL_KS = {
     # Princeton at k = 8: at k = 4 the element's error reaches 2.2 % in |u_y| at large β (docs/spatial.md)
-    "quick": {"princeton_beam": [8], "bend_45deg": [1], "right_angle_cantilever": [4, 8]},
+    "quick": {
+        "princeton_beam": [8],
+        "bend_45deg": [1],
+        "right_angle_cantilever": [4, 8],
+        "bang_bang_arm": [4, 8],
+    },
     "full": {
         "princeton_beam": [2, 4, 8, 16, 32],
         "bend_45deg": [1, 2, 4, 8],
         "right_angle_cantilever": [2, 4, 8, 16, 32],
+        "bang_bang_arm": [2, 4, 8, 16, 32],
     },
 }
 _BENCH = {

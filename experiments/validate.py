@@ -545,7 +545,7 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
     why = _missing(rec, _needs(case)) or run.step_unknown
     if why:
         return _not_run(rec.name, check, problem, kind, why, reference=targets[0][1], **kw)
-    h = problems_study.SETTINGS[kind]["h"]
+    h = problems_study.step_of(prov)
     vals, cpu, reason = [], 0.0, ""
     for k in ks:
         res, c, why = run.run(case, k, run.step(k, h))
@@ -669,7 +669,7 @@ def _spatial_problem(run: Runner, problem: str, case, prov) -> list:
         why = run.step_unknown
         if why:
             return not_run(why)
-        h = problems_study.SETTINGS[kind]["h"]
+        h = problems_study.step_of(prov)
         for k in ks:
             res, c, w = run.run(case, k, run.step(k, h))
             cpu += c if np.isfinite(c) else 0.0

@@ -381,7 +381,9 @@ def check_case(case):
         raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase or a path to one")
     for d in case.scenario.drives:
         if d.closed_loop:
-            raise InputError("scenario.drives", d.law.name, f"closed-loop drives are not supported by {METHOD}")
+            raise InputError(
+                "scenario.drives", d.law.name, f"closed-loop drives are not supported by {METHOD}"
+            )
     for i, link in enumerate(case.model.links):
         if link.beam.damping:
             raise InputError(

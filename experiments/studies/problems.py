@@ -41,7 +41,7 @@ NAME = "benchmarks"
 CASE_DIR = Path(__file__).resolve().parents[1] / "cases" / "benchmarks"
 SPATIAL_DIR = CASE_DIR.parent / "spatial"
 #: the spatial benchmark problems (case files in SPATIAL_DIR, with a [provenance] table)
-SPATIAL_PROBLEMS = ("princeton_beam", "bend_45deg", "right_angle_cantilever")
+SPATIAL_PROBLEMS = ("princeton_beam", "bend_45deg", "right_angle_cantilever", "bang_bang_arm")
 #: kinds solved by the method's own statics (no time integration, no sweep run)
 STATIC_KINDS = ("static_tip_displacement_3d", "static_tip_position_error")
 
@@ -197,15 +197,36 @@ def _reference(ctx, case, task):
     from ..references import RefSpec, reference
 
     folder = Path(ctx.data) / "references" / ctx.plan.name
-    res, _ = reference(case, [RefSpec(task.method, task.k, task.h)], folder, size=ctx.plan.name)
+    spec = RefSpec(task.method, task.k, task.h, task.options)
+    res, _ = reference(case, [spec], folder, size=ctx.plan.name)
     return res
+
+
+def step_of(prov: dict) -> float:
+    """The step (s) a problem's runs take: its provenance's ``step`` (with the reason in
+    ``step_note``), else the step of its kind (:data:`SETTINGS`)."""
+    h = prov.get("step", SETTINGS[prov["quantity"]].get("h"))
+    if isinstance(h, bool) or not isinstance(h, (int, float)) or not h > 0:
+        raise ValueError(f"step = {h!r}: must be a positive step (s)")
+    return float(h)
+
+
+def peer_options(prov: dict, method: str) -> tuple:
+    """The (name, value) options a problem gives ``method`` (its ``peer_options`` table: method
+    name -> options, with the reason in ``peer_options_note``), for its runs and its reference
+    run; () when it gives none."""
+    table = prov.get("peer_options") or {}
+    if not isinstance(table, dict) or not all(isinstance(v, dict) for v in table.values()):
+        raise ValueError(f"peer_options = {table!r}: must map method names to tables of options")
+    return tuple(sorted(table.get(method, {}).items()))
 
 
 def _ref_task(name, case, prov):
     r = prov.get("reference")
     if not r:
         return None
-    return Task(name, r["method"], int(r["k"]), float(r["h"]), case.scenario.duration)
+    m = r["method"]
+    return Task(name, m, int(r["k"]), float(r["h"]), case.scenario.duration, peer_options(prov, m))
 
 
 # ----------------------------------------------------------------------------- tasks
@@ -262,11 +283,11 @@ def tasks(ctx) -> list:
         kind = prov["quantity"]
         if kind == "frequencies" or kind in STATIC_KINDS:
             continue
-        T, h = ctx.cases[name].scenario.duration, SETTINGS[kind]["h"]
+        T, h = ctx.cases[name].scenario.duration, step_of(prov)
         for m in _methods(p, kind, ctx.plan.name, ctx.cases[name]):
             ks = [0] if not uses_k(m) else p.ks_by_problem.get(name, p.ks)
             ks = [k for k in ks if k <= k_limit(m, NAME, ctx.plan.name)]
-            out += [Task(name, m, k, h, T) for k in ks]
+            out += [Task(name, m, k, h, T, peer_options(prov, m)) for k in ks]
     return list(dict.fromkeys(out))
 
 
@@ -337,6 +358,11 @@ def tip_deflection_rms(res, ref) -> float:
     n = _on_grid(res, ref)
     d = res.tip_deflection[:n, -1] - ref.tip_deflection[:n, -1]
     return float(np.sqrt(np.mean(d**2)) / np.max(np.abs(ref.tip_deflection[:n, -1])))
+
+
+def reach(case) -> float:
+    """The sum of the link lengths (m)."""
+    return float(sum(link.beam.length for link in case.model.links))
 
 
 def tip_path_rms(res, ref, length: float) -> float:
@@ -575,8 +601,8 @@ def _values(name, case, prov, res, ref) -> list:
     if kind == "tip_deflection_rms":
         return [(kind, tip_deflection_rms(res, ref), {})]
     if kind == "tip_path_rms":
-        out = [(kind, tip_path_rms(res, ref, case.model.links[0].beam.length), {})]
-        drift = energy_drift(res, case)
+        out = [(kind, tip_path_rms(res, ref, reach(case)), {})]
+        drift = energy_drift(res, case) if "energy_tolerance" in prov else math.nan
         if np.isfinite(drift):
             out.append(("energy_drift", drift, {}))
         return out
@@ -594,7 +620,7 @@ def _run_rows(ctx, name, case, prov, runs) -> list:
             ref_task.h,
         ):
             continue  # the reference itself
-        res = ctx.store.history(_task_of(r)) if r["status"] == "ok" else None
+        res = ctx.store.history(_task_of(r, prov)) if r["status"] == "ok" else None
         every = {t["quantity"]: t for t in target_rows(prov)}
         if res is not None:
             vals = _values(name, case, prov, res, ref)
@@ -607,8 +633,9 @@ def _run_rows(ctx, name, case, prov, runs) -> list:
     return rows
 
 
-def _task_of(r):
-    return Task(r["case"], r["method"], r["k"], r["h"], r["duration"])
+def _task_of(r, prov=None):
+    opts = peer_options(prov, r["method"]) if prov else ()
+    return Task(r["case"], r["method"], r["k"], r["h"], r["duration"], opts)
 
 
 _FAILS = (ImportError, ValueError, ArithmeticError, np.linalg.LinAlgError)
