@@ -58,8 +58,8 @@ def reduced_plan(size: str = "quick"):
         p = base.studies[name]
         if hasattr(p, "cases"):
             p = replace(p, cases=[CASE])
-        if hasattr(p, "case"):
-            p = replace(p, case=CASE)
+        if hasattr(p, "case"):  # the cost study on CASE alone (no spatial arm)
+            p = replace(p, case=CASE, spatial_case="", spatial_ks=())
         studies[name] = p
     return replace(
         base,
@@ -143,7 +143,8 @@ def headlines(tables: dict, case: str = CASE) -> pd.DataFrame:
     cost = cost[(cost.case == case) & (cost.status == "ok")]
     for k, g in cost.groupby("k"):
         rows += _ratio_rows(dict(zip(g.method, g.cpu_time)), "cost_ratio", f"k = {int(k)} vs {BASE}")
-    for r in tables["cost_exponents"].itertuples():
+    ex = tables["cost_exponents"]
+    for r in ex[ex.case == case].itertuples():
         rows.append({"kind": "cost_exponent", "where": "k >= 2", "method": r.method, "value": r.exponent})
     return pd.DataFrame(rows, columns=["kind", "where", "method", "value"])
 

@@ -215,17 +215,35 @@ class PaperParams(StudyParams):
 
 @dataclass(frozen=True, kw_only=True)
 class CostParams(StudyParams):
-    """CPU time against k: every flexible method at each k of ``ks`` and step ``h`` on one case."""
+    """CPU time against k: every flexible method at each k of ``ks`` and step ``h`` on ``case``
+    (a planar arm), and at each k of ``spatial_ks`` and the same h on ``spatial_case`` (a
+    spatial arm; '' and no ``spatial_ks``: none)."""
 
     STUDY = "cost"
     case: str = "three_link"
     ks: list | tuple = ()
     h: float = 1e-3
+    spatial_case: str = ""
+    spatial_ks: list | tuple = ()
 
     def check(self):
         self.need("case", isinstance(self.case, str), "must be a case name")
         self.need("ks", _ints(self.ks), "must be positive integers")
         self.need("h", _step(self.h), "must be a positive step (s)")
+        self.need("spatial_case", isinstance(self.spatial_case, str), "must be a case name or '' (none)")
+        self.need(
+            "spatial_case", not self.spatial_case or self.spatial_case != self.case, "must differ from case"
+        )
+        self.need("spatial_ks", _ints(self.spatial_ks), "must be positive integers")
+        if self.spatial_case:
+            self.need("spatial_ks", len(self.spatial_ks) > 0, "must name the k values of spatial_case")
+        else:
+            self.need("spatial_ks", len(self.spatial_ks) == 0, "needs a spatial_case")
+
+    def case_ks(self) -> list[tuple[str, tuple]]:
+        """(case, its ks) of every case the study times: ``case`` first, then ``spatial_case``."""
+        out = [(self.case, tuple(self.ks))]
+        return out + ([(self.spatial_case, tuple(self.spatial_ks))] if self.spatial_case else [])
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -147,8 +147,12 @@ def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
     for s, p in base.studies.items():
         if hasattr(p, "cases"):
             p = replace(p, cases=names)
-        if hasattr(p, "case"):
-            p = replace(p, case=names[-1])
+        if hasattr(p, "case"):  # the cost study times the last case given, alone
+            p = replace(
+                p,
+                case=names[-1],
+                **({"spatial_case": "", "spatial_ks": ()} if hasattr(p, "spatial_case") else {}),
+            )
         studies[s] = p
     return replace(
         base,
@@ -208,6 +212,8 @@ def _plan(
     bench,
     control,
     cost_case="three_link",
+    cost_spatial_case="three_joint_arm",
+    cost_spatial_ks=(),
 ):
     ref, chk = _refs(*ref_kh)
     cases = list(durations)
@@ -233,7 +239,18 @@ def _plan(
                 # reference's k and h (also the reference's cross-check)
                 energy_reference={"k": ref_kh[0], "h": ref_kh[1]},
             ),
-            "cost": CostParams(case=cost_case, ks=cost_ks, h=1e-3),
+            # the spatial arm (when the plan has it) at convergence_k's h: its runs up to the
+            # largest k of convergence_k are shared with that study, timed here with repeats
+            "cost": CostParams(
+                case=cost_case,
+                ks=cost_ks,
+                h=1e-3,
+                **(
+                    {"spatial_case": cost_spatial_case, "spatial_ks": cost_spatial_ks}
+                    if cost_spatial_case in durations and cost_spatial_ks
+                    else {}
+                ),
+            ),
             "benchmarks": bench,
             "control": control,
         },
@@ -315,6 +332,7 @@ PLANS = {
         path=[(2, 4e-3), (4, 2e-3), (8, 1e-3), (16, 5e-4)],
         rk4_h=[1e-4, 2e-5, 1e-5],
         cost_ks=[1, 2, 4, 8, 16, 32],
+        cost_spatial_ks=[1, 2, 4, 8, 16, 32],
         scheme_ks=[1, 2, 4, 8, 16],
         note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s, the spatial "
         "three_joint_arm to its first 0.6 s (the torque pulses and 0.1 s of free motion); "
@@ -333,6 +351,7 @@ PLANS = {
         path=[(2, 4e-3), (4, 2e-3), (8, 1e-3), (16, 5e-4), (32, 2.5e-4)],
         rk4_h=[1e-4, 2e-5, 1e-5, 5e-6, 2.5e-6],
         cost_ks=[1, 2, 4, 8, 16, 32, 64],
+        cost_spatial_ks=[1, 2, 4, 8, 16, 32, 64],
         scheme_ks=[1, 2, 4, 8, 16, 32],
         note="full size: the cases as written; " + _GRID_NOTE["full"],
         variants=_VARIANTS_FULL,

@@ -14,7 +14,7 @@ from .plan import PLANS
 from .studies import STUDIES
 from .sweep import run_sweep
 
-__all__ = ["add_cases", "run_studies", "save_tables", "load_tables", "study_main"]
+__all__ = ["add_cases", "load_tables", "run_studies", "save_tables", "study_main", "study_tasks"]
 
 
 def add_cases(ctx, names=None) -> None:
@@ -29,16 +29,19 @@ def add_cases(ctx, names=None) -> None:
             ctx.cases[name] = case
 
 
+def study_tasks(ctx, name: str) -> list:
+    """The runs of study ``name``: its module's tasks, each kept where its method runs the case
+    at that k. One rule for every study: a spatial arm needs a method with a spatial entry, up to
+    its ``spatial_max_k`` (``Method.runs_on``, experiments/methods.py). The studies' own cases
+    must be in ``ctx.cases`` (:func:`add_cases`)."""
+    return [t for t in STUDIES[name].tasks(ctx) if methods.runs_on(t.method, ctx.cases[t.case], t.k)]
+
+
 def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True) -> dict:
     """Run the studies ``names`` (default: every study of the plan) and return their tables."""
     names = [n for n in (names or STUDIES) if n in ctx.plan.studies]
     add_cases(ctx, names)
-    # one rule for every study: a method runs the cases it can (a spatial arm needs a method
-    # with a spatial entry, experiments/methods.py)
-    per_study = {
-        n: [t for t in STUDIES[n].tasks(ctx) if methods.runs_on(t.method, ctx.cases[t.case], t.k)]
-        for n in names
-    }
+    per_study = {n: study_tasks(ctx, n) for n in names}
     every = [t for ts in per_study.values() for t in ts]
     repeats = {}  # timed calls per run: the most any study that reports cost asks for
     for n, ts in per_study.items():

@@ -261,9 +261,11 @@ def _cost(inp):
         return None
     text = peers.cost_text(t, e)
     fig = inp.figure("cost.png", peers.cost_figure(t, e))
+    from experiments.studies.cost import case_order
+
     caption = (
-        f"{_cases(t)[0]}: CPU time of the solve (minimum of repeats) against elements per link k "
-        f"at h = {_h(t)}; hollow markers: noisy points"
+        f"{' and '.join(case_order(t))}: CPU time of the solve (minimum of repeats) against elements per "
+        f"link k at h = {_h(t)}, one panel per case; hollow markers: noisy points"
     )
     return Section(
         "CPU time against elements per link", [(fig, caption)], text, [("cost_exponents", e)], "cost", text[0]

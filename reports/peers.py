@@ -77,19 +77,52 @@ def _timed(t: pd.DataFrame) -> pd.DataFrame:
     return timing_columns(t)
 
 
+def _cost_cases(t: pd.DataFrame) -> list[tuple[str, bool]]:
+    """(case, spatial) of every case of a cost table, planar arms first (cost.case_order)."""
+    from experiments.studies.cost import case_order, spatial_cases
+
+    spatial = spatial_cases(t)
+    return [(c, c in spatial) for c in case_order(t)]
+
+
+def _case_title(case: str, spatial: bool) -> str:
+    return f"{case} ({'spatial' if spatial else 'planar'})"
+
+
+def _exponents_of(exponents: pd.DataFrame, case: str) -> dict:
+    """method -> fitted exponent on ``case`` (a table without a case column: one case)."""
+    if exponents is None or not len(exponents):
+        return {}
+    e = exponents[exponents.case == case] if "case" in exponents else exponents
+    return dict(zip(e.method, e.exponent))
+
+
 def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
-    """CPU time (least of the repeats; bar to the median) against k, one line per method;
+    """CPU time (least of the repeats; bar to the median) against k, one panel per case side by
+    side (planar arms first, then spatial ones), each titled with its case, one line per method;
     noisy points (machine loaded or wide spread) drawn hollow."""
-    fig = Figure(figsize=(6.0, 5.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
     t = _timed(table)
+    cases = _cost_cases(t) or [("", False)]
+    fig = Figure(figsize=(6.0 * len(cases), 5.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, len(cases), squeeze=False).ravel()
     t = t[(t.status == "ok") & (t.k > 0)]
-    ex = dict(zip(exponents.method, exponents.exponent)) if len(exponents) else {}
-    for i, (m, g) in enumerate(t.groupby("method", sort=False)):
+    order = list(dict.fromkeys(t.method))  # one style per method in every panel
+    for ax, (case, spatial) in zip(axes, cases):
+        _cost_panel(ax, t[t.case == case], _exponents_of(exponents, case), order)
+        n = int(t[t.case == case].repeats.min()) if (t.case == case).any() else 0
+        ax.set(
+            ylabel=f"CPU time (s), least of ≥ {n} runs",  # short runs are called more often (timing.MIN_CPU)
+            title=f"{_case_title(case, spatial)}: CPU time against k (hollow: noisy)" if case else "",
+        )
+    return fig
+
+
+def _cost_panel(ax, t: pd.DataFrame, ex: dict, order: list) -> None:
+    for m, g in t.groupby("method", sort=False):
         g = g.sort_values("k")
         p = ex.get(m, np.nan)
-        st = _style(m, i)
+        st = _style(m, order.index(m))
         c = st.color
         ax.loglog(
             g.k,
@@ -106,27 +139,26 @@ def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
     ks = sorted({int(k) for k in t.k})
     ax.set_xticks(ks, [str(k) for k in ks])
     ax.minorticks_off()
-    case = t.case.iloc[0] if len(t) else ""
-    n = int(t.repeats.min()) if len(t) else 0  # short runs are called more often (timing.MIN_CPU)
-    ax.set(
-        xlabel="elements per link k",
-        ylabel=f"CPU time (s), least of ≥ {n} runs",
-        title=f"{case}: CPU time against k (hollow: noisy)",
-    )
+    ax.set(xlabel="elements per link k")
     _legend(ax, ncol=1)
-    return fig
 
 
 def cost_text(table: pd.DataFrame, exponents: pd.DataFrame) -> list[str]:
-    """Sentences under the cost figure: exponents, noise, and the timing protocol."""
+    """Sentences under the cost figure: exponents per case, the methods a spatial arm runs only
+    in part, noise and the timing protocol, and where DT-TMM overtakes the global solver."""
     t = _timed(table)
+    cases = _cost_cases(t)
     ex = exponents[np.isfinite(exponents.exponent)] if len(exponents) else exponents
-    out = [
-        "Fitted exponents of CPU time ∝ k^p (k ≥ 2): "
-        + (", ".join(f"{_label(r.method)} p = {r.exponent:.2f}" for r in ex.itertuples()) or "none")
-        + "."
-    ]
+
+    def fitted(case):
+        e = ex[ex.case == case] if "case" in ex else ex
+        return ", ".join(f"{_label(r.method)} p = {r.exponent:.2f}" for r in e.itertuples()) or "none"
+
+    per_case = [f"on {_case_title(c, s)} {fitted(c)}" for c, s in cases] or [fitted("")]
+    head = "Fitted exponents of CPU time ∝ k^p (k ≥ 2): " + "; ".join(per_case) + "."
+    out = [head]
     ok = t[t.status == "ok"]
+    out += _spatial_limits(ok, cases)
     n_noisy = int(ok.noisy.sum())
     reps = sorted({int(x) for x in ok.repeats}) if len(ok) else []
     n_runs = "?" if not reps else str(reps[0]) if len(reps) == 1 else f"{reps[0]}–{reps[-1]}"
@@ -136,14 +168,61 @@ def cost_text(table: pd.DataFrame, exponents: pd.DataFrame) -> list[str]:
         "are noisy (hollow: load above the core count, or median more than 10 % above the least): "
         "read their differences under about 20 % as noise."
     )
-    out += crossover_text(ok)
+    first_planar = next((c for c, s in cases if not s), None)  # the per-step scaling: once, after it
+    for case, spatial in cases:
+        out += crossover_text(
+            ok[ok.case == case],
+            SCALING_CSV if case == first_planar else None,
+            case=case if len(cases) > 1 else "",
+            spatial=spatial,
+        )
     return out
 
 
-def crossover_text(ok: pd.DataFrame, scaling_csv="data/bench/global_scaling.csv") -> list[str]:
-    """Where DT-TMM overtakes the compiled global solver: in k from the cost table (same linear
-    element, same h), and in k and n from ``python -m experiments.global_scaling`` when its table
-    is there."""
+def _spatial_limits(ok: pd.DataFrame, cases: list) -> list[str]:
+    """For each spatial arm: the methods of the planar panels that sit it out, and those that
+    run it only up to their spatial k limit (``Method.spatial_max_k``, set for their cost)."""
+    from experiments import methods
+
+    def limit(m):
+        try:
+            return methods.get(m).spatial_max_k
+        except methods.MethodUnavailable:
+            return float("inf")
+
+    planar = list(dict.fromkeys(ok[ok.case.isin([c for c, s in cases if not s])].method))
+    out = []
+    for case in (c for c, s in cases if s):
+        g = ok[ok.case == case]
+        here = list(dict.fromkeys(g.method))
+        k_lo, k_hi = (int(g.k.min()), int(g.k.max())) if len(g) else (0, 0)
+        below = [m for m in planar if m not in here and limit(m) < k_lo]
+        absent = [m for m in planar if m not in here and m not in below]
+        parts = []
+        if absent:
+            verb = "sits" if len(absent) == 1 else "sit"
+            parts.append(f"{', '.join(map(_label, absent))} {verb} it out (the Cases section says why)")
+        parts += [
+            f"{_label(m)} runs it up to k = {int(limit(m))} only (its spatial k limit, set for cost)"
+            for m in [*here, *below]
+            if limit(m) < k_hi
+        ]
+        if parts:
+            out.append(f"On {_case_title(case, True)}: " + "; ".join(parts) + ".")
+    return out
+
+
+SCALING_CSV = "data/bench/global_scaling.csv"
+
+
+def crossover_text(
+    ok: pd.DataFrame, scaling_csv=SCALING_CSV, *, case: str = "", spatial: bool = False
+) -> list[str]:
+    """Where DT-TMM overtakes the global solver: in k from the cost table of one case (same
+    linear element, same h; ``case`` names it in the sentence; nothing where the global solver
+    has no point: a spatial arm's global solver runs small k only), and for a planar case in k
+    and n from ``python -m experiments.global_scaling`` when ``scaling_csv`` is given and there
+    (:func:`scaling_text`)."""
     from experiments.methods import same_equations
 
     out = []
@@ -162,12 +241,27 @@ def crossover_text(ok: pd.DataFrame, scaling_csv="data/bench/global_scaling.csv"
                 if len(faster)
                 else "at no k measured"
             )
+            solver = (
+                "the spatial global solver (one dense system, numpy)"
+                if spatial
+                else "the compiled global solver"
+            )
+            prefix = f"{_case_title(case, spatial)}: " if case else ""
             out.append(
-                f"DT-TMM (Newmark) against the compiled global solver (same element, same h): DT-TMM is "
+                f"{prefix}DT-TMM (Newmark) against {solver} (same element, same h): DT-TMM is "
                 f"cheaper {where}; time ratio global / DT-TMM "
                 + ", ".join(f"{sig2(v)} at k = {int(k)}" for k, v in ratio.items())
                 + "."
             )
+    if scaling_csv is not None and not spatial:
+        out += scaling_text(scaling_csv)
+    return out
+
+
+def scaling_text(scaling_csv=SCALING_CSV) -> list[str]:
+    """Where DT-TMM overtakes the compiled global solver per step, in k and n (planar arms), from
+    ``python -m experiments.global_scaling`` when its table is there."""
+    out = []
     try:
         sc = pd.read_csv(scaling_csv)
     except (OSError, ValueError):

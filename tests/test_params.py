@@ -35,6 +35,24 @@ def test_a_dict_becomes_the_record_in_the_plan():
     assert study_params("cost", plan.studies["cost"]) is plan.studies["cost"]
 
 
+def test_the_plans_time_the_spatial_arm_in_the_cost_study():
+    for size, ks in (("quick", (1, 2, 4, 8, 16, 32)), ("full", (1, 2, 4, 8, 16, 32, 64))):
+        cost = PLANS[size].studies["cost"]
+        assert cost.case_ks() == [("three_link", ks), ("three_joint_arm", ks)], size
+        assert cost.h == PLANS[size].studies["convergence_k"].h  # its runs are convergence_k's
+        # the spatial ks reach at least convergence_k's: every spatial run of that study is timed
+        assert set(PLANS[size].studies["convergence_k"].ks) <= set(cost.spatial_ks)
+    # without a spatial case the record is the planar one alone, as before
+    assert CostParams(case="single_link", ks=[1, 2], h=1e-3).case_ks() == [("single_link", (1, 2))]
+
+
+def test_case_files_from_the_command_line_get_a_planar_only_cost_study():
+    from experiments.plan import plan_for
+
+    plan = plan_for("quick", ["experiments/cases/single_link.toml"])
+    assert plan.studies["cost"].case_ks() == [("single_link", (1, 2, 4, 8, 16, 32))]
+
+
 @pytest.mark.parametrize(
     "study, values, field, value",
     [
@@ -49,6 +67,16 @@ def test_a_dict_becomes_the_record_in_the_plan():
             "1e-3",
         ),
         ("cost", {"kss": [1]}, "plan.studies.cost", "kss"),
+        ("cost", {"spatial_case": 3, "spatial_ks": [1]}, "plan.studies.cost.spatial_case", 3),
+        ("cost", {"spatial_case": "three_link"}, "plan.studies.cost.spatial_case", "three_link"),
+        ("cost", {"spatial_case": "three_joint_arm"}, "plan.studies.cost.spatial_ks", ()),
+        ("cost", {"spatial_ks": [1, 2]}, "plan.studies.cost.spatial_ks", [1, 2]),
+        (
+            "cost",
+            {"spatial_case": "three_joint_arm", "spatial_ks": [2, -1]},
+            "plan.studies.cost.spatial_ks",
+            [2, -1],
+        ),
         ("costs", {}, "plan.studies", "costs"),
     ],
 )

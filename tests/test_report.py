@@ -172,6 +172,16 @@ def test_tables_have_the_planned_rows(report):
         assert len(pd.read_csv(data / f"{name}.csv")) == n, name
 
 
+def test_cost_section_names_its_case(report):
+    import pandas as pd
+
+    ex = pd.read_parquet(report / "out" / "data" / "cost_exponents.parquet")
+    assert list(ex.columns[:2]) == ["case", "method"] and set(ex.case) == {"three_link"}
+    md = (report / "out" / "REPORT.md").read_text()
+    assert "Fitted exponents of CPU time ∝ k^p (k ≥ 2): on three_link (planar) DT-TMM (Newmark) p = " in md
+    assert "figures/cost.png" in md and "three_link: CPU time of the solve" in md
+
+
 def test_failures_are_listed_with_reasons(report):
     import pandas as pd
 

@@ -45,6 +45,8 @@ def tiny_spatial_plan() -> Plan:
                 "h": 2e-3,
                 "energy_reference": {"method": "dttmm", "k": 4, "h": 5e-4},
             },
+            # the arm alone in the cost study (its planar case: none in this plan)
+            "cost": {"case": CASE, "methods": [*SPATIAL, "amm", "global"], "ks": [1, 2, 4], "h": 2e-3},
         },
         "tiny spatial test size",
         output_step=4e-3,
@@ -128,3 +130,17 @@ def test_methods_sitting_a_spatial_arm_out_say_why(report):
     assert "exudyn-ancf sits it out (model.links[0].beam.EIy" in md
     twin = dttmm.load_case("experiments/cases/spatial/two_joint_arm.toml")  # EIy = EIz
     assert methods.runs_on("exudyn-ancf", twin)
+
+
+def test_spatial_cost_study(report):
+    _, tables, md, _ = report
+    c = tables["cost"]
+    # the methods with a spatial engine, the spatial global solver up to its spatial_max_k = 2
+    runs = {(m, int(k)) for m, k in zip(c.method, c.k)}
+    assert runs == {(m, k) for m in SPATIAL for k in (1, 2, 4)} | {("global", 1), ("global", 2)}
+    assert (c.status == "ok").all() and (c.space == "spatial").all() and (c.repeats >= 3).all()
+    ex = tables["cost_exponents"]
+    assert set(ex.case) == {CASE} and set(ex.method) == {*SPATIAL, "global"}
+    assert "Fitted exponents of CPU time ∝ k^p (k ≥ 2): on three_joint_arm (spatial) " in md
+    assert "global equations (Newmark, compiled) runs it up to k = 2 only" in md
+    assert "DT-TMM (Newmark) against the spatial global solver" in md

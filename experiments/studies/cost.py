@@ -1,5 +1,11 @@
 """CPU time against the number of elements per link, with fitted exponents (t ∝ k^p).
 
+The study times a planar arm (the plan's ``case`` at its ``ks``) and, where the plan names one,
+a spatial arm (``spatial_case`` at ``spatial_ks``); a method runs the cases it can
+(``Method.runs_on``, applied by :func:`experiments.study.run_studies`: on a spatial arm the
+methods with a spatial engine, up to their ``spatial_max_k``). Exponents are fitted per case
+and method.
+
 Every run is timed with :data:`REPEATS` calls (see :mod:`experiments.timing`): the figure and the
 exponents use the least CPU time of the calls (``cpu_time``), the median is kept beside it, and
 runs measured under load or with a wide spread are marked ``noisy``.
@@ -20,15 +26,33 @@ REPEATS = COST_REPEATS  # timed calls per run (the sweep gives every run of this
 
 
 def tasks(ctx) -> list[Task]:
-    """Each method at every k of the plan, one case, one step."""
+    """Each flexible method at every k of each case of the plan (planar, then spatial), one step."""
     p = params(ctx, NAME)
-    T = ctx.cases[p.case].scenario.duration
+    ms = study_methods(ctx, NAME, flexible=True)
     return [
-        Task(p.case, m, k, p.h, T)
-        for m in study_methods(ctx, NAME, flexible=True)
-        for k in p.ks
+        Task(c, m, k, p.h, ctx.cases[c].scenario.duration)
+        for c, ks in p.case_ks()
+        for m in ms
+        for k in ks
         if k <= k_limit(m, NAME, ctx.plan.name)  # e.g. the global solver's cost grows fastest
     ]
+
+
+def spatial_cases(table: pd.DataFrame) -> set[str]:
+    """The cases of a run table that are spatial arms: one of their runs returned a spatial
+    result (column ``space``)."""
+    if table is None or not len(table) or "space" not in table:
+        return set()
+    return set(table.case[table.space == "spatial"])
+
+
+def case_order(table: pd.DataFrame) -> list[str]:
+    """The cases of a run table, planar arms first, then spatial ones (:func:`spatial_cases`),
+    each group by name."""
+    if table is None or not len(table) or "case" not in table:
+        return []
+    spatial, cases = spatial_cases(table), sorted(set(table.case))
+    return [c for c in cases if c not in spatial] + [c for c in cases if c in spatial]
 
 
 def timing_columns(table: pd.DataFrame) -> pd.DataFrame:
@@ -58,19 +82,27 @@ def timing_columns(table: pd.DataFrame) -> pd.DataFrame:
 
 def analyse(ctx, table):
     """Tables: runs with ``cpu_time`` (s, least of the repeats) and ``time_per_step`` (s), and
-    the exponent p of CPU time ∝ k^p per method, fitted over k ≥ 2 (k = 1 is dominated by
-    fixed costs), with the number of noisy points in the fit."""
+    the exponent p of CPU time ∝ k^p per case and method (cases in :func:`case_order`), fitted
+    over k ≥ 2 (k = 1 is dominated by fixed costs), with the number of noisy points in the fit."""
     table = with_task_columns(table)
     if table.empty:
         return {NAME: table, f"{NAME}_exponents": table}
     table = timing_columns(table)
     table["time_per_step"] = table["cpu_time"] / table["n_steps"].where(table["n_steps"] > 0)
     rows = []
+    for c in case_order(table):
+        rows += _exponents(c, table[table.case == c])
+    return {NAME: table, f"{NAME}_exponents": pd.DataFrame(rows)}
+
+
+def _exponents(case: str, table: pd.DataFrame) -> list[dict]:
+    rows = []
     for m, g in table.groupby("method"):
         g = g[(g.status == "ok") & (g.k >= 2)]
         p, n = slope(g.k, g.cpu_time)
         rows.append(
             {
+                "case": case,
                 "method": m,
                 "exponent": p,
                 "n_points": n,
@@ -79,7 +111,7 @@ def analyse(ctx, table):
                 "cpu_time_at_k_max": float(g.loc[g.k.idxmax(), "cpu_time"]) if n else np.nan,
             }
         )
-    return {NAME: table, f"{NAME}_exponents": pd.DataFrame(rows)}
+    return rows
 
 
 if __name__ == "__main__":  # python -m experiments.studies.<name> [--quick|--full] ...
