@@ -157,7 +157,8 @@ class Method:
         ``spatial_max_k``: the largest k its spatial runs take in the studies (their cost);
         ``spatial_max_step``: ``max_step`` for its spatial runs (None: ``max_step``);
         ``spatial_check``: ``module:function`` that raises InputError for a spatial case the
-        method cannot model (its message is the reason the method sits that case out)
+        method cannot model (its message is the reason the method sits that case out);
+        ``spatial_label``: the label of its spatial engine where it differs from ``label``
     """
 
     name: str
@@ -191,6 +192,7 @@ class Method:
     spatial_max_k: float = math.inf
     spatial_max_step: Callable[[int], float] | None = None
     spatial_check: str = ""
+    spatial_label: str = ""
 
     def __post_init__(self):
         from dttmm.errors import InputError
@@ -440,6 +442,7 @@ _BUILTIN = (
         # three_joint_arm, 12 ms at k = 4, 92 ms at k = 16 (measured); it checks DT-TMM at small k
         spatial_max_k=2,
         label="global equations (Newmark, compiled)",
+        spatial_label="global equations (Newmark, numpy)",
         style=Style("C3", "^", "--", 4),
     ),
     Method(
@@ -463,6 +466,7 @@ _BUILTIN = (
         spatial_options=(("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
         spatial_max_k=2,
         label="global equations (2nd-order strain, gen-α 0.8, compiled)",
+        spatial_label="global equations (2nd-order strain, gen-α 0.8, numpy)",
         style=Style("C6", "<", "--", 5),
     ),
     Method(
@@ -839,9 +843,12 @@ def uses_k(name: str) -> bool:
         return True
 
 
-def label(name: str) -> str:
-    """Human-readable name for legends, tables and sentences (the name itself if unknown)."""
+def label(name: str, spatial: bool = False) -> str:
+    """Human-readable name for legends, tables and sentences (the name itself if unknown); with
+    ``spatial``, the label of the method's spatial engine (its ``spatial_label``, if it has one)."""
     m = _EXTRA.get(name) or _LOOKS.get(name)
+    if spatial and m is not None and getattr(m, "spatial_label", ""):
+        return m.spatial_label
     return m.label if m and m.label else name
 
 

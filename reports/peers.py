@@ -63,10 +63,10 @@ def sig2(x) -> str:
     return f"{float(f'{x:.2g}'):g}" if 1e-4 <= abs(x) < 1e6 else f"{x:.1e}"
 
 
-def _label(m):
+def _label(m, spatial=False):
     from experiments.methods import label
 
-    return label(m)
+    return label(m, spatial)
 
 
 def _timed(t: pd.DataFrame) -> pd.DataFrame:
@@ -109,7 +109,7 @@ def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
     t = t[(t.status == "ok") & (t.k > 0)]
     order = list(dict.fromkeys(t.method))  # one style per method in every panel
     for ax, (case, spatial) in zip(axes, cases):
-        _cost_panel(ax, t[t.case == case], _exponents_of(exponents, case), order)
+        _cost_panel(ax, t[t.case == case], _exponents_of(exponents, case), order, spatial)
         n = int(t[t.case == case].repeats.min()) if (t.case == case).any() else 0
         ax.set(
             ylabel=f"CPU time (s), least of ≥ {n} runs",  # short runs are called more often (timing.MIN_CPU)
@@ -118,7 +118,7 @@ def cost_figure(table: pd.DataFrame, exponents: pd.DataFrame) -> Figure:
     return fig
 
 
-def _cost_panel(ax, t: pd.DataFrame, ex: dict, order: list) -> None:
+def _cost_panel(ax, t: pd.DataFrame, ex: dict, order: list, spatial: bool = False) -> None:
     for m, g in t.groupby("method", sort=False):
         g = g.sort_values("k")
         p = ex.get(m, np.nan)
@@ -129,7 +129,7 @@ def _cost_panel(ax, t: pd.DataFrame, ex: dict, order: list) -> None:
             g.cpu_time,
             st.linestyle,
             color=c,
-            label=f"{_label(m)}" + (f" (∝ k^{p:.2f})" if np.isfinite(p) else ""),
+            label=f"{_label(m, spatial)}" + (f" (∝ k^{p:.2f})" if np.isfinite(p) else ""),
         )
         quiet, noisy = g[~g.noisy], g[g.noisy]
         ax.loglog(quiet.k, quiet.cpu_time, st.marker, color=c, ls="none")
@@ -150,11 +150,13 @@ def cost_text(table: pd.DataFrame, exponents: pd.DataFrame) -> list[str]:
     cases = _cost_cases(t)
     ex = exponents[np.isfinite(exponents.exponent)] if len(exponents) else exponents
 
-    def fitted(case):
+    def fitted(case, spatial=False):
         e = ex[ex.case == case] if "case" in ex else ex
-        return ", ".join(f"{_label(r.method)} p = {r.exponent:.2f}" for r in e.itertuples()) or "none"
+        return (
+            ", ".join(f"{_label(r.method, spatial)} p = {r.exponent:.2f}" for r in e.itertuples()) or "none"
+        )
 
-    per_case = [f"on {_case_title(c, s)} {fitted(c)}" for c, s in cases] or [fitted("")]
+    per_case = [f"on {_case_title(c, s)} {fitted(c, s)}" for c, s in cases] or [fitted("")]
     head = "Fitted exponents of CPU time ∝ k^p (k ≥ 2): " + "; ".join(per_case) + "."
     out = [head]
     ok = t[t.status == "ok"]
@@ -203,7 +205,7 @@ def _spatial_limits(ok: pd.DataFrame, cases: list) -> list[str]:
             verb = "sits" if len(absent) == 1 else "sit"
             parts.append(f"{', '.join(map(_label, absent))} {verb} it out (the Cases section says why)")
         parts += [
-            f"{_label(m)} runs it up to k = {int(limit(m))} only (its spatial k limit, set for cost)"
+            f"{_label(m, True)} runs it up to k = {int(limit(m))} only (its spatial k limit, set for cost)"
             for m in [*here, *below]
             if limit(m) < k_hi
         ]

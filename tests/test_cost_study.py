@@ -119,6 +119,10 @@ def test_the_figure_has_one_panel_per_case():
     # each panel's legend carries that case's exponent
     legend = [[x.get_text() for x in ax.get_legend().get_texts()] for ax in fig.axes]
     assert "DT-TMM (Newmark) (∝ k^1.00)" in legend[0] and "DT-TMM (Newmark) (∝ k^0.50)" in legend[1]
+    # the global solver is the compiled one on planar arms, the numpy one on spatial arms
+    assert "global equations (Newmark, compiled) (∝ k^2.00)" in legend[0]
+    assert "global equations (Newmark, numpy)" in legend[1]
+    assert not any("compiled" in x for x in legend[1])
     one = cost.analyse(None, _table(spatial=False))
     fig = peers.cost_figure(one["cost"], one["cost_exponents"])
     assert [ax.get_title() for ax in fig.axes] == [f"{PLANAR} (planar): CPU time against k (hollow: noisy)"]
@@ -138,7 +142,7 @@ def test_the_text_gives_exponents_and_crossover_per_case():
     assert "50 at k = 1, 50 at k = 2." in joined
     # which planar methods the arm lacks, and which stop at their spatial k limit
     assert "assumed modes (consistent) sits it out" in joined
-    assert "runs it up to k = 2 only (its spatial k limit" in joined
+    assert "global equations (Newmark, numpy) runs it up to k = 2 only (its spatial k limit" in joined
     # without the spatial global solver's points, no spatial crossover sentence
     tables = cost.analyse(None, _table(spatial_global=False))
     joined = " ".join(peers.cost_text(tables["cost"], tables["cost_exponents"]))
