@@ -351,6 +351,9 @@ def test_bang_bang_arm_tasks_carry_its_step_and_peer_options():
     got = {t.method: t for t in B.tasks(ctx)}
     assert got["exudyn-beam"].options == X and got["exudyn-beam"].h == 5e-4
     assert got["dttmm-2nd"].options == () and got["pinocchio-rigid"].k == 0
+    # the right-angle cantilever gives the GE beam the source's GA = EA and the recorded values' tolerance
+    _, ra = B.problems(["right_angle_cantilever"])["right_angle_cantilever"]
+    assert B.peer_options(ra, "exudyn-beam") == (("newton_abs_tol", 1e-5), ("shear_ratio", 1.0))
     with pytest.raises(ValueError, match="peer_options"):
         B.peer_options({"peer_options": {"exudyn-beam": 0.8}}, "exudyn-beam")
     with pytest.raises(ValueError, match="step"):
