@@ -158,7 +158,12 @@ class Method:
         ``spatial_max_step``: ``max_step`` for its spatial runs (None: ``max_step``);
         ``spatial_check``: ``module:function`` that raises InputError for a spatial case the
         method cannot model (its message is the reason the method sits that case out);
-        ``spatial_label``: the label of its spatial engine where it differs from ``label``
+        ``spatial_label``: the label of its spatial engine where it differs from ``label``;
+        ``spatial_cut_loads``: its spatial runs record the cut loads of docs/spatial.md §4 (k + 1
+        cuts per link) when called with ``cut_loads=True`` (the paper study asks for them: the
+        root bending moment of a spatial arm needs them); ``spatial_loads_note``: why its
+        spatial runs give no root bending moment, when there is more to say than that they
+        record no cut loads
     """
 
     name: str
@@ -193,6 +198,8 @@ class Method:
     spatial_max_step: Callable[[int], float] | None = None
     spatial_check: str = ""
     spatial_label: str = ""
+    spatial_cut_loads: bool = False
+    spatial_loads_note: str = ""
 
     def __post_init__(self):
         from dttmm.errors import InputError
@@ -233,6 +240,12 @@ class Method:
         if not self.spatial:
             return "no spatial engine (planar arms only)"
         return _spatial_refusal(self.spatial_check, case) if self.spatial_check else ""
+
+    def why_no_spatial_moment(self) -> str:
+        """Why the method's spatial runs give no root bending moment ('' when they do)."""
+        if self.spatial_cut_loads:
+            return ""
+        return self.spatial_loads_note or "its spatial engine records no cut loads"
 
     def options_for(self, study: str) -> tuple:
         """Extra options the method's runs get in ``study``."""
@@ -372,6 +385,7 @@ _BUILTIN = (
         frequencies="dttmm.linear:frequencies",
         scans=("links",),  # its element scans are the converged and one-shot variants below
         spatial=_DTTMM_SPATIAL,
+        spatial_cut_loads=True,
         label="DT-TMM (Newmark)",
         style=Style("C0", "o", "-", 7, hollow=True),
     ),
@@ -393,6 +407,7 @@ _BUILTIN = (
         base="dttmm",
         scans=("elements",),
         spatial=_DTTMM_SPATIAL,
+        spatial_cut_loads=True,
         label="DT-TMM (RK4)",
         style=Style("C4", "v", "-", 5),
     ),
@@ -415,6 +430,7 @@ _BUILTIN = (
         ),
         scans=("elements",),
         spatial=_DTTMM_SPATIAL,
+        spatial_cut_loads=True,
         label="DT-TMM (2nd-order strain, gen-α 0.8)",
         style=Style("C9", "P", "-", 6),
     ),
@@ -441,6 +457,7 @@ _BUILTIN = (
         # the spatial global solver is the readable numpy one: 6 ms a step at k = 2 on
         # three_joint_arm, 12 ms at k = 4, 92 ms at k = 16 (measured); it checks DT-TMM at small k
         spatial_max_k=2,
+        spatial_cut_loads=True,
         label="global equations (Newmark, compiled)",
         spatial_label="global equations (Newmark, numpy)",
         style=Style("C3", "^", "--", 4),
@@ -465,6 +482,7 @@ _BUILTIN = (
         spatial="reference_models.spatial_global:simulate",
         spatial_options=(("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
         spatial_max_k=2,
+        spatial_cut_loads=True,
         label="global equations (2nd-order strain, gen-α 0.8, compiled)",
         spatial_label="global equations (2nd-order strain, gen-α 0.8, numpy)",
         style=Style("C6", "<", "--", 5),
@@ -540,6 +558,9 @@ _BUILTIN = (
         spatial="reference_models.exudyn_beam3d:simulate",
         spatial_options=(),
         spatial_check="reference_models.exudyn_beam3d:check_case",
+        # its section_loads option: ForceLocal/TorqueLocal of the first element, one-point integration
+        spatial_loads_note="its 3-D beam gives section loads only at the middle of each link's first element, "
+        "not at the link's root",
         label="Exudyn GE beam",
         style=Style("C2", "D", "-", 5),
     ),

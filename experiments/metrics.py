@@ -16,11 +16,15 @@ __all__ = [
     "columns",
     "difference_series",
     "errors",
+    "comparable_loads",
+    "has_spatial_cut_loads",
+    "is_spatial_result",
     "load_differences",
     "load_errors",
     "load_series",
     "nan_errors",
     "quantities",
+    "spatial_root_moment",
     "without_cut_loads",
 ]
 
@@ -99,28 +103,70 @@ def errors(result, reference) -> dict[str, float]:
 
 # --- Beyond the end-effector: loads and energy -------------------------------------------------
 #
-# ``moment1``: bending moment at the root of link 1 (N·m). The hub of link 1 turns about the
-# fixed base joint, so its moment balance gives M = τ₁ − J₁ θ̈₁ for every method, from the stored
-# joint torque and rate (θ̈₁ by central differences on the output grid); without a hub (J₁ = 0) it
-# is joint 1's torque and is left out. The cut loads a DT-TMM
-# Result carries give the same value (checked in tests/test_report_loads.py); they are used when
-# both results have them. ``torque{i}``: torque of joint i where the joint is motion-driven (there
-# it is an output; a torque-driven joint's torque is the input law). ``energy``: total energy (J)
-# where the method records it.
+# ``moment1``: bending moment at the root of link 1 (N·m).
+# * Planar arm: the hub of link 1 turns about the fixed base joint, so its moment balance gives
+#   M = τ₁ − J₁ θ̈₁ for every method, from the stored joint torque and rate (θ̈₁ by central
+#   differences on the output grid); without a hub (J₁ = 0) it is joint 1's torque and is left
+#   out. The cut loads a DT-TMM Result carries give the same value (checked in
+#   tests/test_report_loads.py); they are used when both results have them.
+# * Spatial arm (a ``SpatialResult``): the moment at link 1's root cut (cut 0 of ``cut_loads``:
+#   the moment about the link's root point that the inboard side — base, joint 1 and link 1's
+#   hub — exerts on link 1's beam, docs/spatial.md §4) has a bending part and a torsion part; the
+#   compared value is the magnitude of the bending part, √(M·y₁)² + (M·z₁)², y₁ and z₁ the y and
+#   z axes of link 1's frame (``link_rotation``, before the section's roll), torsion M·x₁ left
+#   out (:func:`spatial_root_moment`). A hub balance gives only the component along the joint
+#   axis, so only results with the cut table of docs/spatial.md §4 (k + 1 cuts per link: the
+#   spatial DT-TMM and global solver run with ``cut_loads=True``) give it.
+# ``torque{i}``: torque of joint i where the joint is motion-driven (there it is an output; a
+# torque-driven joint's torque is the input law). ``energy``: total energy (J) where the method
+# records it.
 
 LOAD_KINDS = ("l2", "linf")
+
+
+def is_spatial_result(result) -> bool:
+    """Whether ``result`` is a spatial arm's (3-component positions)."""
+    return np.shape(result.end_effector)[-1] == 3
+
+
+def has_spatial_cut_loads(result) -> bool:
+    """Whether a spatial ``result`` carries the cut table of docs/spatial.md §4 (k + 1 cuts per
+    link, k ≥ 1, with their times and the link frames). Exudyn's section loads
+    (``section_loads``: one midpoint section per link) are not that table."""
+    cl = getattr(result, "cut_loads", None)
+    if cl is None or result.cut_load_t is None or getattr(result, "link_rotation", None) is None:
+        return False
+    n_links, n_cuts = np.shape(result.link_root)[1], np.shape(cl)[1]
+    return n_cuts % n_links == 0 and n_cuts // n_links >= 2 and np.shape(cl)[-1] == 6
+
+
+def spatial_root_moment(result) -> np.ndarray | None:
+    """Root bending moment of link 1 of a spatial ``result`` on its output times (nt,), N·m:
+    the magnitude of the components of cut 0's moment along link 1's frame y and z axes
+    (torsion excluded); None without the cut table (:func:`has_spatial_cut_loads`)."""
+    if not has_spatial_cut_loads(result):
+        return None
+    t, tc = np.asarray(result.t, float), np.asarray(result.cut_load_t, float)
+    m = np.asarray(result.cut_loads, float)[:, 0, 3:]  # world components, about the root point
+    if not np.array_equal(tc, t):
+        m = np.column_stack([np.interp(t, tc, m[:, j]) for j in range(3)])
+    axes = np.asarray(result.link_rotation, float)[:, 0]  # (nt, 3, 3): columns x, y, z in W
+    bending = np.einsum("tij,ti->tj", axes[:, :, 1:], m)  # (M·y₁, M·z₁)
+    return np.hypot(bending[:, 0], bending[:, 1])
 
 
 def load_series(result, case) -> dict[str, np.ndarray]:
     """Load quantities of ``result`` on its output times: name -> (nt,) array (see above)."""
     t = np.asarray(result.t, float)
     out = {}
-    planar = np.shape(result.end_effector)[-1] == 2  # a spatial arm's root moment is a vector: not compared
-    if planar and result.cut_loads is not None and result.cut_load_t is not None:
+    planar = not is_spatial_result(result)
+    if not planar:
+        m = spatial_root_moment(result)
+        if m is not None:
+            out["moment1"] = m
+    elif result.cut_loads is not None and result.cut_load_t is not None:
         out["moment1"] = np.interp(t, result.cut_load_t, result.cut_loads[:, 0, 0])
-    elif (
-        planar and t.size >= 3 and case.model.links[0].hub_inertia > 0
-    ):  # without a hub it is joint 1's torque
+    elif t.size >= 3 and case.model.links[0].hub_inertia > 0:  # without a hub it is joint 1's torque
         J = case.model.links[0].hub_inertia
         out["moment1"] = result.joint_torque[:, 0] - J * np.gradient(result.joint_rate[:, 0], t, edge_order=2)
     for i, d in enumerate(case.scenario.drives):
@@ -152,6 +198,13 @@ def without_cut_loads(result):
     from dataclasses import replace
 
     return replace(result, cut_loads=None, cut_load_t=None) if result.cut_loads is not None else result
+
+
+def comparable_loads(result):
+    """``result`` as the report's load comparison takes it: a planar result without its cut
+    loads (its root moment from the hub balance, like for like across engines), a spatial one
+    as it is (its root bending moment needs the cut loads)."""
+    return result if is_spatial_result(result) else without_cut_loads(result)
 
 
 def load_errors(result, reference, case) -> dict[str, float]:

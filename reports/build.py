@@ -233,6 +233,11 @@ def _paper(inp):
     )
 
 
+def _is_spatial(inp, case) -> bool:
+    """Whether ``case`` is a spatial arm (the run's case records)."""
+    return (inp.meta.get("cases") or {}).get(case, {}).get("kind") == "spatial"
+
+
 def _loads(inp):
     t, s = inp.tables.get("paper_load_series"), inp.tables.get("paper_loads")
     if s is None:
@@ -245,10 +250,15 @@ def _loads(inp):
         "loads",
         lambda c: figures.loads(t, c),
         lambda c: (
-            "bending moment at the root of link 1 (from the hub balance M = τ₁ − J₁θ̈₁), torques of "
-            "motion-driven joints and total energy of every method with its reference (wide grey; for the "
-            "energy, the energy reference named below), and below them Δ = method minus reference (rigid "
-            "model left out of the lower panels)."
+            (
+                "bending moment at the root of link 1 (the magnitude of the bending part of the root cut "
+                "load, from the cut loads of the runs that record them)"
+                if _is_spatial(inp, c)
+                else "bending moment at the root of link 1 (from the hub balance M = τ₁ − J₁θ̈₁)"
+            )
+            + ", torques of motion-driven joints and total energy of every method with its reference (wide "
+            "grey; for the energy, the energy reference named below), and below them Δ = method minus "
+            "reference (rigid model left out of the lower panels)."
         ),
         lambda c: interpret.loads(s, c),
         ["paper_loads"],

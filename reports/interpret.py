@@ -165,6 +165,7 @@ def loads(table, case) -> list[str]:
         out.append(
             f"{load_label(q).split(' (')[0]}, RMS of method − reference (relative to the peak): {parts}."
         )
+    out += _spatial_moment(g)
     missing = g[~np.isfinite(g["energy_l2"])].method.tolist() if "energy_l2" in g else g.method.tolist()
     eref = g.energy_reference.iloc[0] if "energy_reference" in g else "none"
     out.append(
@@ -172,6 +173,30 @@ def loads(table, case) -> list[str]:
         + (f"; not recorded by {', '.join(_l(m) for m in missing)}." if missing else ".")
     )
     return out
+
+
+SPATIAL_MOMENT = (
+    "On this spatial arm the root moment of link 1 is the magnitude of the bending part of the moment "
+    "that the base, joint 1 and link 1's hub exert on link 1's beam about its root point (the cut load "
+    "at the link's root: its components along the y and z axes of link 1's frame, the torsion about the "
+    "link's axis left out), taken from the runs' cut loads"
+)
+
+
+def _spatial_moment(g) -> list[str]:
+    """The sentence on a spatial arm's root bending moment: what it is, and for which methods
+    it is not compared, with the reason (the ``moment1_note`` column of ``paper_loads``)."""
+    if "moment1_note" not in g or not g.moment1_note.notna().any():
+        return []  # a planar arm: the hub balance, described in the caption
+    rows = g[g.moment1_note.notna()]
+    left = rows[rows.moment1_note != ""]
+    if left.empty:
+        return [SPATIAL_MOMENT + "."]
+    notes = list(dict.fromkeys(left.moment1_note))
+    if len(left) == len(rows) and len(notes) == 1:
+        return [f"{SPATIAL_MOMENT}; it is compared for no method here: {notes[0]}."]
+    why = "; ".join(f"{', '.join(_l(m) for m in left.method[left.moment1_note == n])} ({n})" for n in notes)
+    return [f"{SPATIAL_MOMENT}; not compared for {why}."]
 
 
 def _pct(x) -> str:

@@ -3,6 +3,7 @@ have a spatial engine, score it against its own reference, and draw its figures.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from experiments import methods
@@ -16,7 +17,8 @@ SPATIAL = ["dttmm", "exudyn-beam"]
 
 def tiny_spatial_plan() -> Plan:
     dur = {CASE: 0.04}
-    ref = [RefSpec("exudyn-ancf", 4, 5e-4), RefSpec("dttmm", 4, 5e-4)]  # the first is planar only
+    # the first is planar only; the reference records cut loads (the root bending moment needs them)
+    ref = [RefSpec("exudyn-ancf", 4, 5e-4), RefSpec("dttmm", 4, 5e-4, (("cut_loads", True),))]
     chk = [RefSpec("dttmm", 4, 5e-4), RefSpec("exudyn-beam", 4, 5e-4)]
     return Plan(
         "tiny-spatial",
@@ -119,6 +121,26 @@ def test_spatial_paper_series(report):
     assert 0 < loads.energy_rel["dttmm"] < 1e-3
     assert loads.energy_rel["pinocchio-rigid"] > 10 * loads.energy_rel["dttmm"]
     assert "paper_three_joint_arm.png" in md
+
+
+def test_spatial_root_bending_moment_in_the_loads_section(report):
+    _, tables, md, _ = report
+    paper = tables["paper"]
+    runs = paper[paper.role == "compared"].set_index("method")
+    assert runs.options["dttmm"] == "cut_loads=True" and runs.options["exudyn-beam"] == ""
+    loads = tables["paper_loads"].set_index("method")
+    # DT-TMM at k = 2 against the DT-TMM reference at k = 4: a few per cent of the peak moment
+    assert loads.moment1_note["dttmm"] == "" and 0 < loads.moment1_rel["dttmm"] < 0.1
+    for m in ("exudyn-beam", "pinocchio-rigid"):
+        assert (
+            np.isnan(loads.moment1_l2[m]) and loads.moment1_note[m] == methods.get(m).why_no_spatial_moment()
+        )
+    assert "the torsion about the link's axis left out" in md
+    assert (
+        f"not compared for {methods.label('exudyn-beam')} ({methods.get('exudyn-beam').spatial_loads_note})"
+        in md
+    )
+    assert "magnitude of the bending part of the root cut load" in md  # the figure's caption
 
 
 def test_methods_sitting_a_spatial_arm_out_say_why(report):

@@ -5,6 +5,13 @@ method minus the reference against time, and the loads (root bending moment of l
 of motion-driven joints, total energy) compared the same way (see ``metrics.load_series``).
 Exudyn records no energy, so energies are compared against the plan's ``energy_reference`` run
 (a method that records it, at the reference's k and h) unless the reference has one itself.
+
+On a planar arm the root moment of every method (and of the reference) comes from the hub
+balance (``metrics.comparable_loads`` drops the cut loads: like for like across engines). On a
+spatial arm it is the bending part of the cut load at link 1's root, so the spatial runs of the
+methods whose record has ``spatial_cut_loads`` get ``cut_loads=True`` here; a method without
+them, or a reference without them, leaves the moment uncompared, with the reason in the
+``moment1_note`` column of ``paper_loads``.
 """
 
 from __future__ import annotations
@@ -41,8 +48,14 @@ def _compared(ctx) -> list[Task]:
                 if rec.explicit and rec.max_step is None
                 else step_for(m, p.k, p.h, case)
             )
-            out.append(Task(c, m, p.k, h, case.scenario.duration))
+            out.append(Task(c, m, p.k, h, case.scenario.duration, _options(rec, case)))
     return out
+
+
+def _options(rec, case) -> tuple:
+    """Extra options of a run: the cut loads of a spatial run that can record them (planar
+    runs record theirs by default)."""
+    return (("cut_loads", True),) if methods.is_spatial(case) and rec.spatial_cut_loads else ()
 
 
 def tasks(ctx) -> list[Task]:
@@ -78,9 +91,23 @@ def _series(res, ref, case, label) -> pd.DataFrame:
     return _thin(df).assign(case=case, method=label)
 
 
+def _moment_note(res, ref, label) -> str:
+    """Why a spatial run's root bending moment is not compared ('' when it is)."""
+    if not metrics.has_spatial_cut_loads(res):
+        try:
+            return methods.get(label).why_no_spatial_moment()
+        except methods.MethodUnavailable:
+            return "the run records no cut loads"
+    if ref is None:
+        return "no reference"
+    if not metrics.has_spatial_cut_loads(ref):
+        return "the reference was run without cut loads"
+    return ""
+
+
 def _load_series(res, ref, eref, case_obj, case, label) -> tuple[pd.DataFrame, dict]:
     """(sampled load histories with ``d_…`` columns, load error row) of one run."""
-    s = metrics.load_series(metrics.without_cut_loads(res), case_obj)
+    s = metrics.load_series(metrics.comparable_loads(res), case_obj)
     if ref is None and "energy" not in s and eref is not None and eref.energy is not None:
         s["energy"] = np.interp(res.t, eref.t, eref.energy)  # the reference row shows the energy reference
     df = pd.DataFrame({"t": res.t, **s})
@@ -88,7 +115,7 @@ def _load_series(res, ref, eref, case_obj, case, label) -> tuple[pd.DataFrame, d
     for other, only in ((ref, lambda q: q != "energy"), (eref, lambda q: q == "energy")):
         if other is None or other is res:
             continue
-        a, b = metrics.without_cut_loads(res), metrics.without_cut_loads(other)
+        a, b = metrics.comparable_loads(res), metrics.comparable_loads(other)
         t, d = metrics.load_differences(a, b, case_obj)
         on = np.isin(df.t.to_numpy(), t)
         err = metrics.load_errors(a, b, case_obj)
@@ -102,6 +129,8 @@ def _load_series(res, ref, eref, case_obj, case, label) -> tuple[pd.DataFrame, d
                     f"{q}_rel": err[f"{q}_l2"] / scale if scale > 0 else np.nan,
                 }
             )
+    if ref is not None and metrics.is_spatial_result(res):
+        row["moment1_note"] = _moment_note(res, ref, label)
     return _thin(df).assign(case=case, method=label), row
 
 
