@@ -112,10 +112,12 @@ def plan_for(size: str, case_files=()) -> Plan:
     import dttmm
     from dttmm.errors import InputError
 
+    from . import methods
+
     base = PLANS[size]
     if not case_files:
         return base
-    files, durations = {}, {}
+    files, durations, spatial = {}, {}, set()
     for p in map(Path, case_files):
         if not p.is_file():
             raise InputError("--case", str(p), "is not a file")
@@ -128,9 +130,11 @@ def plan_for(size: str, case_files=()) -> Plan:
         if name in files:
             raise InputError("--case", str(p), f"names the same case as {files[name]} ({name})")
         files[name] = str(p.resolve())
+        if methods.is_spatial(case):
+            spatial.add(name)
         T = case.scenario.duration
         durations[name] = min(T, QUICK_MAX_DURATION) if size == "quick" and T > QUICK_MAX_DURATION else None
-    return _retarget(base, files, durations)
+    return _retarget(base, files, durations, spatial)
 
 
 def _durations_text(durations: dict) -> str:
@@ -139,10 +143,13 @@ def _durations_text(durations: dict) -> str:
     )
 
 
-def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
-    """``base`` with every study and reference moved onto the cases ``files``."""
+def _retarget(base: Plan, files: dict, durations: dict, spatial=frozenset()) -> Plan:
+    """``base`` with every study and reference moved onto the cases ``files``; the cases named in
+    ``spatial`` (spatial arms) get the references and cross-checks of the shipped spatial arm."""
     names = list(files)
     ref, chk = next(iter(base.reference.values())), next(iter(base.check.values()))
+    arm = next((c for c in SPATIAL_SHIPPED if c in base.reference), None)
+    sref, schk = (base.reference[arm], base.check[arm]) if arm else (ref, chk)
     studies = {}
     for s, p in base.studies.items():
         if hasattr(p, "cases"):
@@ -157,8 +164,8 @@ def _retarget(base: Plan, files: dict, durations: dict) -> Plan:
     return replace(
         base,
         durations=durations,
-        reference=dict.fromkeys(names, ref),
-        check=dict.fromkeys(names, chk),
+        reference={n: sref if n in spatial else ref for n in names},
+        check={n: schk if n in spatial else chk for n in names},
         studies=studies,
         case_files=files,
         note=f"{base.name} size on the cases given on the command line ({_durations_text(durations)}); "
@@ -185,6 +192,17 @@ def _refs(k, h):
     ref = [RefSpec(m, k, h) for m in methods.reference_candidates()]
     chk = [RefSpec(m, k * methods.get(m).check_refine, h) for m in methods.cross_checks()]
     return ref, chk
+
+
+def _spatial_refs(k, h):
+    """Reference candidates of a spatial arm: the registry's, those whose spatial runs record cut
+    loads asked for them (the root bending moment the loads comparison needs)."""
+    from . import methods
+
+    return [
+        RefSpec(m, k, h, (("cut_loads", True),) if methods.get(m).spatial_cut_loads else ())
+        for m in methods.reference_candidates()
+    ]
 
 
 def _spatial_check(k, h):
@@ -221,7 +239,7 @@ def _plan(
     return Plan(
         name,
         durations,
-        dict.fromkeys(cases, ref),
+        {c: ref if c in planar else _spatial_refs(*ref_kh) for c in cases},
         {c: chk if c in planar else _spatial_check(*ref_kh) for c in cases},
         {
             # methods: every registered method that takes part (experiments/methods.py); explicit

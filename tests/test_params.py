@@ -53,6 +53,30 @@ def test_case_files_from_the_command_line_get_a_planar_only_cost_study():
     assert plan.studies["cost"].case_ks() == [("single_link", (1, 2, 4, 8, 16, 32))]
 
 
+def test_spatial_references_record_cut_loads_and_user_spatial_cases_get_them_too():
+    """The shipped spatial arm's reference candidates that record cut loads are asked for them
+    (the loads comparison's root bending moment); a spatial case file given on the command line
+    gets the spatial arm's references and cross-checks, a planar one the planar ones."""
+    from experiments.plan import PLANS, plan_for
+
+    q = PLANS["quick"]
+    spatial = {r.method: r.options for r in q.reference["three_joint_arm"]}
+    assert spatial["dttmm"] == (("cut_loads", True),) and spatial["exudyn-ancf"] == ()
+    assert all(r.options == () for r in q.reference["three_link"])
+    plan = plan_for(
+        "quick", ["experiments/cases/spatial/two_joint_arm.toml", "experiments/cases/single_link.toml"]
+    )
+    arm = next(n for n in plan.reference if n.startswith("two_joint_arm"))
+    assert (
+        plan.reference[arm] == q.reference["three_joint_arm"]
+        and plan.check[arm] == q.check["three_joint_arm"]
+    )
+    assert (
+        plan.reference["single_link"] == q.reference["three_link"]
+        and plan.check["single_link"] == q.check["three_link"]
+    )
+
+
 @pytest.mark.parametrize(
     "study, values, field, value",
     [
