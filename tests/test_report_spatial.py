@@ -164,5 +164,5 @@ def test_spatial_cost_study(report):
     ex = tables["cost_exponents"]
     assert set(ex.case) == {CASE} and set(ex.method) == {*SPATIAL, "global"}
     assert "Fitted exponents of CPU time ∝ k^p (k ≥ 2): on three_joint_arm (spatial) " in md
-    assert "global equations (Newmark, compiled) runs it up to k = 2 only" in md
+    assert "global equations (Newmark, numpy) runs it up to k = 2 only" in md
     assert "DT-TMM (Newmark) against the spatial global solver" in md
