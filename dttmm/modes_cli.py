@@ -129,8 +129,8 @@ def run_modes(a) -> int:
     try:
         if a.n < 1:
             raise InputError("--n", a.n, "must be an integer ≥ 1")
+        case = load_case(a.case)  # the input is accepted before anything is written
         out = prepare_out(a.out)
-        case = load_case(a.case)
         m = modes(case, a.elements, a.t, n=a.n, strain=a.strain)
     except InputError as exc:
         print(f"dttmm: bad input: {exc}", file=sys.stderr)

@@ -98,9 +98,9 @@ def _write(res, case, a, out: Path) -> None:
 def run_simulate(a) -> int:
     """Run ``dttmm simulate`` for the parsed arguments ``a``; return the exit code."""
     try:
-        out = prepare_out(a.out)
-        case = load_case(a.case)
+        case = load_case(a.case)  # the input is accepted before anything is written
         check_run_size(case, a.elements, a.h)
+        out = prepare_out(a.out)
         res = simulate(
             case,
             elements_per_link=a.elements,

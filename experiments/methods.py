@@ -22,11 +22,13 @@ the ``--method`` option of ``dttmm report`` and ``dttmm validate``) or the entry
 from __future__ import annotations
 
 import contextlib
+import difflib
 import functools
 import importlib
 import importlib.metadata
 import importlib.util
 import math
+import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -37,6 +39,7 @@ __all__ = [
     "METHODS",
     "ROLES",
     "Method",
+    "MethodShippingError",
     "MethodUnavailable",
     "Physics",
     "Setting",
@@ -966,6 +969,10 @@ def load_spec(spec: str) -> Method:
         if not path.is_file():
             raise _bad_spec(spec, f"no such file: {path}")
         modname = f"dttmm_outside_{path.stem}"
+        folder = str(path.resolve().parent)
+        before = set(sys.modules)
+        if folder not in sys.path:  # the file imports the modules beside it, as when run as a script
+            sys.path.insert(0, folder)
         loader_spec = importlib.util.spec_from_file_location(modname, path.resolve())
         module = importlib.util.module_from_spec(loader_spec)
         sys.modules[modname] = module
@@ -974,14 +981,26 @@ def load_spec(spec: str) -> Method:
         except Exception as exc:  # noqa: BLE001 - any failure to load the file is a bad spec
             sys.modules.pop(modname, None)
             raise _bad_spec(spec, f"cannot load {path}: {type(exc).__name__}: {exc}") from None
+        _ship_by_value(module, folder, set(sys.modules) - before)
         default_name = path.stem.replace("_", "-")
     else:
+        before = set(sys.modules)
         try:
             module = importlib.import_module(target)
         except ModuleNotFoundError as exc:
+            names_ = ", ".join(names())
+            near = difflib.get_close_matches(target, names(), n=1)
+            if ":" not in spec and "." not in target:  # a bare word: meant as a method's name
+                hint = f"; did you mean {near[0]!r}?" if near else ""
+                raise _bad_spec(
+                    spec,
+                    f"no method of that name (built-in: {names_}){hint}; or module:function, file.py:function",
+                ) from None
             raise _bad_spec(spec, f"no such module: {exc.name}") from None
         except Exception as exc:  # noqa: BLE001
             raise _bad_spec(spec, f"cannot import {target}: {type(exc).__name__}: {exc}") from None
+        if _is_local_source(module):
+            _ship_by_value(module, str(Path(module.__file__).resolve().parent), set(sys.modules) - before)
         default_name = target.rsplit(".", 1)[-1].replace("_", "-")
     if not hasattr(module, attr):
         raise _bad_spec(spec, f"{target} has no {attr!r}")
@@ -1024,8 +1043,6 @@ def _from_object(name, get_obj, spec) -> Method:
         raise _bad_spec(spec, "the record names neither a module nor a function")
     if not math.isfinite(rec.timeout):
         rec = replace(rec, timeout=OUTSIDE_TIMEOUT)  # an outside method gets a stated time limit
-    if rec.simulate is not None:
-        _pickle_by_value(rec.simulate)
     if rec.name in METHODS and METHODS[rec.name] is not rec:
         raise _bad_spec(spec, f"the name {rec.name!r} is a built-in method's")
     return register(rec)
@@ -1035,14 +1052,97 @@ def _from_object(name, get_obj, spec) -> Method:
 OUTSIDE_TIMEOUT = 600.0
 
 
-def _pickle_by_value(fn) -> None:
-    """Let Dask ship a function defined in a file that workers cannot import (a ``path.py:fn``
-    spec) by value."""
-    mod = sys.modules.get(getattr(fn, "__module__", ""))
-    if mod is not None and mod.__name__.startswith("dttmm_outside_"):
+def _is_local_source(module) -> bool:
+    """Whether ``module`` is a source file of the user's (not of an installed distribution nor of
+    this suite), so that workers elsewhere may not be able to import it."""
+    f = getattr(module, "__file__", None)
+    if not f:
+        return False
+    p = Path(f).resolve()
+    here = Path(__file__).resolve().parents[1]
+    installed = any(part in ("site-packages", "dist-packages") for part in p.parts)
+    return not installed and here not in p.parents
+
+
+_BY_VALUE: set[str] = set()  # modules whose functions are sent to the workers by value
+
+
+def _ship_by_value(module, folder: str, imported) -> None:
+    """Send ``module`` and the modules it imported from beside it (``folder``) to the workers by
+    value (cloudpickle), so a worker that cannot import them (another machine, another
+    working directory) still runs the method. By value rather than by upload: it works with any
+    scheduler, needs no state on the workers, and every run carries the code version the cache
+    key hashed."""
+    import cloudpickle
+
+    mods = [module] + [
+        m
+        for n in sorted(imported)
+        if (m := sys.modules.get(n)) is not None
+        and getattr(m, "__file__", None)
+        and str(Path(m.__file__).resolve()).startswith(folder + "/")
+    ]
+    for m in mods:
+        if m.__name__ not in _BY_VALUE:
+            cloudpickle.register_pickle_by_value(m)
+            _BY_VALUE.add(m.__name__)
+
+
+class MethodShippingError(RuntimeError):
+    """An outside method could not be sent to, or loaded on, a worker: not the method's verdict."""
+
+
+class _Shipped:
+    """An outside function carried by value (cloudpickle bytes), loaded at its first call.
+
+    Dask pickles a task's arguments with the standard pickle first, which sends a function by
+    reference; a worker that cannot import the user's file would then fail while deserializing
+    the task, outside the run. Carried as bytes, the function is loaded inside the run, where a
+    failure is reported as :class:`MethodShippingError` (an infrastructure failure, never
+    stored) and leaves the worker and its other runs alone.
+    """
+
+    def __init__(self, fn, folder: str = ""):
         import cloudpickle
 
-        cloudpickle.register_pickle_by_value(mod)
+        self.name = f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', fn)}"
+        self.folder = folder
+        self.fn = fn
+        try:
+            self.blob = cloudpickle.dumps(fn)
+        except Exception as exc:  # noqa: BLE001 - the reason it cannot go to the workers
+            raise MethodUnavailable(
+                f"{self.name} cannot be sent to the workers: {type(exc).__name__}: {exc}"
+            ) from None
+
+    def __getstate__(self):
+        return {"name": self.name, "folder": self.folder, "blob": self.blob}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state, fn=None)
+
+    def __call__(self, *args, **kwargs):
+        if self.fn is None:
+            import cloudpickle
+
+            if self.folder and os.path.isdir(self.folder) and self.folder not in sys.path:
+                sys.path.append(self.folder)  # imports made at call time find the modules beside it
+            try:
+                self.fn = cloudpickle.loads(self.blob)
+            except Exception as exc:  # noqa: BLE001
+                raise MethodShippingError(
+                    f"could not load {self.name} in this worker: {type(exc).__name__}: {exc}"
+                ) from None
+        return self.fn(*args, **kwargs)
+
+
+def _shipped(fn):
+    """``fn`` wrapped for the workers when its module goes by value, else ``fn`` itself."""
+    mod = getattr(fn, "__module__", None) or ""
+    if mod not in _BY_VALUE:
+        return fn
+    f = getattr(sys.modules.get(mod), "__file__", None)
+    return _Shipped(fn, str(Path(f).resolve().parent) if f else "")
 
 
 def entry_points() -> dict:
@@ -1059,7 +1159,7 @@ def resolve(name: str) -> Callable:
     m = get(name)
     spatial = (m.spatial, m.options if m.spatial_options is None else m.spatial_options)
     if m.simulate is not None:
-        return _Bound(m.simulate, m.options, m.uses_k, m.timeout, *spatial)
+        return _Bound(_shipped(m.simulate), m.options, m.uses_k, m.timeout, *spatial)
     if m.module is None:
         raise MethodUnavailable(f"{name!r} is shown in figures but not run")
     try:
@@ -1125,8 +1225,60 @@ def _probe_case():
     return Case(Manipulator((link,)), Scenario(0.004, 0.002, (Drive("torque", Constant(0.1)),)), "probe")
 
 
+#: s a registered method's probe may take before it is given up (its runs have their own limit)
+PROBE_TIMEOUT = 60.0
+
+
 def _probe_one(name: str, case) -> str | None:
-    """None when ``name`` resolves and runs two steps of ``case``, else the reason."""
+    """None when ``name`` resolves and runs two steps of ``case``, else the reason. A method
+    registered at run time (outside code) is probed in a forked process of its own, so a probe
+    that ends its process or never returns is a reason, not the end of the report."""
+    if case is not None and name in _EXTRA and hasattr(os, "fork"):
+        return _probe_forked(name, case, min(PROBE_TIMEOUT, get(name).timeout))
+    return _probe_here(name, case)
+
+
+def _probe_forked(name: str, case, limit: float) -> str | None:
+    """:func:`_probe_here` in a forked child; its answer comes back through a pipe."""
+    import pickle
+    import select
+    import signal
+
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: answer, then leave without running this process's exit handlers
+        code = 0
+        try:
+            os.close(r)
+            data = pickle.dumps(_probe_here(name, case))
+            view = memoryview(data)
+            while view:
+                view = view[os.write(w, view) :]
+        except BaseException:  # noqa: BLE001 - nothing may escape the child
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(w)
+    chunks = []
+    try:
+        while select.select([r], [], [], limit)[0]:
+            chunk = os.read(r, 1 << 16)
+            if not chunk:
+                break
+            chunks.append(chunk)
+        else:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return f"its probe run (two steps of a one-link arm) did not return within {limit:g} s"
+    finally:
+        os.close(r)
+    _, status = os.waitpid(pid, 0)
+    if not chunks:
+        return f"its probe run ended its process (exit code {os.waitstatus_to_exitcode(status)})"
+    return pickle.loads(b"".join(chunks))
+
+
+def _probe_here(name: str, case) -> str | None:
     try:
         f = resolve(name)
         if case is not None:
@@ -1191,7 +1343,6 @@ def available(methods=None, *, probe: bool = True, workers: int | None = 1) -> d
     the modules that take longest to compile go first (the DT-TMM kernel, then the global
     solver and the assumed-modes engine).
     """
-    import os
 
     wanted = list(names() if methods is None else methods)
     groups: dict[str, list[str]] = {}

@@ -90,11 +90,19 @@ def _versions(res) -> dict:
 
 
 def _try(spec: RefSpec, case):
+    from . import console
+
     t0 = time.perf_counter()
     try:
-        res = methods.run(spec.method, case, spec.k, spec.h, **dict(spec.options))
+        with console.captured() as printed:  # an engine's messages go into the reason, not the terminal
+            res = methods.run(spec.method, case, spec.k, spec.h, **dict(spec.options))
     except Exception as exc:  # noqa: BLE001 -- a failing candidate is recorded and the next one tried
-        return None, f"{spec.describe()}: {type(exc).__name__}: {str(exc)[:200]}", time.perf_counter() - t0
+        said = f"; it printed: {printed.last_line()}" if printed.last_line() else ""
+        return (
+            None,
+            f"{spec.describe()}: {type(exc).__name__}: {str(exc)[:200]}{said}",
+            time.perf_counter() - t0,
+        )
     why = _check(res)
     if not why and res.status != "ok":  # a reference must be a fully trusted run
         why = f"status {res.status}: " + ("; ".join(res.warnings) or "no reason given")

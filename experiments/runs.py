@@ -19,14 +19,16 @@ from pathlib import Path
 
 import numpy as np
 
-from . import cachefiles, fingerprint, methods, metrics
+from . import cachefiles, console, fingerprint, methods, metrics
 
 __all__ = [
+    "INFRASTRUCTURE",
     "WITH_HISTORY",
     "Outcome",
     "RunStore",
     "Task",
     "execute",
+    "infrastructure",
     "options_text",
     "row_status",
     "task_from_row",
@@ -68,7 +70,14 @@ class Task:
 @dataclass
 class Outcome:
     """What a worker sends back: status ``ok`` | ``failed`` | ``unavailable``, the Result and,
-    for a run that finished, its timing (``timing_*`` columns, see :mod:`experiments.timing`)."""
+    for a run that finished, its timing (``timing_*`` columns, see :mod:`experiments.timing`).
+
+    ``infrastructure``: the run did not get to give its own verdict (its worker died, the method
+    could not be loaded there, the future was cancelled, the report was interrupted). Such an
+    outcome is shown as an omission but never stored, so the next report runs it again.
+    ``console``: what the method's engine printed to the terminal during the run (fd level).
+    ``runaway``: a call past its time limit still runs in the worker (the sweep restarts it).
+    """
 
     status: str
     reason: str = ""
@@ -76,6 +85,24 @@ class Outcome:
     run_time: float = math.nan  # s, least wall time of the calls (build + solve), in the worker
     worker: str = field(default_factory=lambda: f"{os.uname().nodename}:{os.getpid()}")
     timing: dict = field(default_factory=dict)
+    infrastructure: bool = False
+    console: str = ""
+    runaway: bool = False
+
+
+#: Prefix of the reason of every infrastructure failure (never stored, see Outcome).
+INFRASTRUCTURE = "infrastructure failure (not stored; the next report runs it again)"
+
+#: Reason prefix of the rows an earlier sweep stored for infrastructure failures (it turned any
+#: exception out of a Dask future into a stored "failed" row). A method's own exception is
+#: stored as "<ExceptionType>: message", which never contains a space before the colon, so
+#: the two cannot be confused; such entries are dropped on read and computed again.
+LEGACY_INFRASTRUCTURE = "worker error:"
+
+
+def infrastructure(why: str, **kw) -> Outcome:
+    """The outcome of a run that did not get to give its own verdict."""
+    return Outcome("failed", f"{INFRASTRUCTURE}: {why}", infrastructure=True, **kw)
 
 
 _SHAPES = {  # Result field -> its shape, from (nt, n joints), planar cases
@@ -209,6 +236,15 @@ def execute(simulate, case, task: Task, repeats: int = 1) -> Outcome:
     run of ≥ ``timing.LONG_CPU`` is timed once, after an untimed warm-up (:func:`_warm_up`). ``KeyboardInterrupt`` and
     ``SystemExit`` still propagate (they stop the sweep).
     """
+    with console.captured() as printed:
+        out = _execute(simulate, case, task, repeats)
+    out.console = printed.text()
+    if out.console and out.status != "ok":
+        out.reason = f"{out.reason}; it printed: {printed.last_line()}"
+    return out
+
+
+def _execute(simulate, case, task: Task, repeats: int) -> Outcome:
     from . import timing as tm
 
     t0 = time.perf_counter()
@@ -222,8 +258,12 @@ def execute(simulate, case, task: Task, repeats: int = 1) -> Outcome:
             repeats,
             min_cpu=min_cpu,
         )
+    except methods.MethodShippingError as exc:  # not the method's verdict: never stored
+        return infrastructure(str(exc), run_time=time.perf_counter() - t0)
     except methods.MethodUnavailable as exc:
         return Outcome("unavailable", str(exc), run_time=time.perf_counter() - t0)
+    except RunTimeout as exc:  # the method's own verdict; its thread still runs here
+        return Outcome("failed", f"RunTimeout: {exc}", run_time=time.perf_counter() - t0, runaway=True)
     except Exception as exc:  # recorded with its reason, never dropped
         msg = str(exc).splitlines()[0][:300] if str(exc) else ""
         return Outcome("failed", f"{type(exc).__name__}: {msg}", run_time=time.perf_counter() - t0)
@@ -281,6 +321,7 @@ class RunStore:
         self._code: dict[str, dict] = {}
         self._fresh: set[str] = set()
         self._warned: set[str] = set()
+        self.repaired = 0  # stored infrastructure failures dropped on read (see _infrastructure_row)
         self.bind(cases or {})
 
     def bind(self, cases: dict) -> None:
@@ -320,6 +361,14 @@ class RunStore:
                 self._warned.add(key)
                 cachefiles.warn(jpath, str(exc))
             return None
+        if got is not None and _infrastructure_row(got[0]):
+            # an earlier sweep stored an infrastructure failure as if it were the method's
+            # verdict: not trusted, removed, and the run is computed again
+            for p in (jpath, ppath):
+                with contextlib.suppress(OSError):
+                    p.unlink()
+            self.repaired += 1
+            return None
         if got is not None:
             _touch(jpath, ppath)
         return got
@@ -349,19 +398,30 @@ class RunStore:
         return self._load(task) is not None
 
     def write(self, task: Task, outcome: Outcome, n_joints: int, reference=None, reference_id="") -> dict:
-        """Store one finished run and return its row (errors against ``reference`` included)."""
+        """Store one finished run and return its row (errors against ``reference`` included).
+        An infrastructure failure is never stored (ValueError): use :meth:`unstored_row`."""
+        if outcome.infrastructure:
+            raise ValueError(f"{task.case}/{task.key}: an infrastructure failure is not a verdict to store")
         jpath, ppath, key = self._paths(task)
         jpath.parent.mkdir(parents=True, exist_ok=True)
-        row = self._row(task, outcome, n_joints)
-        has_history = row["status"] in WITH_HISTORY and outcome.result is not None
-        row.update(score(outcome.result if has_history else None, reference, n_joints, row))
-        row["reference_id"] = reference_id
-        row["scored_with"] = _metrics_version()
+        row = self.unstored_row(task, outcome, n_joints, reference, reference_id)
         row["key"] = key
         history = cachefiles.result_bytes(outcome.result) if outcome.result is not None else None
         row = cachefiles.write_entry(jpath, ppath, row, history)
         self._fresh.add(key)
         self._warned.discard(key)
+        return row
+
+    def unstored_row(
+        self, task: Task, outcome: Outcome, n_joints: int, reference=None, reference_id=""
+    ) -> dict:
+        """The row of a run as :meth:`write` would store it, without storing it (the rows of
+        infrastructure failures, which the report shows but the store never keeps)."""
+        row = self._row(task, outcome, n_joints)
+        has_history = row["status"] in WITH_HISTORY and outcome.result is not None
+        row.update(score(outcome.result if has_history else None, reference, n_joints, row))
+        row["reference_id"] = reference_id
+        row["scored_with"] = _metrics_version()
         return row
 
     @staticmethod
@@ -387,6 +447,7 @@ class RunStore:
             "n_steps": int(res.n_steps) if res is not None else -1,
             "n_dof": _plain(meta.get("n_dof", meta.get("ndof"))),
             "worker": outcome.worker,
+            "console": outcome.console[-2000:],
             "iterations_mean": _plain(meta.get("iterations_mean")),
             "meta": _plain({k: v for k, v in meta.items() if k not in ("versions",)}),
             "versions": _plain(meta.get("versions", {})),
@@ -406,15 +467,18 @@ class RunStore:
         got = self._load(task)
         return cachefiles.result_from_bytes(got[1]) if got is not None and got[1] is not None else None
 
-    def table(self, tasks, references=None):
+    def table(self, tasks, references=None, unstored=None):
         """Rows of the given (finished) tasks as a DataFrame, errors rescored where the stored
-        reference id differs from the current one. ``references``: case -> (Result, id)."""
+        reference id differs from the current one. ``references``: case -> (Result, id).
+        ``unstored``: Task -> row of runs not in the store (infrastructure failures), in place."""
         import pandas as pd
 
         rows = []
         for task in dict.fromkeys(tasks):
             got = self._load(task)
             if got is None:
+                if unstored and task in unstored:
+                    rows.append(dict(unstored[task]))
                 continue
             row, data = got
             ref, ref_id = (references or {}).get(task.case, (None, ""))
@@ -428,6 +492,14 @@ class RunStore:
             drop = ("meta", "versions", "history_sha256", cachefiles.SEAL, "scored_with")
             rows.append({k: v for k, v in row.items() if k not in drop})
         return pd.DataFrame(rows)
+
+
+def _infrastructure_row(row: dict) -> bool:
+    """Whether a stored row records an infrastructure failure instead of a method's verdict."""
+    reason = str(row.get("reason") or "")
+    return row.get("status") == "failed" and (
+        reason.startswith(LEGACY_INFRASTRUCTURE) or reason.startswith(INFRASTRUCTURE)
+    )
 
 
 def _touch(*paths) -> None:

@@ -6,17 +6,30 @@ running cluster; ``scheduler="serial"`` runs in this process (debugging, tests).
 run is written at once by the :class:`~experiments.runs.RunStore`, so a killed sweep resumes
 where it stopped and recomputes only the missing runs (and any stored run whose files fail
 verification, with a warning).
+
+Isolation: a worker holds one run at a time, so a run that kills its process takes no other
+run with it; Dask's nanny starts a new worker and the run is tried again
+(:data:`ATTEMPTS` in all), then it is an omission. A run past its method's time limit is the
+method's verdict (stored); its worker, where the call still runs, is restarted. Anything that
+keeps a run from giving its own verdict (a lost worker, a method that cannot be loaded on the
+worker, a cancelled future, an interrupted sweep) is an *infrastructure failure*: shown in the
+table with its reason, never stored, so the next sweep runs it again.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 from collections.abc import Iterable
 from contextlib import contextmanager
 
 from . import estimate, methods
-from .runs import Outcome, RunStore, Task, execute
+from .runs import Outcome, RunStore, Task, execute, infrastructure
+
+#: Tries of a run whose worker process dies under it (the Dask scheduler's allowed failures + 1)
+#: on a cluster this sweep starts; an outside scheduler keeps its own setting.
+ATTEMPTS = 2
 
 __all__ = ["run_sweep", "pending"]
 
@@ -53,7 +66,16 @@ def _client(scheduler, workers):
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     n = workers or os.cpu_count() or 1
+    import dask
+
     with (
+        dask.config.set(
+            {
+                # one run per worker at a time: a process that dies takes no queued run with it
+                "distributed.scheduler.worker-saturation": 1.0,
+                "distributed.scheduler.allowed-failures": ATTEMPTS - 1,
+            }
+        ),
         LocalCluster(
             n_workers=n,
             threads_per_worker=1,
@@ -126,13 +148,18 @@ def run_sweep(
     if progress:
         print(estimate.plan_text(len(tasks), len(todo), sum(est.values()), n_workers, by_method), flush=True)
     bar = _bar(sum(est.values()), desc, progress)
-    done = [0]
+    done, spent = [0], [0.0]
+    unstored: dict = {}
 
     def finish(task, outcome):
         ref, ref_id = references.get(task.case, (None, ""))
-        store.write(task, outcome, cases[task.case].n_joints, ref, ref_id)
+        if outcome.infrastructure:
+            unstored[task] = store.unstored_row(task, outcome, cases[task.case].n_joints, ref, ref_id)
+        else:
+            store.write(task, outcome, cases[task.case].n_joints, ref, ref_id)
         done[0] += 1
-        bar.update(min(est.get(task, 0.0), max(bar.total - bar.n, 0.0)))  # rounding never overshoots
+        spent[0] += est.get(task, 0.0)
+        _advance(bar, spent[0], done[0] == len(todo))
         bar.set_postfix_str(
             f"{done[0]}/{len(todo)} runs; {task.case} {task.method} k={task.k} h={task.h:g}: {outcome.status}"
         )
@@ -151,44 +178,97 @@ def run_sweep(
                 finish(t, execute(resolved[t.method], cases[t.case], t, repeats.get(t, 1)))
         elif runnable:
             _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats, est)
-    finally:
+    finally:  # an interrupted sweep stores nothing more: its runs in flight are run next time
         bar.close()
-    return store.table(tasks, references if references else None)
+    if store.repaired and progress:
+        print(
+            f"run store: {store.repaired} stored infrastructure failure(s) of an earlier sweep dropped and run again",
+            flush=True,
+        )
+    return store.table(tasks, references if references else None, unstored)
+
+
+def _advance(bar, spent: float, last: bool) -> None:
+    """Move the bar to ``spent`` estimated seconds; it reaches its end only with the last run
+    (an estimate that runs ahead of the runs still in flight stops just short of it)."""
+    total = float(bar.total)
+    # short of the end as the bar prints it too: its count ({n:.0f}) and its percentage
+    cap = min(total - 1.0, 0.99 * total, round(total) - 0.51)
+    target = total if last else max(0.0, min(spent, cap))
+    if target > bar.n:
+        bar.update(target - bar.n)
 
 
 def _distributed(runnable, resolved, cases, finish, scheduler, workers, store, repeats, est):
     from dask.distributed import as_completed
 
     with _client(scheduler, workers) as client:
-        # Cases and methods go to the workers once; each task then ships only its key.
-        case_f = {
-            name: client.scatter(c, broadcast=True)
-            for name, c in cases.items()
-            if any(t.case == name for t in runnable)
-        }
-        # Longest runs first (higher priority: the estimated CPU time in ms), so no worker is left
-        # with one long run at the end.
-        fut = {
-            client.submit(
+        # Every task carries its case (small): data scattered to a worker that dies would take
+        # every run depending on it down ("lost dependencies").
+        def submit(t, attempt=0):
+            return client.submit(
                 execute,
                 resolved[t.method],
-                case_f[t.case],
+                cases[t.case],
                 t,
                 repeats.get(t, 1),
                 pure=False,
                 # the entry key: a shared scheduler never confuses two versions of a run
-                key=f"run-{t.case}-{t.key}-{store.entry_key(t)[:16]}",
+                key=f"run-{t.case}-{t.key}-{store.entry_key(t)[:16]}" + (f"-try{attempt}" if attempt else ""),
+                # longest runs first (the estimated CPU time in ms), so no worker is left with
+                # one long run at the end
                 priority=int(1e3 * est[t]),
-            ): t
-            for t in runnable
-        }
-        for f in as_completed(fut):
-            task = fut[f]
+            )
+
+        fut = {submit(t): (t, 0) for t in runnable}
+        queue = as_completed(list(fut))
+        for f in queue:
+            task, attempt = fut.pop(f)
             try:
                 outcome = f.result()
-            except Exception as exc:  # a worker died under the run
-                outcome = Outcome("failed", f"worker error: {type(exc).__name__}: {exc}")
+            except Exception as exc:  # noqa: BLE001 - the run gave no verdict of its own
+                why = _infrastructure_reason(exc)
+                if attempt + 1 < ATTEMPTS and not _killed_worker(exc):
+                    g = submit(task, attempt + 1)  # a lost future, not a crash: try it again
+                    fut[g] = (task, attempt + 1)
+                    queue.add(g)
+                    continue
+                outcome = infrastructure(why)
             finish(task, outcome)
+            if outcome.runaway:
+                _restart(client, outcome.worker)
+
+
+def _killed_worker(exc) -> bool:
+    return type(exc).__name__ == "KilledWorker"
+
+
+def _infrastructure_reason(exc) -> str:
+    """What kept a run from giving its verdict, in words."""
+    name = type(exc).__name__
+    if name == "KilledWorker":
+        return (
+            f"its worker process died during the run, {ATTEMPTS} times (the method may end or crash "
+            "its process: os._exit, a segmentation fault, out of memory)"
+        )
+    if "Cancelled" in name:
+        return f"the run was cancelled before it finished ({name}: {exc})"
+    text = str(exc).splitlines()[0][:300] if str(exc) else ""
+    return f"the run could not be carried out on the cluster ({name}: {text})"
+
+
+def _restart(client, worker: str) -> None:
+    """Restart the worker process where a call past its time limit still runs (a thread
+    cannot be stopped), so the runs after it are timed alone. ``worker`` is the outcome's
+    ``host:pid``; a worker that cannot be found or restarted is left (its timings are marked
+    noisy)."""
+    with contextlib.suppress(Exception):
+        pid = int(worker.rsplit(":", 1)[1])
+        info = client.scheduler_info()["workers"]
+        pids = client.run(os.getpid)
+        for addr in info:
+            if pids.get(addr) == pid:
+                client.restart_workers([addr], raise_for_error=False)
 
 
 class _NoBar:

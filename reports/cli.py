@@ -11,7 +11,6 @@ stored tables.
 
 from __future__ import annotations
 
-import argparse
 import json
 import shlex
 import sys
@@ -153,10 +152,11 @@ def add_methods(specs, timeout=None) -> list[str]:
 
 def main(argv=None) -> int:
     """Entry point of ``dttmm report``."""
+    from dttmm.cliparse import OneLineParser
     from experiments.plan import plan_for
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    ap = argparse.ArgumentParser(prog="dttmm report", description=__doc__.splitlines()[0])
+    ap = OneLineParser(prog="dttmm report", description=__doc__.splitlines()[0])
     g = ap.add_mutually_exclusive_group()
     g.add_argument(
         "--quick", dest="size", action="store_const", const="quick", help="the < 10 min size (default)"

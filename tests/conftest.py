@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import dataclasses as dc
+import os
+import socket
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -10,6 +15,8 @@ import pytest
 import dttmm
 
 CASES = Path(__file__).resolve().parents[1] / "experiments" / "cases"
+TESTS = Path(__file__).resolve().parent
+ROOT = TESTS.parent
 
 
 def case(name: str) -> dttmm.Case:
@@ -48,3 +55,71 @@ def three_link():
 @pytest.fixture
 def spin_up():
     return case("spin_up")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def loopback_cluster(tmp_path):
+    """A dask scheduler and two single-thread workers started as separate processes."""
+    bin_dir = Path(sys.executable).parent
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), str(ROOT)]), "OPENBLAS_NUM_THREADS": "1"}
+    addr = f"tcp://127.0.0.1:{_free_port()}"
+    common = dict(env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp_path)
+    procs = [
+        subprocess.Popen(
+            [
+                str(bin_dir / "dask"),
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                addr.rsplit(":", 1)[1],
+                "--no-dashboard",
+            ],
+            **common,
+        )
+    ]
+    try:
+        for _ in range(2):
+            procs.append(
+                subprocess.Popen(
+                    [
+                        str(bin_dir / "dask"),
+                        "worker",
+                        addr,
+                        "--nthreads",
+                        "1",
+                        "--nworkers",
+                        "1",
+                        "--no-dashboard",
+                        "--no-nanny",
+                    ],
+                    **common,
+                )
+            )
+        from dask.distributed import Client
+
+        deadline = time.time() + 60
+        while True:
+            try:
+                with Client(addr, timeout=5) as c:
+                    c.wait_for_workers(2, timeout=60)
+                break
+            except OSError:
+                if time.time() > deadline:
+                    raise
+                time.sleep(0.5)
+        yield addr
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()

@@ -229,7 +229,8 @@ def test_numba_equals_python_on_the_three_link_arm():
     b = dttmm.simulate(case, elements_per_link=2, h=1e-3, engine="python")
     for f in ("joint_angle", "joint_rate", "joint_torque", "link_tip"):
         np.testing.assert_allclose(getattr(a, f), getattr(b, f), rtol=0, atol=1e-12)
-    assert a.meta["iterations_mean"] == b.meta["iterations_mean"]
+    # iteration counts are not compared: round-off decides a solve at the stop rule's bound
+    assert a.status == b.status == "ok" and a.meta["unconverged_steps"] == b.meta["unconverged_steps"] == 0
 
 
 def test_computed_torque_feedforward_tracks_the_references():

