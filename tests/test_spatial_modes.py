@@ -199,6 +199,23 @@ def test_motion_joint_held_and_torque_joint_input():
     assert lin.q[0] == 0.3 and lin.n_free == lin.q.size - 1
 
 
+def test_closed_loop_joints_are_free_joints_with_torque_inputs():
+    """pd drives: the linearisation is that of the arm with the controller removed (planar
+    rule), each joint free with its torque a column of B; B = M ∂q̈/∂τ is the unit column of
+    the joint's angle (a joint torque does work only through its own angle)."""
+    from dttmm.drives import PD
+
+    case = load_case(SPATIAL / "three_joint_arm.toml")
+    drives = tuple(Drive("torque", PD(20.0, 2.0, Constant(0.1 * j))) for j in range(3))
+    case = dc.replace(case, scenario=dc.replace(case.scenario, drives=drives))
+    lin = dttmm.linearize(case, 2)
+    assert lin.torque_joints == (0, 1, 2)
+    cols = [lin.coordinates.index(f"joint {j + 1} angle") for j in range(3)]
+    expected = np.zeros((lin.n_free, 3))
+    expected[cols, [0, 1, 2]] = 1.0
+    np.testing.assert_allclose(lin.B, expected, rtol=0, atol=1e-9)
+
+
 def test_bad_input_names_the_field():
     with pytest.raises(InputError, match="state"):
         dttmm.linearize(cantilever(), 2, state="rest")
