@@ -13,7 +13,7 @@ from .case import Case, case_from_dict, save_case
 from .casefiles import case_to_dict, load_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
 from .errors import InputError, SimulationError
-from .linear import Linearization, Modes, linearize, modes
+from .linear import Linearization, Modes, frequencies, linearize, modes
 from .model import Hub, Link, Manipulator, Payload, Section
 from .resources import check_run_size
 from .result import Result, make_result, tip_deflection
@@ -48,6 +48,7 @@ __all__ = [
     "check_run_size",
     "linearize",
     "modes",
+    "frequencies",
     "Linearization",
     "Modes",
 ]

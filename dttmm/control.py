@@ -186,7 +186,9 @@ def rigid_inverse_dynamics(case, q, qd, qdd) -> np.ndarray:
 
 def computed_torque(case, t, left: bool = False) -> np.ndarray:
     """The ``computed_torque`` feedforward: rigid inverse dynamics along the references of all
-    joints (a motion drive's law, a pd/pid law's reference) at time(s) ``t``.
+    joints (a motion drive's law, a pd/pid law's reference) at time(s) ``t``. A spatial case
+    (one drive per unlocked joint) takes the spatial rigid arm's recursive Newton–Euler
+    (:func:`dttmm.spatial.inverse_dynamics.rigid_inverse_dynamics`).
 
     Returns (n,) for a scalar t, (nt, n) for an array.
     """
@@ -203,5 +205,16 @@ def computed_torque(case, t, left: bool = False) -> np.ndarray:
     ts = np.asarray(t, float)
     flat = ts.reshape(-1)
     m = np.array([[r.motion(float(tt), left) for r in refs] for tt in flat]).reshape(flat.size, len(refs), 3)
-    tau = rigid_inverse_dynamics(case, m[..., 0], m[..., 1], m[..., 2])
+    if _is_spatial(case):
+        from .spatial.inverse_dynamics import rigid_inverse_dynamics as spatial_rnea
+
+        tau = spatial_rnea(case.model, m[..., 0], m[..., 1], m[..., 2])
+    else:
+        tau = rigid_inverse_dynamics(case, m[..., 0], m[..., 1], m[..., 2])
     return tau[0] if ts.ndim == 0 else tau
+
+
+def _is_spatial(case) -> bool:
+    """A spatial arm (its model lists its unlocked joints): the feedforward is the spatial
+    recursive Newton–Euler of :mod:`dttmm.spatial.inverse_dynamics`."""
+    return hasattr(case.model, "unlocked")

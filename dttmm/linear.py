@@ -40,7 +40,7 @@ from .result import tip_deflection
 from .structure import STRAINS, Structure, build_structure, kinematics
 from .sweeps import accelerations as sweep_accelerations
 
-__all__ = ["Linearization", "Modes", "linearize", "modes"]
+__all__ = ["Linearization", "Modes", "frequencies", "linearize", "modes"]
 
 #: 8th-order central difference of a first derivative: f' ≈ Σ c_m (f(x + m h) − f(x − m h)) / h.
 _STENCIL = ((1, 4.0 / 5.0), (2, -1.0 / 5.0), (3, 4.0 / 105.0), (4, -1.0 / 280.0))
@@ -163,9 +163,20 @@ def derivative(f, x: np.ndarray, idx: np.ndarray, scale: np.ndarray, step: float
     return np.column_stack(cols)
 
 
+def _spatial(case) -> bool:
+    """Whether ``case`` is a spatial arm (a SpatialCase or a (SpatialManipulator, Scenario)
+    pair): :mod:`dttmm.spatial.linear` linearises it."""
+    from .spatial.case import SpatialCase
+    from .spatial.model import SpatialManipulator
+
+    if isinstance(case, SpatialCase):
+        return True
+    return isinstance(case, tuple) and len(case) == 2 and isinstance(case[0], SpatialManipulator)
+
+
 def _check(case, elements_per_link, t, strain) -> tuple[Structure, float]:
     if not isinstance(case, Case):
-        raise InputError("case", case, "must be a dttmm.Case")
+        raise InputError("case", case, "must be a dttmm.Case or a spatial case")
     if strain not in STRAINS:
         raise InputError("strain", strain, f"unknown (one of: {', '.join(STRAINS)})")
     try:
@@ -210,7 +221,16 @@ def linearize(
     Returns
     -------
     Linearization
+
+    A spatial case goes to :func:`dttmm.spatial.linear.linearize` (the same record; there
+    ``state`` may also be ``"equilibrium"``).
     """
+    if _spatial(case):
+        from .spatial.linear import linearize as spatial_linearize
+
+        return spatial_linearize(case, elements_per_link, t, state, strain=strain, torque=torque, step=step)
+    if isinstance(state, str):
+        raise InputError("state", state, "must be None or a pair (q, qd) for a planar arm")
     st, t = _check(case, elements_per_link, t, strain)
     if not (isinstance(step, (int, float)) and 0.0 < step < 0.1):
         raise InputError("step", step, "must be a relative difference step in (0, 0.1)")
@@ -289,6 +309,11 @@ class Modes:
         (ζ = −(s₁ + s₂) / (2 √(s₁ s₂))); None when D = 0. NaN for rigid-body modes.
     linearization : Linearization
     warnings : tuple of str
+    twists : None or tuple of (n_modes, k + 1) ndarrays
+        Spatial arms only: per link, the twist (rad per unit modal amplitude) of the element
+        nodes' sections about the link's x axis; their ``deflections`` are then
+        (n_modes, k + 1, 2), the offsets along the link frame's y and z axes. None for a planar
+        arm.
     """
 
     frequencies: np.ndarray
@@ -299,6 +324,7 @@ class Modes:
     damping_ratios: np.ndarray | None
     linearization: Linearization
     warnings: tuple = ()
+    twists: tuple | None = None
 
 
 def _eigen(K: np.ndarray, M: np.ndarray):
@@ -397,8 +423,14 @@ def modes(
     -------
     Modes
         Frequencies from K φ = ω² M φ (scipy.linalg.eigh when K is symmetric, else eig);
-        damping ratios when D ≠ 0.
+        damping ratios when D ≠ 0. A spatial case goes to :func:`dttmm.spatial.linear.modes`.
     """
+    if _spatial(case):
+        from .spatial.linear import modes as spatial_modes
+
+        return spatial_modes(
+            case, elements_per_link, t, state, n, strain=strain, torque=torque, zero_tol=zero_tol
+        )
     lin = linearize(case, elements_per_link, t, state, strain=strain, torque=torque)
     st = build_structure(case, elements_per_link, strain)
     if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1):
@@ -430,5 +462,5 @@ def modes(
 
 def frequencies(case: Case, elements_per_link: int, n: int | None = None) -> np.ndarray:
     """Lowest ``n`` natural frequencies (Hz, ascending) of ``case`` at rest: :func:`modes`'s
-    frequencies, the common natural-frequency call of the suite's methods."""
+    frequencies, the common natural-frequency call of the suite's methods (planar or spatial)."""
     return np.asarray(modes(case, elements_per_link, n=n).frequencies, float)

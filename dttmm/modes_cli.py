@@ -5,8 +5,10 @@ mode), ``<case>_shapes.csv`` (M-normalised shapes over the free coordinates),
 ``<case>_deflections.csv`` (transverse node deflections of each link per mode) and
 ``<case>_modes.png`` (the first elastic modes' deflections along the arm) and, with
 ``--animate``, ``<case>_modes.mp4`` (the first elastic modes oscillating; a GIF without ffmpeg).
-Motion-driven joints are held, torque-driven joints free. Exit codes are those of
-:mod:`dttmm.cli`.
+Motion-driven joints are held, torque-driven joints free. A spatial case (``kind =
+"spatial"``) is linearised by :mod:`dttmm.spatial.linear`, at rest or, with ``--equilibrium``,
+about its static equilibrium; its deflections CSV has a ``component`` column (y, z, twist).
+Exit codes are those of :mod:`dttmm.cli`.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .case import load_case
+from .casefiles import load_case
 from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_OK, OneLineParser
 from .errors import InputError
 
@@ -50,6 +52,11 @@ def modes_parser() -> OneLineParser:
         choices=["linear", "second-order"],
         help="axial strain of the elements (default linear)",
     )
+    p.add_argument(
+        "--equilibrium",
+        action="store_true",
+        help="spatial arms: linearise about the static equilibrium under gravity and loads (default: rest)",
+    )
     p.add_argument("--out", default="out/modes", help="output folder (created before the run)")
     p.add_argument(
         "--animate", action="store_true", help="also write the first elastic modes oscillating (.mp4 or .gif)"
@@ -82,19 +89,35 @@ def _write_csv(m, name: str, out: Path) -> list[Path]:
     shapes.insert(0, "coordinate", list(m.linearization.coordinates))
     rows = []
     for i, (s, w) in enumerate(zip(m.s, m.deflections)):
-        df = pd.DataFrame(w.T, columns=cols)
-        df.insert(0, "s_m", s)
-        df.insert(0, "link", i + 1)
-        rows.append(df)
+        if m.twists is None:
+            parts = [(None, w)]
+        else:  # spatial: the offsets along the link frame's y and z, and the twist
+            parts = [("y", w[..., 0]), ("z", w[..., 1]), ("twist", m.twists[i])]
+        for comp, v in parts:
+            df = pd.DataFrame(v.T, columns=cols)
+            df.insert(0, "s_m", s)
+            if comp is not None:
+                df.insert(0, "component", comp)
+            df.insert(0, "link", i + 1)
+            rows.append(df)
     paths = [out / f"{name}_modes.csv", out / f"{name}_shapes.csv", out / f"{name}_deflections.csv"]
     for df, p in zip((freq, shapes, pd.concat(rows, ignore_index=True)), paths):
         df.to_csv(p, index=False)
     return paths
 
 
+def _curves(m, i):
+    """Per link, the (values, line style) drawn for mode i."""
+    if m.twists is None:
+        return [[(d[i], "-")] for d in m.deflections]
+    return [[(d[i, :, 0], "-"), (d[i, :, 1], "--"), (tw[i], ":")] for d, tw in zip(m.deflections, m.twists)]
+
+
 def plot_modes(m, path: Path, title: str = "") -> Path:
     """PNG of the first elastic modes: transverse deflection (each mode scaled to a peak of 1)
-    against the arc length along the arm, links one after the other."""
+    against the arc length along the arm, links one after the other (spatial arms: the offsets
+    along the link frame's y (solid) and z (dashed) and the twist in rad (dotted), scaled
+    together)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -104,10 +127,12 @@ def plot_modes(m, path: Path, title: str = "") -> Path:
     fig, ax = plt.subplots(figsize=(7, 4))
     elastic = [i for i in range(m.frequencies.size) if m.frequencies[i] > 0][:N_PLOT]
     for c, i in enumerate(elastic):
-        peak = max(np.abs(d[i]).max() for d in m.deflections) or 1.0
-        for j, (s, o, d) in enumerate(zip(m.s, offsets, m.deflections)):
-            label = f"mode {i + 1}: {m.frequencies[i]:.4g} Hz" if j == 0 else None
-            ax.plot(s + o, d[i] / peak, marker=".", color=f"C{c}", label=label)
+        curves = _curves(m, i)
+        peak = max(np.abs(v).max() for per_link in curves for v, _ in per_link) or 1.0
+        for j, (s, o, per_link) in enumerate(zip(m.s, offsets, curves)):
+            for v, ls in per_link:
+                label = f"mode {i + 1}: {m.frequencies[i]:.4g} Hz" if j == 0 and ls == "-" else None
+                ax.plot(s + o, v / peak, marker=".", ls=ls, color=f"C{c}", label=label)
     for o in offsets[1:-1]:
         ax.axvline(o, color="0.6", lw=0.8, ls="--")
     ax.set_xlabel("arc length along the arm [m]")
@@ -123,15 +148,20 @@ def plot_modes(m, path: Path, title: str = "") -> Path:
 
 def run_modes(a) -> int:
     """Run ``dttmm modes`` for the parsed arguments ``a``; return the exit code."""
-    from .linear import modes
+    from .linear import _spatial, modes
     from .simulate_cli import prepare_out
 
     try:
         if a.n < 1:
             raise InputError("--n", a.n, "must be an integer ≥ 1")
         case = load_case(a.case)  # the input is accepted before anything is written
+        spatial = _spatial(case)
+        if a.equilibrium and not spatial:
+            raise InputError("--equilibrium", True, "is for spatial arms (a planar arm linearises at rest)")
+        if getattr(a, "animate", False) and spatial:
+            raise InputError("--animate", True, "mode animations are drawn for planar arms only")
         out = prepare_out(a.out)
-        m = modes(case, a.elements, a.t, n=a.n, strain=a.strain)
+        m = modes(case, a.elements, a.t, "equilibrium" if a.equilibrium else None, n=a.n, strain=a.strain)
     except InputError as exc:
         print(f"dttmm: bad input: {exc}", file=sys.stderr)
         return EXIT_INPUT

@@ -80,7 +80,7 @@ import numpy as np
 from dttmm import plumbing
 from dttmm.control import pd_torque, time_tables
 from dttmm.control_state import ControlState
-from dttmm.drives import ComputedTorque, UserLaw, require_open_loop
+from dttmm.drives import UserLaw, require_open_loop
 from dttmm.errors import InputError, SimulationError
 from dttmm.iteration import stop_rule
 from dttmm.spatial import SpatialCase, SpatialResult
@@ -1197,7 +1197,8 @@ def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
 
 def _check_closed_loop(case, integrator: str) -> None:
     """Refuse the closed-loop drives this solver cannot run: any with RK4 (the laws are solved
-    implicitly with a Newmark step) and the ``computed_torque`` feedforward."""
+    implicitly with a Newmark step). A ``computed_torque`` feedforward is tabulated by
+    :func:`dttmm.control.computed_torque` (the spatial rigid recursive Newton–Euler)."""
     for j, d in enumerate(case.scenario.drives):
         if not d.closed_loop:
             continue
@@ -1207,13 +1208,6 @@ def _check_closed_loop(case, integrator: str) -> None:
                 d.law.name,
                 f"closed-loop drive on joint {j + 1}: integrator {integrator!r} of the spatial global "
                 f"solver cannot run it (its integrators {' and '.join(map(repr, _STEPPED))} can)",
-            )
-        if isinstance(getattr(d.law, "feedforward", None), ComputedTorque):
-            raise InputError(
-                f"scenario.drives[{j}].feedforward",
-                "computed_torque",
-                f"the computed_torque feedforward on joint {j + 1} is not supported by the spatial "
-                "global solver (it has no rigid inverse dynamics of a spatial arm)",
             )
 
 
@@ -1256,8 +1250,7 @@ def simulate(
     Raises
     ------
     dttmm.InputError
-        Bad case, k, h, integrator, strain or option; a closed-loop drive law with RK4 or the
-        ``computed_torque`` feedforward.
+        Bad case, k, h, integrator, strain or option; a closed-loop drive law with RK4.
     dttmm.SimulationError
         Non-finite state (``partial`` holds the outputs so far).
     """

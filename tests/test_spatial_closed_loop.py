@@ -149,11 +149,12 @@ def test_rk4_closed_loop_converges_to_newmark():
 
 
 def test_refusals_name_the_drive():
+    # computed_torque needs a reference on every joint (joint 3 here is an open-loop torque)
     pd = Drive("torque", PD(1.0, 0.1, Constant(0.0), feedforward={"law": "computed_torque"}))
-    case = _arm((pd, *_pd_drives()[1:]), 0.01)
-    with pytest.raises(InputError, match=r"scenario\.drives\[0\]\.feedforward.*computed_torque"):
+    case = _arm((pd, _pd_drives()[1], Drive("torque", Constant(0.0))), 0.01)
+    with pytest.raises(InputError, match=r"scenario\.drives\[2\]\.law.*reference motion on every joint"):
         simulate(case, elements_per_link=1, h=1e-3)
-    with pytest.raises(InputError, match=r"scenario\.drives\[0\]\.feedforward.*computed_torque"):
+    with pytest.raises(InputError, match=r"scenario\.drives\[2\]\.law.*reference motion on every joint"):
         sg.simulate(case, elements_per_link=1, h=1e-3)
     plain = _arm((Drive("torque", UserLaw(lambda t, s: (0.0, 0.0, 0.0))), *_pd_drives()[1:]), 0.01)
     with pytest.raises(InputError, match=r"scenario\.drives\[0\]\.law.*numba-jitted"):

@@ -12,7 +12,7 @@ import numpy as np
 from .. import control, plumbing
 from ..case import Case
 from ..control_state import is_jitted
-from ..drives import ComputedTorque, UserLaw, require_open_loop
+from ..drives import UserLaw, require_open_loop
 from ..errors import InputError
 from ..timegrid import step_schedule
 from .build import STRAINS, build_model, make_work
@@ -65,8 +65,9 @@ def _motion_flags(case: SpatialCase) -> np.ndarray:
 
 def _check_closed_loop(case: SpatialCase, engine: str) -> None:
     """Refuse the closed-loop drives the kernel does not run: user laws that are plain Python
-    functions with the compiled kernel (numba-jitted ones run) and the ``computed_torque``
-    feedforward (the spatial kernel has no rigid inverse dynamics)."""
+    functions with the compiled kernel (numba-jitted ones run). A ``computed_torque``
+    feedforward is tabulated by :func:`dttmm.control.computed_torque` (the spatial rigid arm's
+    recursive Newton–Euler)."""
     for j, d in enumerate(case.scenario.drives):
         if not d.closed_loop:
             continue
@@ -77,13 +78,6 @@ def _check_closed_loop(case: SpatialCase, engine: str) -> None:
                 f"user law on joint {j + 1} is a plain Python function: it runs with "
                 "engine='python' only (the compiled kernel calls no Python function; write the law "
                 "as a numba-jitted function of (t, JitState) to run it compiled)",
-            )
-        if isinstance(getattr(d.law, "feedforward", None), ComputedTorque):
-            raise InputError(
-                f"scenario.drives[{j}].feedforward",
-                "computed_torque",
-                f"the computed_torque feedforward on joint {j + 1} is not supported by the spatial "
-                "kernel (it has no rigid inverse dynamics of a spatial arm)",
             )
 
 
