@@ -35,6 +35,7 @@ terminal table, ``DIR/scorecard.json`` and the HTML pages ``DIR/index.html`` and
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import json
 import math
@@ -1458,6 +1459,7 @@ def warm_kernel() -> None:
     """Compile (or load from numba's disk cache) DT-TMM's kernel in this process before any worker
     starts: a first compile takes minutes and would otherwise run into every worker's timeout."""
     import dttmm
+    from dttmm import spatial
 
     case = methods._probe_case()
     for opts in ({}, {"strain": "second-order", "integrator": "generalized-alpha"}, {"integrator": "rk4"}):
@@ -1465,6 +1467,9 @@ def warm_kernel() -> None:
             dttmm.simulate(case, elements_per_link=1, h=0.002, progress=False, **opts)
         except Exception:  # noqa: BLE001, S112 - a warm-up only; the checks report failures
             continue
+    # the spatial kernel too (the spatial checks, and outside methods built on it)
+    with contextlib.suppress(Exception):
+        spatial.simulate(methods._spatial_probe_case(), elements_per_link=1, h=0.002)
 
 
 def default_methods() -> list:
