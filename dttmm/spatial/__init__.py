@@ -4,7 +4,9 @@ The model (:class:`SpatialManipulator` and its parts), cases (:class:`SpatialCas
 manipulator with the planar suite's :class:`dttmm.Scenario`, or a :class:`SpatialScenario` that
 adds external loads, :class:`SpatialLoad`), the embedding of a planar arm
 (:func:`embed_planar`), the rotation helpers of the discretisation and the static equilibrium
-with the joints held (:func:`statics`).
+with the joints held (:func:`statics`). :func:`dttmm.simulate` runs a spatial case on this
+package's kernel (:func:`simulate`); link shapes at any coordinates:
+:func:`dttmm.spatial.shapes.link_shapes`.
 """
 
 from .case import SpatialCase, case_from_dict, load_case
