@@ -12,6 +12,7 @@ Overview::
 """
 
 from ._version import __version__ as __version__
+from .api import accelerations, simulate, statics
 from .case import Case, case_from_dict, save_case
 from .casefiles import case_to_dict, load_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
@@ -21,7 +22,6 @@ from .model import Hub, Link, Manipulator, Payload, Section
 from .resources import check_run_size
 from .result import Result, make_result, tip_deflection
 from .scenario import Scenario
-from .solver import accelerations, simulate, statics
 
 __all__ = [
     "Case",

@@ -88,7 +88,7 @@ def styles(names) -> dict:
 def run_case(case, specs, k: int, points: int) -> dict:
     """{method: Result} of ``case`` for every (method, h) in ``specs``, with link shapes."""
     if [m for m, _ in specs] == ["dttmm"]:
-        from .solver import simulate
+        from .api import simulate
 
         return {
             "dttmm": simulate(case, elements_per_link=k, h=specs[0][1], shape_points=points, progress=None)

@@ -10,11 +10,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .api import simulate
 from .casefiles import load_case
 from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK  # noqa: F401
 from .errors import InputError, SimulationError
 from .resources import check_run_size
-from .solver import simulate
 
 
 def plot_result(res, path: Path, title: str = "") -> Path:

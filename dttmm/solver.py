@@ -1,12 +1,10 @@
-"""DT-TMM simulation: :func:`simulate` (Newmark family or RK4) and :func:`accelerations`
-(positions, velocities → accelerations) of any arm.
+"""DT-TMM simulation of planar arms: :func:`simulate` (Newmark family or RK4) and
+:func:`accelerations` (positions, velocities → accelerations) on the planar kernel.
+``dttmm.simulate`` and ``dttmm.accelerations`` (:mod:`dttmm.api`) take any arm and call these
+for a planar one.
 
-Both take a planar :class:`dttmm.Case` or a spatial :class:`dttmm.spatial.SpatialCase` and
-choose the kernel (:func:`kernel_of`): a planar arm runs on the planar kernel
-(:mod:`dttmm.kernel`, the fast path), a spatial arm on the spatial one (:mod:`dttmm.spatial`);
-``kernel="spatial"`` runs a planar arm on the spatial kernel too, embedded by
-:func:`dttmm.spatial.embed_planar` (for comparison). Both validate their settings here and
-hand the discretised case to the kernel, compiled by numba or run uncompiled (engine "python").
+Both validate their settings here and hand the discretised case to the kernel
+(:mod:`dttmm.kernel`), compiled by numba or run uncompiled (engine "python").
 """
 
 from __future__ import annotations
@@ -25,45 +23,9 @@ from .resources import check_run_size
 from .structure import STRAINS, build_structure
 from .sweeps import SWEEPS
 
-__all__ = ["INTEGRATORS", "KERNELS", "accelerations", "kernel_of", "simulate", "statics"]
+__all__ = ["INTEGRATORS", "accelerations", "simulate"]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
-#: the kernels that run an arm: "planar" (planar arms only) and "spatial" (any arm)
-KERNELS = ("planar", "spatial")
-
-
-def kernel_of(case, kernel: str | None = None) -> str:
-    """The kernel that runs ``case``: "planar" for a :class:`dttmm.Case`, "spatial" for a
-    :class:`dttmm.spatial.SpatialCase` (or a (SpatialManipulator, Scenario) pair); ``kernel``
-    overrides the choice ("spatial" runs a planar arm on the spatial kernel; a spatial arm runs
-    on the spatial kernel only). InputError (one line, naming the type) for anything else."""
-    if kernel is not None:
-        plumbing.choice("kernel", kernel, KERNELS)
-    if isinstance(case, Case):
-        return kernel or "planar"
-    from .spatial.case import SpatialCase
-    from .spatial.model import SpatialManipulator
-
-    if isinstance(case, SpatialCase) or (
-        isinstance(case, tuple) and len(case) == 2 and isinstance(case[0], SpatialManipulator)
-    ):
-        if kernel == "planar":
-            raise InputError("kernel", kernel, "runs planar arms only; this case is spatial")
-        return "spatial"
-    raise InputError(
-        "case",
-        type(case).__name__,
-        "must be a dttmm.Case or a dttmm.spatial.SpatialCase (see dttmm.load_case)",
-    )
-
-
-def _spatial_case(case):
-    """``case`` for the spatial kernel: a planar case embedded (docs/spatial.md §1)."""
-    from .spatial import SpatialCase, embed_planar
-
-    if isinstance(case, Case):
-        return SpatialCase(embed_planar(case.model), case.scenario, name=case.name)
-    return case
 
 
 def accelerations(
@@ -76,26 +38,16 @@ def accelerations(
     sweep: str = "riccati",
     engine: str | None = None,
     strain: str = "linear",
-    kernel: str | None = None,
 ) -> np.ndarray:
     """Forward dynamics of the discretised arm: q̈ (n_dof,) from (q, q̇) (n_dof,) at time t (s).
 
-    Coordinates as in :mod:`dttmm.structure` (``[α_1, e_11, …, α_2, …]``) on the planar kernel,
-    as in docs/spatial.md §3 (``[α_1, e_11, …]`` with e = (u, v, w, φx, φy, φz)) on the spatial
-    one: a spatial case, or a planar one with ``kernel="spatial"`` (:func:`kernel_of`;
-    :func:`dttmm.spatial.accelerations`). Motion-driven joints take their angle, rate and
-    acceleration from the law (the given values are overridden). ``engine``: "numba"
-    (compiled, the default when numba is installed) or "python" (the same kernel uncompiled).
-    The readable one-step reference is :func:`dttmm.sweeps.accelerations`.
+    Coordinates as in :mod:`dttmm.structure` (``[α_1, e_11, …, α_2, …]``). Motion-driven joints
+    take their angle, rate and acceleration from the law (the given values are overridden).
+    ``engine``: "numba" (compiled, the default when numba is installed) or "python" (the same
+    kernel uncompiled). The readable one-step reference is :func:`dttmm.sweeps.accelerations`.
     """
-    if kernel_of(case, kernel) == "spatial":
-        from .spatial.solver import accelerations as spatial_accelerations
-
-        if sweep != "riccati":
-            raise InputError("sweep", sweep, "the spatial kernel has the Riccati sweep only")
-        return spatial_accelerations(
-            _spatial_case(case), elements_per_link, q, qd, t, strain=strain, engine=engine
-        )
+    if not isinstance(case, Case):
+        raise InputError("case", type(case).__name__, "must be a dttmm.Case")
     require_open_loop(case, "dttmm")
     engine = driver.resolve_engine(engine)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
@@ -144,26 +96,18 @@ def simulate(
     beta: float | None = None,
     gamma: float | None = None,
     rho_inf: float | None = None,
-    cut_loads: bool | None = None,
+    cut_loads: bool = True,
     energy: bool = True,
     progress: bool | None = None,
     engine: str | None = None,
     auto_fraction: float = 0.1,
     strain: str = "linear",
     shape_points: int = 0,
-    kernel: str | None = None,
 ):
     """Simulate ``case`` by DT-TMM with k = ``elements_per_link`` elements per link and step ``h``.
 
-    ``case`` is any arm: a planar :class:`dttmm.Case` runs on the planar kernel, a spatial
-    :class:`dttmm.spatial.SpatialCase` (as :func:`dttmm.load_case` reads it) on the spatial
-    kernel (:func:`dttmm.spatial.simulate`, a :class:`dttmm.spatial.SpatialResult`).
-
     Parameters
     ----------
-    kernel : None (default: chosen by the case, :func:`kernel_of`), "planar" or "spatial"
-        ("spatial" runs a planar arm on the spatial kernel, embedded by
-        :func:`dttmm.spatial.embed_planar`, for comparison; its Result is spatial).
     integrator : "newmark" (β = ¼, γ = ½ unless given), "generalized-alpha" (``rho_inf``,
         default 0.9) or "rk4" (explicit, on the acceleration solver).
     sweep : "riccati" (stable, default) or "plain" (the paper's transfer form).
@@ -183,47 +127,21 @@ def simulate(
         it needs h small enough to resolve the axial-bending coupling — measured on single_link:
         h = 4e-3 diverged at k = 2 and 8, h ≤ 2e-3 ran; use generalised-α for large steps).
         See docs/method.md. Inextensible links are unaffected.
-    cut_loads, energy : record the loads at every cut and the total energy on the output grid
-        (``cut_loads`` None: the kernel's default, on for the planar kernel, off for the spatial).
-    shape_points : p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2) (spatial: (nt, n, p, 3)),
-        the deflected centre line of every link from the element shape functions
-        (:mod:`dttmm.shapes`); 0 (default) records none.
+    cut_loads, energy : record the loads at every cut and the total energy on the output grid.
+    shape_points : p ≥ 2 records ``Result.link_shapes`` (nt, n, p, 2), the deflected centre
+        line of every link from the element shape functions (:mod:`dttmm.shapes`); 0 (default)
+        records none.
     progress : show a progress bar (tqdm, on stderr); default: on when the run time, estimated
         after its first 0.5 %, exceeds 2 s.
 
     Returns
     -------
-    dttmm.Result on ``case.scenario.output_times`` (a SpatialResult from the spatial kernel).
+    dttmm.Result on ``case.scenario.output_times``.
 
     Raises
     ------
     InputError for bad settings; SimulationError (with ``.partial``) when the run diverges.
     """
-    if kernel_of(case, kernel) == "spatial":
-        from .spatial.solver import simulate as spatial_simulate
-
-        if sweep != "riccati":
-            raise InputError("sweep", sweep, "the spatial kernel has the Riccati sweep only")
-        return spatial_simulate(
-            _spatial_case(case),
-            elements_per_link=elements_per_link,
-            h=h,
-            integrator=integrator,
-            strain=strain,
-            iterations=iterations,
-            tol=tol,
-            max_iterations=max_iterations,
-            beta=beta,
-            gamma=gamma,
-            rho_inf=rho_inf,
-            cut_loads=bool(cut_loads),
-            energy=energy,
-            engine=engine,
-            auto_fraction=auto_fraction,
-            shape_points=shape_points,
-            progress=progress,
-        )
-    cut_loads = True if cut_loads is None else cut_loads
     elements_per_link, h = plumbing.discretisation(case, elements_per_link, h)
     plumbing.choice("integrator", integrator, INTEGRATORS)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
@@ -254,15 +172,3 @@ def simulate(
         # experimental each time it types one; this project's tests cover that use
         warnings.filterwarnings("ignore", message="First-class function type feature is experimental")
         return driver.simulate_structure(build_structure(case, elements_per_link, strain), s)
-
-
-def statics(case, *, elements_per_link: int, **options):
-    """Static equilibrium of any arm with its joints held (at ``angles``, default 0) under its
-    gravity and loads: :func:`dttmm.spatial.statics` (its options: ``loads``, ``t``, ``strain``,
-    ``tol``, ``max_iterations``, ``steps``, ``angles``, ``engine``). A planar case is solved on
-    the spatial kernel, embedded by :func:`dttmm.spatial.embed_planar` (its plane is the world's
-    x–y plane); returns a :class:`dttmm.spatial.StaticResult` (3-component positions)."""
-    kernel_of(case, "spatial")
-    from .spatial.statics import statics as spatial_statics
-
-    return spatial_statics(_spatial_case(case), elements_per_link=elements_per_link, **options)

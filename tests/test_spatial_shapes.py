@@ -22,11 +22,11 @@ from dttmm.spatial import (
     SpatialJoint,
     SpatialLink,
     SpatialManipulator,
+    link_shapes,
     load_case,
     simulate,
     statics,
 )
-from dttmm.spatial.shapes import link_shapes
 
 CASES = Path(__file__).resolve().parent.parent / "experiments" / "cases" / "spatial"
 P = 7

@@ -25,7 +25,7 @@ from .rotation import log_so3
 from .scenario import load_inputs
 from .shapes import from_frames
 
-__all__ = ["INTEGRATORS", "accelerations", "as_spatial_case", "simulate"]
+__all__ = ["INTEGRATORS", "accelerations", "as_spatial_case", "link_shapes", "simulate"]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
 ENGINES = ("numba", "python")
@@ -277,6 +277,27 @@ def accelerations(
         torque = np.where(md.motion == 1, ws.acc[:, 1], tau)
         return qdd, torque, cut
     return qdd
+
+
+def link_shapes(case, elements_per_link: int, q, p: int, *, strain: str = "linear", engine=None):
+    """Link shapes (nt, n, p, 3) m of the discretised spatial arm at coordinates q (nt, n_dof)
+    or (n_dof,) (the layout of docs/spatial.md §3): p ≥ 2 points per link from root to tip at
+    equal reference arc lengths, from the kernel's element frames (:func:`shapes.from_frames`)."""
+    case = as_spatial_case(case)
+    k = plumbing.elements_per_link(elements_per_link)
+    plumbing.choice("strain", strain, STRAINS)
+    p = shapes.shape_points(p)
+    _, core, _ = _kernel(engine)
+    md = build_model(case.model, k, strain, _motion_flags(case))
+    ws = make_work(md)
+    q = np.atleast_2d(np.asarray(q, float))
+    nt = q.shape[0]
+    RI, rI, e = np.zeros((nt, md.nel, 3, 3)), np.zeros((nt, md.nel, 3)), np.zeros((nt, md.nel, 6))
+    zero = np.zeros(md.ndof)
+    for j in range(nt):
+        core.kinematics(md, ws, q[j], zero)
+        RI[j], rI[j], e[j] = ws.Rw, ws.pw, ws.e
+    return from_frames(case.model, k, RI, rI, e, p)
 
 
 def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads, p=0):
