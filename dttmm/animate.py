@@ -297,6 +297,8 @@ def _arm_animation_3d(results, drawn, case, t, idx, exaggerate, fps, title, figs
     for setter, lim in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), lims):
         setter(*lim)
     ax.set_box_aspect((1.0, 1.0, 1.0))
+    ax.locator_params(nbins=5)
+    ax.tick_params(labelsize=7)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_zlabel("z [m]")
