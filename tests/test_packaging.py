@@ -24,3 +24,28 @@ def test_every_case_file_is_package_data():
 def test_description_names_both_kinds_of_arm():
     text = PYPROJECT["project"]["description"]
     assert "planar" in text and "spatial" in text
+
+
+def test_build_copies_every_case_file(tmp_path):
+    """setuptools' build_py (the step that fills the wheel) puts every case file into the built
+    ``experiments`` package (its metadata written to tmp_path, the checkout left untouched)."""
+    import subprocess
+    import sys
+
+    lib, egg = tmp_path / "lib", tmp_path / "egg"
+    egg.mkdir()
+    r = subprocess.run(
+        [sys.executable, "-c", "from setuptools import setup; setup()", "-q", "egg_info", "-e", str(egg)]
+        + ["build_py", "--build-lib", str(lib)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert r.returncode == 0, r.stderr[-2000:]
+    built = {str(p.relative_to(lib / "experiments")) for p in (lib / "experiments" / "cases").rglob("*.toml")}
+    files = {
+        str(p.relative_to(ROOT / "experiments")) for p in (ROOT / "experiments" / "cases").rglob("*.toml")
+    }
+    assert built == files
