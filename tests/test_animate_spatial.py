@@ -85,3 +85,26 @@ def test_cli_animates_a_spatial_case(tmp_path):
     assert code == 0
     with Image.open(out) as im:
         assert im.n_frames == 5
+
+
+def test_cli_animates_a_stored_spatial_result(tmp_path):
+    """``dttmm simulate --format parquet --shape-points P`` on a spatial case, then ``dttmm
+    animate`` on the stored table: a SpatialResult read back, drawn in 3-D."""
+    from PIL import Image
+
+    from dttmm.cli import main
+
+    text = (CASES / "two_joint_arm.toml").read_text()
+    text = text.replace("duration = 1.0", "duration = 0.03").replace(
+        "output_step = 1e-3", "output_step = 0.01"
+    )
+    src = tmp_path / "arm.toml"
+    src.write_text(text)
+    out = tmp_path / "run"
+    args = ["simulate", str(src), "-k", "2", "--h", "1e-3", "--shape-points", "4", "--format", "parquet"]
+    assert main([*args, "--out", str(out)]) == 0
+    gif = tmp_path / "stored.gif"
+    stored = str(out / "two_joint_arm.parquet")
+    assert main(["animate", stored, "--case", str(src), "--fps", "100", "--out", str(gif)]) == 0
+    with Image.open(gif) as im:
+        assert im.n_frames == 4
