@@ -1,4 +1,7 @@
-"""dttmm — planar manipulators with flexible links by the discrete time transfer matrix method.
+"""dttmm — planar and spatial manipulators with flexible links by the discrete time transfer
+matrix method. ``load_case`` reads either kind of case file; ``simulate``, ``accelerations`` and
+``statics`` take either kind of case (a planar arm runs on the planar kernel, a spatial arm on
+the spatial one, :mod:`dttmm.spatial`).
 
 Overview::
 
@@ -9,6 +12,7 @@ Overview::
 """
 
 from ._version import __version__ as __version__
+from .api import accelerations, simulate, statics
 from .case import Case, case_from_dict, save_case
 from .casefiles import case_to_dict, load_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
@@ -18,7 +22,6 @@ from .model import Hub, Link, Manipulator, Payload, Section
 from .resources import check_run_size
 from .result import Result, make_result, tip_deflection
 from .scenario import Scenario
-from .solver import accelerations, simulate
 
 __all__ = [
     "Case",
@@ -45,6 +48,7 @@ __all__ = [
     "SimulationError",
     "simulate",
     "accelerations",
+    "statics",
     "check_run_size",
     "linearize",
     "modes",

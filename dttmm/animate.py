@@ -3,7 +3,9 @@ a solver, and the solver never imports this module).
 
 :func:`arm_animation` draws one or more Results of the same case overlaid: every link as its
 deflected centre line, the joints, the hubs and payloads of the case, the end-effector trace, a
-clock and the exaggeration factor. :func:`mode_animation` draws mode shapes oscillating.
+clock and the exaggeration factor — in the plane for planar link shapes (nt, n, p, 2), in 3-D
+(matplotlib's mplot3d, equal axes fixed over the whole motion) for spatial ones (nt, n, p, 3).
+:func:`mode_animation` draws mode shapes oscillating.
 :func:`save` writes either as .mp4 (ffmpeg from imageio-ffmpeg), .gif (pillow) or .html;
 :meth:`Animation.to_matplotlib` gives a matplotlib ``FuncAnimation`` for interactive use.
 
@@ -140,13 +142,16 @@ def check_matches(result, case, what: str = "result") -> None:
 
 
 def _limits(arrays, pad: float = 0.08):
-    pts = np.concatenate([a.reshape(-1, 2) for a in arrays])
+    """Equal-span axis limits ((lo, hi) per coordinate) holding every point of ``arrays``
+    (..., d), d = 2 or 3."""
+    d = arrays[0].shape[-1]
+    pts = np.concatenate([a.reshape(-1, d) for a in arrays])
     pts = pts[np.isfinite(pts).all(axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     span = max(float((hi - lo).max()), 1e-3)
     c = 0.5 * (lo + hi)
     half = 0.5 * span * (1 + 2 * pad)
-    return (c[0] - half, c[0] + half), (c[1] - half, c[1] + half)
+    return tuple((c[i] - half, c[i] + half) for i in range(d))
 
 
 def _style(name: str, index: int, styles):
@@ -175,8 +180,9 @@ def arm_animation(
     Parameters
     ----------
     results : dict {method name: Result} (or one Result), all on the same output grid, each
-        with ``link_shapes`` (nt, n, p, 2) m
-    case : dttmm.Case or None
+        with ``link_shapes`` (nt, n, p, 2) m (drawn in the plane) or (nt, n, p, 3) m (a spatial
+        arm, drawn in 3-D)
+    case : dttmm.Case, dttmm.spatial.SpatialCase or None
         Draws the hubs (squares at the link roots) and payloads (filled circles at the tips)
         of the case; checked against every Result (:func:`check_matches`).
     exaggerate : factor X on the bending (see the module docstring), stated on every frame
@@ -206,6 +212,11 @@ def arm_animation(
             raise InputError(f"result of {name}", f"{r.t.size} samples", "is not on the first result's grid")
     idx = frame_indices(t, fps, speed, max_frames)
     drawn = {name: exaggerated(r.link_shapes, exaggerate) for name, r in results.items()}
+    dims = {r.link_shapes.shape[-1] for r in results.values()}
+    if len(dims) > 1:
+        raise InputError("results", sorted(dims), "mix planar and spatial link shapes")
+    if dims == {3}:
+        return _arm_animation_3d(results, drawn, case, t, idx, exaggerate, fps, title, figsize, dpi, styles)
     fig = Figure(figsize=figsize, dpi=dpi)
     FigureCanvasAgg(fig)
     ax = fig.subplots()
@@ -217,12 +228,7 @@ def arm_animation(
     ax.set_ylabel("y [m]")
     ax.grid(alpha=0.25)
     ax.plot([0], [0], marker="^", color="0.3", ms=10, ls="none")  # the base
-    hubs = (
-        []
-        if case is None
-        else [i for i, lk in enumerate(case.model.links) if lk.hub_mass + lk.hub_inertia > 0]
-    )
-    pays = [] if case is None else [i for i, lk in enumerate(case.model.links) if lk.payload is not None]
+    hubs, pays = _bodies(case)
     artists = []
     for j, (name, r) in enumerate(results.items()):
         lab, color, ls = _style(name, j, styles)
@@ -262,6 +268,84 @@ def arm_animation(
             tips = shp[s, :, -1]
             pay.set_data(tips[pays, 0], tips[pays, 1])
             trace.set_data(ee[: s + 1, 0], ee[: s + 1, 1])
+            out += [*links, joints, hub, pay, trace]
+        return out
+
+    return Animation(fig, draw, t[idx], fps)
+
+
+def _bodies(case):
+    """(links with a hub, links with a payload) of ``case`` (both empty without one)."""
+    if case is None:
+        return [], []
+    links = case.model.links
+    hubs = [i for i, lk in enumerate(links) if lk.hub_mass + float(np.sum(np.abs(lk.hub_inertia))) > 0]
+    return hubs, [i for i, lk in enumerate(links) if lk.payload is not None]
+
+
+def _arm_animation_3d(results, drawn, case, t, idx, exaggerate, fps, title, figsize, dpi, styles):
+    """:func:`arm_animation` of spatial link shapes (nt, n, p, 3): the same artists in mplot3d
+    axes whose limits (a cube: equal aspect) hold the whole drawn motion."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=dpi)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(projection="3d")
+    first = next(iter(drawn.values()))
+    lims = _limits([d[idx] for d in drawn.values()] + [first[:1, :1, :1]])
+    for setter, lim in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), lims):
+        setter(*lim)
+    ax.set_box_aspect((1.0, 1.0, 1.0))
+    ax.locator_params(nbins=5)
+    ax.tick_params(labelsize=7)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_zlabel("z [m]")
+    base = first[0, 0, 0]
+    ax.plot([base[0]], [base[1]], [base[2]], marker="^", color="0.3", ms=10, ls="none")  # the base
+    hubs, pays = _bodies(case)
+    artists = []
+    for j, (name, r) in enumerate(results.items()):
+        lab, color, ls = _style(name, j, styles)
+        n = r.link_shapes.shape[1]
+        links = [
+            ax.plot([], [], [], color=color, ls=ls, lw=2.2, label=lab if i == 0 else None)[0]
+            for i in range(n)
+        ]
+        joints = ax.plot([], [], [], "o", color=color, mfc="white", ms=5, ls="none")[0]
+        hub = ax.plot([], [], [], "s", color=color, mfc="none", ms=9, ls="none")[0]
+        pay = ax.plot([], [], [], "o", color=color, ms=8, ls="none")[0]
+        trace = ax.plot([], [], [], color=color, lw=0.8, alpha=0.6)[0]
+        artists.append((drawn[name], r.end_effector, links, joints, hub, pay, trace))
+    clock = ax.text2D(0.02, 0.97, "", transform=ax.transAxes, va="top", family="monospace")
+    ax.text2D(
+        0.98,
+        0.97,
+        f"bending ×{exaggerate:g}" if exaggerate != 1 else "true scale",
+        transform=ax.transAxes,
+        va="top",
+        ha="right",
+    )
+    ax.legend(loc="lower left", fontsize=7, framealpha=0.8)
+    if title:
+        ax.set_title(title, fontsize=10)
+
+    def put(artist, pts):
+        artist.set_data_3d(pts[:, 0], pts[:, 1], pts[:, 2])
+
+    def draw(f):
+        s = idx[f]
+        out = [clock]
+        clock.set_text(f"t = {t[s]:.3f} s")
+        for shp, ee, links, joints, hub, pay, trace in artists:
+            for i, ln in enumerate(links):
+                put(ln, shp[s, i])
+            roots = shp[s, :, 0]
+            put(joints, roots)
+            put(hub, roots[hubs])
+            put(pay, shp[s, :, -1][pays])
+            put(trace, ee[: s + 1])
             out += [*links, joints, hub, pay, trace]
         return out
 

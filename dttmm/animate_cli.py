@@ -1,7 +1,8 @@
 """``dttmm animate``: watch the arm move.
 
 ``dttmm animate CASE [-k K] [--h H] [--method NAME[@H] ...] [--exaggerate X] [--out FILE]`` runs
-the case with every method named (default: dttmm) and draws them overlaid;
+the case (planar, or spatial: drawn in 3-D) with every method named (default: dttmm) and draws
+them overlaid;
 ``dttmm animate RESULT.parquet [--case CASE]`` draws a stored Result (a table written by
 ``dttmm simulate --format parquet --shape-points P``). FILE ends in .mp4 (ffmpeg from
 imageio-ffmpeg; a GIF beside it when ffmpeg is absent), .gif or .html. Exit codes are those of
@@ -15,7 +16,7 @@ import importlib
 import sys
 from pathlib import Path
 
-from .case import load_case
+from .casefiles import load_case
 from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_OK, OneLineParser
 from .errors import InputError, SimulationError
 
@@ -87,7 +88,7 @@ def styles(names) -> dict:
 def run_case(case, specs, k: int, points: int) -> dict:
     """{method: Result} of ``case`` for every (method, h) in ``specs``, with link shapes."""
     if [m for m, _ in specs] == ["dttmm"]:
-        from .solver import simulate
+        from .api import simulate
 
         return {
             "dttmm": simulate(case, elements_per_link=k, h=specs[0][1], shape_points=points, progress=None)
@@ -107,9 +108,11 @@ def _load_result(path: Path):
     import pandas as pd
 
     from .result import Result
+    from .spatial.result import SpatialResult
 
     try:
-        return Result.from_frame(pd.read_parquet(path))
+        df = pd.read_parquet(path)
+        return (SpatialResult if df.attrs.get("kind") == "spatial" else Result).from_frame(df)
     except (OSError, ValueError, KeyError) as exc:
         raise InputError("RESULT", str(path), f"is not a Result table ({type(exc).__name__})") from None
 

@@ -47,7 +47,7 @@ def simulate_parser() -> argparse.ArgumentParser:
         description="Simulate a case with DT-TMM and write its table, a plot and meta.json.",
         epilog=__doc__.split("\n", 2)[2],
     )
-    p.add_argument("case", help="case TOML file (format: docs/cases.md)")
+    p.add_argument("case", help="case TOML file, planar or spatial (format: docs/cases.md)")
     p.add_argument("--elements", "-k", type=int, required=True, help="elements per link")
     p.add_argument("--h", type=_float, required=True, help="time step (s)")
     p.add_argument("--integrator", default="newmark", help="newmark | generalized-alpha | rk4")
@@ -79,6 +79,12 @@ def simulate_parser() -> argparse.ArgumentParser:
         type=int,
         default=0,
         help="record the link shapes at P points per link (for dttmm animate; default 0: none)",
+    )
+    p.add_argument(
+        "--kernel",
+        default=None,
+        choices=["planar", "spatial"],
+        help="default: the case's own (planar or spatial); spatial runs a planar case on the spatial kernel",
     )
     p.add_argument("--format", default="csv", choices=["csv", "parquet"])
     p.add_argument("--out", default="out/simulate", help="output folder (created before the run)")

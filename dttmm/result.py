@@ -53,7 +53,7 @@ class Result:
     status : one of :data:`STATUSES`; ``success`` is True only for "ok"
     warnings : tuple of str, human-readable reasons for a status other than "ok" (and other
         caveats worth reading)
-    link_shapes : (nt, n, p, 2) m or None
+    link_shapes : (nt, n, p, 2) m or None ((nt, n, p, 3) in a spatial arm's SpatialResult)
         The deflected centre line of every link at every output time: the positions of p
         material points per link at the reference arc lengths x_m = L·(m − 1)/(p − 1),
         m = 1..p (so ``link_shapes[:, i, 0]`` is the link's root and ``link_shapes[:, i, -1]``

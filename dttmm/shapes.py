@@ -2,12 +2,16 @@
 
 Every method reports the positions of the same p material points per link, at the reference
 arc lengths x_m = L·(m − 1)/(p − 1), m = 1..p (root and tip included), as an array
-(nt, n_links, p, 2) in m. How each method gets them from its own state:
+(nt, n_links, p, 2) in m — (nt, n_links, p, 3) for a spatial arm. How each method gets them
+from its own state:
 
 * DT-TMM (:func:`element_shapes`): the element shape functions of :mod:`dttmm.element`,
-  r(x) = r_I + A(θ) (s0(ξ) + S(ξ) e) in the element holding x;
-* the global solver: the same interpolation from its own element frames
-  (:mod:`reference_models._global_numpy`);
+  r(x) = r_I + A(θ) (s0(ξ) + S(ξ) e) in the element holding x; spatial DT-TMM
+  (:func:`frame_shapes`): r(x) = r_I + R_I (s0(ξ) + Σ(ξ) e) from its element frames
+  (docs/spatial.md §2);
+* the global solvers: the same interpolation from their own element frames
+  (:mod:`reference_models._global_numpy`; the spatial one through :func:`frame_shapes` with its
+  own shape matrices);
 * Exudyn (:func:`hermite_shapes`): cubic Hermite between the beam nodes from their positions
   and slopes ∂r/∂x (ANCF cable: the element's own interpolation; geometrically exact beam:
   the cross-section direction as the slope);
@@ -27,6 +31,7 @@ from .errors import InputError
 
 __all__ = [
     "element_shapes",
+    "frame_shapes",
     "hermite_shapes",
     "polyline_shapes",
     "shape_points",
@@ -100,19 +105,51 @@ def element_shapes(st, q: np.ndarray, p: int) -> np.ndarray:
     return out
 
 
+def frame_shapes(
+    RI: np.ndarray, rI: np.ndarray, e: np.ndarray, lengths, k: int, p: int, tables
+) -> np.ndarray:
+    """Link shapes of a spatial arm from its element frames: r(x) = r_I + R_I (s0(ξ) + Σ(ξ) e)
+    in the element holding x (docs/spatial.md §2).
+
+    Parameters
+    ----------
+    RI : (nt, n·k, 3, 3) element frames (world), base link first
+    rI : (nt, n·k, 3) m, their origins (the elements' inboard nodes)
+    e : (nt, n·k, 6) padded elastic coordinates (u, v, w, φx, φy, φz) of every element
+    lengths : (n,) m, link lengths
+    k : elements per link
+    p : points per link (≥ 2)
+    tables : ``tables(i, xi) -> (s0 (p, 3), Σ (p, 3, 6))``, the shape functions of link i at the
+        local coordinates xi (each method passes its own)
+
+    Returns
+    -------
+    (nt, n, p, 3) m
+    """
+    nt = RI.shape[0]
+    out = np.empty((nt, len(lengths), p, 3))
+    for i, length in enumerate(lengths):
+        jj, xi = _locate(stations(length, p), length, k)
+        s0, S = tables(i, xi)
+        el = i * k + jj
+        local = s0 + np.einsum("pij,tpj->tpi", S, e[:, el])
+        out[:, i] = rI[:, el] + np.einsum("tpij,tpj->tpi", RI[:, el], local)
+    return out
+
+
 def hermite_shapes(x_nodes: np.ndarray, pos: np.ndarray, slope: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Cubic Hermite interpolation of a centre line through nodes.
 
     Parameters
     ----------
     x_nodes : (m,) m, reference arc lengths of the nodes (increasing)
-    pos : (nt, m, 2) m, node positions
-    slope : (nt, m, 2) ∂r/∂x at the nodes (dimensionless)
+    pos : (nt, m, d) m, node positions (d = 2 planar, 3 spatial)
+    slope : (nt, m, d) ∂r/∂x at the nodes (dimensionless)
     x : (p,) m, reference arc lengths to evaluate
 
     Returns
     -------
-    (nt, p, 2) m
+    (nt, p, d) m
     """
     x_nodes = np.asarray(x_nodes, float)
     j = np.clip(np.searchsorted(x_nodes, x, side="right") - 1, 0, x_nodes.size - 2)
@@ -129,8 +166,8 @@ def hermite_shapes(x_nodes: np.ndarray, pos: np.ndarray, slope: np.ndarray, x: n
 def polyline_shapes(x_nodes: np.ndarray, pos: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Piecewise-linear centre line through nodes (a chain of rigid pieces).
 
-    x_nodes (m,) m reference arc lengths of the piece ends; pos (nt, m, 2) m their positions;
-    x (p,) m. Returns (nt, p, 2) m.
+    x_nodes (m,) m reference arc lengths of the piece ends; pos (nt, m, d) m their positions
+    (d = 2 or 3); x (p,) m. Returns (nt, p, d) m.
     """
     x_nodes = np.asarray(x_nodes, float)
     j = np.clip(np.searchsorted(x_nodes, x, side="right") - 1, 0, x_nodes.size - 2)
@@ -139,7 +176,7 @@ def polyline_shapes(x_nodes: np.ndarray, pos: np.ndarray, x: np.ndarray) -> np.n
 
 
 def straight_shapes(root: np.ndarray, tip: np.ndarray, p: int) -> np.ndarray:
-    """Straight links: root (nt, n, 2) and tip (nt, n, 2) in m → (nt, n, p, 2) m."""
+    """Straight links: root (nt, n, d) and tip (nt, n, d) in m → (nt, n, p, d) m (d = 2 or 3)."""
     u = np.linspace(0.0, 1.0, int(p))[None, None, :, None]
     root = np.asarray(root, float)[:, :, None, :]
     return root + u * (np.asarray(tip, float)[:, :, None, :] - root)

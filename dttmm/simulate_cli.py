@@ -10,11 +10,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .case import load_case
+from .api import simulate
+from .casefiles import load_case
 from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK  # noqa: F401
 from .errors import InputError, SimulationError
 from .resources import check_run_size
-from .solver import simulate
 
 
 def plot_result(res, path: Path, title: str = "") -> Path:
@@ -25,8 +25,15 @@ def plot_result(res, path: Path, title: str = "") -> Path:
     import matplotlib.pyplot as plt
 
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
+    defl = res.tip_deflection
+    if defl.ndim == 3:  # a spatial arm: the deflections along the link frame's y and z
+        for i in range(defl.shape[1]):
+            for c, ax in enumerate("yz"):
+                a1.plot(res.t, defl[:, i, c] * 1e3, label=f"link {i + 1}, {ax}")
+    else:
+        for i in range(res.n_joints):
+            a1.plot(res.t, defl[:, i] * 1e3, label=f"link {i + 1}")
     for i in range(res.n_joints):
-        a1.plot(res.t, res.tip_deflection[:, i] * 1e3, label=f"link {i + 1}")
         a2.plot(res.t, res.joint_angle[:, i], label=f"joint {i + 1}")
     a1.set_ylabel("tip deflection [mm]")
     a2.set_ylabel("joint angle [rad]")
@@ -99,7 +106,7 @@ def run_simulate(a) -> int:
     """Run ``dttmm simulate`` for the parsed arguments ``a``; return the exit code."""
     try:
         case = load_case(a.case)  # the input is accepted before anything is written
-        check_run_size(case, a.elements, a.h)
+        check_run_size(case, a.elements, a.h, shape_points=getattr(a, "shape_points", 0))
         out = prepare_out(a.out)
         res = simulate(
             case,
@@ -114,6 +121,7 @@ def run_simulate(a) -> int:
             engine=a.engine,
             progress=True,
             shape_points=getattr(a, "shape_points", 0),
+            kernel=getattr(a, "kernel", None),
         )
     except InputError as exc:
         _close_progress_bars()

@@ -1,5 +1,7 @@
-"""DT-TMM simulation: :func:`simulate` (Newmark family or RK4) and :func:`accelerations`
-(positions, velocities → accelerations).
+"""DT-TMM simulation of planar arms: :func:`simulate` (Newmark family or RK4) and
+:func:`accelerations` (positions, velocities → accelerations) on the planar kernel.
+``dttmm.simulate`` and ``dttmm.accelerations`` (:mod:`dttmm.api`) take any arm and call these
+for a planar one.
 
 Both validate their settings here and hand the discretised case to the kernel
 (:mod:`dttmm.kernel`), compiled by numba or run uncompiled (engine "python").
@@ -45,7 +47,7 @@ def accelerations(
     kernel uncompiled). The readable one-step reference is :func:`dttmm.sweeps.accelerations`.
     """
     if not isinstance(case, Case):
-        raise InputError("case", case, "must be a dttmm.Case")
+        raise InputError("case", type(case).__name__, "must be a dttmm.Case")
     require_open_loop(case, "dttmm")
     engine = driver.resolve_engine(engine)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
@@ -145,7 +147,8 @@ def simulate(
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
     plumbing.choice("strain", strain, STRAINS)
     _check_closed_loop(case, sweep, driver.resolve_engine(engine))
-    check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy)
+    shape_points = shapes.shape_points(shape_points)
+    check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy, shape_points=shape_points)
     s = driver.Settings(
         h=h,
         integrator=integrator,

@@ -1201,7 +1201,7 @@ class _Bound:
     def __call__(self, case, k, h, **options):
         sim, opts = self._target(case)
         opts.update(options)
-        if getattr(sim, "__module__", "").startswith("dttmm.") and not is_spatial(case):
+        if getattr(sim, "__module__", "").startswith("dttmm."):
             # runs of a sweep report through the sweep's own progress bar, not one bar each
             opts.setdefault("progress", False)
         kk = int(k) if self.uses_k else None

@@ -693,3 +693,45 @@ def link_shapes(case, nodes, p: int) -> np.ndarray:
         x_nodes = np.linspace(0.0, L, c.shape[1])
         out.append(hermite_shapes(x_nodes, pos, slope, stations(L, p)))
     return np.stack(out, axis=1)
+
+
+def spatial_shape_sensors(mbs, ii, OV, link_elements, kind: str) -> list:
+    """Per link and beam node (base to tip), the sensors of a 3-D beam's node: ``kind`` "cable"
+    (ANCF ``NodePointSlope1``: its total coordinates (x, y, z, ∂r/∂s)) or "beam" (a rigid-body
+    node of the geometrically exact beam: its position and rotation matrix)."""
+    variables = (OV.CoordinatesTotal,) if kind == "cable" else (OV.Position, OV.RotationMatrix)
+    out = []
+    for elements in link_elements:
+        nodes = [int(mbs.GetObject(e)["nodeNumbers"][0]) for e in elements]
+        nodes.append(int(mbs.GetObject(elements[-1])["nodeNumbers"][1]))
+        out.append(
+            [
+                [
+                    mbs.AddSensor(
+                        ii.SensorNode(
+                            nodeNumber=nd, outputVariableType=v, storeInternal=True, writeToFile=False
+                        )
+                    )
+                    for v in variables
+                ]
+                for nd in nodes
+            ]
+        )
+    return out
+
+
+def spatial_link_shapes(case, nodes, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, 3) m of a spatial arm from its beam nodes, as :func:`link_shapes`
+    in the plane: cubic Hermite between the nodes from positions and slopes ∂r/∂s.
+
+    ``nodes[i][j]`` (nt, 6): (x, y, z, ∂r/∂s) of an ANCF cable node, or (nt, 12): position and
+    rotation matrix (row-major) of a beam node, whose slope is taken as its cross-section
+    direction (the matrix's first column; shear and axial strain neglected in the slope)."""
+    out = []
+    for link, nd in zip(case.model.links, nodes):
+        c = np.stack(nd, axis=1)  # (nt, k + 1, 6 or 12)
+        pos = c[..., :3]
+        slope = c[..., 3:6] if c.shape[-1] == 6 else c[..., [3, 6, 9]]
+        L = link.beam.length
+        out.append(hermite_shapes(np.linspace(0.0, L, c.shape[1]), pos, slope, stations(L, p)))
+    return np.stack(out, axis=1)

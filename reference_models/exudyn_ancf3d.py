@@ -55,9 +55,11 @@ import numpy as np
 
 from dttmm import plumbing
 from dttmm.errors import InputError, SimulationError
+from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult, load_case
 from dttmm.spatial.rotation import log_so3
 
+from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
 from ._spatial_mechanics import rot_axis, rpy_matrix
 from .exudyn_beam3d import (
     _axis_frame,
@@ -483,6 +485,7 @@ def simulate(
     newton_abs_tol=None,
     newton_max_iterations=25,
     modified_newton=True,
+    shape_points=0,
 ) -> SpatialResult:
     """Simulate a spatial case (a :class:`dttmm.spatial.SpatialCase` or a path to its TOML file)
     with k = ``elements_per_link`` Exudyn 3-D ANCF cable elements per link, step h.
@@ -492,13 +495,16 @@ def simulate(
     ``useReducedOrderIntegration``, False), ``tip_loads`` (as :mod:`exudyn_beam3d`: a list of
     dicts ``link``, ``force``, ``torque`` (world), ``times``, ``factors``), ``newton_rel_tol``
     (1e-8), ``newton_abs_tol`` (None: 10³·ε·max(EA k/L)·chain length, at least 1e-8),
-    ``newton_max_iterations`` (25), ``modified_newton`` (True). Raises InputError on bad input
-    or a case the cable cannot model, SimulationError on failure.
+    ``newton_max_iterations`` (25), ``modified_newton`` (True), ``shape_points`` (p ≥ 2 records
+    ``link_shapes`` (nt, n, p, 3): cubic Hermite between the cable nodes from their positions and
+    slopes, the element's own interpolation; 0, the default: none). Raises InputError on bad
+    input or a case the cable cannot model, SimulationError on failure.
     """
     case = _as_case(case)
     loads = check_case(case, tip_loads)
     k = plumbing.elements_per_link(elements_per_link)
     h = plumbing.step_size(h, case.scenario.duration)
+    shape_points = check_shape_points(shape_points)
     if isinstance(rho_inf, bool) or not isinstance(rho_inf, (int, float)) or not (0.0 <= rho_inf <= 1.0):
         raise InputError("rho_inf", rho_inf, "must be a number in [0, 1]")
     newton_rel_tol = plumbing.positive_number("newton_rel_tol", newton_rel_tol)
@@ -542,6 +548,7 @@ def simulate(
         )
         for i, c in motion_joints.items()
     }
+    s_shape = spatial_shape_sensors(mbs, ii, OV, B["cables"], "cable") if shape_points else []
     mbs.Assemble()
 
     s = exu.SimulationSettings()
@@ -569,6 +576,7 @@ def simulate(
     on_grid = all(a % per_out == 0 for a, _ in segments)
     s.solution.sensors.writePeriod = sc.output_step if on_grid else h
     all_sensors = [x for tr in s_root + s_tip for x in tr] + list(s_mot.values())
+    all_sensors += [x for link in s_shape for node_ in link for x in node_]
     rows = {sn: [] for sn in all_sensors}
     import exudyn.solver as exu_solver
 
@@ -667,8 +675,13 @@ def simulate(
         cpu_time_solve=cpu,
         exudyn=exu.__version__,
     )
+    shapes = None
+    if shape_points:
+        nodes = [[np.hstack([stored(x) for x in node_]) for node_ in link] for link in s_shape]
+        shapes = spatial_link_shapes(case, nodes, shape_points)
     return SpatialResult(
         t=t_out,
+        link_shapes=shapes,
         joint_angle=ja,
         joint_rate=jr,
         joint_torque=jt,

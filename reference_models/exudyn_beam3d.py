@@ -50,9 +50,11 @@ import numpy as np
 
 from dttmm import plumbing
 from dttmm.errors import InputError, SimulationError
+from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult, load_case
 from dttmm.spatial.rotation import log_so3
 
+from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
 from ._spatial_mechanics import rot_axis, rpy_matrix
 
 __all__ = ["METHOD", "SHEAR_RATIO", "NODES", "check_case", "simulate", "reference_frames"]
@@ -442,9 +444,12 @@ def simulate(
     newton_abs_tol=None,
     newton_max_iterations=25,
     modified_newton=True,
+    shape_points=0,
 ) -> SpatialResult:
     """Simulate a spatial case (a :class:`dttmm.spatial.SpatialCase` or a path to its TOML file)
     with k = ``elements_per_link`` Exudyn 3-D geometrically exact beam elements per link, step h.
+    ``shape_points`` p ≥ 2 records ``link_shapes`` (nt, n, p, 3) from a sensor per beam node
+    (:func:`reference_models._exudyn_common.spatial_link_shapes`); 0 (default): none.
 
     Options: ``rho_inf`` (generalized-α spectral radius, 1), ``shear_ratio`` (GA/EA, 1e3),
     ``node`` ("EP" only here; see the module notes), ``tip_loads`` (list of dicts ``link``,
@@ -481,6 +486,7 @@ def simulate(
     if rho_inf > 1:
         raise InputError("rho_inf", rho_inf, "must lie in [0, 1]")
     loads = _all_loads(case, tip_loads)
+    shape_points = check_shape_points(shape_points)
     sc = case.scenario
     ratio = sc.output_step / h
     per_out = int(round(ratio))
@@ -531,6 +537,7 @@ def simulate(
         )
         for i, c in motion_joints.items()
     }
+    s_shape = spatial_shape_sensors(mbs, ii, OV, elements, "beam") if shape_points else []
     s_sec = []
     if section_loads:
         for e in first_el:
@@ -632,6 +639,7 @@ def simulate(
     )
     if energy and has_g:
         all_sensors += s_pos_all + s_body_pos
+    all_sensors += [x for link in s_shape for node_ in link for x in node_]
     rows = {sn: [] for sn in all_sensors}
     wall, cpu, newton, steps, _, failure, it = run_segments(
         mbs, exu, s, ti, segments, h, seg_start, set_inputs, all_sensors, rows
@@ -740,8 +748,13 @@ def simulate(
         if energy
         else None,
     )
+    shapes = None
+    if shape_points:
+        nodes = [[np.hstack([stored(x) for x in node_]) for node_ in link] for link in s_shape]
+        shapes = spatial_link_shapes(case, nodes, shape_points)
     return SpatialResult(
         t=t_out,
+        link_shapes=shapes,
         joint_angle=ja,
         joint_rate=jr,
         joint_torque=jt,

@@ -73,6 +73,8 @@ import numpy as np
 from dttmm import plumbing
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
+from dttmm.shapes import polyline_shapes, stations
+from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
 from dttmm.spatial.rotation import log_so3, rpy_matrix
 from dttmm.spatial.scenario import require_no_loads
@@ -532,7 +534,7 @@ def _outputs(st, X, t, ctrl, T):
 
 def _check(case, k, h, integrator, options):
     if not isinstance(case, SpatialCase):
-        raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase")
     k = plumbing.elements_per_link(k)
     h = plumbing.step_size(h, case.scenario.duration)
     if integrator not in INTEGRATORS:
@@ -551,7 +553,37 @@ def _check(case, k, h, integrator, options):
     return k, h, opts
 
 
-def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options) -> SpatialResult:
+def piece_shapes(st, case, X, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, 3) m from the kept states X (rows): per link the polyline through
+    its root, its k elastic stations (at the reference arc lengths (j − ½)·L/k) and its tip —
+    the rigid pieces themselves — sampled at the p shape points (as
+    :func:`reference_models.mujoco_chain.piece_shapes` in the plane)."""
+    m, d, lay = st.m, st.d, st.lay
+    nt, n, k = X.shape[0], lay.hub_body.size, lay.flex_qpos.shape[1]
+    bodies = np.array(
+        [
+            [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}") for j in range(1, k + 1)]
+            for i in range(n)
+        ]
+    )
+    pts = np.empty((nt, n, k + 2, 3))
+    for s in range(nt):
+        mujoco.mj_setState(m, d, X[s], st.spec)
+        mujoco.mj_kinematics(m, d)
+        pts[s, :, 0] = d.xpos[lay.hub_body]
+        pts[s, :, 1:-1] = d.xpos[bodies]
+        pts[s, :, -1] = d.site_xpos[lay.tip_site]
+    out = np.empty((nt, n, p, 3))
+    for i, link in enumerate(case.model.links):
+        L = link.beam.length
+        x_nodes = np.concatenate(([0.0], (np.arange(1, k + 1) - 0.5) * L / k, [L]))
+        out[:, i] = polyline_shapes(x_nodes, pts[:, i], stations(L, p))
+    return out
+
+
+def simulate(
+    case, *, elements_per_link, h, integrator="implicitfast", shape_points=0, **options
+) -> SpatialResult:
     """Simulate a spatial case with MuJoCo, every link a chain of ``elements_per_link`` elastic
     stations (three hinges each).
 
@@ -567,6 +599,8 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
         motion_tol (1e-12, relative angle tolerance of a motion drive), motion_max_iter (10);
         station (``"hinges"``; ``"hinges-zyx"``, ``"ball"``: the alternatives of :func:`xml`, for
         comparison; with ``"ball"`` no stability bound is computed, ``meta["h_stable"]`` None).
+    shape_points : p ≥ 2 records ``link_shapes`` (nt, n, p, 3): the polyline of every link's
+        rigid pieces (:func:`piece_shapes`); 0 (default): none.
 
     Returns
     -------
@@ -585,6 +619,7 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
         holds the outputs up to the last good step.
     """
     k, h, opts = _check(case, elements_per_link, h, integrator, dict(options))
+    shape_points = check_shape_points(shape_points)
     scen = case.scenario
     T_end, _ = step_schedule(scen.duration, h, scen.breakpoints)
     T = np.concatenate([[0.0], T_end])
@@ -640,6 +675,7 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     res = SpatialResult(
         t=tg,
         **fields,
+        link_shapes=piece_shapes(st, case, X[: tg.size], shape_points) if shape_points else None,
         wall_time=wall,
         n_steps=int(n_steps),
         meta=meta,

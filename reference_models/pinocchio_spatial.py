@@ -38,6 +38,8 @@ import pinocchio as pin
 from dttmm import plumbing
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
+from dttmm.shapes import shape_points as check_shape_points
+from dttmm.shapes import straight_shapes
 from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.spatial.scenario import require_no_loads
 from dttmm.timegrid import step_schedule
@@ -237,7 +239,7 @@ def _sample(arm, nodes, times, h):
     return times, q, v, t_out
 
 
-def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0) -> SpatialResult:
+def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0, shape_points=0) -> SpatialResult:
     times, q, v, tau = _sample(arm, nodes, times, h if h else 1.0)
     nt, nl = times.size, len(arm.frames)
     root, tip, energy = np.zeros((nt, nl, 3)), np.zeros((nt, nl, 3)), np.zeros(nt)
@@ -267,10 +269,13 @@ def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0) -> Spati
         twist=np.zeros((nt, nl)),
         link_rotation=Rl,
         tip_rotation=Rt,
+        link_shapes=straight_shapes(root, tip, shape_points) if shape_points else None,
     )
 
 
-def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) -> SpatialResult:
+def simulate(
+    case, *, h, integrator="rk4", elements_per_link=None, shape_points=0, **options
+) -> SpatialResult:
     """Simulate a spatial case with rigid links (Pinocchio).
 
     Parameters
@@ -281,6 +286,8 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) ->
     integrator : {"rk4", "newmark"}
         Newmark options: ``tol`` (1e-12, relative Newton correction), ``max_iter`` (25).
     elements_per_link : ignored (rigid links); accepted for the common call.
+    shape_points : p ≥ 2 records ``link_shapes`` (nt, n, p, 3): straight links from root to tip
+        (:func:`dttmm.shapes.straight_shapes`); 0 (default): none.
 
     Returns
     -------
@@ -296,8 +303,9 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) ->
         Non-finite state (``partial`` holds the outputs so far).
     """
     if not isinstance(case, SpatialCase):
-        raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase")
     h = plumbing.step_size(h, case.scenario.duration)
+    shape_points = check_shape_points(shape_points)
     if integrator not in INTEGRATORS:
         raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
     known = INTEGRATORS[integrator]
@@ -335,4 +343,4 @@ def simulate(case, *, h, integrator="rk4", elements_per_link=None, **options) ->
     meta.update(stats)
     meta["time_per_step"] = wall / max(T.size, 1)
     status = "unconverged" if meta.get("unconverged_steps") else "ok"
-    return _result(arm, nodes, scen.output_times, h, T.size, meta, status, wall)
+    return _result(arm, nodes, scen.output_times, h, T.size, meta, status, wall, shape_points)

@@ -83,6 +83,8 @@ from dttmm.control_state import ControlState
 from dttmm.drives import UserLaw, require_open_loop
 from dttmm.errors import InputError, SimulationError
 from dttmm.iteration import stop_rule
+from dttmm.shapes import frame_shapes
+from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.timegrid import step_schedule
 
@@ -879,6 +881,25 @@ def kinematics(case, elements_per_link, q) -> dict:
     return _link_frames(lay, _as_state(lay, q, "q"))
 
 
+def link_shapes(case, elements_per_link, q, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, 3) m at the coordinates q (nt, n_dof): p points per link from root
+    to tip at equal reference arc lengths, r(x) = r_I + R_I (s0(ξ) + S(ξ) e) in the element
+    holding x (this module's frames and shape matrices; :func:`dttmm.shapes.frame_shapes`)."""
+    lay = _layout(case, elements_per_link)
+    return _link_shapes(case, lay, np.atleast_2d(np.asarray(q, float)), check_shape_points(p))
+
+
+def _link_shapes(case, lay, q, p: int) -> np.ndarray:
+    nt, nel = q.shape[0], lay.n_links * lay.k
+    RI, rI, e = np.zeros((nt, nel, 3, 3)), np.zeros((nt, nel, 3)), np.zeros((nt, nel, 6))
+    for j in range(nt):
+        fr = _frames(lay, q[j])
+        RI[j], rI[j], e[j] = fr.RI, fr.rI, fr.e
+    lengths = [lk.beam.length for lk in case.model.links]
+    tables = lambda i, xi: shape_matrices(lay.length[i * lay.k], xi)[:2]
+    return frame_shapes(RI, rI, e, lengths, lay.k, p, tables)
+
+
 def _link_frames(lay, q) -> dict:
     fr = _frames(lay, q)
     d = fr.p_tip - fr.p_link
@@ -1088,6 +1109,7 @@ class _Recorder:
         self.tol_t = 1e-9 * h
         self.meta = {}
         self.want_loads = False
+        self.shape_points = 0
         self.wall0 = time.perf_counter()
 
     @property
@@ -1154,8 +1176,10 @@ class _Recorder:
                 qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0, self.tau[i])[0]
                 ext = _tip_loads(self.case, lay, _frames(lay, self.q[i]), t, t > 0.0)
                 loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd, ext)
+        shapes = _link_shapes(self.case, lay, self.q[:n], self.shape_points) if self.shape_points else None
         return SpatialResult(
             t=self.t[:n].copy(),
+            link_shapes=shapes,
             joint_angle=self.q[:n, a],
             joint_rate=self.qd[:n, a],
             joint_torque=self.tau[:n].copy(),
@@ -1221,6 +1245,7 @@ def simulate(
     tol=1e-10,
     max_iterations=50,
     cut_loads=False,
+    shape_points=0,
     **options,
 ) -> SpatialResult:
     """Simulate a spatial case with the global equations of the spatial discretisation.
@@ -1240,6 +1265,9 @@ def simulate(
     cut_loads : bool
         Record the cut loads (see :func:`cut_loads`) on the output grid (nt, n(k + 1), 6), from
         the forward dynamics at every output state (left limits of the drives at t > 0).
+    shape_points : int
+        p ≥ 2 records ``link_shapes`` (nt, n, p, 3): the deflected centre line of every link from
+        this module's element frames and shape matrices (:func:`link_shapes`); 0 (default): none.
 
     Returns
     -------
@@ -1273,6 +1301,7 @@ def simulate(
     rec = _Recorder(case, lay, h)
     rec.meta = meta
     rec.want_loads = bool(cut_loads)
+    rec.shape_points = check_shape_points(shape_points)
     wall0 = time.perf_counter()
     with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
         if integrator == "rk4":

@@ -4,7 +4,9 @@ The model (:class:`SpatialManipulator` and its parts), cases (:class:`SpatialCas
 manipulator with the planar suite's :class:`dttmm.Scenario`, or a :class:`SpatialScenario` that
 adds external loads, :class:`SpatialLoad`), the embedding of a planar arm
 (:func:`embed_planar`), the rotation helpers of the discretisation and the static equilibrium
-with the joints held (:func:`statics`).
+with the joints held (:func:`statics`). :func:`dttmm.simulate` runs a spatial case on this
+package's kernel (:func:`simulate`); link shapes at any coordinates:
+:func:`link_shapes`.
 """
 
 from .case import SpatialCase, case_from_dict, load_case
@@ -24,6 +26,7 @@ from .scenario import SpatialLoad, SpatialScenario
 __all__ = [
     "SpatialResult",
     "accelerations",
+    "link_shapes",
     "simulate",
     "SpatialCase",
     "SpatialLoad",
@@ -47,5 +50,5 @@ __all__ = [
     "statics",
 ]
 
-from .solver import accelerations, simulate  # noqa: E402
+from .solver import accelerations, link_shapes, simulate  # noqa: E402
 from .statics import StaticResult, statics  # noqa: E402

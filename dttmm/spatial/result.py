@@ -21,7 +21,9 @@ class SpatialResult(Result):
     cut_loads (nc, n_cuts, 6): force and moment (N, N·m; world components, moment about the
     cut's point) that the inboard part exerts on the outboard part, at every element root and
     every link tip (k + 1 cuts per link, base link first); link_rotation, tip_rotation
-    (nt, n, 3, 3): the link frame at the root and the tip frame.
+    (nt, n, 3, 3): the link frame at the root and the tip frame; link_shapes (nt, n, p, 3) m or
+    None: p material points per link from root to tip (``shape_points=p``, as
+    :attr:`dttmm.Result.link_shapes`).
     """
 
     twist: np.ndarray | None = None
@@ -40,7 +42,8 @@ class SpatialResult(Result):
         twist_i and, when recorded, link_rotation_{rc}_i and tip_rotation_{rc}_i (row r,
         column c of the 3×3 matrix, 1-based); end_effector_{x,y,z}; energy (if computed); with
         cut loads recorded on the output grid, per cut c = 1..n_cuts (k + 1 per link, base link
-        first) cut_force_{x,y,z}_c and cut_moment_{x,y,z}_c (world components). ``meta`` goes to
+        first) cut_force_{x,y,z}_c and cut_moment_{x,y,z}_c (world components); with link shapes,
+        per link i and point m = 1..p link_shape_{x,y,z}_i_m. ``meta`` goes to
         ``DataFrame.attrs``.
         """
         import pandas as pd
@@ -74,6 +77,12 @@ class SpatialResult(Result):
                 for part, off in (("force", 0), ("moment", 3)):
                     for c, ax in enumerate("xyz"):
                         cols[f"cut_{part}_{ax}_{cut + 1}"] = self.cut_loads[:, cut, off + c]
+        if self.link_shapes is not None:
+            _, n, p, _ = self.link_shapes.shape
+            for i in range(n):
+                for m in range(p):
+                    for c, ax in enumerate("xyz"):
+                        cols[f"link_shape_{ax}_{i + 1}_{m + 1}"] = self.link_shapes[:, i, m, c]
         df = pd.DataFrame(cols)
         df.attrs.update(
             {k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))}
@@ -123,6 +132,23 @@ class SpatialResult(Result):
                 ],
                 axis=1,
             )
+        n_shape = sum(1 for c in df.columns if c.startswith("link_shape_x_"))
+        link_shapes = None
+        if n_shape:
+            p = n_shape // n
+            link_shapes = np.stack(
+                [
+                    np.stack(
+                        [
+                            np.column_stack([col(f"link_shape_{a}_{i}_{m}") for a in "xyz"])
+                            for m in range(1, p + 1)
+                        ],
+                        axis=1,
+                    )
+                    for i in range(1, n + 1)
+                ],
+                axis=1,
+            )
         m = dict(df.attrs)
         m.update(meta or {})
         m.pop("kind", None)
@@ -149,4 +175,5 @@ class SpatialResult(Result):
             tip_rotation=rotation("tip_rotation"),
             cut_loads=loads,
             cut_load_t=col("t").copy() if loads is not None else None,
+            link_shapes=link_shapes,
         )

@@ -9,11 +9,13 @@ import warnings
 
 import numpy as np
 
-from .. import control, plumbing
+from .. import control, plumbing, shapes
 from ..case import Case
 from ..control_state import is_jitted
 from ..drives import UserLaw, require_open_loop
 from ..errors import InputError
+from ..kernel.driver import PROGRESS_AFTER, PROGRESS_CHUNKS, _progress_bar
+from ..resources import check_run_size
 from ..timegrid import step_schedule
 from .build import STRAINS, build_model, make_work
 from .case import SpatialCase
@@ -21,8 +23,9 @@ from .kernel.core import INPUT_COLS, LOAD_COL
 from .result import SpatialResult
 from .rotation import log_so3
 from .scenario import load_inputs
+from .shapes import from_frames
 
-__all__ = ["INTEGRATORS", "accelerations", "as_spatial_case", "simulate"]
+__all__ = ["INTEGRATORS", "accelerations", "as_spatial_case", "link_shapes", "simulate"]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
 ENGINES = ("numba", "python")
@@ -52,7 +55,9 @@ def as_spatial_case(case) -> SpatialCase:
     if isinstance(case, tuple) and len(case) == 2:
         return SpatialCase(case[0], case[1])
     raise InputError(
-        "case", case, "must be a dttmm.spatial.SpatialCase or a (SpatialManipulator, Scenario) pair"
+        "case",
+        type(case).__name__,
+        "must be a dttmm.spatial.SpatialCase or a (SpatialManipulator, Scenario) pair",
     )
 
 
@@ -268,7 +273,30 @@ def accelerations(
     return qdd
 
 
-def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads):
+def link_shapes(case, elements_per_link: int, q, p: int, *, strain: str = "linear", engine=None):
+    """Link shapes (nt, n, p, 3) m of the discretised spatial arm at coordinates q (nt, n_dof)
+    or (n_dof,) (the layout of docs/spatial.md §3): p ≥ 2 points per link from root to tip at
+    equal reference arc lengths, from the kernel's element frames (:func:`shapes.from_frames`)."""
+    case = as_spatial_case(case)
+    k = plumbing.elements_per_link(elements_per_link)
+    plumbing.choice("strain", strain, STRAINS)
+    p = shapes.shape_points(p)
+    _, core, _ = _kernel(engine)
+    md = build_model(case.model, k, strain, _motion_flags(case))
+    ws = make_work(md)
+    q = np.atleast_2d(np.asarray(q, float))
+    nt = q.shape[0]
+    RI, rI, e = np.zeros((nt, md.nel, 3, 3)), np.zeros((nt, md.nel, 3)), np.zeros((nt, md.nel, 6))
+    zero = np.zeros(md.ndof)
+    for j in range(nt):
+        core.kinematics(md, ws, q[j], zero)
+        RI[j], rI[j], e[j] = ws.Rw, ws.pw, ws.e
+    return from_frames(case.model, k, RI, rI, e, p)
+
+
+def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads, p=0):
+    """Positions, frames, tip deflections, twist, energy, cut loads and (p ≥ 2) link shapes
+    (nt, n, p, 3) at the sampled states."""
     n = md.n
     root, tip = np.zeros((nt, n, 3)), np.zeros((nt, n, 3))
     Rl, Rt = np.zeros((nt, n, 3, 3)), np.zeros((nt, n, 3, 3))
@@ -281,8 +309,12 @@ def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads):
     closed = np.zeros(n, bool)
     for d, i in zip(case.scenario.drives, case.model.unlocked):
         closed[i] = d.closed_loop
+    if p:
+        RI, rI, ee = np.zeros((nt, md.nel, 3, 3)), np.zeros((nt, md.nel, 3)), np.zeros((nt, md.nel, 6))
     for j in range(nt):
         core.kinematics(md, ws, oq[j], oqd[j])
+        if p:
+            RI[j], rI[j], ee[j] = ws.Rw, ws.pw, ws.e
         root[j] = ws.pw[el0]
         tip[j] = ws.pT[1:]
         Rl[j] = np.einsum("nij,nkj->nik", ws.Rw[el0], md.Q)
@@ -301,7 +333,43 @@ def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads):
     for j in range(nt):
         for i in range(n):
             twist[j, i] = log_so3(Rl[j, i].T @ Rt[j, i])[0]
-    return root, tip, Rl, Rt, defl, twist, en, loads
+    link_shapes = from_frames(case.model, int(md.k[0]), RI, rI, ee, p) if p else None
+    return root, tip, Rl, Rt, defl, twist, en, loads, link_shapes
+
+
+#: compiled runs of at most this many element-steps take well under a second (measured about
+#: 30 µs per element-step, outputs included, on three_joint_arm and right_angle_cantilever):
+#: one kernel call, no estimate (the planar kernel's rule, :data:`dttmm.kernel.driver.SHORT_RUN`)
+SHORT_RUN = 2e4
+
+
+def _run_chunked(loop, args: tuple, n_steps: int, progress: bool | None):
+    """The time loop (``loop.run(*args, first, stop)``) as the planar kernel runs it
+    (:func:`dttmm.kernel.driver._run_chunked`): in one call if ``progress`` is False; else a
+    first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a progress bar (``progress``
+    True, or None and the estimated run time above PROGRESS_AFTER s) in chunks between bar
+    updates, else the rest in one call. The chunks give the one call's run bit for bit.
+    Returns (steps taken, bar or None)."""
+    stats = args[16]
+    failed = lambda: stats[loop.S_STATUS] != 0
+    if progress is False:
+        return loop.run(*args, 0, n_steps), None
+    chunk = max(1, n_steps // PROGRESS_CHUNKS)
+    t0 = time.perf_counter()
+    done = loop.run(*args, 0, min(chunk, n_steps))
+    if failed() or done >= n_steps:
+        return done, None
+    estimate = (time.perf_counter() - t0) * n_steps / max(done, 1)
+    bar = _progress_bar(n_steps, progress if progress is not None else estimate > PROGRESS_AFTER)
+    if bar is None:
+        return loop.run(*args, done, n_steps), None
+    bar.update(done)
+    for a in range(done, n_steps, chunk):
+        done = loop.run(*args, a, min(n_steps, a + chunk))
+        bar.update(done - a)
+        if failed():
+            break
+    return done, bar
 
 
 #: fixed sweep counts and "auto": the residual check (one extra sweep, not applied) runs at
@@ -352,6 +420,8 @@ def simulate(
     energy: bool = True,
     engine: str | None = None,
     auto_fraction: float = 0.1,
+    shape_points: int = 0,
+    progress: bool | None = None,
     **planar_options,
 ):
     """Simulate a spatial case by DT-TMM with k = ``elements_per_link`` elements per link and
@@ -366,8 +436,13 @@ def simulate(
     the contraction ρ = |Δq̈_m|/|Δq̈_{m−1}|, |Δq̈_m|·ρ/(1 − ρ), is below ``auto_fraction`` × the
     local truncation error estimate |β − 1/6|/β · max|q̈_{n+1} − q̈_n|, or the ``tol`` rule is
     met; a residual check every 64 steps); ``strain``: "linear" or "second-order";
-    ``cut_loads``, ``energy``: record them on the output grid. Closed-loop drives (pd, pid, user
-    laws; docs/control.md) run as in the planar kernel.
+    ``cut_loads``, ``energy``: record them on the output grid; ``shape_points`` p ≥ 2 records
+    ``link_shapes`` (nt, n, p, 3), the deflected centre line of every link from the element
+    shape functions (:func:`dttmm.shapes.frame_shapes`; 0, the default: none); ``progress``: a
+    progress bar (tqdm, on stderr; None: on when the run, estimated after its first chunk,
+    takes over 2 s, as the planar kernel). Closed-loop drives (pd, pid, user laws;
+    docs/control.md) run as in the planar kernel. The run-size guard
+    (:func:`dttmm.check_run_size`) refuses a run whose arrays would not fit in memory.
     Returns a :class:`SpatialResult`; raises InputError for bad settings, SimulationError (with
     ``.partial``) when the run diverges.
     """
@@ -390,6 +465,8 @@ def simulate(
             energy=energy,
             engine=engine,
             auto_fraction=auto_fraction,
+            shape_points=shape_points,
+            progress=progress,
             **planar_options,
         )
     if planar_options:
@@ -404,6 +481,7 @@ def simulate(
     tol = plumbing.open_fraction("tol", tol)
     max_iterations = plumbing.positive_integer("max_iterations", max_iterations)
     auto_fraction = plumbing.positive_number("auto_fraction", auto_fraction)
+    p = shapes.shape_points(shape_points)
     fam = (
         None
         if integrator == "rk4"
@@ -411,6 +489,7 @@ def simulate(
     )
     engine, core, loop = _kernel(engine)
     _check_closed_loop(case, engine)
+    check_run_size(case, k, h, cut_loads=cut_loads, energy=energy, shape_points=p)
     md = build_model(case.model, k, strain, _motion_flags(case))
     ws = make_work(md)
     sc = case.scenario
@@ -467,9 +546,11 @@ def simulate(
         # numpy's warnings of a diverging state (caught and reported below); numba's note that
         # its first-class function type (the calls of jitted user laws) is experimental
         warnings.simplefilter("ignore")
-        n_steps = loop.run(
-            md, ws, opts, drv, cw, q, qd, qdd, aux, torque0, z, zerr, ts, oq, oqd, otau, stats, fstats
-        )
+        args = (md, ws, opts, drv, cw, q, qd, qdd, aux, torque0, z, zerr, ts, oq, oqd, otau, stats, fstats)
+        short = engine == "numba" and t_end.size * md.nel <= SHORT_RUN and not progress
+        n_steps, bar = _run_chunked(loop, args, t_end.size, False if short else progress)
+    if bar is not None:
+        bar.close()
     wall = time.perf_counter() - t_start
     cpu = time.process_time() - c0
     upto = int(stats[loop.S_SAMPLES])
@@ -508,8 +589,8 @@ def simulate(
 
     def result(upto_, meta_, status_, warns_):
         sel = slice(0, upto_)
-        root, tip, Rl, Rt, defl, twist, en, loads = _outputs(
-            core, md, ws, case, oq[sel], oqd[sel], otau[sel], upto_, energy, cut_loads
+        root, tip, Rl, Rt, defl, twist, en, loads, link_shapes = _outputs(
+            core, md, ws, case, oq[sel], oqd[sel], otau[sel], upto_, energy, cut_loads, p
         )
         unl = list(case.model.unlocked)
         return SpatialResult(
@@ -532,6 +613,7 @@ def simulate(
             twist=twist,
             link_rotation=Rl,
             tip_rotation=Rt,
+            link_shapes=link_shapes,
         )
 
     if stats[loop.S_STATUS] != 0:

@@ -126,6 +126,7 @@ class Loop(NamedTuple):
     xs: np.ndarray  # (n_dof,) q̈ of the sensitivity sweeps
     xc: np.ndarray  # (n_dof,) previous iterate of the forward dynamics
     fd: np.ndarray  # (2,) forward-dynamics solves out of sweeps, their sweeps
+    qddm: np.ndarray  # (n_dof,) q̈ at the start of the previous step (the residual check)
 
 
 def new_loop(n: int, ndof: int) -> Loop:
@@ -145,6 +146,7 @@ def new_loop(n: int, ndof: int) -> Loop:
         xs=z(ndof),
         xc=z(ndof),
         fd=np.zeros(2, np.int64),
+        qddm=z(ndof),
     )
 
 
@@ -602,12 +604,17 @@ def residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dq, d2q, s, st
 
 
 @njit()
-def run(md, ws, opts, drv, cw, q, qd, qdd, aux, torque, z, zerr, ts, oq, oqd, otau, stats, fstats):
-    """The whole time loop from the state (q, q̇, q̈, aux, joint torques, integral states z and
-    errors α_ref − α) at t = 0, sampling the state on the grid ``ts`` into oq, oqd (nt, n_dof)
-    and otau (nt, n). Each Newmark step iterates to the stop rule (``iterations="auto"``: or the
-    contraction test), or takes n_fixed + 1 sweeps. stats, fstats: see N_STATS. Returns the
-    number of steps taken."""
+def run(
+    md, ws, opts, drv, cw, q, qd, qdd, aux, torque, z, zerr, ts, oq, oqd, otau, stats, fstats, first, until
+):
+    """Steps ``first`` ≤ s < ``until`` of the time loop from the state (q, q̇, q̈, aux, joint
+    torques, integral states z and errors α_ref − α) at the start of step ``first`` (t = 0 for
+    0), sampling the state on the grid ``ts`` into oq, oqd (nt, n_dof) and otau (nt, n). Each
+    Newmark step iterates to the stop rule (``iterations="auto"``: or the contraction test), or
+    takes n_fixed + 1 sweeps. stats, fstats: see N_STATS (stats[S_SAMPLES]: the samples taken
+    so far, where the next call goes on). Calls over consecutive ranges of steps give the run of
+    one call over all of them, bit for bit (the progress bar's chunks). Returns the number of
+    steps taken by the end of this call (``until``, or the failed step)."""
     n = md.n
     nd = q.shape[0]
     ns = drv.t_end.shape[0]
@@ -616,7 +623,7 @@ def run(md, ws, opts, drv, cw, q, qd, qdd, aux, torque, z, zerr, ts, oq, oqd, ot
     q0 = q.copy()
     qd0 = qd.copy()
     qdd0 = qdd.copy()
-    qddm = qdd.copy()  # q̈_{n−1} (the residual check)
+    qddm = cw.qddm  # q̈_{n−1} (the residual check), kept between calls
     qt = np.zeros(nd)
     qdt = np.zeros(nd)
     x = np.zeros(nd)
@@ -629,20 +636,26 @@ def run(md, ws, opts, drv, cw, q, qd, qdd, aux, torque, z, zerr, ts, oq, oqd, ot
     kb = np.zeros(nd)
     kc = np.zeros(nd)
     noload = np.zeros((0, 6))
-    js = 0
     nt = ts.shape[0]
-    while js < nt and ts[js] <= 1e-12:
+    if first == 0:
+        js = 0
         for r in range(nd):
-            oq[js, r] = q[r]
-            oqd[js, r] = qd[r]
-        for i in range(n):
-            otau[js, i] = torque[i]
-        js += 1
-    t0 = 0.0
-    s = 0
+            qddm[r] = qdd[r]
+        while js < nt and ts[js] <= 1e-12:
+            for r in range(nd):
+                oq[js, r] = q[r]
+                oqd[js, r] = qd[r]
+            for i in range(n):
+                otau[js, i] = torque[i]
+            js += 1
+        t0 = 0.0
+    else:
+        js = stats[S_SAMPLES]
+        t0 = drv.t_end[first - 1]
+    s = first
     last = ns - 1
     ok = True
-    while s < ns:
+    while s < until:
         t1 = drv.t_end[s]
         h = t1 - t0
         for r in range(nd):
@@ -867,7 +880,7 @@ def run(md, ws, opts, drv, cw, q, qd, qdd, aux, torque, z, zerr, ts, oq, oqd, ot
         t0 = t1
         s += 1
     stats[S_SAMPLES] = js
-    return ns
+    return until
 
 
 @njit()
