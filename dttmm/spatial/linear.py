@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import plumbing
 from ..errors import InputError
-from ..linear import MAX_FREE, STEP, Linearization, Modes, _damping_ratios, _eigen, _has_damping, derivative
+from ..modal import MAX_FREE, STEP, Linearization, Modes, _damping_ratios, _eigen, _has_damping, derivative
 from .build import STRAINS, build_model, make_work
 from .rotation import log_so3
 from .solver import _drive_values, _kernel, _motion_flags, as_spatial_case, initial_state
