@@ -22,6 +22,7 @@ __all__ = ["MOTION", "motion_table", "report_cases", "section"]
 
 # methods: None draws the first DT-TMM method and the rigid baseline(s) of the registry, for contrast
 MOTION = dict(k=8, h=1e-3, points=13, fps=20.0, max_frames=120, methods=None)
+FIGSIZE, DPI = (6.4, 6.4), 100  # 640 px square: readable at the page's width
 BEND_SHARE = 0.06  # the drawn bending peaks at this share of the arm's reach (see exaggeration)
 
 
@@ -141,7 +142,15 @@ def section(inp) -> Section | None:
         fps = MOTION["fps"]
         looks = {m: (label(m), style(m, i).color, style(m, i).linestyle) for i, m in enumerate(motions)}
         anim = arm_animation(
-            motions, case, exaggerate=x, fps=fps, max_frames=None, title=name, dpi=72, styles=looks
+            motions,
+            case,
+            exaggerate=x,
+            fps=fps,
+            max_frames=None,
+            title=name,
+            figsize=FIGSIZE,
+            dpi=DPI,
+            styles=looks,
         )
         stem = f"motion_{name}"
         inp.fig_dir.mkdir(parents=True, exist_ok=True)
@@ -161,5 +170,22 @@ def section(inp) -> Section | None:
         f"deflected centre lines (Result.link_shapes), the rigid model's straight links for contrast. "
         f"Drawn and encoded in {took:.1f} s ({'H.264 video' if video else 'animated GIF, no ffmpeg here'})."
     )
+    text += spatial_note(cases)
     inp.meta["motion_render_s"] = took
     return Section("Motion", figs, text, [], "motion", "")
+
+
+def spatial_note(cases: dict) -> list[str]:
+    """A sentence naming the spatial arms of the report that are not animated, and why (the
+    animations draw planar link shapes; a spatial drawing comes with ``dttmm.animate``'s 3-D
+    support when it offers one)."""
+    from dttmm import animate
+
+    spatial = [n for n, c in cases.items() if (c or {}).get("kind") == "spatial"]
+    if not spatial or getattr(animate, "SPATIAL", False):
+        return []
+    return [
+        f"Not animated: {', '.join(spatial)} (a spatial arm). The spatial arm's animation is not available yet: "
+        "dttmm.animate draws planar link shapes only; the 3-D drawing of spatial link shapes comes with the "
+        "one-arm-model work."
+    ]

@@ -1,0 +1,343 @@
+"""The front page: three answers computed from the tables (is DT-TMM right? is it fast? where
+does it break?), one summary figure (the work-precision diagrams, one panel per case) and one
+compact scoreboard (methods × cases, each cell the CPU time to the case's common error relative
+to the cheapest method, or a short mark whose footnote holds the reason)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .render import Front
+
+__all__ = ["answers", "board", "front", "summary_figure"]
+
+
+def _label(m: str) -> str:
+    from experiments.methods import label
+
+    return label(m)
+
+
+def _role(m: str) -> str:
+    from experiments import methods
+
+    try:
+        return methods.get(m).role
+    except methods.MethodUnavailable:
+        return "peer"
+
+
+def _sig(x: float) -> str:
+    from .peers import sig2
+
+    return sig2(x)
+
+
+def _cases(meta: dict, *tables) -> list[str]:
+    order = list(meta.get("cases") or {})
+    seen = []
+    for t in tables:
+        if t is not None and len(t) and "case" in t:
+            seen += list(dict.fromkeys(t.case))
+    seen = list(dict.fromkeys(seen))
+    return sorted(seen, key=lambda c: order.index(c) if c in order else len(order))
+
+
+def _order(methods) -> list[str]:
+    from experiments.methods import shown_order
+
+    known = shown_order()
+    return sorted(dict.fromkeys(methods), key=lambda m: known.index(m) if m in known else len(known))
+
+
+# --- the compact scoreboard -------------------------------------------------------------------
+
+
+def _why_not_run(method: str, case: str, tables: dict, meta: dict) -> str:
+    """Why ``method`` has no work-precision value on ``case``: its failed runs' reason, the case's
+    sitting-out record, the registry's reason, or that it was not planned."""
+    wp = tables.get("work_precision")
+    if wp is not None and len(wp):
+        g = wp[(wp.case == case) & (wp.method == method)]
+        if len(g):
+            r = next((x for x in g.get("reason", []) if isinstance(x, str) and x), "")
+            return f"every run {g.status.iloc[0]}" + (f": {r}" if r else "")
+    why = (meta.get("sitting_out") or {}).get(case, {}).get(method)
+    if why:
+        return why
+    from experiments import methods
+
+    try:
+        why = methods.get(method).why_not("work_precision")
+    except methods.MethodUnavailable as exc:
+        why = str(exc)
+    avail = (meta.get("availability") or {}).get(method)
+    return why or avail or "not in this report's work-precision plan"
+
+
+def board(tables: dict, meta: dict) -> tuple[pd.DataFrame, list[str]]:
+    """(table, footnotes): one row per method, one column per case, each cell the CPU time to
+    the case's common error over the cheapest method's ("1×" for the cheapest), "not reached N"
+    or "not run N" where footnote N gives the reason."""
+    s = tables.get("work_precision_summary")
+    if s is None or not len(s):
+        return pd.DataFrame(), []
+    cases = _cases(meta, s)
+    methods = _order([*s.method, *_planned(tables)])
+    notes: list[str] = []
+
+    def note(text: str) -> int:
+        if text not in notes:
+            notes.append(text)
+        return notes.index(text) + 1
+
+    rows = []
+    for m in methods:
+        row = {"method": _label(m)}
+        for c in cases:
+            g = s[s.case == c]
+            cheapest = g.cpu_time_to_target.min()
+            r = g[g.method == m]
+            if len(r) and np.isfinite(r.cpu_time_to_target.iloc[0]):
+                row[c] = f"{_sig(float(r.cpu_time_to_target.iloc[0] / cheapest))}×"
+            elif len(r):
+                best = float(r.best_error.iloc[0])
+                target = float(r.target_error.iloc[0])
+                n = note(
+                    f"{_label(m)} on {c}: its smallest error, {_sig(best)} m, stays above the common error "
+                    f"{_sig(target)} m"
+                    + (" (the rigid model's floor: no step removes it)" if _role(m) == "baseline" else "")
+                    + "."
+                )
+                row[c] = f"not reached [{n}]"
+            else:
+                n = note(f"{_label(m)} on {c}: {_why_not_run(m, c, tables, meta)}.")
+                row[c] = f"not run [{n}]"
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    times = ", ".join(f"{c} {_sig(float(s[s.case == c].cpu_time_to_target.min()))} s" for c in cases)
+    targets = ", ".join(f"{c} {_sig(float(s[s.case == c].target_error.iloc[0]))} m" for c in cases)
+    notes = [
+        f"Cells: CPU time (least of repeats) to reach the case's common end-effector error ({targets}), "
+        f"divided by the cheapest method's ({times}). Lower is better.",
+        *[f"[{i}] {n}" for i, n in enumerate(notes, 1)],
+    ]
+    return df, notes
+
+
+def _planned(tables: dict) -> list[str]:
+    wp = tables.get("work_precision")
+    return list(dict.fromkeys(wp.method)) if wp is not None and len(wp) else []
+
+
+# --- the summary figure -----------------------------------------------------------------------
+
+
+def summary_figure(table: pd.DataFrame, cases: list[str]) -> Figure:
+    """The work-precision diagrams of every case side by side (two per row), one legend below."""
+    from .peers import work_precision_axes
+
+    n = len(cases)
+    cols = min(n, 2)
+    rows = -(-n // cols)
+    fig = Figure(figsize=(5.0 * cols, 3.3 * rows + 0.9), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    order = _order(table.method)
+    for ax, c in zip(axes, cases):
+        work_precision_axes(ax, table, c, order)
+        ax.set_title(c, fontsize=10)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    seen: dict = {}
+    for ax in axes[:n]:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            seen.setdefault(lab, h)
+    if seen:
+        fig.legend(
+            list(seen.values()), list(seen), loc="outside lower center", ncol=3, fontsize=8, frameon=False
+        )
+    return fig
+
+
+# --- the three answers ------------------------------------------------------------------------
+
+
+def _right(tables: dict, meta: dict) -> str:
+    """Is DT-TMM right? Agreement with the global solver (same discretisation), with the
+    independent reference engines at the comparison point, and the published values."""
+    out = []
+    ps = tables.get("paper_summary")
+    if ps is not None and len(ps):
+        dt = ps[ps.method.isin(["dttmm", "dttmm-2nd"]) & (ps.status == "ok")]
+        errs = dt.groupby("case").ee_l2.min()
+        refs = {c: (meta.get("references", {}).get(c) or {}).get("method", "") for c in errs.index}
+        names = sorted({_label(r) for r in refs.values() if r})
+        if len(errs):
+            out.append(
+                f"Against converged references of independent engines ({', '.join(names) or 'see Cases'}), "
+                f"DT-TMM's end-effector error at the comparison point is {_sig(errs.min())}–{_sig(errs.max())} m "
+                f"RMS on {len(errs)} case(s)."
+            )
+    agree = _global_agreement(tables)
+    if agree:
+        out.append(agree)
+    res = tables.get("benchmarks")
+    if res is not None and len(res):
+        ok, total, bad = _problems_passed(res)
+        out.append(
+            f"Published and closed-form values: within tolerance on {ok} of {total} benchmark quantities"
+            + (f" (not: {', '.join(bad[:3])}{'…' if len(bad) > 3 else ''})." if bad else ".")
+        )
+    return " ".join(out) or "No study in this report compares DT-TMM with a reference."
+
+
+def _global_agreement(tables: dict) -> str:
+    """DT-TMM against the global solver of the same discretisation: the largest difference of
+    their end-effector errors (convergence in k, same k and h), relative."""
+    from experiments.methods import same_equations
+
+    t = tables.get("convergence_k")
+    if t is None or not len(t):
+        return ""
+    worst, n = 0.0, 0
+    for sub, glob in same_equations():
+        a = t[(t.method == sub) & (t.status == "ok")].set_index(["case", "k", "h"]).ee_l2
+        b = t[(t.method == glob) & (t.status == "ok")].set_index(["case", "k", "h"]).ee_l2
+        both = pd.concat([a, b], axis=1, join="inner").dropna()
+        if len(both):
+            rel = (both.iloc[:, 0] - both.iloc[:, 1]).abs() / both.abs().max(axis=1)
+            worst, n = max(worst, float(rel.max())), n + len(both)
+    if not n:
+        return ""
+    return (
+        f"Against the global solver of the same discretisation its errors agree within {_sig(100 * worst)} % "
+        f"over {n} runs (same k and h)."
+    )
+
+
+def _problems_passed(res: pd.DataFrame) -> tuple[int, int, list]:
+    from experiments.methods import by_role
+
+    from .problems import grouped
+
+    d = res[res.method.isin(by_role("subject"))]
+    if not len(d):
+        return 0, 0, []
+    d = grouped(d)
+    ok, bad = 0, []
+    for (p, q), g in d.groupby(["problem", "quantity"], sort=False):
+        last = g[g.k == g.k.max()]
+        if last.passed.astype(bool).any():
+            ok += 1
+        else:
+            bad.append(f"{p} {q}")
+    return ok, ok + len(bad), bad
+
+
+def _fast(tables: dict, meta: dict) -> str:
+    """Is it fast? Per peer, the range over cases of its CPU time to the common error over
+    DT-TMM's (the cheaper of its variants)."""
+    s = tables.get("work_precision_summary")
+    if s is None or not len(s):
+        return "No work-precision study in this report."
+    ratios: dict = {}
+    wins = []
+    for c, g in s.groupby("case", sort=False):
+        g = g[np.isfinite(g.cpu_time_to_target)]
+        sub = g[[_role(m) == "subject" for m in g.method]]
+        if not len(sub):
+            continue
+        t0 = float(sub.cpu_time_to_target.min())
+        if t0 <= float(g.cpu_time_to_target.min()) * (1 + 1e-12):
+            wins.append(c)
+        for r in g[[_role(m) != "subject" for m in g.method]].itertuples():
+            ratios.setdefault(r.method, []).append(r.cpu_time_to_target / t0)
+    if not ratios:
+        return "No peer reached the common error of any case, so no cost ratio can be formed."
+    parts = []
+    for m in _order(ratios):
+        v = ratios[m]
+        rng = (
+            f"{_sig(min(v))}×"
+            if len(v) == 1 or _sig(min(v)) == _sig(max(v))
+            else f"{_sig(min(v))}–{_sig(max(v))}×"
+        )
+        parts.append(f"{_label(m)} {rng}")
+    n_cases = len(_cases(meta, s))
+    return (
+        f"At equal accuracy (each case's common error), DT-TMM is the cheapest method on {len(wins)} of "
+        f"{n_cases} case(s). The peers need, relative to DT-TMM's CPU time (range over cases; > 1: DT-TMM is "
+        f"faster): {'; '.join(parts)}."
+    )
+
+
+def _breaks(tables: dict, meta: dict, om: pd.DataFrame) -> str:
+    """Where does it break? DT-TMM's runs without a value (with a reason), and per peer its
+    runs without a value and the cases where it does not reach the common error."""
+    out = []
+    subj = om[[_role(m) == "subject" for m in om.method]] if len(om) else om
+    main = subj[subj.study != "scheme"] if len(subj) else subj
+    if len(main):
+        first = main.iloc[0]
+        where = ", ".join(dict.fromkeys(f"{r.case} ({r.study.replace('_', ' ')})" for r in main.itertuples()))
+        out.append(
+            f"DT-TMM: {len(main)} run(s) without a value, on {where}; e.g. {_label(first.method)}: {first.reason}."
+        )
+    else:
+        out.append("DT-TMM: every planned run of its default settings produced a value")
+        if len(subj):
+            out[-1] += (
+                f" (the scheme study's {len(subj)} variants of the paper's scheme that fail are shown there)"
+            )
+        out[-1] += "."
+    s = tables.get("work_precision_summary")
+    miss: dict = {}
+    if s is not None and len(s):
+        for r in s[~np.isfinite(s.cpu_time_to_target)].itertuples():
+            miss.setdefault(r.method, []).append(r.case)
+    peers = om[[_role(m) != "subject" for m in om.method]] if len(om) else om
+    bad = peers.groupby("method").size().to_dict() if len(peers) else {}
+    parts = []
+    for m in _order([*miss, *bad]):
+        bits = []
+        if m in miss:
+            bits.append(f"misses the common error on {', '.join(miss[m])}")
+        if m in bad:
+            bits.append(f"{bad[m]} run(s) without a value")
+        parts.append(f"{_label(m)} {' and '.join(bits)}")
+    if parts:
+        out.append("Peers: " + "; ".join(parts) + ".")
+    return " ".join(out)
+
+
+def answers(tables: dict, meta: dict, om: pd.DataFrame) -> list[tuple[str, str, str]]:
+    """[(question, answer, page with the evidence)] of the front page."""
+    right_page = "problems.html" if "benchmarks" in tables else "convergence.html"
+    return [
+        ("Is DT-TMM right?", _right(tables, meta), right_page),
+        ("Is it fast?", _fast(tables, meta), "work-precision.html"),
+        ("Where does it break?", _breaks(tables, meta, om), "omissions.html"),
+    ]
+
+
+def front(tables: dict, meta: dict, om: pd.DataFrame, figure) -> Front:
+    """The front page; ``figure(name, fig) -> path`` saves the summary figure."""
+    fig, brd = None, None
+    wp = tables.get("work_precision")
+    if wp is not None and len(wp):
+        cases = _cases(meta, wp)
+        path = figure("summary_work_precision.png", summary_figure(wp, cases))
+        fig = (
+            path,
+            "Work-precision, one panel per case: end-effector error (RMS, against the case's reference) against "
+            "CPU time (least of the repeats); lower left is better; each method refined along the same (k, h) "
+            "path; the star is the rigid-link model. Details: the Work-precision page.",
+        )
+    df, notes = board(tables, meta)
+    if len(df):
+        brd = ("scoreboard", df, notes)
+    return Front(answers(tables, meta, om), fig, brd)
