@@ -133,14 +133,17 @@ def _label(m: str) -> str:
 
 
 def present(df: pd.DataFrame) -> pd.DataFrame:
-    """``df`` as the strings a page shows: hidden bookkeeping columns dropped, headers in words,
-    every cell through :func:`cell` (a missing value says why, using the row's status)."""
+    """``df`` as the strings a page shows: hidden bookkeeping columns dropped, headers in words
+    (kept as written when ``df.attrs["verbatim_headers"]``), every cell through :func:`cell` (a
+    missing value says why, using the row's status)."""
     keep = [c for c in df.columns if str(c) not in HIDDEN and not str(c).startswith("Unnamed")]
     d = df[keep].reset_index(drop=True)
     status = d["status"] if "status" in d else pd.Series([None] * len(d))
     out = {}
     for c in keep:
         out[header(c)] = [cell(v, str(c), s) for v, s in zip(d[c], status)]
+    if df.attrs.get("verbatim_headers"):  # e.g. case names as columns: shown as written
+        out = dict(zip(keep, out.values()))
     res = pd.DataFrame(out, columns=list(out))
     res.columns = _unique(res.columns)
     return res
