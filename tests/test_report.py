@@ -532,3 +532,25 @@ def test_prune_cache_with_from_data_is_refused(capsys):
         cli.main(["--from-data", "--prune-cache"])
     assert exc.value.code == 2
     assert "--prune-cache" in capsys.readouterr().err
+
+
+def _readme_pages() -> list[tuple[str, str]]:
+    """(file, title) of README's list of report pages, in its order."""
+    text = (Path(__file__).parents[1] / "README.md").read_text()
+    part = text[text.index("## The report") :]
+    part = part[: part.index("\n## ", 3)]
+    return [(f, t) for t, f in re.findall(r"^- \*\*(.+?)\*\* \(`([\w-]+\.html)`\)", part, re.M)]
+
+
+def test_readme_lists_the_pages_the_report_writes(report):
+    from reports.render import PAGES
+
+    listed = _readme_pages()
+    assert listed == [("index.html", "Overview"), *((f"{s}.html", t) for s, t, _ in PAGES)]
+    written = {p.name for p in (report / "out").glob("*.html") if not p.name.startswith("_")}
+    assert written <= {f for f, _ in listed}
+    # the tiny report writes every page but those of the studies it does not plan
+    assert {f for f, _ in listed} - written <= {"problems.html", "closed-loop.html"}
+    for f in written:
+        title = dict(listed)[f]
+        assert f"<a href='{f}' aria-current='page'>{title}</a>" in (report / "out" / f).read_text()
