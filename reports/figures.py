@@ -10,11 +10,13 @@ import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullLocator
 
 __all__ = [
     "bench_elements",
     "bench_links",
     "clipped",
+    "unlabelled_axes",
     "convergence_h",
     "convergence_k",
     "load_label",
@@ -77,7 +79,7 @@ def _integer_ticks(ax, values):
     v = sorted({int(x) for x in values if x > 0})
     if v:
         ax.set_xticks(v, [str(x) for x in v])
-        ax.minorticks_off()
+        ax.xaxis.set_minor_locator(NullLocator())  # the y axis keeps its minor ticks
 
 
 FAILED_LABEL = "failed (listed in Omissions)"
@@ -350,9 +352,43 @@ def fit_canvas(fig, tries: int = 4) -> None:
         fig.set_size_inches(fw + max(grow_w, 0), fh + max(grow_h, 0))
 
 
+def _labelled_ticks(axis) -> int:
+    return sum(bool(t.label1.get_visible() and t.label1.get_text().strip()) for t in axis._update_ticks())
+
+
+def unlabelled_axes(fig) -> list[str]:
+    """The visible axes of ``fig`` that draw something but whose x or y axis shows fewer than
+    two tick labels (a log axis spanning less than a decade, say), by title."""
+    fig.canvas.draw()
+    bad = []
+    for ax in fig.axes:
+        if not ax.get_visible() or not (ax.lines or ax.collections):
+            continue
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            if axis.get_visible() and _labelled_ticks(axis) < 2:
+                bad.append(f"{ax.get_title() or '(untitled)'}: {name} axis")
+    return bad
+
+
+def label_log_axes(fig) -> None:
+    """A log axis that would show fewer than two tick labels (less than a decade in view) gets
+    labels at 1, 2 and 5 of each decade."""
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator
+
+    fig.canvas.draw()
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            if axis.get_scale() == "log" and axis.get_visible() and _labelled_ticks(axis) < 2:
+                axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+                axis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False))
+                axis.set_minor_locator(NullLocator())
+
+
 def save(fig: Figure, path) -> None:
-    """Write a figure as PNG, every title, label and legend inside the canvas (:func:`fit_canvas`)."""
+    """Write a figure as PNG: every log axis labelled (:func:`label_log_axes`), every title,
+    label and legend inside the canvas (:func:`fit_canvas`)."""
     fig.set_dpi(DPI)
+    label_log_axes(fig)
     fit_canvas(fig)
     fig.savefig(path, dpi=DPI)
 

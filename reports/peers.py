@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullLocator
 
 from .figures import _legend, _style
 from .render import Section
@@ -139,7 +140,7 @@ def _cost_panel(ax, t: pd.DataFrame, ex: dict, order: list, spatial: bool = Fals
         ax.vlines(g.k, g.cpu_time, med, color=c, lw=1)
     ks = sorted({int(k) for k in t.k})
     ax.set_xticks(ks, [str(k) for k in ks])
-    ax.minorticks_off()
+    ax.xaxis.set_minor_locator(NullLocator())  # the y axis keeps its minor ticks
     ax.set(xlabel="elements per link k")
     _legend(ax, ncol=1)
 

@@ -252,7 +252,7 @@ def drawn_here(report, tmp_path_factory):
     def recording_save(fig, path):
         save(fig, path)
         failed = [r for ax in fig.axes for r in getattr(ax, "failed_runs", [])]
-        seen[Path(path).name] = (figures.clipped(fig), failed)
+        seen[Path(path).name] = (figures.clipped(fig) + figures.unlabelled_axes(fig), failed)
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(build, "_sections", functools.partial(build._sections, workers=1))
@@ -278,7 +278,8 @@ def test_sections_drawn_in_parallel_equal_those_drawn_here(report, drawn_here):
 
 def test_every_text_of_every_figure_is_inside_its_canvas(report, drawn_here):
     """Title, axis labels, tick labels, legends and texts of every figure the report saves lie
-    inside the canvas (figures.clipped on the figure as saved)."""
+    inside the canvas (figures.clipped on the figure as saved), and every axes that draws
+    something labels at least two ticks on each axis (figures.unlabelled_axes)."""
     _, seen = drawn_here
     pngs = {p.name for p in (report / "out" / "figures").glob("*.png")}
     assert set(seen) == pngs - {f"motion_{c}.png" for c in CASES}  # the stills are the animations' frames
