@@ -430,7 +430,7 @@ def _head(meta, om) -> list[str]:
         else:
             head.append(
                 f"Reference {case}: none could be computed ({'; '.join(p.get('failures', []))}); "
-                "errors for this case are NaN."
+                "errors for this case have no value."
             )
     return head
 

@@ -1,7 +1,8 @@
 """Pure plotting functions: study tables in, matplotlib Figures out (Agg canvas, no pyplot).
 
-Failed runs (NaN errors) are drawn as grey crosses on the bottom edge of the axes, so a
-missing point is visible rather than silently absent.
+Failed runs (a status other than ok or flagged) are drawn as grey crosses on the bottom edge of
+the axes, so a missing point is visible rather than silently absent; a run that finished is
+never drawn as failed.
 """
 
 from __future__ import annotations
