@@ -130,7 +130,7 @@ def omissions(tables: dict) -> pd.DataFrame:
             )
     cols = OMISSION_COLUMNS
     df = pd.DataFrame(rows, columns=cols)
-    key = df[cols[:6]].astype(str)  # one line per run (a run shared by two studies: its first)
+    key = df[cols[1:6]].astype(str)  # one line per run (a run shared by two studies: its first)
     return df[~key.duplicated()].reset_index(drop=True)
 
 

@@ -20,19 +20,20 @@ import pandas as pd
 
 from .tables import present
 
-__all__ = ["PAGES", "Front", "Section", "fmt", "page_files", "write"]
+__all__ = ["CSS", "PAGES", "Front", "Section", "fmt", "page_files", "write"]
 
 MAX_ROWS = 30  # rows of a table in REPORT.md; the CSV beside the report has them all
 PAGE_ROWS = 15  # rows of a table shown on a page before "show all"
 HTML_ROWS = 400  # rows written into a page at most (the CSV has them all)
 HERE = Path(__file__).parent
 ASSETS = ("report.css", "report.js")
+CSS = HERE / "report.css"  # also the stylesheet of the validation scorecards (reports/validate_page.py)
 
 #: the study pages, in the order of the navigation bar: (file stem, title, section anchors)
 PAGES = [
     ("cases", "Cases", ("cases",)),
     ("convergence", "Convergence", ("convergence-k", "convergence-h")),
-    ("work-precision", "Work-precision", ("work-precision",)),
+    ("work-precision", "Work-precision", ("work-precision", "scoreboard-per-case")),
     ("scheme", "Scheme", ("scheme",)),
     ("paper", "Paper figures", ("paper",)),
     ("motion", "Motion", ("motion",)),
@@ -283,7 +284,7 @@ def _front(page: _Page, front: Front, pages):
         page.md += ["## At a glance", ""]
         page.h.append("<section id='answers' class='answers'>")
         for q, a, href in front.answers:
-            page.md += [f"**{q}** {a} ([evidence]({href.replace('.html', '')}))", ""]
+            page.md += [f"**{q}** {a} ([evidence](#{href.removesuffix('.html')}))", ""]
             page.h.append(
                 f"<div class='qa'><h2>{html.escape(q)}</h2><p>{html.escape(a)} "
                 f"<a href='{href}'>Evidence&nbsp;→</a></p></div>"

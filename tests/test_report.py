@@ -424,7 +424,7 @@ def test_tables_are_written_for_people(report):
     page = (report / "out" / "convergence.html").read_text()
     heads = re.findall(r"<th scope='col'>([^<]*)</th>", page)
     assert heads and not [h for h in heads if "_" in h], heads
-    assert "end-effector error, RMS (m)" in (report / "out" / "work-precision.html").read_text()
+    assert "CPU time to the common error (s)" in (report / "out" / "work-precision.html").read_text()
     # raw ids of methods do not appear in table cells; their labels do
     assert "<td>dttmm</td>" not in page and f"<td>{methods_label('dttmm')}</td>" in page
 
