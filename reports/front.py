@@ -306,7 +306,8 @@ def _breaks(tables: dict, meta: dict, om: pd.DataFrame) -> str:
         first = main.iloc[0]
         where = ", ".join(dict.fromkeys(f"{r.case} ({r.study.replace('_', ' ')})" for r in main.itertuples()))
         out.append(
-            f"DT-TMM: {len(main)} run(s) without a value, on {where}; e.g. {_label(first.method)}: {first.reason}."
+            f"DT-TMM: {len(main)} run(s) without a value, on {where}; e.g. {_label(first.method)}: "
+            f"{_short(first.reason)}."
         )
     else:
         out.append("DT-TMM: every planned run of its default settings produced a value")
@@ -333,6 +334,12 @@ def _breaks(tables: dict, meta: dict, om: pd.DataFrame) -> str:
     if parts:
         out.append("Peers: " + "; ".join(parts) + ".")
     return " ".join(out)
+
+
+def _short(reason: str, n: int = 90) -> str:
+    """The head of a reason: up to its first parenthesis or ``n`` characters."""
+    head = str(reason).split(" (")[0].rstrip(".;:, ")
+    return head if len(head) <= n else head[: n - 1].rstrip() + "…"
 
 
 def answers(tables: dict, meta: dict, om: pd.DataFrame) -> list[tuple[str, str, str]]:
