@@ -194,14 +194,18 @@ def _right(tables: dict, meta: dict) -> str:
     out = []
     ps = tables.get("paper_summary")
     if ps is not None and len(ps):
-        dt = ps[ps.method.isin(["dttmm", "dttmm-2nd"]) & (ps.status == "ok")]
+        dt = ps[np.array([_role(m) == "subject" for m in ps.method], bool) & (ps.status == "ok").to_numpy()]
         errs = dt.groupby("case").ee_l2.min()
         refs = {c: (meta.get("references", {}).get(c) or {}).get("method", "") for c in errs.index}
-        names = sorted({_label(r) for r in refs.values() if r})
-        if len(errs):
+        indep = [c for c in errs.index if refs[c] and _role(refs[c]) != "subject"]
+        own = [c for c in errs.index if c not in indep]
+        names = sorted({_label(refs[c]) for c in indep})
+        if indep:
             out.append(
-                f"Against converged references of independent engines ({', '.join(names) or 'see Cases'}), "
-                f"DT-TMM's end-effector error at the comparison point is {_span(errs)} m RMS on {len(errs)} case(s)."
+                f"Against converged {' and '.join(names)} references its end-effector error is "
+                f"{_span(errs[indep])} m RMS on {len(indep)} case(s)"
+                + (f" ({', '.join(own)}: against its own converged run, cross-checked)" if own else "")
+                + "."
             )
     agree = _global_agreement(tables)
     if agree:
@@ -209,9 +213,10 @@ def _right(tables: dict, meta: dict) -> str:
     res = tables.get("benchmarks")
     if res is not None and len(res):
         ok, total, bad = _problems_passed(res)
+        probs = list(dict.fromkeys(b.split(" ")[0] for b in bad))
         out.append(
-            f"Published and closed-form values: within tolerance on {ok} of {total} benchmark quantities"
-            + (f" (not: {', '.join(bad[:3])}{'…' if len(bad) > 3 else ''})." if bad else ".")
+            f"Published values: {ok} of {total} benchmark quantities within tolerance"
+            + (f" (not: {', '.join(probs)})." if bad else ".")
         )
     return " ".join(out) or "No study in this report compares DT-TMM with a reference."
 
@@ -234,10 +239,8 @@ def _global_agreement(tables: dict) -> str:
             worst, n = max(worst, float(rel.max())), n + len(both)
     if not n:
         return ""
-    within = (
-        "to round-off (relative difference below 1e-6)" if worst < 1e-6 else f"within {_sig(100 * worst)} %"
-    )
-    return f"Against the global solver of the same discretisation its errors agree {within} over {n} runs (same k and h)."
+    within = "to round-off" if worst < 1e-6 else f"within {_sig(100 * worst)} %"
+    return f"The global solver of the same discretisation gives the same errors {within} ({n} runs)."
 
 
 def _problems_passed(res: pd.DataFrame) -> tuple[int, int, list]:
@@ -279,60 +282,48 @@ def _fast(tables: dict, meta: dict) -> str:
             ratios.setdefault(r.method, []).append(r.cpu_time_to_target / t0)
     if not ratios:
         return "No peer reached the common error of any case, so no cost ratio can be formed."
-    parts = []
-    for m in _order(ratios):
-        v = ratios[m]
-        rng = (
-            f"{_sig(min(v))}×"
-            if len(v) == 1 or _sig(min(v)) == _sig(max(v))
-            else f"{_sig(min(v))}–{_sig(max(v))}×"
-        )
-        parts.append(f"{_label(m)} {rng}")
+    parts = [f"{_label(m)} {_span(ratios[m])}×" for m in _order(ratios)]
     n_cases = len(_cases(meta, s))
     return (
-        f"At equal accuracy (each case's common error), DT-TMM is the cheapest method on {len(wins)} of "
-        f"{n_cases} case(s). The peers need, relative to DT-TMM's CPU time (range over cases; > 1: DT-TMM is "
-        f"faster): {'; '.join(parts)}."
+        f"DT-TMM is the cheapest at equal accuracy on {len(wins)} of {n_cases} cases. CPU time to each case's "
+        f"common error over DT-TMM's (range over cases): {'; '.join(parts)}."
     )
 
 
 def _breaks(tables: dict, meta: dict, om: pd.DataFrame) -> str:
-    """Where does it break? DT-TMM's runs without a value (with a reason), and per peer its
-    runs without a value and the cases where it does not reach the common error."""
+    """Where does it break? DT-TMM's runs without a value (per variant: how many, where, why),
+    and per peer the cases where it does not reach the common error and its runs without a value."""
     out = []
     subj = om[[_role(m) == "subject" for m in om.method]] if len(om) else om
     main = subj[subj.study != "scheme"] if len(subj) else subj
-    if len(main):
-        first = main.iloc[0]
-        where = ", ".join(dict.fromkeys(f"{r.case} ({r.study.replace('_', ' ')})" for r in main.itertuples()))
-        out.append(
-            f"DT-TMM: {len(main)} run(s) without a value, on {where}; e.g. {_label(first.method)}: "
-            f"{_short(first.reason)}."
-        )
-    else:
-        out.append("DT-TMM: every planned run of its default settings produced a value")
-        if len(subj):
-            out[-1] += (
-                f" (the scheme study's {len(subj)} variants of the paper's scheme that fail are shown there)"
-            )
-        out[-1] += "."
+    bits = []
+    for m, g in main.groupby("method", sort=False) if len(main) else []:
+        where = ", ".join(dict.fromkeys(g.case))
+        bits.append(f"{_label(m)} {len(g)} on {where} ({_short(g.reason.iloc[0], 50)})")
+    out.append(
+        ("DT-TMM runs without a value: " + "; ".join(bits) + ".")
+        if bits
+        else "Every planned DT-TMM run of its default settings produced a value."
+    )
     s = tables.get("work_precision_summary")
     miss: dict = {}
+    n_cases = 0
     if s is not None and len(s):
+        n_cases = s.case.nunique()
         for r in s[~np.isfinite(s.cpu_time_to_target)].itertuples():
             miss.setdefault(r.method, []).append(r.case)
     peers = om[[_role(m) != "subject" for m in om.method]] if len(om) else om
     bad = peers.groupby("method").size().to_dict() if len(peers) else {}
-    parts = []
-    for m in _order([*miss, *bad]):
-        bits = []
-        if m in miss:
-            bits.append(f"misses the common error on {', '.join(miss[m])}")
-        if m in bad:
-            bits.append(f"{bad[m]} run(s) without a value")
-        parts.append(f"{_label(m)} {' and '.join(bits)}")
-    if parts:
-        out.append("Peers: " + "; ".join(parts) + ".")
+    if miss:
+        out.append(
+            "Peers missing the common error: "
+            + ", ".join(f"{_label(m)} on {len(miss[m])} of {n_cases} cases" for m in _order(miss))
+            + "."
+        )
+    if bad:
+        out.append(
+            "Peer runs without a value: " + ", ".join(f"{_label(m)} {bad[m]}" for m in _order(bad)) + "."
+        )
     return " ".join(out)
 
 

@@ -361,6 +361,7 @@ def write(
     fp.md += ["## Pages", ""]
     for f, t, said in listing:
         line = " ".join(said)
+        line = line if len(line) <= 220 else line[:219].rsplit(" ", 1)[0] + " …"
         fp.h.append(f"<li><a href='{f}'>{html.escape(t)}</a>{': ' + html.escape(line) if line else ''}</li>")
         fp.md.append(f"- [{t}](#{f[:-5]}){': ' + line if line else ''}")
     fp.h.append("</ul></section>")
