@@ -5,6 +5,8 @@ to the cheapest method, or a short mark whose footnote holds the reason)."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -329,7 +331,7 @@ def _breaks(tables: dict, meta: dict, om: pd.DataFrame) -> str:
 
 def _short(reason: str, n: int = 90) -> str:
     """The head of a reason: up to its first parenthesis or ``n`` characters."""
-    head = str(reason).split(" (")[0].rstrip(".;:, ")
+    head = re.sub(r"^\w+(Error|Exception): ", "", str(reason)).split(" (")[0].rstrip(".;:, ")
     return head if len(head) <= n else head[: n - 1].rstrip() + "…"
 
 

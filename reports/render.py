@@ -220,8 +220,12 @@ class _Page:
             + _html_table(name, df)
         )
 
-    def section(self, sec: Section):
-        self.heading(sec.title, sec.anchor)
+    def section(self, sec: Section, page_title: str = ""):
+        if sec.title == page_title:  # the page's only section: the page's heading is its heading
+            self.md += [""]
+            self.h.append(f"<section id='{sec.anchor}'>")
+        else:
+            self.heading(sec.title, sec.anchor)
         for png, caption in sec.figures:
             self.figure(png, caption)
         if sec.html:
@@ -372,7 +376,7 @@ def write(
     for (f, t), (stem, _, secs) in zip(pages[1:], groups):
         p = _Page(n)
         for s in secs:
-            p.section(s)
+            p.section(s, t if len(secs) == 1 else "")
         md += ["", f"## {t}", "", f"<a id='{stem}'></a>", "", *p.md]
         (out / f).write_text(_doc(title, t, _nav(pages, f), f"<h1>{html.escape(t)}</h1>" + "\n".join(p.h)))
     for a in ASSETS:
