@@ -187,11 +187,11 @@ def _not_drawn(ax, g: pd.DataFrame) -> None:
     ks = ", ".join(str(int(k)) for k in sorted(set(none.k)))
     msg = f"runs ok, not drawn (no difference left,\nround-off): k = {ks}"
     if not ax.lines:
-        ax.set_yticks([])
         ax.set_yscale("linear")
+        ax.set_yticks([])
         ax.text(0.5, 0.5, msg, ha="center", va="center", fontsize=8, transform=ax.transAxes)
     else:
-        ax.text(0.03, 0.03, msg, ha="left", va="bottom", fontsize=7, transform=ax.transAxes)
+        ax.text(0.97, 0.97, msg, ha="right", va="top", fontsize=7, transform=ax.transAxes)
 
 
 def spin_up_figure(series: pd.DataFrame):
