@@ -24,6 +24,9 @@ __all__ = ["CSS", "PAGES", "Front", "Section", "fmt", "page_files", "write"]
 
 MAX_ROWS = 30  # rows of a table in REPORT.md; the CSV beside the report has them all
 PAGE_ROWS = 15  # rows of a table shown on a page before "show all"
+LONG = 24  # characters from which a cell may break inside a word (shorter ones break at spaces only)
+DENSE_PX = 900  # a table wider than this without breaking words breaks them (class dense;
+# report.js adds the class too where the browser finds the table wider than its column)
 HTML_ROWS = 400  # rows written into a page at most (the CSV has them all)
 HERE = Path(__file__).parent
 ASSETS = ("report.css", "report.js")
@@ -138,13 +141,15 @@ def _html_table(name: str, df: pd.DataFrame) -> str:
         for j in range(len(cols)):
             v = raw.iat[i, j]
             num = _sort_key(v)
-            cls = " class='n'" if num else ""
-            cells.append(f"<td{cls}{num}>{html.escape(words.iat[i, j])}</td>")
+            text = words.iat[i, j]
+            cls = " class='n'" if num else " class='long'" if len(text) > LONG else ""
+            cells.append(f"<td{cls}{num}>{html.escape(text)}</td>")
         more = " class='more'" if i >= PAGE_ROWS else ""
         body.append(f"<tr{more}>{''.join(cells)}</tr>")
     tid = f"t-{name}"
+    dense = " dense" if _min_width_px(words) > DENSE_PX else ""
     out = (
-        f"<div class='tw'><table class='t' id='{html.escape(tid)}'><thead><tr>{head}</tr></thead>"
+        f"<div class='tw'><table class='t{dense}' id='{html.escape(tid)}'><thead><tr>{head}</tr></thead>"
         f"<tbody>{''.join(body)}</tbody></table></div>"
     )
     if len(words) > PAGE_ROWS:
@@ -155,6 +160,18 @@ def _html_table(name: str, df: pd.DataFrame) -> str:
         )
         out += f"<button class='all' data-table='{html.escape(tid)}'>show {rest}</button>"
     return out
+
+
+def _min_width_px(words: pd.DataFrame) -> float:
+    """About how wide (px at the table's font) the table is when no short cell breaks inside a
+    word: per column its longest short cell or header word, a long cell's minimum width."""
+    total = 0.0
+    for j, c in enumerate(words.columns):
+        cells = [len(x) if len(x) <= LONG else 0 for x in words.iloc[:, j]]
+        longs = any(len(x) > LONG for x in words.iloc[:, j])
+        head = max((len(w) for w in str(c).split()), default=0)
+        total += max([head, *cells, 15 if longs else 0]) * 6.5 + 12
+    return total
 
 
 def _hidden():

@@ -1,4 +1,10 @@
-// dttmm report: sortable tables (click a header), "show all rows", video play/pause below the drawing.
+// dttmm report: tables that fit their column (words break where a table would be too wide),
+// sortable tables (click a header), "show all rows", video play/pause below the drawing.
+const fit = () => document.querySelectorAll('table.t').forEach(t => {
+  if (t.scrollWidth > t.parentElement.clientWidth + 1) t.classList.add('dense');
+});
+fit();
+window.addEventListener('resize', fit);
 document.querySelectorAll('table.t').forEach(t => {
   t.querySelectorAll('th').forEach((th, col) => {
     th.title = 'sort';
@@ -22,6 +28,7 @@ document.querySelectorAll('button.all').forEach(b => b.addEventListener('click',
   const t = document.getElementById(b.dataset.table);
   const open = t.classList.toggle('open');
   b.textContent = open ? 'show fewer rows' : b.dataset.label;
+  fit();
 }));
 document.querySelectorAll('button.all').forEach(b => { b.dataset.label = b.textContent; });
 document.querySelectorAll('button.play').forEach(b => b.addEventListener('click', () => {

@@ -118,6 +118,8 @@ def cell(v, col: str = "", status=None) -> str:
     s = str(v)
     if col in ("method", "against") and s:
         return _label(s)
+    if col == "study":
+        return s.replace("_", " ")
     if s.strip() in ("nan", "NaN", "None", "inf", "-inf", "<NA>"):
         return _missing(col, status)
     return BAD_WORDS.sub(lambda m: {"inf": "unbounded", "-inf": "−unbounded"}.get(m[1], "no value"), s)
