@@ -25,7 +25,7 @@ __all__ = ["CSS", "PAGES", "Front", "Section", "fmt", "page_files", "write"]
 MAX_ROWS = 30  # rows of a table in REPORT.md; the CSV beside the report has them all
 PAGE_ROWS = 15  # rows of a table shown on a page before "show all"
 LONG = 24  # characters from which a cell may break inside a word (shorter ones break at spaces only)
-DENSE_PX = 900  # a table wider than this without breaking words breaks them (class dense;
+DENSE_PX = 1100  # a table far wider than this without breaking words breaks them (class dense;
 # report.js adds the class too where the browser finds the table wider than its column)
 HTML_ROWS = 400  # rows written into a page at most (the CSV has them all)
 HERE = Path(__file__).parent
