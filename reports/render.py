@@ -238,7 +238,7 @@ class _Page:
         )
 
     def section(self, sec: Section, page_title: str = ""):
-        if sec.title == page_title:  # the page's only section: the page's heading is its heading
+        if sec.title == page_title:  # the page's heading is the section's heading
             self.md += [""]
             self.h.append(f"<section id='{sec.anchor}'>")
         else:
@@ -393,7 +393,7 @@ def write(
     for (f, t), (stem, _, secs) in zip(pages[1:], groups):
         p = _Page(n)
         for s in secs:
-            p.section(s, t if len(secs) == 1 else "")
+            p.section(s, t)
         md += ["", f"## {t}", "", f"<a id='{stem}'></a>", "", *p.md]
         (out / f).write_text(_doc(title, t, _nav(pages, f), f"<h1>{html.escape(t)}</h1>" + "\n".join(p.h)))
     for a in ASSETS:

@@ -403,6 +403,9 @@ def test_every_page_is_in_the_navigation_bar_of_every_page(report):
         ]
         assert "href='report.css'" in page and "src='report.js'" in page
     assert (out / "report.css").exists() and (out / "report.js").exists()
+    # every table is one click away as CSV
+    links = set(re.findall(r"href='(data/[\w-]+\.csv)'", _site_html(out)))
+    assert links and all((out / link).exists() for link in links), sorted(links)
     # every figure has a numbered caption
     html = _site_html(out)
     assert html.count("<figure") == len(re.findall(r"<figcaption>Figure \d+\. ", html)) == len(FIGURES)
