@@ -22,6 +22,7 @@ __all__ = ["MOTION", "motion_table", "report_cases", "section"]
 
 # methods: None draws the first DT-TMM method and the rigid baseline(s) of the registry, for contrast
 MOTION = dict(k=8, h=1e-3, points=13, fps=20.0, max_frames=120, methods=None)
+FIGSIZE, DPI = (6.4, 6.4), 100  # 640 px square: readable at the page's width
 BEND_SHARE = 0.06  # the drawn bending peaks at this share of the arm's reach (see exaggeration)
 
 
@@ -57,14 +58,15 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
     t0 = time.perf_counter()
     rows = []
     for name, case in cases.items():
-        if methods.is_spatial(case):
-            log(f"motion: {name} skipped (a spatial arm: the animations draw planar link shapes only)")
-            continue
+        spatial = methods.is_spatial(case)
         for m in s["methods"]:
             try:
                 r = methods.run(m, case, s["k"], s["h"], shape_points=s["points"])
             except Exception as exc:  # noqa: BLE001 - one missing animation must not stop the report
                 log(f"motion: {m} on {name} skipped ({type(exc).__name__}: {exc})")
+                continue
+            if getattr(r, "link_shapes", None) is None or r.link_shapes.shape[-1] != (3 if spatial else 2):
+                log(f"motion: {m} on {name} skipped (its result has no link shapes of this arm)")
                 continue
             idx = frame_indices(r.t, s["fps"], 1.0, s["max_frames"])
             sh = r.link_shapes[idx]
@@ -84,10 +86,11 @@ def motion_table(cases: dict, settings: dict | None = None, log=print) -> dict:
                         "point": j.ravel() + 1,
                         "x": sh[..., 0].ravel(),
                         "y": sh[..., 1].ravel(),
+                        "z": sh[..., 2].ravel() if spatial else np.nan,
                     }
                 )
             )
-    cols = ["case", "method", "k", "h", "frame", "t", "link", "point", "x", "y"]
+    cols = ["case", "method", "k", "h", "frame", "t", "link", "point", "x", "y", "z"]
     log(f"motion: {len(rows)} runs with link shapes in {time.perf_counter() - t0:.1f} s")
     return {"motion": pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=cols)}
 
@@ -98,7 +101,8 @@ def _motions(df: pd.DataFrame) -> dict:
     for m, g in df.groupby("method", sort=False):
         g = g.sort_values(["frame", "link", "point"])
         nf, n, p = g.frame.nunique(), g.link.nunique(), g.point.nunique()
-        sh = g[["x", "y"]].to_numpy().reshape(nf, n, p, 2)
+        xyz = ["x", "y", "z"] if "z" in g and g.z.notna().all() else ["x", "y"]
+        sh = g[xyz].to_numpy().reshape(nf, n, p, len(xyz))
         out[m] = Motion(g.t.to_numpy()[:: n * p], sh, sh[:, -1, -1].copy(), {"method": m})
     return out
 
@@ -129,9 +133,11 @@ def section(inp) -> Section | None:
     cases = inp.meta.get("cases") or {}
     figs, text = [], []
     video = ffmpeg_path() is not None
+    not_drawn = {}
     for name, g in df.groupby("case", sort=False):
         motions = _motions(g)
-        case = case_from_dict(cases[name]) if name in cases else None
+        spatial = next(iter(motions.values())).link_shapes.shape[-1] == 3
+        case = case_from_dict(cases[name]) if name in cases and not spatial else None
         if case is not None:
             reach = sum(lk.beam.length for lk in case.model.links)
         else:
@@ -140,9 +146,21 @@ def section(inp) -> Section | None:
         x = exaggeration(motions, reach)
         fps = MOTION["fps"]
         looks = {m: (label(m), style(m, i).color, style(m, i).linestyle) for i, m in enumerate(motions)}
-        anim = arm_animation(
-            motions, case, exaggerate=x, fps=fps, max_frames=None, title=name, dpi=72, styles=looks
-        )
+        try:
+            anim = arm_animation(
+                motions,
+                case,
+                exaggerate=x,
+                fps=fps,
+                max_frames=None,
+                title=name,
+                figsize=FIGSIZE,
+                dpi=DPI,
+                styles=looks,
+            )
+        except Exception as exc:  # noqa: BLE001 - a drawing this dttmm.animate cannot make yet
+            not_drawn[name] = f"{type(exc).__name__}: {exc}"
+            continue
         stem = f"motion_{name}"
         inp.fig_dir.mkdir(parents=True, exist_ok=True)
         save_frame(anim, len(anim.frame_times) - 1, inp.fig_dir / f"{stem}.png")
@@ -151,8 +169,8 @@ def section(inp) -> Section | None:
         who = " and ".join(label(m) for m in motions)
         scale = f"bending between the joints drawn ×{x:g}, joints and tips at their true positions"
         cap = (
-            f"{name}: {who} (DT-TMM k = {d.k}, h = {d.h:g} s), {g.frame.nunique()} frames in real time; "
-            f"{scale if x != 1 else 'true scale'}; thin line: end-effector trace."
+            f"{name}: {who} (DT-TMM k = {d.k}, h = {d.h:g} s), {g.frame.nunique()} frames in real time"
+            f"{', in 3-D' if spatial else ''}; {scale if x != 1 else 'true scale'}; thin line: end-effector trace."
         )
         figs.append((f"figures/{path.name}", cap))
     took = time.perf_counter() - t0
@@ -161,5 +179,22 @@ def section(inp) -> Section | None:
         f"deflected centre lines (Result.link_shapes), the rigid model's straight links for contrast. "
         f"Drawn and encoded in {took:.1f} s ({'H.264 video' if video else 'animated GIF, no ffmpeg here'})."
     )
+    drawn = {n for n in df.case.unique() if n not in not_drawn}
+    text += spatial_note(cases, drawn, not_drawn)
     inp.meta["motion_render_s"] = took
     return Section("Motion", figs, text, [], "motion", "")
+
+
+def spatial_note(cases: dict, drawn=(), not_drawn=None) -> list[str]:
+    """A sentence naming the spatial arms of the report that are not animated, and why: the
+    animations need the spatial link shapes of each run and a 3-D drawing in ``dttmm.animate``;
+    where either is missing, the spatial arm's animation is not available yet."""
+    spatial = [n for n, c in cases.items() if (c or {}).get("kind") == "spatial" and n not in drawn]
+    if not spatial:
+        return []
+    why = "; ".join(f"{n}: {w}" for n, w in (not_drawn or {}).items() if n in spatial)
+    return [
+        f"Not animated: {', '.join(spatial)} (a spatial arm). The spatial arm's animation is not available yet: "
+        "it needs the spatial link shapes of each run and a 3-D drawing in dttmm.animate, which the "
+        f"one-arm-model work adds{f' ({why})' if why else ''}."
+    ]

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from . import animations, bench, control, figures, interpret, peers, problems
+from .front import front
 from .render import Section, write
 from .scoreboard import scoreboard
 
@@ -89,31 +90,48 @@ def _cases(df) -> list:
     return list(dict.fromkeys(df.case)) if df is not None and "case" in df and len(df) else []
 
 
+#: the study tables of runs besides RUN_TABLES, whose rows carry a status: the benchmark problems
+#: and the closed loop (a run of theirs that is not "ok" is an omission too)
+STATUS_TABLES = ("benchmarks", "control")
+OMISSION_COLUMNS = ["study", "case", "method", "k", "h", "options", "status", "reason"]
+
+
+def _why(r) -> str:
+    why = getattr(r, "reason", "") or getattr(r, "error_note", "")
+    if not isinstance(why, str) or not why:
+        return f"the run ended with status {r.status} and no value" if r.status != "ok" else "no error value"
+    return why
+
+
 def omissions(tables: dict) -> pd.DataFrame:
-    """Every planned run that is not ok or has no error value: study, case, method, k, h,
-    options, status (failed, unavailable, or flagged unconverged / ill-conditioned), why."""
+    """Every planned run of every study that is not ok or has no error value: study, case,
+    method, k, h, options, status (failed, unavailable, or flagged unconverged /
+    ill-conditioned), why."""
     rows = []
-    for name in RUN_TABLES:
+    for name in (*RUN_TABLES, *STATUS_TABLES):
         df = tables.get(name)
-        if df is None or df.empty:
+        if df is None or df.empty or "status" not in df or "method" not in df:
             continue
-        bad = df[(df.status != "ok") | ~np.isfinite(df.ee_l2.astype(float))]
-        for r in bad.itertuples():
-            why = r.reason or getattr(r, "error_note", "")
+        bad = df.status != "ok"
+        if name in RUN_TABLES and "ee_l2" in df:
+            bad |= ~np.isfinite(df.ee_l2.astype(float))
+        for r in df[bad].itertuples():
             rows.append(
                 {
                     "study": name,
-                    "case": r.case,
+                    "case": getattr(r, "case", None) or getattr(r, "problem", ""),
                     "method": r.method,
-                    "k": r.k,
-                    "h": r.h,
-                    "options": r.options,
+                    "k": getattr(r, "k", np.nan),
+                    "h": getattr(r, "h", np.nan),
+                    "options": getattr(r, "options", ""),
                     "status": r.status,
-                    "reason": why,
+                    "reason": _why(r),
                 }
             )
-    cols = ["study", "case", "method", "k", "h", "options", "status", "reason"]
-    return pd.DataFrame(rows, columns=cols).drop_duplicates(subset=cols[1:])
+    cols = OMISSION_COLUMNS
+    df = pd.DataFrame(rows, columns=cols)
+    key = df[cols[1:6]].astype(str)  # one line per run (a run shared by two studies: its first)
+    return df[~key.duplicated()].reset_index(drop=True)
 
 
 def _per_case(inp, table, stem, title, anchor, plot, caption, interp, tabs=(), summary=None):
@@ -412,7 +430,7 @@ def _head(meta, om) -> list[str]:
         else:
             head.append(
                 f"Reference {case}: none could be computed ({'; '.join(p.get('failures', []))}); "
-                "errors for this case are NaN."
+                "errors for this case have no value."
             )
     return head
 
@@ -456,7 +474,8 @@ def _sections(inp: Inputs, workers: int | None = None) -> list:
 
 
 def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra=None):
-    """Write figures, ``index.html`` and ``REPORT.md`` into ``out`` from the study tables."""
+    """Write figures, the pages (``index.html`` and one per study) and ``REPORT.md`` into ``out``
+    from the study tables."""
     out = Path(out)
     tables = dict(tables)
     inp = Inputs(tables, meta, out / "figures", Path(bench_dir))
@@ -464,9 +483,15 @@ def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra
     secs = [s for s in _sections(inp) if s is not None]
     om = omissions(tables)
     board = scoreboard(tables, meta)
+    board.title, board.anchor = "Scoreboard per case", "scoreboard-per-case"
+    at = next((i for i, s in enumerate(secs) if s.anchor == "work-precision"), len(secs) - 1)
+    secs.insert(at + 1, board)
+    first = front(tables, meta, om, inp.figure)
     (out / "data").mkdir(parents=True, exist_ok=True)
     om.to_csv(out / "data" / "omissions.csv", index=False)
-    for name, df, *_ in [t for s in [*secs, board] for t in s.tables]:
+    if first.board is not None:
+        first.board[1].to_csv(out / "data" / "scoreboard.csv", index=False)
+    for name, df, *_ in [t for s in secs for t in s.tables]:
         df.to_csv(out / "data" / f"{name}.csv", index=False)
     head = _head(meta, om) + [s.summary for s in secs if s.summary]
     head.append(f"{len(om)} planned run(s) without an error value (see Omissions).")
@@ -480,4 +505,4 @@ def build(tables: dict, meta: dict, out, *, bench_dir="data/bench", footer_extra
         "rebuild": meta.get("command", ""),
         **(footer_extra or {}),
     }
-    return write(out, TITLE, head, secs, om, footer, lead=lead(meta), front=board)
+    return write(out, TITLE, head, secs, om, footer, lead=lead(meta), front=first)

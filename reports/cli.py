@@ -117,7 +117,9 @@ def _from_data(out, command, bench_dir, log=print):
             "(run `dttmm report` without --from-data first)"
         )
     meta = json.loads(mpath.read_text())
-    tables = {k: v for k, v in load_tables(out / "data").items() if not k.startswith("bench")}
+    tables = {
+        k: v for k, v in load_tables(out / "data").items() if not (k == "bench" or k.startswith("bench_"))
+    }
     now = provenance.collect(command)
     paths = build(
         tables,

@@ -1,7 +1,8 @@
 """Pure plotting functions: study tables in, matplotlib Figures out (Agg canvas, no pyplot).
 
-Failed runs (NaN errors) are drawn as grey crosses on the bottom edge of the axes, so a
-missing point is visible rather than silently absent.
+Failed runs (a status other than ok or flagged) are drawn as grey crosses on the bottom edge of
+the axes, so a missing point is visible rather than silently absent; a run that finished is
+never drawn as failed.
 """
 
 from __future__ import annotations
@@ -10,10 +11,13 @@ import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullLocator
 
 __all__ = [
     "bench_elements",
     "bench_links",
+    "clipped",
+    "unlabelled_axes",
     "convergence_h",
     "convergence_k",
     "load_label",
@@ -76,16 +80,31 @@ def _integer_ticks(ax, values):
     v = sorted({int(x) for x in values if x > 0})
     if v:
         ax.set_xticks(v, [str(x) for x in v])
-        ax.minorticks_off()
+        ax.xaxis.set_minor_locator(NullLocator())  # the y axis keeps its minor ticks
+
+
+FAILED_LABEL = "failed (listed in Omissions)"
+OK = ("ok", "unconverged", "ill-conditioned")  # ran to the end: a value, maybe flagged
+
+
+def failed_rows(table: pd.DataFrame) -> pd.DataFrame:
+    """The runs of ``table`` a figure draws as failed: those whose status says the run did not
+    finish (failed, unavailable, …); a run that finished is never drawn as failed, even when
+    it has no positive value to draw."""
+    if "status" not in table:
+        return table[:0]
+    return table[~table.status.isin(OK)]
 
 
 def _loglog_groups(ax, table, x, y, group, *, style=None, labels=None, lw=1.5):
-    """One log-log line per group; failed points as crosses at the bottom edge, flagged ones
-    (unconverged, ill-conditioned) ringed."""
-    fails = []
+    """One log-log line per group; failed runs as crosses at the bottom edge (recorded on the
+    axes as ``ax.failed_runs``, the rows drawn), flagged ones (unconverged, ill-conditioned)
+    ringed."""
     for i, (name, g) in enumerate(table.groupby(group, sort=False)):
         g = g.sort_values(x)
         ok = np.isfinite(g[y]) & (g[y] > 0)
+        if "status" in g:
+            ok &= g.status.isin(OK)
         lab = (labels or {}).get(name, _label(name) if group == "method" else str(name))
         st = _style(name, i) if group == "method" else _style(f"{group}:{name}", i)
         if ok.any():
@@ -100,7 +119,6 @@ def _loglog_groups(ax, table, x, y, group, *, style=None, labels=None, lw=1.5):
                 label=lab,
                 mfc="none" if st.hollow else st.color,
             )
-        fails += list(g[x][~ok])
     # runs the method flagged (unconverged, ill-conditioned): their value, ringed
     flagged = table[table.status.isin(("unconverged", "ill-conditioned"))] if "status" in table else table[:0]
     flagged = flagged[np.isfinite(flagged[y]) & (flagged[y] > 0)]
@@ -116,15 +134,17 @@ def _loglog_groups(ax, table, x, y, group, *, style=None, labels=None, lw=1.5):
             ls="none",
             label="flagged by the method (unconverged / ill-conditioned)",
         )
-    if fails:
+    fails = failed_rows(table)
+    ax.failed_runs = getattr(ax, "failed_runs", []) + fails.to_dict("records")
+    if len(fails):
         ax.plot(
-            fails,
+            list(fails[x]),
             np.full(len(fails), 0.0),
             "x",
             color="0.5",
             transform=ax.get_xaxis_transform(),
             clip_on=False,
-            label="failed / no value (see omissions)",
+            label=FAILED_LABEL,
         )
     ax.grid(True, which="both", alpha=0.3)
 
@@ -268,9 +288,110 @@ def loads(series: pd.DataFrame, case: str) -> Figure:
     return _history_grid(s, rows, case, "loads and energy (top) and Δ = method − reference (bottom)")
 
 
+DPI = 110
+
+
+def _texts(fig) -> list:
+    """(name, artist) of every text a reader must see: titles, axis labels, the tick labels
+    drawn (those within the view), offset texts, texts and legends of each axes, and the
+    figure's suptitle, texts and legends."""
+    out = []
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        out += [("title", t) for t in (ax.title, ax._left_title, ax._right_title)]
+        for axis in (ax.xaxis, ax.yaxis):
+            if not axis.get_visible():
+                continue
+            out += [("axis label", axis.label), ("offset text", axis.get_offset_text())]
+            for tick in axis._update_ticks():  # the ticks drawn: those within the view
+                out += [("tick label", tick.label1), ("tick label", tick.label2)]
+        out += [("text", t) for t in ax.texts if not t.get_clip_on()]
+        if ax.get_legend() is not None:
+            out.append(("legend", ax.get_legend()))
+    out += [("figure legend", lg) for lg in fig.legends]
+    out += [("figure text", t) for t in fig.texts]
+    out += [("suptitle", t) for t in (getattr(fig, "_suptitle", None), getattr(fig, "_supxlabel", None)) if t]
+    return out
+
+
+def clipped(fig, tol: float = 1.0) -> list[str]:
+    """The texts of ``fig`` (:func:`_texts`) whose window extent leaves the canvas, as
+    "kind 'text'" strings (empty: everything is inside)."""
+    fig.canvas.draw()
+    r = fig.canvas.get_renderer()
+    w, h = fig.bbox.width, fig.bbox.height
+    bad = []
+    for kind, t in _texts(fig):
+        if not t.get_visible() or (hasattr(t, "get_text") and not t.get_text().strip()):
+            continue
+        bb = t.get_window_extent(r)
+        if bb.x0 < -tol or bb.y0 < -tol or bb.x1 > w + tol or bb.y1 > h + tol:
+            what = t.get_text() if hasattr(t, "get_text") else ", ".join(x.get_text() for x in t.get_texts())
+            bad.append(f"{kind} {what[:60]!r}")
+    return bad
+
+
+def fit_canvas(fig, tries: int = 4) -> None:
+    """Grow the figure until every text of :func:`_texts` is inside the canvas: where a title,
+    label or legend sticks out, the figure gets that much more room on that side and the
+    layout is drawn again (constrained layout then places the axes inside)."""
+    for _ in range(tries):
+        if not clipped(fig):
+            return
+        r = fig.canvas.get_renderer()
+        w, h = fig.bbox.width, fig.bbox.height
+        x0 = y0 = 0.0
+        x1, y1 = w, h
+        for _, t in _texts(fig):
+            if t.get_visible() and (not hasattr(t, "get_text") or t.get_text().strip()):
+                bb = t.get_window_extent(r)
+                x0, y0, x1, y1 = min(x0, bb.x0), min(y0, bb.y0), max(x1, bb.x1), max(y1, bb.y1)
+        dpi = fig.dpi
+        grow_w, grow_h = (x1 - x0 - w) / dpi + 0.1, (y1 - y0 - h) / dpi + 0.1
+        fw, fh = fig.get_size_inches()
+        fig.set_size_inches(fw + max(grow_w, 0), fh + max(grow_h, 0))
+
+
+def _labelled_ticks(axis) -> int:
+    return sum(bool(t.label1.get_visible() and t.label1.get_text().strip()) for t in axis._update_ticks())
+
+
+def unlabelled_axes(fig) -> list[str]:
+    """The visible axes of ``fig`` that draw something but whose x or y axis shows fewer than
+    two tick labels (a log axis spanning less than a decade, say), by title."""
+    fig.canvas.draw()
+    bad = []
+    for ax in fig.axes:
+        if not ax.get_visible() or not (ax.lines or ax.collections):
+            continue
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            if axis.get_visible() and _labelled_ticks(axis) < 2:
+                bad.append(f"{ax.get_title() or '(untitled)'}: {name} axis")
+    return bad
+
+
+def label_log_axes(fig) -> None:
+    """A log axis that would show fewer than two tick labels (less than a decade in view) gets
+    labels at 1, 2 and 5 of each decade."""
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator
+
+    fig.canvas.draw()
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            if axis.get_scale() == "log" and axis.get_visible() and _labelled_ticks(axis) < 2:
+                axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+                axis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False))
+                axis.set_minor_locator(NullLocator())
+
+
 def save(fig: Figure, path) -> None:
-    """Write a figure as PNG."""
-    fig.savefig(path, dpi=110)
+    """Write a figure as PNG: every log axis labelled (:func:`label_log_axes`), every title,
+    label and legend inside the canvas (:func:`fit_canvas`)."""
+    fig.set_dpi(DPI)
+    label_log_axes(fig)
+    fit_canvas(fig)
+    fig.savefig(path, dpi=DPI)
 
 
 # --- Cost scaling (pytest-benchmark groups "elements:<case>:<method>", "links:<method>") ---

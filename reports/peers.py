@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullLocator
 
 from .figures import _legend, _style
 from .render import Section
@@ -18,6 +19,7 @@ __all__ = [
     "equal_accuracy_text",
     "peer_settings",
     "sig2",
+    "work_precision_axes",
     "work_precision_figure",
     "work_precision_text",
 ]
@@ -138,7 +140,7 @@ def _cost_panel(ax, t: pd.DataFrame, ex: dict, order: list, spatial: bool = Fals
         ax.vlines(g.k, g.cpu_time, med, color=c, lw=1)
     ks = sorted({int(k) for k in t.k})
     ax.set_xticks(ks, [str(k) for k in ks])
-    ax.minorticks_off()
+    ax.xaxis.set_minor_locator(NullLocator())  # the y axis keeps its minor ticks
     ax.set(xlabel="elements per link k")
     _legend(ax, ncol=1)
 
@@ -285,19 +287,18 @@ def scaling_text(scaling_csv=SCALING_CSV) -> list[str]:
     return out
 
 
-def work_precision_figure(table: pd.DataFrame, case: str) -> Figure:
-    """Error against CPU time (least of the repeats), one curve per flexible method, hollow
-    markers for noisy timings, the rigid baseline as stars."""
+def work_precision_axes(ax, table: pd.DataFrame, case: str, order: list | None = None) -> None:
+    """Draw ``case``'s work-precision diagram on ``ax``: error against CPU time (least of the
+    repeats), one curve per flexible method, hollow markers for noisy timings, the rigid baseline
+    as a star; ``order``: the methods in the order their styles are picked."""
     from experiments.studies._common import MAIN_ERROR
 
-    fig = Figure(figsize=(6.0, 5.6), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
     t = _timed(table)
     g = t[(t.case == case) & np.isfinite(t[MAIN_ERROR].astype(float))]
-    for i, (m, gm) in enumerate(g[g.k > 0].groupby("method", sort=False)):
+    order = list(order or dict.fromkeys(g.method))
+    for m, gm in g[g.k > 0].groupby("method", sort=False):
         gm = gm.sort_values("cpu_time")
-        st = _style(m, i)
+        st = _style(m, order.index(m) if m in order else len(order))
         c = st.color
         ax.loglog(gm.cpu_time, gm[MAIN_ERROR], st.linestyle, color=c, label=_label(m))
         quiet, noisy = gm[~gm.noisy], gm[gm.noisy]
@@ -305,11 +306,19 @@ def work_precision_figure(table: pd.DataFrame, case: str) -> Figure:
         ax.loglog(noisy.cpu_time, noisy[MAIN_ERROR], st.marker, mfc="none", color=c, ms=4, ls="none")
     for m, r in g[g.k == 0].groupby("method"):
         ax.loglog(r.cpu_time, r[MAIN_ERROR], "*", ms=12, color="k", label=f"{_label(m)} (rigid-model floor)")
-    ax.set(
-        xlabel="CPU time (s), least of the repeats",
-        ylabel="end-effector RMS error (m)",
-        title=f"{case}: work-precision (lower left is better)",
-    )
+    ax.set(xlabel="CPU time (s), least of the repeats", ylabel="end-effector RMS error (m)")
+    ax.grid(True, which="major", alpha=0.3)
+
+
+def work_precision_figure(table: pd.DataFrame, case: str) -> Figure:
+    """Error against CPU time (least of the repeats), one curve per flexible method, hollow
+    markers for noisy timings, the rigid baseline as stars."""
+    fig = Figure(figsize=(6.0, 5.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    g = table[table.case == case]
+    work_precision_axes(ax, table, case, list(dict.fromkeys(g[np.isfinite(g.ee_l2.astype(float))].method)))
+    ax.set_title(f"{case}: work-precision (lower left is better)")
     _legend(ax, ncol=2, fontsize=7)
     return fig
 

@@ -173,8 +173,25 @@ def error_figure(res: pd.DataFrame, problem: str):
             kind += f" (worst of {int(g.n_quantities.max())})"
         ax.set_ylabel(kind)
         ax.set_title(f"{problem}: {q}", fontsize=9)
-        ax.legend(fontsize=7)
+        _not_drawn(ax, g)
+    figures._fig_legend(fig, axes, ncol=4)
     return fig
+
+
+def _not_drawn(ax, g: pd.DataFrame) -> None:
+    """Say in the panel which runs finished but have nothing to draw on a log axis (a difference
+    of zero to round-off); a panel with nothing drawn shows only that sentence."""
+    none = g[g.status.isin(figures.OK) & ~(np.isfinite(g.y.astype(float)) & (g.y > 0))]
+    if not len(none):
+        return
+    ks = ", ".join(str(int(k)) for k in sorted(set(none.k)))
+    msg = f"runs ok, not drawn (no difference left,\nround-off): k = {ks}"
+    if not ax.lines:
+        ax.set_yscale("linear")
+        ax.set_yticks([])
+        ax.text(0.5, 0.5, msg, ha="center", va="center", fontsize=8, transform=ax.transAxes)
+    else:
+        ax.text(0.97, 0.97, msg, ha="right", va="top", fontsize=7, transform=ax.transAxes)
 
 
 def spin_up_figure(series: pd.DataFrame):
@@ -216,7 +233,7 @@ def spin_up_figure(series: pd.DataFrame):
         ax.set_ylabel("tip deflection (m)")
         ax.set_title(p, fontsize=9)
         ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=6)
+    figures._fig_legend(fig, axes, ncol=3)
     return fig
 
 

@@ -170,5 +170,5 @@ def scoreboard(tables: dict, meta: dict) -> Section:
     if not tabs:
         text = ["No paper-figure study in this report: nothing to score."]
     else:
-        text = [" ".join(verdict(tables, c) for c in cases), *text]
-    return Section("Scoreboard", [], text, tabs, "scoreboard")
+        text = [*(verdict(tables, c) for c in cases), *text]
+    return Section("Scoreboard", [], text, tabs, "scoreboard", bullets=True)

@@ -47,20 +47,54 @@ window.addEventListener('load', () => {
 """
 
 
+_LAYOUT = """
+<script>
+window.addEventListener('load', () => {
+  const tables = [...document.querySelectorAll('table')].map(t => ({
+    id: t.id, w: t.scrollWidth, cw: t.parentElement.clientWidth,
+    fits: t.getBoundingClientRect().right <= t.parentElement.getBoundingClientRect().right + 1}));
+  const top = sel => { const e = document.querySelector(sel);
+                       return e ? e.getBoundingClientRect().top + window.scrollY : null; };
+  const pre = document.createElement('pre');
+  pre.id = 'probe-result';
+  pre.textContent = JSON.stringify({
+    scrollWidth: document.documentElement.scrollWidth, innerWidth: window.innerWidth,
+    innerHeight: window.innerHeight, height: document.documentElement.scrollHeight,
+    tables, text: document.body.innerText,
+    tops: {answers: top('#answers'), figure: top('#summary-figure img'),
+           answersEnd: (() => { const e = document.querySelector('#answers');
+                                return e ? e.getBoundingClientRect().bottom + window.scrollY : null; })()},
+    imgs: [...document.images].map(i => ({src: i.getAttribute('src'), w: i.naturalWidth,
+                                           shown: i.getBoundingClientRect().width})),
+  });
+  document.body.appendChild(pre);
+});
+</script>
+"""
+
+
 def available() -> bool:
     """Whether a Chromium binary is on this machine."""
     return Path(CHROMIUM).exists()
 
 
-def probe(page: Path, timeout: float = 120) -> dict:
-    """{"imgs": [{src, w, complete}], "secs": [{id, title, text, imgs, tables}]} of ``page``."""
+def probe(page: Path, timeout: float = 120, *, script: str = _PROBE, size=(1366, 768)) -> dict:
+    """{"imgs": [{src, w, complete}], "secs": [{id, title, text, imgs, tables}]} of ``page``
+    (or what ``script`` records, e.g. :func:`layout`), in a window of ``size`` pixels."""
     page = Path(page)
     copy = page.with_name("_probe_" + page.name)
-    copy.write_text(page.read_text().replace("</body>", _PROBE + "</body>"))
+    copy.write_text(page.read_text().replace("</body>", script + "</body>"))
     try:
         with tempfile.TemporaryDirectory() as profile:
             out = subprocess.run(
-                [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", "--dump-dom", copy.resolve().as_uri()],
+                [
+                    CHROMIUM,
+                    *FLAGS,
+                    f"--user-data-dir={profile}",
+                    f"--window-size={size[0]},{size[1]}",
+                    "--dump-dom",
+                    copy.resolve().as_uri(),
+                ],
                 capture_output=True,
                 check=False,
                 text=True,
@@ -72,6 +106,13 @@ def probe(page: Path, timeout: float = 120) -> dict:
     if m is None:
         raise RuntimeError(f"no probe result from chromium (rc {out.returncode}): {out.stderr[-2000:]}")
     return json.loads(m.group(1).replace("&lt;", "<").replace("&gt;", ">").replace("&amp;", "&"))
+
+
+def layout(page: Path, size=(1366, 768), timeout: float = 120) -> dict:
+    """What a reader sees of ``page`` in a ``size`` window: document and window widths, each
+    table's width against its container's, the visible text, the tops of the front page's
+    answers and summary figure (px from the top of the page), the images."""
+    return probe(page, timeout, script=_LAYOUT, size=size)
 
 
 def screenshot(page: Path, png: Path, width: int = 1280, height: int = 1800, timeout: float = 120) -> Path:

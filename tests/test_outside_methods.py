@@ -190,7 +190,7 @@ def test_an_outside_method_appears_in_every_table_of_the_report(solver_file, tin
     bench = pd.read_parquet(data / "benchmarks.parquet")
     assert "coarse-solver" in set(bench.method)
     text = Path(md).read_text()
-    board = text[text.index("## Scoreboard") : text.index("## Contents")]
+    board = text[text.index("## Scoreboard") : text.index("## About this report")]
     assert "| coarse-solver |" in board  # in the scoreboard, under its name (no label declared)
     assert json.loads((data / "report_meta.json").read_text())["availability"]["coarse-solver"] is None
 

@@ -76,7 +76,9 @@ def motion(tmp_path_factory):
     meta = {"cases": {n: case_to_dict(c) for n, c in cases.items()}}
     inp = Inputs({"motion": table}, meta, folder / "figures", folder / "bench")
     sec = animations.section(inp)
-    page, _ = write(folder, "motion", [], [sec], pd.DataFrame(), {})
+    index, _ = write(folder, "motion", [], [sec], pd.DataFrame(), {})
+    page = index.parent / "motion.html"  # the Motion page of the site
+    assert page.exists()
     return table, sec, page, meta
 
 
@@ -126,3 +128,15 @@ def test_videos_play_in_a_real_browser(motion):
         assert v["duration"] > 0 and v["w"] > 100 and v["frames"] >= 1, v
     imgs = report_browser.probe(page)["imgs"]
     assert imgs and all(i["complete"] and i["w"] > 100 for i in imgs), imgs
+
+
+@pytest.mark.skipif(not report_browser.available(), reason="chromium is not installed")
+def test_videos_are_readable_and_their_controls_sit_below_the_drawing(motion):
+    page = motion[2]
+    html = page.read_text()
+    assert " controls" not in html  # no overlay controls over the drawing
+    assert html.count("<button data-video=") == 2
+    seen = report_browser.layout(page, (1366, 768))
+    assert seen["scrollWidth"] <= seen["innerWidth"]
+    stills = [i for i in seen["imgs"] if i["src"].endswith(".png")]
+    assert stills and all(i["w"] >= 600 for i in stills), stills  # drawn at 640 px
