@@ -42,7 +42,9 @@ from .modal import (  # noqa: F401 - _STENCIL and STEP are read as dttmm.linear'
     _damping_ratios,
     _eigen,
     _has_damping,
+    check_n,
     derivative,
+    eigen_modes,
 )
 from .result import tip_deflection
 from .structure import STRAINS, Structure, build_structure, kinematics
@@ -280,20 +282,8 @@ def modes(
         )
     lin = linearize(case, elements_per_link, t, state, strain=strain, torque=torque)
     st = build_structure(case, elements_per_link, strain)
-    if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1):
-        raise InputError("n", n, "must be an integer ≥ 1 (number of modes)")
-    lam, V, _ = _eigen(lin.K, lin.M)
-    lam = np.where(np.abs(lam) <= zero_tol * np.abs(lam).max(), 0.0, lam)
-    zeta = _damping_ratios(lin, V) if _has_damping(lin) else None
-    nm = lin.n_free if n is None else min(int(n), lin.n_free)
-    lam, V = lam[:nm], V[:, :nm]
-    zeta = None if zeta is None else zeta[:nm]
-    big = np.argmax(np.abs(V), axis=0)
-    V = V * np.sign(V[big, np.arange(nm)])
-    warn = tuple(
-        f"mode {m + 1} is unstable at this state (ω² = {lam[m]:.6g} rad²/s²)" for m in np.flatnonzero(lam < 0)
-    )
-    freq = np.where(lam >= 0, np.sqrt(np.abs(lam)), np.nan) / (2 * np.pi)
+    check_n(n)
+    freq, lam, V, zeta, warn = eigen_modes(lin, n, zero_tol)
     s_nodes = tuple(np.linspace(0.0, lk.length, lk.k + 1) for lk in st.links)
     return Modes(
         frequencies=freq,

@@ -171,3 +171,30 @@ def _damping_ratios(lin: Linearization, shapes: np.ndarray) -> np.ndarray:
         if wn2 > 0:
             zeta[m] = -(sm[0] + sm[1]).real / (2 * np.sqrt(wn2))
     return zeta
+
+
+def check_n(n) -> None:
+    """InputError unless ``n`` (number of modes) is None or an integer ≥ 1."""
+    from .errors import InputError
+
+    if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1):
+        raise InputError("n", n, "must be an integer ≥ 1 (number of modes)")
+
+
+def eigen_modes(lin: Linearization, n, zero_tol: float):
+    """The first ``n`` (None: all) modes of ``lin``: (frequencies (Hz; NaN where unstable),
+    eigenvalues ω² (rad²/s², |ω²| ≤ zero_tol·max set to 0), shapes (columns, largest entry
+    positive), damping ratios or None, warnings)."""
+    lam, V, _ = _eigen(lin.K, lin.M)
+    lam = np.where(np.abs(lam) <= zero_tol * np.abs(lam).max(), 0.0, lam)
+    zeta = _damping_ratios(lin, V) if _has_damping(lin) else None
+    nm = lin.n_free if n is None else min(int(n), lin.n_free)
+    lam, V = lam[:nm], V[:, :nm]
+    zeta = None if zeta is None else zeta[:nm]
+    big = np.argmax(np.abs(V), axis=0)
+    V = V * np.sign(V[big, np.arange(nm)])
+    warn = tuple(
+        f"mode {m + 1} is unstable at this state (ω² = {lam[m]:.6g} rad²/s²)" for m in np.flatnonzero(lam < 0)
+    )
+    freq = np.where(lam >= 0, np.sqrt(np.abs(lam)), np.nan) / (2 * np.pi)
+    return freq, lam, V, zeta, warn

@@ -27,7 +27,15 @@ import numpy as np
 
 from .. import plumbing
 from ..errors import InputError
-from ..modal import MAX_FREE, STEP, Linearization, Modes, _damping_ratios, _eigen, _has_damping, derivative
+from ..modal import (
+    MAX_FREE,
+    STEP,
+    Linearization,
+    Modes,
+    check_n,
+    derivative,
+    eigen_modes,
+)
 from .build import STRAINS, build_model, make_work
 from .rotation import log_so3
 from .solver import _drive_values, _kernel, _motion_flags, as_spatial_case, initial_state
@@ -302,21 +310,9 @@ def modes(
     free), as :func:`dttmm.modes`. ``deflections[i]`` is (n_modes, k + 1, 2): the nodes' offsets
     along the link frame's y and z axes; ``twists[i]`` (n_modes, k + 1) their sections' twist."""
     case = as_spatial_case(case)
-    if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1):
-        raise InputError("n", n, "must be an integer ≥ 1 (number of modes)")
+    check_n(n)
     lin = linearize(case, elements_per_link, t, state, strain=strain, torque=torque, engine=engine)
-    lam, V, _ = _eigen(lin.K, lin.M)
-    lam = np.where(np.abs(lam) <= zero_tol * np.abs(lam).max(), 0.0, lam)
-    zeta = _damping_ratios(lin, V) if _has_damping(lin) else None
-    nm = lin.n_free if n is None else min(int(n), lin.n_free)
-    lam, V = lam[:nm], V[:, :nm]
-    zeta = None if zeta is None else zeta[:nm]
-    big = np.argmax(np.abs(V), axis=0)
-    V = V * np.sign(V[big, np.arange(nm)])
-    warn = tuple(
-        f"mode {m + 1} is unstable at this state (ω² = {lam[m]:.6g} rad²/s²)" for m in np.flatnonzero(lam < 0)
-    )
-    freq = np.where(lam >= 0, np.sqrt(np.abs(lam)), np.nan) / (2 * np.pi)
+    freq, lam, V, zeta, warn = eigen_modes(lin, n, zero_tol)
     arm = _Arm(case, lin.elements_per_link, strain, engine)
     defl, twist = _deflections(arm, case, lin, V)
     s_nodes = tuple(np.linspace(0.0, lk.beam.length, lin.elements_per_link + 1) for lk in case.model.links)
