@@ -233,6 +233,24 @@ def _validate(tmp_path, *args):
     return code, json.loads((out / "scorecard.json").read_text())
 
 
+def test_outside_spatial_method_static_row_catches_a_planted_error(tmp_path, cleanup):
+    """The default tier's share of :func:`test_outside_spatial_method_is_validated` (slow tier:
+    its spatial rigid limit, 0.5 s at h = 1e-4 per method against Pinocchio's RK4 at h = 1e-5,
+    took 280 of its 323 s on a loaded 2-core machine; this check 11 s there): the outside method
+    with EIz 10 % high, static deflection only, fails u_y (bending about z) alone, by 1/1.1
+    (measured 1.1 u_y/u_ref − 1 = 9e-6 at k = 32), and passes u_z and the twist."""
+    bad = tmp_path / "stiff_spatial.py"
+    bad.write_text(textwrap.dedent(STIFF_SPATIAL))
+    code, rows = _validate(tmp_path, "--quick", "--method", str(bad), "--only", "spatial_static_deflection")
+    assert code == V.EXIT_FAILED
+    assert len(rows) == 3 and {r["method"] for r in rows} == {"stiff-spatial"}, rows
+    assert {r["quantity"] for r in rows if r["passed"] is False} == {"tip u_y at rest (m)"}, rows
+    assert sum(r["passed"] is True for r in rows) == 2, rows
+    r = next(r for r in rows if r["quantity"] == "tip u_y at rest (m)")
+    assert r["value"] == pytest.approx(r["reference"] / 1.1, rel=1e-3)
+
+
+@pytest.mark.slow
 def test_outside_spatial_method_is_validated(tmp_path, cleanup):
     """A tiny outside spatial method (its traits name a spatial function with a statics
     attribute) passes the spatial checks; the same with EIz 10 % high fails the static
