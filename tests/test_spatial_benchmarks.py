@@ -125,6 +125,22 @@ def test_methods_of_the_spatial_problems():
     assert B.statics_of("pinocchio-rigid") is None and B.statics_of("amm") is None
 
 
+def test_static_rows_dttmm_princeton_k4_and_bend():
+    """The default tier's share of :func:`test_static_rows_dttmm_princeton_and_bend` (slow tier):
+    the Princeton sweep at k = 4 (measured 2026-12-03: worst of its 28 rows 2.25 %, at F =
+    13.345 N, β = 75°, above the study's 2 %, so two rows fail; 0.39 % at k = 8, 12.9 % at k = 2)
+    within 3 %, and the bend at k = 1 passing as there (0.61 % of R)."""
+    p = B.ProblemsParams(methods=["dttmm"])
+    case, prov = B.problems(["princeton_beam"])["princeton_beam"]
+    rows = pd.DataFrame(B.static_rows("princeton_beam", case, prov, [4], p, "quick"))
+    assert len(rows) == len(B.targets(prov)) and set(rows.method) == {"dttmm"}
+    assert (rows.status == "ok").all() and rows.rel_error.max() <= 0.03, rows.rel_error.max()
+    case, prov = B.problems(["bend_45deg"])["bend_45deg"]
+    rows = pd.DataFrame(B.static_rows("bend_45deg", case, prov, [1], p, "quick"))
+    assert len(rows) == len(B.targets(prov)) and (rows.status == "ok").all() and rows.passed.all(), rows
+
+
+@pytest.mark.slow
 def test_static_rows_dttmm_princeton_and_bend():
     """DT-TMM's statics on the Princeton sweep at k = 8 (within 2 %, measured ≤ 0.39 % with the
     case's Saint-Venant torsion constant) and the bend at k = 1 (≤ 0.61 % of R, measured): rows
