@@ -91,6 +91,35 @@ def dttmm_statics(c, k):
     return accelerations(c, k, q, z, loads=True)[2]
 
 
+def section_loads_case():
+    beam = SpatialSection(
+        length=1.0, GJ=30.0, EIy=80.0, EIz=20.0, rhoA=1e-3, rhoJ=1e-5, rhoIy=1e-5, rhoIz=1e-5
+    )
+    return cantilever(beam, SpatialPayload(1.0, (0.0, 0.5, 0.0)), gravity=(0.0, 0.0, 1.0))
+
+
+def test_section_loads_one_element_against_statics_and_dttmm_cut_loads():
+    """The default tier's share of :func:`test_section_loads_against_statics_and_dttmm_cut_loads`
+    (slow tier), one size down: Exudyn at k = 1 (its Gauss point at x = 0.5) against r × F =
+    (0.5, −0.5, 0) and against the DT-TMM's cut at x = 0.5 (k = 2, the root of element 2).
+    Measured (2026-12-03): section force (3.1e-3, 8.3e-3, 1.0006) N, moment (0.49993,
+    −0.50020, 1.2e-3) N·m; against the DT-TMM, in world components: force 1.0e-4 N, moments
+    1.6e-5, 1.0e-4 and 1.39e-3 N·m about x, y, z (about z the O(δ·F) offset of x = 0.5 in the
+    two deformed beams, larger at k = 1 than the slow test's 3.5e-4 at k = 2). Tolerances
+    1.7–5× these."""
+    c = section_loads_case()
+    ex = xb.statics(c, elements_per_link=1, load_steps=4)
+    sec = ex["section_loads"][0]
+    assert np.allclose(sec[:3], [0.0, 0.0, 1.0], atol=2e-2)  # the section frame is rotated by ≈ δ'
+    assert np.allclose(sec[3:], [0.5, -0.5, 0.0], atol=2e-3)
+    cut = dttmm_statics(c, 2)[1]  # the root of element 2: x = 0.5
+    R = ex["section_rotation"][0]
+    world = np.concatenate([R @ sec[:3], R @ sec[3:]])
+    assert np.allclose(world[:5], -cut[:5], atol=5e-4), (world, -cut)
+    assert abs(world[5] + cut[5]) <= 3e-3, (world, -cut)
+
+
+@pytest.mark.slow
 def test_section_loads_against_statics_and_dttmm_cut_loads():
     """1 m cantilever, k = 2: a tip force of 1 N along z and a torque of 0.5 N·m about x (a 1 kg
     payload 0.5 m off the axis along y, weight 1 N along z; the beam's own weight, 1e-3 N/m,
@@ -230,6 +259,31 @@ def test_motion_drive_follows_its_law_and_its_torque_converges():
     assert gaps[1][1] <= 0.3 * gaps[0][1] and gaps[1][1] <= 1e-3 * abs(ref.joint_torque[-1, 0])
 
 
+@pytest.mark.parametrize("frame", ["world", "tip"])
+def test_static_case_loads_world_and_follower_at_k8(frame):
+    """The default tier's share of the k = 16 check below (slow tier): the same loads at k = 8.
+    Measured (2026-12-03): Exudyn 1.0e-3 m (world), 5.7e-4 m (follower) from the DT-TMM (k = 4:
+    3.9e-3, 2.2e-3; k = 16: 2.5e-4, 1.5e-4: the GE element's O(1/k²)); the follower load ends
+    0.085 m from the world one. Tolerance 2e-3 m."""
+    from dttmm.spatial import SpatialLoad, SpatialScenario, statics
+
+    def case(*loads):
+        return SpatialCase(cantilever().model, SpatialScenario(1.0, 0.5, (), loads))
+
+    load = SpatialLoad(force=(0.0, 8.0, 20.0), moment=(5.0, 0.0, 0.0), frame=frame)
+    x = xb.statics(case(load), elements_per_link=8)["link_tip"][0]
+    d = statics(case(load), elements_per_link=8, steps=4).tip_position
+    assert np.linalg.norm(x - d) <= 2e-3
+    flipped = SpatialLoad(load.force, load.moment, frame="world" if frame == "tip" else "tip")
+    assert np.linalg.norm(statics(case(flipped), elements_per_link=8, steps=4).tip_position - d) > 0.05
+    if frame == "world":
+        opt = xb.statics(
+            case(), elements_per_link=8, tip_loads=[dict(link=0, force=load.force, torque=load.moment)]
+        )
+        assert np.array_equal(opt["link_tip"][0], x)
+
+
+@pytest.mark.slow
 @pytest.mark.parametrize("frame", ["world", "tip"])
 def test_static_case_loads_world_and_follower_against_the_dttmm(frame):
     """A tip force (0, 8, 20) N and moment (5, 0, 0) N·m on the cantilever, large enough to turn
