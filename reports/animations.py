@@ -175,26 +175,19 @@ def section(inp) -> Section | None:
         figs.append((f"figures/{path.name}", cap))
     took = time.perf_counter() - t0
     text.append(
-        f"Every case of the report animated from the stored frames (table motion): links as their "
-        f"deflected centre lines (Result.link_shapes), the rigid model's straight links for contrast. "
+        f"Every case of the studies animated from the stored frames (table motion), spatial arms in "
+        f"3-D: links as their deflected centre lines (Result.link_shapes), the rigid model's straight "
+        f"links for contrast (the benchmark problems have their own page). "
         f"Drawn and encoded in {took:.1f} s ({'H.264 video' if video else 'animated GIF, no ffmpeg here'})."
     )
-    drawn = {n for n in df.case.unique() if n not in not_drawn}
-    text += spatial_note(cases, drawn, not_drawn)
+    text += not_drawn_note(not_drawn)
     inp.meta["motion_render_s"] = took
     return Section("Motion", figs, text, [], "motion", "")
 
 
-def spatial_note(cases: dict, drawn=(), not_drawn=None) -> list[str]:
-    """A sentence naming the spatial arms of the report that are not animated, and why: the
-    animations need the spatial link shapes of each run and a 3-D drawing in ``dttmm.animate``;
-    where either is missing, the spatial arm's animation is not available yet."""
-    spatial = [n for n, c in cases.items() if (c or {}).get("kind") == "spatial" and n not in drawn]
-    if not spatial:
+def not_drawn_note(not_drawn: dict) -> list[str]:
+    """A sentence naming the cases of the motion table that could not be drawn, with the reason
+    (none when every case was drawn)."""
+    if not not_drawn:
         return []
-    why = "; ".join(f"{n}: {w}" for n, w in (not_drawn or {}).items() if n in spatial)
-    return [
-        f"Not animated: {', '.join(spatial)} (a spatial arm). The spatial arm's animation is not available yet: "
-        "it needs the spatial link shapes of each run and a 3-D drawing in dttmm.animate, which the "
-        f"one-arm-model work adds{f' ({why})' if why else ''}."
-    ]
+    return ["Not animated: " + "; ".join(f"{n} ({why})" for n, why in not_drawn.items()) + "."]
