@@ -32,7 +32,7 @@ def shape_tables(l: float, extensible: bool, xi):
     m = xi.size
     n3 = 3 * xi**2 - 2 * xi**3
     n4 = l * (xi**3 - xi**2)
-    d3 = (6 * xi - 6 * xi**2) / l  # dN3/dx
+    d3 = (6 * xi - 6 * xi**2) / l if l > 0 else np.zeros_like(xi)  # dN3/dx (l = 0: a rigid link's)
     d4 = 3 * xi**2 - 2 * xi  # dN4/dx
     s0 = np.zeros((m, 3))
     s0[:, 0] = xi * l
@@ -90,6 +90,8 @@ def pattern_ok(sig, psi, s0) -> bool:
 
 
 def g_matrix(l: float) -> np.ndarray:
+    if l == 0.0:
+        return np.zeros((2, 2))
     xi, w = gauss_points()
     dN = np.stack([(6 * xi - 6 * xi**2) / l, 3 * xi**2 - 2 * xi], axis=-1)
     return np.einsum("m,mi,mj->ij", w, dN, dN)
@@ -112,6 +114,8 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
     l_, EA, mu = f(), f(), f()
     aF, aT, org, Crpy, axis, Q = f(3), f(3), f(3), f(3, 3), f(3), f(3, 3)
     hub_m, hub_J, pay_m, pay_d, pay_J = f(), f(3, 3), f(), f(3), f(3, 3)
+    rigid = np.zeros(n, np.int64)
+    rb_m, rb_c, rb_J = f(), f(3), f(3, 3)
     ks = np.full(n, k, np.int64)
     el0 = np.arange(n, dtype=np.int64) * k
     ext = np.zeros(n, np.int64)
@@ -122,6 +126,9 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
     r = 0
     for i, link in enumerate(manip.links):
         b, jn = link.beam, link.joint
+        if link.rigid:
+            r = _rigid_link(i, link, k, pts, r, locals())
+            continue
         l = b.length / k
         l_[i] = l
         ext[i] = b.EA is not None
@@ -209,7 +216,50 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         mel=mel,
         CS=CS,
         CSS=CSS,
+        rigid=rigid,
+        rb_m=rb_m,
+        rb_c=rb_c,
+        rb_J=rb_J,
     )
+
+
+def _joint_rows(i, jn, Qi, t):
+    """The joint's rows of the model tables ``t`` (build_model's locals)."""
+    a = np.array(jn.axis)
+    t["Q"][i] = Qi
+    t["Crpy"][i] = rpy_matrix(jn.origin_rpy)
+    t["axis"][i] = a
+    t["aF"][i] = Qi.T @ a
+    t["aT"][i] = t["Crpy"][i] @ a
+    t["org"][i] = jn.origin_xyz
+
+
+def _rigid_link(i, link, k, pts, r, t):
+    """The rows of rigid link i in build_model's tables ``t``: k rigid slots of length L/k (no
+    mass of their own, no stiffness, no coordinates), the body in rb_*; returns the next q index."""
+    b, jn = link.beam, link.joint
+    l = b.length / k
+    t["l_"][i] = l
+    t["s0"][i], t["Sig"][i], t["Psi"][i] = shape_tables(l, False, pts)
+    t["rigid"][i] = 1
+    t["rb_m"][i] = b.mass
+    t["rb_c"][i] = b.com
+    t["rb_J"][i] = b.inertia_matrix
+    _joint_rows(i, jn, np.eye(3), t)
+    t["hub_m"][i] = link.hub_mass
+    t["hub_J"][i] = link.hub_inertia
+    t["pay_m"][i] = link.payload_mass
+    t["pay_d"][i] = link.payload_offset
+    t["pay_J"][i] = link.payload_inertia
+    t["locked"][i] = jn.locked
+    if not jn.locked:
+        t["ia"][i] = r
+        r += 1
+    elif t["motion"][i]:
+        raise InputError(f"model.links[{i}].joint.locked", True, "a locked joint takes no drive")
+    for j in range(k):
+        t["ie"][i * k + j] = r  # no coordinates: never read
+    return r
 
 
 def make_work(md: Model) -> Work:
