@@ -27,6 +27,7 @@ __all__ = [
     "SpatialRigidBody",
     "SpatialSection",
     "embed_planar",
+    "require_flexible",
 ]
 
 Vector3 = Annotated[list[Finite], Strict(), Field(min_length=3, max_length=3)]
@@ -404,3 +405,13 @@ def embed_planar(manipulator: Manipulator, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0
         links.append(SpatialLink(beam, SpatialJoint(_where=f"{w}.joint"), hub, pay, _where=w))
     g = rot @ np.array([manipulator.gravity[0], manipulator.gravity[1], 0.0])
     return SpatialManipulator(tuple(links), tuple(float(x) for x in g), base_xyz, base_rpy)
+
+
+def require_flexible(model: SpatialManipulator, method: str) -> None:
+    """Refuse an arm with rigid links (``SpatialRigidBody``) for an engine that models flexible
+    links only (rigid links run in the spatial DT-TMM, the spatial global solver and Pinocchio)."""
+    for i, link in enumerate(model.links):
+        if link.rigid:
+            raise InputError(
+                f"model.links[{i}].rigid", _short(link.beam), f"rigid links are not supported by {method} yet"
+            )
