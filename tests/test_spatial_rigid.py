@@ -57,7 +57,11 @@ def _doc(**link):
     base.update(link)
     return {
         "model": {"links": [base]},
-        "scenario": {"duration": 0.1, "drives": [{"kind": "torque", "law": "constant", "value": 0.0}]},
+        "scenario": {
+            "duration": 0.1,
+            "output_step": 0.01,
+            "drives": [{"kind": "torque", "law": "constant", "value": 0.0}],
+        },
     }
 
 
@@ -65,16 +69,16 @@ def _doc(**link):
     ("link", "field", "reason"),
     [
         ({"GJ": 1.0}, "model.links[0].GJ", "beam key"),
-        ({"rigid": {"mass": -1.0}}, "model.links[0].rigid.mass", ""),
+        ({"rigid": {"mass": -1.0}}, "model.links[0].rigid.mass", "must be"),
         (
             {"rigid": {"mass": 1.0, "inertia": [[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]}},
             "rigid.inertia",
             "symmetric",
         ),
         ({"rigid": {"mass": 1.0, "inertia": [1e-3, -1e-3, 1e-3]}}, "rigid.inertia", "semi-definite"),
-        ({"rigid": {"mass": 1.0, "com": [0.0, 1.0]}}, "rigid.com", ""),
+        ({"rigid": {"mass": 1.0, "com": [0.0, 1.0]}}, "rigid.com", "3"),
         ({"rigid": {"mass": 1.0, "size": 2.0}}, "size", "unknown key"),
-        ({"length": -0.1}, "model.links[0].length", ""),
+        ({"length": -0.1}, "model.links[0].length", "must be"),
     ],
 )
 def test_case_file_refusals(link, field, reason):
@@ -289,3 +293,21 @@ def test_statics_with_rigid_links():
     )
     weight = (mass - links[0].hub_mass) * 9.81
     assert abs(res.root_loads[2] - weight) < 1e-12 * weight
+
+
+def test_rigid_inverse_dynamics_is_rnea():
+    """The rigid recursive Newton–Euler of ``dttmm.spatial.inverse_dynamics`` (the computed-torque
+    feedforward) on the all-rigid and the mixed arm = Pinocchio's RNEA."""
+    pin = pytest.importorskip("pinocchio")
+    from dttmm.spatial.inverse_dynamics import rigid_inverse_dynamics
+    from reference_models import pinocchio_spatial as ps
+
+    rng = np.random.default_rng(7)
+    for path in (ALL_RIGID, MIXED):
+        m = sp.load_case(path).model
+        model = ps.build_model(m)
+        data = model.createData()
+        q, v, a = rng.normal(size=(3, 3))
+        ref = pin.rnea(model, data, q, v, a)
+        tau = rigid_inverse_dynamics(m, q, v, a)
+        assert np.max(np.abs(tau - ref)) < 1e-12 * np.max(np.abs(ref))
