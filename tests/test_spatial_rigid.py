@@ -221,8 +221,8 @@ def test_rigid_arm_trajectory_against_pinocchio():
     """The all-rigid arm (tilted axes, offset origins and centres of mass, full inertias, a
     payload, gravity, a rotated base) under its torques over 1 s: the DT-TMM by RK4 at
     h = 2.5e-4 against Pinocchio's ABA integrated by DOP853 (rtol 1e-13): joint angles within
-    1e-8 rad (measured 1.1e-9 rad, the RK4 error: 1.7e-8 at h = 5e-4; the joints turn by up to
-    11 rad)."""
+    1e-8 rad (measured 1.05e-9 rad, the RK4 error: 1.7e-8 at h = 5e-4, 6.2e-11 at h = 1.25e-4;
+    the joints turn by up to 11 rad)."""
     case = sp.load_case(ALL_RIGID)
     qa, va, _, _ = _pinocchio_reference(case)
     res = sp.simulate(case, elements_per_link=1, h=2.5e-4, integrator="rk4")
@@ -261,8 +261,8 @@ def _with_link(case, i, link) -> SpatialCase:
 def test_stiff_flexible_link_approaches_the_rigid_link():
     """The mixed arm's flexible link with every stiffness × 1e4 and × 1e5 against the same arm
     with that link rigid (its undeformed beam's mass, centre of mass and inertia), both by the
-    DT-TMM, Newmark, k = 2, h = 1e-3, 0.5 s: the joint angles differ by 3.0e-6 and 3.0e-7 rad,
-    falling as 1/stiffness."""
+    DT-TMM, Newmark, k = 2, h = 1e-3, 0.5 s: the joint angles differ by 2.6e-6 and 2.9e-7 rad,
+    falling as 1/stiffness (× 1e3: 2.9e-5, × 1e6: 2.9e-8; unstiffened 2.9e-2)."""
     case = _short(sp.load_case(MIXED), 0.5, 0.01)
     flex = case.model.links[1]
     assert isinstance(flex.beam, SpatialSection)
