@@ -126,35 +126,39 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
     r = 0
     for i, link in enumerate(manip.links):
         b, jn = link.beam, link.joint
-        if link.rigid:
-            r = _rigid_link(i, link, k, pts, r, locals())
-            continue
         l = b.length / k
         l_[i] = l
-        ext[i] = b.EA is not None
-        so[i] = ext[i] and strain == "second-order"
-        EA[i] = b.EA or 0.0
-        mu[i] = b.damping
-        s0[i], Sig[i], Psi[i] = shape_tables(l, b.EA is not None, pts)
-        mg[i] = wq * b.rhoA * l
-        Ig[i] = np.outer(wq * l, [b.rhoJ, b.rhoIy, b.rhoIz])
-        # the kernel's outboard step assumes S_O = [[D, 0], [0, J_L]]: check the tables' pattern
-        D = np.diag([1.0 if b.EA is not None else 0.0, 1.0, 1.0])
-        assert np.array_equal(Sig[i, 4], np.hstack([D, np.zeros((3, 3))]))
-        assert np.array_equal(Psi[i, 4], np.hstack([np.zeros((3, 3)), np.eye(3)]))
-        # ... and its Gauss-body step one entry per column of Σ_g, Ψ_g (pattern_ok), and the
-        # linear element's step the sparsity of build.stiffness
-        assert pattern_ok(Sig[i], Psi[i], s0[i])
-        mel[i] = mg[i].sum()
-        CS[i] = np.einsum("g,gij->ij", mg[i], Sig[i, :4])
-        CSS[i] = np.einsum("g,gki,gkj->ij", mg[i], Sig[i, :4], Sig[i, :4])
-        K[i] = stiffness(b, l)
-        assert not np.any(K[i][~STIFFNESS_PATTERN])
-        Kb[i] = K[i]
-        Kb[i, 0, 0] = 0.0
-        G[i] = g_matrix(l)
+        if link.rigid:
+            # k rigid slots of length l: no mass of their own, no stiffness, no coordinates;
+            # the body in rb_* (docs/spatial.md §5, "Rigid links")
+            s0[i], Sig[i], Psi[i] = shape_tables(l, False, pts)
+            rigid[i] = 1
+            rb_m[i], rb_c[i], rb_J[i] = b.mass, b.com, b.inertia_matrix
+        else:
+            ext[i] = b.EA is not None
+            so[i] = ext[i] and strain == "second-order"
+            EA[i] = b.EA or 0.0
+            mu[i] = b.damping
+            s0[i], Sig[i], Psi[i] = shape_tables(l, b.EA is not None, pts)
+            mg[i] = wq * b.rhoA * l
+            Ig[i] = np.outer(wq * l, [b.rhoJ, b.rhoIy, b.rhoIz])
+            # the kernel's outboard step assumes S_O = [[D, 0], [0, J_L]]: check the tables' pattern
+            D = np.diag([1.0 if b.EA is not None else 0.0, 1.0, 1.0])
+            assert np.array_equal(Sig[i, 4], np.hstack([D, np.zeros((3, 3))]))
+            assert np.array_equal(Psi[i, 4], np.hstack([np.zeros((3, 3)), np.eye(3)]))
+            # ... and its Gauss-body step one entry per column of Σ_g, Ψ_g (pattern_ok), and the
+            # linear element's step the sparsity of build.stiffness
+            assert pattern_ok(Sig[i], Psi[i], s0[i])
+            mel[i] = mg[i].sum()
+            CS[i] = np.einsum("g,gij->ij", mg[i], Sig[i, :4])
+            CSS[i] = np.einsum("g,gki,gkj->ij", mg[i], Sig[i, :4], Sig[i, :4])
+            K[i] = stiffness(b, l)
+            assert not np.any(K[i][~STIFFNESS_PATTERN])
+            Kb[i] = K[i]
+            Kb[i, 0, 0] = 0.0
+            G[i] = g_matrix(l)
         a = np.array(jn.axis)
-        Qi = rx(b.roll)
+        Qi = rx(link.roll)  # a rigid link: no roll
         Q[i] = Qi
         Crpy[i] = rpy_matrix(jn.origin_rpy)
         axis[i] = a
@@ -172,7 +176,7 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
             r += 1
         elif motion[i]:
             raise InputError(f"model.links[{i}].joint.locked", True, "a locked joint takes no drive")
-        ne = 6 if b.EA is not None else 5
+        ne = 0 if link.rigid else 6 if b.EA is not None else 5
         for j in range(k):
             ie[i * k + j] = r
             r += ne
@@ -221,45 +225,6 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         rb_c=rb_c,
         rb_J=rb_J,
     )
-
-
-def _joint_rows(i, jn, Qi, t):
-    """The joint's rows of the model tables ``t`` (build_model's locals)."""
-    a = np.array(jn.axis)
-    t["Q"][i] = Qi
-    t["Crpy"][i] = rpy_matrix(jn.origin_rpy)
-    t["axis"][i] = a
-    t["aF"][i] = Qi.T @ a
-    t["aT"][i] = t["Crpy"][i] @ a
-    t["org"][i] = jn.origin_xyz
-
-
-def _rigid_link(i, link, k, pts, r, t):
-    """The rows of rigid link i in build_model's tables ``t``: k rigid slots of length L/k (no
-    mass of their own, no stiffness, no coordinates), the body in rb_*; returns the next q index."""
-    b, jn = link.beam, link.joint
-    l = b.length / k
-    t["l_"][i] = l
-    t["s0"][i], t["Sig"][i], t["Psi"][i] = shape_tables(l, False, pts)
-    t["rigid"][i] = 1
-    t["rb_m"][i] = b.mass
-    t["rb_c"][i] = b.com
-    t["rb_J"][i] = b.inertia_matrix
-    _joint_rows(i, jn, np.eye(3), t)
-    t["hub_m"][i] = link.hub_mass
-    t["hub_J"][i] = link.hub_inertia
-    t["pay_m"][i] = link.payload_mass
-    t["pay_d"][i] = link.payload_offset
-    t["pay_J"][i] = link.payload_inertia
-    t["locked"][i] = jn.locked
-    if not jn.locked:
-        t["ia"][i] = r
-        r += 1
-    elif t["motion"][i]:
-        raise InputError(f"model.links[{i}].joint.locked", True, "a locked joint takes no drive")
-    for j in range(k):
-        t["ie"][i * k + j] = r  # no coordinates: never read
-    return r
 
 
 def make_work(md: Model) -> Work:
