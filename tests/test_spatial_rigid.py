@@ -311,3 +311,26 @@ def test_rigid_inverse_dynamics_is_rnea():
         ref = pin.rnea(model, data, q, v, a)
         tau = rigid_inverse_dynamics(m, q, v, a)
         assert np.max(np.abs(tau - ref)) < 1e-12 * np.max(np.abs(ref))
+
+
+def test_urdf_of_rigid_links():
+    """``dttmm urdf`` of the all-rigid and the mixed arm, read by Pinocchio's URDF parser: the
+    joint-space mass matrix and the gravity torques equal those of Pinocchio's model built from
+    the case (each rigid link's body written with its centre of mass and full inertia)."""
+    pin = pytest.importorskip("pinocchio")
+    from dttmm.urdf import case_to_urdf
+    from reference_models import pinocchio_spatial as ps
+
+    rng = np.random.default_rng(11)
+    for path in (ALL_RIGID, MIXED):
+        case = sp.load_case(path)
+        ref = ps.build_model(case.model)
+        urdf = pin.buildModelFromXML(case_to_urdf(case))
+        urdf.gravity.linear = np.array(case.model.gravity)
+        dr, du = ref.createData(), urdf.createData()
+        q = rng.normal(size=3)
+        Mr, Mu = pin.crba(ref, dr, q), pin.crba(urdf, du, q)
+        assert np.max(np.abs(np.triu(Mr) - np.triu(Mu))) < 1e-12
+        gr = pin.computeGeneralizedGravity(ref, dr, q)
+        gu = pin.computeGeneralizedGravity(urdf, du, q)
+        assert np.max(np.abs(gr - gu)) < 1e-12 * np.max(np.abs(gr))
