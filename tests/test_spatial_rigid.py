@@ -337,3 +337,17 @@ def test_urdf_of_rigid_links():
         gr = pin.computeGeneralizedGravity(ref, dr, q)
         gu = pin.computeGeneralizedGravity(urdf, du, q)
         assert np.max(np.abs(gr - gu)) < 1e-12 * np.max(np.abs(gr))
+
+
+@pytest.mark.parametrize("module", ["mujoco_spatial", "exudyn_beam3d", "exudyn_ancf3d"])
+def test_flexible_only_peers_refuse_rigid_links_by_name(module):
+    """The peers that model flexible links only refuse a rigid link, naming it."""
+    import importlib
+
+    try:
+        mod = importlib.import_module(f"reference_models.{module}")
+    except ImportError as exc:  # the engine is an optional extra
+        pytest.skip(str(exc))
+    case = _short(sp.load_case(MIXED), 0.01)
+    with pytest.raises(dttmm.InputError, match=r"model\.links\[0\]\.rigid.*not supported"):
+        mod.simulate(case, elements_per_link=1, h=1e-3)
