@@ -351,3 +351,32 @@ def test_flexible_only_peers_refuse_rigid_links_by_name(module):
     case = _short(sp.load_case(MIXED), 0.01)
     with pytest.raises(dttmm.InputError, match=r"model\.links\[0\]\.rigid.*not supported"):
         mod.simulate(case, elements_per_link=1, h=1e-3)
+
+
+def test_zero_length_rigid_link_is_a_root_body():
+    """A body at a flexible link's root (the outboard side of its joint) as a rigid link of
+    length 0 carrying the joint, followed by the flexible link on a locked joint at a zero
+    origin: with the body of the flexible link's hub (centre at the root) it runs as the hub
+    itself (Newmark, k = 2, 0.05 s); with the centre moved off the root it moves differently."""
+    case = _short(sp.load_case(MIXED), 0.05, 0.005)
+    flex = case.model.links[1]
+    body = SpatialRigidBody(0.0, flex.hub.mass, (0.0, 0.0, 0.0), flex.hub.inertia)
+    split = (
+        case.model.links[0],
+        SpatialLink(body, flex.joint),
+        dataclasses.replace(flex, joint=sp.SpatialJoint(locked=True), hub=None),
+        case.model.links[2],
+    )
+    other = dataclasses.replace(case, model=dataclasses.replace(case.model, links=split))
+    a = sp.simulate(case, elements_per_link=2, h=1e-3)
+    b = sp.simulate(other, elements_per_link=2, h=1e-3)
+    assert np.max(np.abs(a.joint_angle - b.joint_angle)) < 1e-13
+    assert np.max(np.abs(a.end_effector - b.end_effector)) < 1e-13
+    moved = dataclasses.replace(body, com=(0.05, 0.0, 0.02))
+    links = (split[0], SpatialLink(moved, flex.joint), split[2], split[3])
+    c = sp.simulate(
+        dataclasses.replace(other, model=dataclasses.replace(case.model, links=links)),
+        elements_per_link=2,
+        h=1e-3,
+    )
+    assert np.max(np.abs(c.end_effector - a.end_effector)) > 1e-4
