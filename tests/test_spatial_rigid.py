@@ -380,3 +380,20 @@ def test_zero_length_rigid_link_is_a_root_body():
         h=1e-3,
     )
     assert np.max(np.abs(c.end_effector - a.end_effector)) > 1e-4
+
+
+def test_frequencies_with_rigid_links():
+    """``dttmm.frequencies`` of the mixed arm without gravity (the kernel's forward dynamics
+    differentiated, dttmm/spatial/linear.py) = the generalized eigenvalues of the global solver's
+    stiffness and mass matrices at rest, k = 3 (three rigid-body modes, then the flexible link's)."""
+    import scipy.linalg
+
+    case = sp.load_case(MIXED)
+    case = dataclasses.replace(case, model=dataclasses.replace(case.model, gravity=(0.0, 0.0, 0.0)))
+    k = 3
+    f = dttmm.frequencies(case, elements_per_link=k)
+    q = np.zeros(len(sg.coordinate_names(case, k)))
+    lam = scipy.linalg.eigh(sg.elastic_forces(case, k, q)[2], sg.mass_matrix(case, k, q), eigvals_only=True)
+    ref = np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi)
+    assert np.max(np.abs(f[:3])) < 1e-3 and 12.0 < ref[3] < 13.0
+    assert np.max(np.abs(f[3:] / ref[3:] - 1.0)) < 1e-9  # measured 1.1e-11
