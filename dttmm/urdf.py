@@ -22,7 +22,8 @@ gives its rigid limit: ``world`` and a fixed ``base_joint`` at the base frame (`
 (x = L of the inboard link, in the rigid limit the tip frame is the link frame moved by L)
 plus ``origin_xyz``/``origin_rpy``, ``fixed`` when the joint is locked (unlocked joints keep
 the wide limits); ``link{i}`` the beam as a rigid body, mass ρA·L at (L/2, 0, 0), inertia about
-its centre diag(0, mL²/12, mL²/12) + L·Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ (link frame);
+its centre diag(0, mL²/12, mL²/12) + L·Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ (link frame), or a
+rigid link's own body (mass, centre of mass, inertia about it);
 ``hub{i}`` at the root with its 3×3 inertia; ``payload{i}`` at (L, 0, 0) + offset with its
 inertia about its centre; the ``link{i}_tip`` and ``tip`` markers as above. The gravity comment
 has three components.
@@ -120,9 +121,15 @@ def _spatial_urdf(case, name):
         if not jt.locked:
             ET.SubElement(joint, "axis", xyz=vec(jt.axis))
             ET.SubElement(joint, "limit", lower="-" + _WIDE, upper=_WIDE, effort=_WIDE, velocity=_WIDE)
-        Q = rx(b.roll)
-        J = np.diag([0.0, m * L * L / 12, m * L * L / 12]) + L * Q @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Q.T
-        _inertia(ET.SubElement(robot, "link", name=f"link{i}"), m, (L / 2, 0.0, 0.0), J)
+        if link.rigid:  # a rigid link's own body: mass at its centre of mass, inertia about it
+            _inertia(ET.SubElement(robot, "link", name=f"link{i}"), m, b.com, b.inertia)
+        else:
+            Q = rx(b.roll)
+            J = (
+                np.diag([0.0, m * L * L / 12, m * L * L / 12])
+                + L * Q @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Q.T
+            )
+            _inertia(ET.SubElement(robot, "link", name=f"link{i}"), m, (L / 2, 0.0, 0.0), J)
         if link.hub is not None:
             _fixed(robot, f"hub{i}_joint", f"link{i}", f"hub{i}")
             _inertia(

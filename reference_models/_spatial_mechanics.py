@@ -134,7 +134,7 @@ def shape_matrices(length: float, xi: np.ndarray = GAUSS_POINTS):
     l = float(length)
     n3 = 3 * xi**2 - 2 * xi**3
     n4 = l * (xi**3 - xi**2)
-    d3 = 6 * (xi - xi**2) / l  # dN3/dx
+    d3 = 6 * (xi - xi**2) / l if l > 0 else np.zeros_like(xi)  # dN3/dx (l = 0: a rigid link)
     d4 = 3 * xi**2 - 2 * xi  # dN4/dx
     s0 = np.zeros((xi.size, 3))
     s0[:, 0] = xi * l

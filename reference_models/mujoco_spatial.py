@@ -76,6 +76,7 @@ from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import polyline_shapes, stations
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
+from dttmm.spatial.model import require_flexible
 from dttmm.spatial.rotation import log_so3, rpy_matrix
 from dttmm.spatial.scenario import require_no_loads
 from dttmm.timegrid import step_schedule
@@ -550,6 +551,7 @@ def _check(case, k, h, integrator, options):
     plumbing.choice("station", opts["station"], STATIONS)
     require_open_loop(case, METHOD)
     require_no_loads(case, METHOD)
+    require_flexible(case.model, METHOD)
     return k, h, opts
 
 

@@ -9,7 +9,8 @@ The model is built programmatically (a ``pinocchio.Model``) from the spatial cas
   the parent body at the origin's placement;
 * link i as one rigid body in its link frame: the beam as a slender rod (mass ρA L at
   (L/2, 0, 0), inertia diag(0, mL²/12, mL²/12) about its centre) plus the sections' rotary
-  inertia L · Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ; the hub (mass at the root, inertia J_h
+  inertia L · Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ — a rigid link (``SpatialRigidBody``) its
+  own body (mass at its centre of mass, inertia about it) and its length; the hub (mass at the root, inertia J_h
   about it); the payload (mass at (L, 0, 0) + c, inertia J_p about its centre — the rigid tip
   frame has the link frame's axes);
 * frames ``link{i}`` (the link frame) and ``link{i}_tip`` (the tip frame), and ``tip``;
@@ -55,11 +56,16 @@ def link_inertia(link) -> pin.Inertia:
     """The rigid-body inertia of one link in its link frame: rod + rotary inertia + hub +
     payload (see the module notes)."""
     b = link.beam
-    L, m = b.length, b.rhoA * b.length
-    Rr = rot_axis((1.0, 0.0, 0.0), b.roll)
-    rot = L * Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
-    rod = pin.Inertia(m, np.array([L / 2, 0.0, 0.0]), np.diag([0.0, m * L * L / 12, m * L * L / 12]) + rot)
-    total = rod
+    L = b.length
+    if link.rigid:  # a rigid link's own body: mass at its centre c, inertia about c
+        total = pin.Inertia(b.mass, b.com_vector, b.inertia_matrix)
+    else:
+        m = b.rhoA * b.length
+        Rr = rot_axis((1.0, 0.0, 0.0), b.roll)
+        rot = L * Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
+        total = pin.Inertia(
+            m, np.array([L / 2, 0.0, 0.0]), np.diag([0.0, m * L * L / 12, m * L * L / 12]) + rot
+        )
     if link.hub is not None:
         total = total + pin.Inertia(link.hub.mass, np.zeros(3), link.hub_inertia)
     if link.payload is not None:

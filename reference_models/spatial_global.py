@@ -153,6 +153,9 @@ class _Layout:
     pay_m: np.ndarray  # (n,)
     pay_c: np.ndarray  # (n, 3)
     pay_J: np.ndarray  # (n, 3, 3)
+    rb_m: np.ndarray  # (n,) rigid links' bodies: mass,
+    rb_c: np.ndarray  # (n, 3) centre of mass (link frame),
+    rb_J: np.ndarray  # (n, 3, 3) inertia about it (link frame)
     base_R: np.ndarray
     base_p: np.ndarray
     gravity: np.ndarray  # (3,)
@@ -202,7 +205,10 @@ def _layout(case, k, strain="linear") -> _Layout:
         else:
             alpha_idx.append(len(names))
             names.append(f"alpha_{i}")
-        slots = range(6) if link.beam.EA is not None else range(1, 6)
+        if link.rigid:
+            slots = range(0)  # a rigid link: no elastic coordinates
+        else:
+            slots = range(6) if link.beam.EA is not None else range(1, 6)
         for j in range(1, k + 1):
             row = [-1] * 6
             for s in slots:
@@ -220,6 +226,20 @@ def _layout(case, k, strain="linear") -> _Layout:
     for link in links:
         b = link.beam
         l = b.length / k
+        if link.rigid:  # k massless rigid segments of length l (e ≡ 0); the body is apart
+            a, B, C = shape_matrices(l if l > 0 else 1.0)
+            a = a * (l if l > 0 else 0.0)
+            for _ in range(k):
+                s0.append(a)
+                S.append(B)
+                P.append(C)
+                m_g.append(np.zeros(GAUSS_WEIGHTS.size))
+                I_g.append(np.zeros((GAUSS_WEIGHTS.size, 3)))
+                K_el.append(np.zeros((6, 6)))
+                EA.append(None)
+                mu.append(0.0)
+                second.append(False)
+            continue
         a, B, C = shape_matrices(l)
         Ke = element_stiffness(l, b.EA, b.GJ, b.EIy, b.EIz)
         for _ in range(k):
@@ -258,12 +278,15 @@ def _layout(case, k, strain="linear") -> _Layout:
         axis=np.array([lk.joint.axis for lk in links], float),
         origin_R=np.array([rpy_matrix(lk.joint.origin_rpy) for lk in links]),
         origin_p=np.array([lk.joint.origin_xyz for lk in links], float),
-        roll_R=np.array([rot_axis((1, 0, 0), lk.beam.roll) for lk in links]),
+        roll_R=np.array([rot_axis((1, 0, 0), lk.roll) for lk in links]),
         hub_m=np.array([lk.hub_mass for lk in links], float),
         hub_J=np.array([lk.hub_inertia for lk in links], float),
         pay_m=np.array([lk.payload_mass for lk in links], float),
         pay_c=np.array([lk.payload_offset for lk in links], float),
         pay_J=np.array([lk.payload_inertia for lk in links], float),
+        rb_m=np.array([lk.beam.mass if lk.rigid else 0.0 for lk in links], float),
+        rb_c=np.array([lk.beam.com if lk.rigid else (0.0, 0.0, 0.0) for lk in links], float),
+        rb_J=np.array([lk.beam.inertia_matrix if lk.rigid else np.zeros((3, 3)) for lk in links]),
         base_R=rpy_matrix(model.base_rpy),
         base_p=np.array(model.base_xyz, float),
         gravity=np.array(model.gravity, float),
@@ -391,12 +414,17 @@ def _bodies(lay: _Layout, q: np.ndarray) -> _Bodies:
     pay_r = fr.p_tip + c
     pay_Jv = fr.Jr_tip - skew(c) @ fr.Jw_tip
     pay_I = fr.R_tip @ lay.pay_J @ np.swapaxes(fr.R_tip, -1, -2)
+    # rigid links' bodies: centre p_link + R_link c, rigid with R_link
+    cb = np.einsum("nij,nj->ni", fr.R_link, lay.rb_c)
+    rb_r = fr.p_link + cb
+    rb_Jv = fr.Jr_link - skew(cb) @ fr.Jw_link
+    rb_I = fr.R_link @ lay.rb_J @ np.swapaxes(fr.R_link, -1, -2)
     return _Bodies(
-        m=np.concatenate([lay.m_g.ravel(), lay.hub_m, lay.pay_m]),
-        r=np.concatenate([r.reshape(-1, 3), fr.p_link, pay_r]),
-        Jv=np.concatenate([Jv.reshape(-1, 3, N), fr.Jr_link, pay_Jv]),
-        I=np.concatenate([Ig.reshape(-1, 3, 3), hub_I, pay_I]),
-        Jw=np.concatenate([Jw.reshape(-1, 3, N), fr.Jw_link, fr.Jw_tip]),
+        m=np.concatenate([lay.m_g.ravel(), lay.hub_m, lay.pay_m, lay.rb_m]),
+        r=np.concatenate([r.reshape(-1, 3), fr.p_link, pay_r, rb_r]),
+        Jv=np.concatenate([Jv.reshape(-1, 3, N), fr.Jr_link, pay_Jv, rb_Jv]),
+        I=np.concatenate([Ig.reshape(-1, 3, 3), hub_I, pay_I, rb_I]),
+        Jw=np.concatenate([Jw.reshape(-1, 3, N), fr.Jw_link, fr.Jw_tip, fr.Jw_link]),
     )
 
 
@@ -440,7 +468,7 @@ def _cut_table(lay: _Layout):
     outboard of: a body is outboard of cut c when c < reach. Gauss points of element e lie
     beyond the roots of elements ≤ e; a hub lies beyond the cuts of the links before its own
     (it is on the inboard side of its link's root cut); a payload beyond every cut of its link
-    up to and including the link's tip."""
+    up to and including the link's tip; a rigid link's body beyond its link's root cut only."""
     n, k = lay.n_links, lay.k
     nel, ng = lay.m_g.shape
     per = k + 1
@@ -448,7 +476,8 @@ def _cut_table(lay: _Layout):
     gauss = np.repeat((el // k) * per + el % k + 1, ng)
     hub = np.arange(n) * per
     pay = np.arange(n) * per + per
-    return np.concatenate([gauss, hub, pay])
+    body = np.arange(n) * per + 1
+    return np.concatenate([gauss, hub, pay, body])
 
 
 def _cut_loads(lay: _Layout, q, qd, qdd, tip_loads=None) -> np.ndarray:
@@ -478,7 +507,7 @@ def _cut_loads(lay: _Layout, q, qd, qdd, tip_loads=None) -> np.ndarray:
         out[c, :3] = force[sel].sum(axis=0)
         out[c, 3:] = np.cross(r[sel] - rc, force[sel]).sum(axis=0) + spin[sel].sum(axis=0)
     if tip_loads is not None:
-        load_reach = reach[-n:]  # a tip load has its link's payload's reach
+        load_reach = reach[-2 * n : -n]  # a tip load has its link's payload's reach
         for c, rc in enumerate(points):
             for i in np.flatnonzero(load_reach > c):
                 out[c, :3] -= tip_loads[i, :3]

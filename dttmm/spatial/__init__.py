@@ -16,6 +16,7 @@ from .model import (
     SpatialLink,
     SpatialManipulator,
     SpatialPayload,
+    SpatialRigidBody,
     SpatialSection,
     embed_planar,
 )
@@ -36,6 +37,7 @@ __all__ = [
     "SpatialLink",
     "SpatialManipulator",
     "SpatialPayload",
+    "SpatialRigidBody",
     "SpatialSection",
     "axis_angle_matrix",
     "case_from_dict",

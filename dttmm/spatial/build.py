@@ -32,7 +32,7 @@ def shape_tables(l: float, extensible: bool, xi):
     m = xi.size
     n3 = 3 * xi**2 - 2 * xi**3
     n4 = l * (xi**3 - xi**2)
-    d3 = (6 * xi - 6 * xi**2) / l  # dN3/dx
+    d3 = (6 * xi - 6 * xi**2) / l if l > 0 else np.zeros_like(xi)  # dN3/dx (l = 0: a rigid link's)
     d4 = 3 * xi**2 - 2 * xi  # dN4/dx
     s0 = np.zeros((m, 3))
     s0[:, 0] = xi * l
@@ -90,6 +90,8 @@ def pattern_ok(sig, psi, s0) -> bool:
 
 
 def g_matrix(l: float) -> np.ndarray:
+    if l == 0.0:
+        return np.zeros((2, 2))
     xi, w = gauss_points()
     dN = np.stack([(6 * xi - 6 * xi**2) / l, 3 * xi**2 - 2 * xi], axis=-1)
     return np.einsum("m,mi,mj->ij", w, dN, dN)
@@ -112,6 +114,8 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
     l_, EA, mu = f(), f(), f()
     aF, aT, org, Crpy, axis, Q = f(3), f(3), f(3), f(3, 3), f(3), f(3, 3)
     hub_m, hub_J, pay_m, pay_d, pay_J = f(), f(3, 3), f(), f(3), f(3, 3)
+    rigid = np.zeros(n, np.int64)
+    rb_m, rb_c, rb_J = f(), f(3), f(3, 3)
     ks = np.full(n, k, np.int64)
     el0 = np.arange(n, dtype=np.int64) * k
     ext = np.zeros(n, np.int64)
@@ -124,30 +128,37 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         b, jn = link.beam, link.joint
         l = b.length / k
         l_[i] = l
-        ext[i] = b.EA is not None
-        so[i] = ext[i] and strain == "second-order"
-        EA[i] = b.EA or 0.0
-        mu[i] = b.damping
-        s0[i], Sig[i], Psi[i] = shape_tables(l, b.EA is not None, pts)
-        mg[i] = wq * b.rhoA * l
-        Ig[i] = np.outer(wq * l, [b.rhoJ, b.rhoIy, b.rhoIz])
-        # the kernel's outboard step assumes S_O = [[D, 0], [0, J_L]]: check the tables' pattern
-        D = np.diag([1.0 if b.EA is not None else 0.0, 1.0, 1.0])
-        assert np.array_equal(Sig[i, 4], np.hstack([D, np.zeros((3, 3))]))
-        assert np.array_equal(Psi[i, 4], np.hstack([np.zeros((3, 3)), np.eye(3)]))
-        # ... and its Gauss-body step one entry per column of Σ_g, Ψ_g (pattern_ok), and the
-        # linear element's step the sparsity of build.stiffness
-        assert pattern_ok(Sig[i], Psi[i], s0[i])
-        mel[i] = mg[i].sum()
-        CS[i] = np.einsum("g,gij->ij", mg[i], Sig[i, :4])
-        CSS[i] = np.einsum("g,gki,gkj->ij", mg[i], Sig[i, :4], Sig[i, :4])
-        K[i] = stiffness(b, l)
-        assert not np.any(K[i][~STIFFNESS_PATTERN])
-        Kb[i] = K[i]
-        Kb[i, 0, 0] = 0.0
-        G[i] = g_matrix(l)
+        if link.rigid:
+            # k rigid slots of length l: no mass of their own, no stiffness, no coordinates;
+            # the body in rb_* (docs/spatial.md §5, "Rigid links")
+            s0[i], Sig[i], Psi[i] = shape_tables(l, False, pts)
+            rigid[i] = 1
+            rb_m[i], rb_c[i], rb_J[i] = b.mass, b.com, b.inertia_matrix
+        else:
+            ext[i] = b.EA is not None
+            so[i] = ext[i] and strain == "second-order"
+            EA[i] = b.EA or 0.0
+            mu[i] = b.damping
+            s0[i], Sig[i], Psi[i] = shape_tables(l, b.EA is not None, pts)
+            mg[i] = wq * b.rhoA * l
+            Ig[i] = np.outer(wq * l, [b.rhoJ, b.rhoIy, b.rhoIz])
+            # the kernel's outboard step assumes S_O = [[D, 0], [0, J_L]]: check the tables' pattern
+            D = np.diag([1.0 if b.EA is not None else 0.0, 1.0, 1.0])
+            assert np.array_equal(Sig[i, 4], np.hstack([D, np.zeros((3, 3))]))
+            assert np.array_equal(Psi[i, 4], np.hstack([np.zeros((3, 3)), np.eye(3)]))
+            # ... and its Gauss-body step one entry per column of Σ_g, Ψ_g (pattern_ok), and the
+            # linear element's step the sparsity of build.stiffness
+            assert pattern_ok(Sig[i], Psi[i], s0[i])
+            mel[i] = mg[i].sum()
+            CS[i] = np.einsum("g,gij->ij", mg[i], Sig[i, :4])
+            CSS[i] = np.einsum("g,gki,gkj->ij", mg[i], Sig[i, :4], Sig[i, :4])
+            K[i] = stiffness(b, l)
+            assert not np.any(K[i][~STIFFNESS_PATTERN])
+            Kb[i] = K[i]
+            Kb[i, 0, 0] = 0.0
+            G[i] = g_matrix(l)
         a = np.array(jn.axis)
-        Qi = rx(b.roll)
+        Qi = rx(link.roll)  # a rigid link: no roll
         Q[i] = Qi
         Crpy[i] = rpy_matrix(jn.origin_rpy)
         axis[i] = a
@@ -165,7 +176,7 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
             r += 1
         elif motion[i]:
             raise InputError(f"model.links[{i}].joint.locked", True, "a locked joint takes no drive")
-        ne = 6 if b.EA is not None else 5
+        ne = 0 if link.rigid else 6 if b.EA is not None else 5
         for j in range(k):
             ie[i * k + j] = r
             r += ne
@@ -209,6 +220,10 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         mel=mel,
         CS=CS,
         CSS=CSS,
+        rigid=rigid,
+        rb_m=rb_m,
+        rb_c=rb_c,
+        rb_J=rb_J,
     )
 
 

@@ -23,6 +23,7 @@ from .model import (
     SpatialLink,
     SpatialManipulator,
     SpatialPayload,
+    SpatialRigidBody,
     SpatialSection,
     Vector3,
 )
@@ -80,20 +81,35 @@ class PayloadFile(_Strict):
     inertia: InertiaEntry = [0.0, 0.0, 0.0]
 
 
-class SpatialLinkFile(_Strict):
-    """One ``[[model.links]]`` table of a spatial case."""
+class RigidFile(_Strict):
+    """A rigid link's body: ``rigid = { mass, com, inertia }`` (docs/cases.md)."""
 
-    length: Positive
+    mass: NonNegative = 0.0
+    com: BoundedVector3 = [0.0, 0.0, 0.0]
+    inertia: InertiaEntry = [0.0, 0.0, 0.0]
+
+
+#: the beam keys of a flexible link that have no default (a rigid link takes none of the beam keys)
+BEAM_REQUIRED = ("GJ", "EIy", "EIz", "rhoA", "rhoJ")
+BEAM_KEYS = ("EA", *BEAM_REQUIRED, "rhoIy", "rhoIz", "roll", "damping")
+
+
+class SpatialLinkFile(_Strict):
+    """One ``[[model.links]]`` table of a spatial case: a flexible link (the beam keys) or a
+    rigid one (``rigid``, and ``length`` ≥ 0 to its tip frame, default 0)."""
+
+    length: NonNegative | None = None
     EA: Positive | None = None
-    GJ: Positive
-    EIy: Positive
-    EIz: Positive
-    rhoA: Positive
-    rhoJ: Positive
-    rhoIy: NonNegative = 0.0
-    rhoIz: NonNegative = 0.0
-    roll: Finite = 0.0
-    damping: NonNegative = 0.0
+    GJ: Positive | None = None
+    EIy: Positive | None = None
+    EIz: Positive | None = None
+    rhoA: Positive | None = None
+    rhoJ: Positive | None = None
+    rhoIy: NonNegative | None = None
+    rhoIz: NonNegative | None = None
+    roll: Finite | None = None
+    damping: NonNegative | None = None
+    rigid: RigidFile | None = None
     joint: JointFile = JointFile()
     hub: HubFile | None = None
     payload: PayloadFile | None = None
@@ -161,20 +177,7 @@ def case_from_dict(data: dict) -> SpatialCase:
     links = []
     for i, d in enumerate(spec.model.links):
         w = f"model.links[{i}]"
-        beam = SpatialSection(
-            length=d.length,
-            EA=d.EA,
-            GJ=d.GJ,
-            EIy=d.EIy,
-            EIz=d.EIz,
-            rhoA=d.rhoA,
-            rhoJ=d.rhoJ,
-            rhoIy=d.rhoIy,
-            rhoIz=d.rhoIz,
-            roll=d.roll,
-            damping=d.damping,
-            _where=w,
-        )
+        beam = _link_body(d, w)
         j = d.joint
         joint = SpatialJoint(j.axis, j.origin_xyz, j.origin_rpy, j.locked, _where=f"{w}.joint")
         hub = None if d.hub is None else SpatialHub(d.hub.mass, d.hub.inertia, _where=f"{w}.hub")
@@ -191,6 +194,33 @@ def case_from_dict(data: dict) -> SpatialCase:
     loads = tuple(_load(d, j) for j, d in enumerate(sc.loads))
     prov = None if spec.provenance is None else dict(spec.provenance)
     return SpatialCase(manip, SpatialScenario(sc.duration, sc.output_step, drives, loads), spec.name, prov)
+
+
+def _link_body(d: SpatialLinkFile, w: str):
+    """The link's :class:`SpatialSection` (flexible) or :class:`SpatialRigidBody` (``rigid``)."""
+    if d.rigid is not None:
+        for key in BEAM_KEYS:
+            if getattr(d, key) is not None:
+                raise InputError(
+                    f"{w}.{key}", getattr(d, key), "is a beam key; a rigid link (`rigid`) takes none"
+                )
+        r = d.rigid
+        return SpatialRigidBody(d.length or 0.0, r.mass, r.com, r.inertia, _where=f"{w}.rigid")
+    for key in ("length", *BEAM_REQUIRED):
+        if getattr(d, key) is None:
+            raise InputError(f"{w}.{key}", None, "is required (a rigid link gives `rigid` instead)")
+    optional = {k: getattr(d, k) for k in ("rhoIy", "rhoIz", "roll", "damping") if getattr(d, k) is not None}
+    return SpatialSection(
+        length=d.length,
+        EA=d.EA,
+        GJ=d.GJ,
+        EIy=d.EIy,
+        EIz=d.EIz,
+        rhoA=d.rhoA,
+        rhoJ=d.rhoJ,
+        **optional,
+        _where=w,
+    )
 
 
 def _load(spec, j: int) -> SpatialLoad:
@@ -237,25 +267,33 @@ def case_to_dict(case: SpatialCase) -> dict:
     links = []
     for link in case.model.links:
         b, j = link.beam, link.joint
-        d = {
-            "length": b.length,
-            **({"EA": b.EA} if b.EA is not None else {}),
-            "GJ": b.GJ,
-            "EIy": b.EIy,
-            "EIz": b.EIz,
-            "rhoA": b.rhoA,
-            "rhoJ": b.rhoJ,
-            "rhoIy": b.rhoIy,
-            "rhoIz": b.rhoIz,
-            "roll": b.roll,
-            "damping": b.damping,
-            "joint": {
-                "axis": list(j.axis),
-                "origin_xyz": list(j.origin_xyz),
-                "origin_rpy": list(j.origin_rpy),
-                "locked": j.locked,
-            },
+        joint = {
+            "axis": list(j.axis),
+            "origin_xyz": list(j.origin_xyz),
+            "origin_rpy": list(j.origin_rpy),
+            "locked": j.locked,
         }
+        if link.rigid:
+            d = {
+                "length": b.length,
+                "rigid": {"mass": b.mass, "com": list(b.com), "inertia": rows(b.inertia)},
+                "joint": joint,
+            }
+        else:
+            d = {
+                "length": b.length,
+                **({"EA": b.EA} if b.EA is not None else {}),
+                "GJ": b.GJ,
+                "EIy": b.EIy,
+                "EIz": b.EIz,
+                "rhoA": b.rhoA,
+                "rhoJ": b.rhoJ,
+                "rhoIy": b.rhoIy,
+                "rhoIz": b.rhoIz,
+                "roll": b.roll,
+                "damping": b.damping,
+                "joint": joint,
+            }
         if link.hub is not None:
             d["hub"] = {"mass": link.hub.mass, "inertia": rows(link.hub.inertia)}
         if link.payload is not None:

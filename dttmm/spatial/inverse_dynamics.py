@@ -3,7 +3,8 @@ rigid chain of docs/spatial.md §1 (the limit of infinitely stiff links).
 
 Each link is one rigid body in its link frame (R_link, p_link): the beam as a uniform rod (mass
 ρA L at (L/2, 0, 0), inertia m L²/12 about the centre across the rod) with the sections' rotary
-inertia L · Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ, the hub (mass at the root, inertia J_h about
+inertia L · Rx(roll) diag(ρJ, ρIy, ρIz) Rx(roll)ᵀ (a rigid link: its own body, mass at its
+centre of mass, inertia about it), the hub (mass at the root, inertia J_h about
 it) and the payload (mass at (L, 0, 0) + c, inertia J_p about its centre; the rigid tip frame
 has the link frame's axes): the rigid body of :mod:`reference_models.pinocchio_spatial` and of
 the kernel at e = 0. Joints as in the model: R_J = R_par R_rpy, p_J = p_par + R_par o,
@@ -47,13 +48,17 @@ def link_body(link) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass m, first moment h = m c (3,), inertia I_o about the link origin (3, 3)) of a rigid
     link in its link frame (kg, kg·m, kg·m²)."""
     b = link.beam
-    L, m_rod = b.length, b.rhoA * b.length
-    Rr = _rx(b.roll)
-    c_rod = np.array([L / 2.0, 0.0, 0.0])
-    I_rod = (
-        np.diag([0.0, m_rod * L * L / 12, m_rod * L * L / 12])
-        + L * Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
-    )
+    L = b.length
+    if link.rigid:  # a rigid link's own body: mass at its centre c, inertia about c
+        m_rod, c_rod, I_rod = b.mass, b.com_vector, b.inertia_matrix
+    else:
+        m_rod = b.rhoA * b.length
+        Rr = _rx(b.roll)
+        c_rod = np.array([L / 2.0, 0.0, 0.0])
+        I_rod = (
+            np.diag([0.0, m_rod * L * L / 12, m_rod * L * L / 12])
+            + L * Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
+        )
     m = m_rod
     h = m_rod * c_rod
     I_o = I_rod + m_rod * _skew_sq(c_rod)

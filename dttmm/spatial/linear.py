@@ -52,7 +52,7 @@ def coordinate_names(case, md) -> list[str]:
     for i in range(md.n):
         if md.ia[i] >= 0:
             names[md.ia[i]] = f"joint {joint[i] + 1} angle"
-        comps = _COMPS if md.ext[i] else _COMPS[1:]
+        comps = () if md.rigid[i] else _COMPS if md.ext[i] else _COMPS[1:]  # rigid: no coordinates
         for j in range(md.k[i]):
             r = md.ie[md.el0[i] + j]
             for c, name in enumerate(comps):
@@ -64,7 +64,7 @@ def _scales(md) -> np.ndarray:
     """Difference-step scale of each coordinate: 1 for angles, the element length for u, v, w."""
     s = np.ones(md.ndof)
     for i in range(md.n):
-        nd = 3 if md.ext[i] else 2
+        nd = 0 if md.rigid[i] else 3 if md.ext[i] else 2  # a rigid link has no coordinates
         for j in range(md.k[i]):
             r = md.ie[md.el0[i] + j]
             s[r : r + nd] = md.l[i]

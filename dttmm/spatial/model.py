@@ -24,8 +24,10 @@ __all__ = [
     "SpatialLink",
     "SpatialManipulator",
     "SpatialPayload",
+    "SpatialRigidBody",
     "SpatialSection",
     "embed_planar",
+    "require_flexible",
 ]
 
 Vector3 = Annotated[list[Finite], Strict(), Field(min_length=3, max_length=3)]
@@ -71,6 +73,12 @@ class OffsetFields(_Strict):
 
 class InertiaFields(_Strict):
     inertia: InertiaValue
+
+
+class RigidBodyFields(_Strict):
+    length: NonNegative = 0.0
+    mass: NonNegative = 0.0
+    com: BoundedVector3 = [0.0, 0.0, 0.0]
 
 
 class GravityFields(_Strict):
@@ -141,6 +149,34 @@ class SpatialSection:
     @property
     def extensible(self) -> bool:
         return self.EA is not None
+
+
+@dataclass(frozen=True)
+class SpatialRigidBody:
+    """The body of a rigid link, in place of its beam (docs/spatial.md §1): ``length`` L (m, ≥ 0:
+    the tip frame is the link frame moved by L along its x axis), ``mass`` (kg), ``com`` (m, the
+    centre of mass in the link frame), ``inertia`` (3×3, kg·m², about the centre of mass, in the
+    link frame; three numbers give its diagonal). No elastic coordinates."""
+
+    length: float = 0.0
+    mass: float = 0.0
+    com: tuple = (0.0, 0.0, 0.0)
+    inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    _where: str = field(default="rigid", repr=False, compare=False)
+
+    def __post_init__(self):
+        ok = check_fields(RigidBodyFields, self._where, length=self.length, mass=self.mass, com=self.com)
+        ok["com"] = tuple(float(x) for x in ok["com"])
+        _set(self, ok)
+        object.__setattr__(self, "inertia", _inertia(self.inertia, self._where))
+
+    @property
+    def inertia_matrix(self) -> np.ndarray:
+        return np.array(self.inertia, dtype=float)
+
+    @property
+    def com_vector(self) -> np.ndarray:
+        return np.array(self.com, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -219,9 +255,11 @@ class SpatialPayload:
 
 @dataclass(frozen=True)
 class SpatialLink:
-    """One flexible link: its beam, the joint at its root, a hub at the root, a payload at the tip."""
+    """One link: its beam (a :class:`SpatialSection`: flexible) or its body (a
+    :class:`SpatialRigidBody`: rigid), the joint at its root, a hub at the root, a payload at the
+    tip."""
 
-    beam: SpatialSection
+    beam: SpatialSection | SpatialRigidBody
     joint: SpatialJoint = field(default_factory=SpatialJoint)
     hub: SpatialHub | None = None
     payload: SpatialPayload | None = None
@@ -229,8 +267,12 @@ class SpatialLink:
 
     def __post_init__(self):
         w = self._where
-        if not isinstance(self.beam, SpatialSection):
-            raise InputError(f"{w}.beam", _short(self.beam), "must be a dttmm.spatial.SpatialSection")
+        if not isinstance(self.beam, (SpatialSection, SpatialRigidBody)):
+            raise InputError(
+                f"{w}.beam",
+                _short(self.beam),
+                "must be a dttmm.spatial.SpatialSection or a dttmm.spatial.SpatialRigidBody",
+            )
         if not isinstance(self.joint, SpatialJoint):
             raise InputError(f"{w}.joint", _short(self.joint), "must be a dttmm.spatial.SpatialJoint")
         if self.hub is not None and not isinstance(self.hub, SpatialHub):
@@ -239,6 +281,16 @@ class SpatialLink:
             raise InputError(
                 f"{w}.payload", _short(self.payload), "must be a dttmm.spatial.SpatialPayload or None"
             )
+
+    @property
+    def rigid(self) -> bool:
+        """Whether the link is rigid (its ``beam`` a :class:`SpatialRigidBody`)."""
+        return isinstance(self.beam, SpatialRigidBody)
+
+    @property
+    def roll(self) -> float:
+        """The section's roll (0 for a rigid link: its element frames are its link frame)."""
+        return 0.0 if self.rigid else self.beam.roll
 
     @property
     def hub_mass(self) -> float:
@@ -263,7 +315,7 @@ class SpatialLink:
 
 @dataclass(frozen=True)
 class SpatialManipulator:
-    """A spatial serial arm: revolute joints and flexible links, base first (docs/spatial.md §1).
+    """A spatial serial arm: revolute joints and flexible or rigid links, base first (docs/spatial.md §1).
 
     ``gravity`` (m/s², in the world frame); ``base_xyz`` (m) and ``base_rpy`` (rad) place the base
     frame in the world.
@@ -308,6 +360,11 @@ class SpatialManipulator:
         return tuple(i for i, link in enumerate(self.links) if not link.joint.locked)
 
     @property
+    def rigid_links(self) -> tuple[int, ...]:
+        """Indices of the rigid links."""
+        return tuple(i for i, link in enumerate(self.links) if link.rigid)
+
+    @property
     def base_rotation(self) -> np.ndarray:
         return rpy_matrix(self.base_rpy)
 
@@ -348,3 +405,13 @@ def embed_planar(manipulator: Manipulator, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0
         links.append(SpatialLink(beam, SpatialJoint(_where=f"{w}.joint"), hub, pay, _where=w))
     g = rot @ np.array([manipulator.gravity[0], manipulator.gravity[1], 0.0])
     return SpatialManipulator(tuple(links), tuple(float(x) for x in g), base_xyz, base_rpy)
+
+
+def require_flexible(model: SpatialManipulator, method: str) -> None:
+    """Refuse an arm with rigid links (``SpatialRigidBody``) for an engine that models flexible
+    links only (rigid links run in the spatial DT-TMM, the spatial global solver and Pinocchio)."""
+    for i, link in enumerate(model.links):
+        if link.rigid:
+            raise InputError(
+                f"model.links[{i}].rigid", _short(link.beam), f"rigid links are not supported by {method} yet"
+            )

@@ -17,6 +17,6 @@ def from_frames(model, k: int, RI, rI, e, p: int) -> np.ndarray:
     frames RI (nt, n·k, 3, 3), origins rI (nt, n·k, 3) and padded elastic coordinates
     e (nt, n·k, 6) (the kernel's ``Work.Rw``, ``pw``, ``e`` after ``kinematics``)."""
     lengths = [lk.beam.length for lk in model.links]
-    ext = [lk.beam.EA is not None for lk in model.links]
+    ext = [not lk.rigid and lk.beam.EA is not None for lk in model.links]  # a rigid link: e = 0
     tables = lambda i, xi: shape_tables(lengths[i] / k, ext[i], xi)[:2]
     return frame_shapes(RI, rI, e, lengths, k, p, tables)

@@ -121,7 +121,7 @@ class _Problem:
             off = 0 if md.ext[i] else 1
             for j in range(md.k[i]):
                 el = md.el0[i] + j
-                pad = np.arange(off, 6)
+                pad = np.arange(off, 6) if md.rigid[i] == 0 else np.arange(0)  # rigid: no e
                 self.cols.append((i, el, pad, md.ie[el] + pad - off))
         self.grav = np.array(case.model.gravity, float)
         self.cs0 = np.einsum("ig,igj->ij", md.mg, md.s0[:, :4])  # Σ_g m_g s0_g per link
@@ -178,6 +178,11 @@ class _Problem:
                 R, p, e = ws.Rw[el], ws.pw[el], ws.e[el]
                 rO = p + R @ (md.s0[i, 4] + md.Sig[i, 4] @ e)
                 move(rO)
+                if md.rigid[i]:  # a rigid slot: no coordinates; the body at the root slot
+                    if j == 0:
+                        add(md.rb_m[i], p + R @ md.rb_c[i])
+                    move(p.copy())
+                    continue
                 qe = md.Sig[i, 4].T @ (R.T @ Fo) + (left_jacobian(e[3:]) @ md.Psi[i, 4]).T @ (R.T @ Mo)
                 # the Gauss bodies: Σ_g m_g Σ_gᵀ = CSᵀ, their weight at the mass centre
                 qe += md.CS[i].T @ (R.T @ g)

@@ -255,11 +255,43 @@ def axis_rotation_into(ax, ang, R):
 
 
 @njit(inline="always", nrt=False)
+def kin_rigid(md, ws, i, R, p, v, w):
+    """Kinematics of rigid link i (docs/spatial.md §5, "Rigid links"): its k slots are rigid
+    segments s = (l, 0, 0) with no coordinates (e = 0, exp(φ) = J_L = I); (R, p; v, ω) move in
+    place from the link frame to its tip (R and ω unchanged)."""
+    l = md.l[i]
+    for j in range(md.k[i]):
+        el = md.el0[i] + j
+        for a in range(3):
+            ws.pw[el, a] = p[a]
+            ws.vl[el, a] = v[a]
+            ws.wl[el, a] = w[a]
+            ws.jdO[el, a] = 0.0
+            ws.sO[el, a] = 0.0
+            for b in range(3):
+                ws.Rw[el, a, b] = R[a, b]
+                ws.E[el, a, b] = 1.0 if a == b else 0.0
+                ws.JO[el, a, b] = 1.0 if a == b else 0.0
+        for a in range(6):
+            ws.e[el, a] = 0.0
+            ws.ed[el, a] = 0.0
+        ws.sO[el, 0] = l
+        for a in range(3):
+            p[a] += R[a, 0] * l
+        # v ← v + ω × (l, 0, 0)
+        v[1] += w[2] * l
+        v[2] -= w[1] * l
+
+
+@njit(inline="always", nrt=False)
 def kin_link(md, ws, i, q, qd, R, p, v, w):
     """Frames, origins and velocities of the elements of link i into ``ws``, from the root
     element frame (R, p; v, ω in its components), which move in place to the last outboard node.
     Keeps each outboard node's exp(φ), J_L(φ), J̇_L φ̇ and position (ws.E, JO, jdO, sO) for the
     sweeps."""
+    if md.rigid[i] == 1:
+        kin_rigid(md, ws, i, R, p, v, w)
+        return
     S4 = md.Sig[i, 4]
     s04 = md.s0[i, 4]
     T = ws.Tk
@@ -1111,9 +1143,81 @@ def tip_load(inp, i, Rw, E, Qi, c):
 
 
 @njit(inline="always", nrt=False)
+def backward_rigid(md, ws, i, keep):
+    """The backward sweep over rigid link i (tip → root), in place on ws.P, ws.c: each slot
+    moves the load from its outboard end s = (l, 0, 0) to its root, P ← XᵀPX, c ← Xᵀ(c + Pζ)
+    with ζ = (ω × (ω × s), 0) its velocity-product acceleration (kept in ws.zO for the forward
+    sweep); the body (mass m, centre d, inertia J about d; bias (m(ω × (ω × d) − g), ω × Jω))
+    joins at the root slot, so it is outboard of the link's root cut only."""
+    P = ws.P
+    c = ws.c
+    gv = md.grav
+    l = md.l[i]
+    for j in range(md.k[i] - 1, -1, -1):
+        el = md.el0[i] + j
+        w = ws.wl[el]
+        w0 = w[0]
+        w1 = w[1]
+        w2 = w[2]
+        # ω × s = (0, ω_z l, −ω_y l); ζ = ω × (ω × s)
+        u1 = w2 * l
+        u2 = -w1 * l
+        zO = ws.zO[el]
+        zO[0] = w1 * u2 - w2 * u1
+        zO[1] = -w0 * u2
+        zO[2] = w0 * u1
+        zO[3] = 0.0
+        zO[4] = 0.0
+        zO[5] = 0.0
+        for a in range(6):
+            c[a] += P[a, 0] * zO[0] + P[a, 1] * zO[1] + P[a, 2] * zO[2]
+        shift_pc(P, c, l, 0.0, 0.0, ws.N3)
+        if j == 0 and nonzero_body(md.rb_m[i], md.rb_J[i]):
+            Rw = ws.Rw[el]
+            h0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
+            h1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
+            h2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
+            d = md.rb_c[i]
+            m = md.rb_m[i]
+            J = md.rb_J[i]
+            v0 = w1 * d[2] - w2 * d[1]
+            v1 = w2 * d[0] - w0 * d[2]
+            v2 = w0 * d[1] - w1 * d[0]
+            z0 = w1 * v2 - w2 * v1
+            z1 = w2 * v0 - w0 * v2
+            z2 = w0 * v1 - w1 * v0
+            k0 = J[0, 0] * w0 + J[0, 1] * w1 + J[0, 2] * w2
+            k1 = J[1, 0] * w0 + J[1, 1] * w1 + J[1, 2] * w2
+            k2 = J[2, 0] * w0 + J[2, 1] * w1 + J[2, 2] * w2
+            add_rigid(
+                P,
+                c,
+                m,
+                J,
+                d[0],
+                d[1],
+                d[2],
+                m * (z0 - h0),
+                m * (z1 - h1),
+                m * (z2 - h2),
+                w1 * k2 - w2 * k1,
+                w2 * k0 - w0 * k2,
+                w0 * k1 - w1 * k0,
+            )
+        if keep:
+            for r in range(6):
+                for s in range(6):
+                    ws.Pc[el, r, s] = P[r, s]
+                ws.Pc[el, r, 6] = c[r]
+    return True
+
+
+@njit(inline="always", nrt=False)
 def backward_link(md, ws, i, cq, cv, qhat, qdhat, forces, keep):
     """The backward sweep over the elements of link i, in place on ws.P, ws.c (tip → root),
     keeping each element root's (P, c) in ws.Pc with ``keep`` (for the cut loads). Returns ok."""
+    if md.rigid[i] == 1:
+        return backward_rigid(md, ws, i, keep)
     ok = True
     ehat = ws.eh
     edhat = ws.edh
@@ -1175,6 +1279,16 @@ def forward_link(md, ws, i, A, qdd, want_loads, loads, ic):
                 f[a] = t
             load_world(ws.Rw[el], f, loads, ic)
         ic += 1
+        if md.rigid[i] == 1:
+            # a rigid slot: A ← X A + ζ, X A = (a + α × s, α), s = (l, 0, 0), same frame
+            l = md.l[i]
+            zO = ws.zO[el]
+            b1 = A[4]
+            b2 = A[5]
+            A[0] += zO[0]
+            A[1] += b2 * l + zO[1]
+            A[2] += -b1 * l + zO[2]
+            continue
         # ë = −L⁻ᵀ (Y [A; 1])
         L = ws.Lc[el]
         Y = ws.Y[el]
@@ -1481,7 +1595,15 @@ def energy(md, ws):
             w = ws.wl[el0]
             T += 0.5 * md.hub_m[i] * np.dot(v, v) + 0.5 * np.dot(w, mv(md.hub_J[i], w))
             V -= md.hub_m[i] * np.dot(g, ws.pw[el0])
-        for j in range(md.k[i]):
+        if md.rigid[i] == 1:
+            if nonzero_body(md.rb_m[i], md.rb_J[i]):
+                v = ws.vl[el0]
+                w = ws.wl[el0]
+                d = md.rb_c[i]
+                vc = v + cross(w, d)
+                T += 0.5 * md.rb_m[i] * np.dot(vc, vc) + 0.5 * np.dot(w, mv(md.rb_J[i], w))
+                V -= md.rb_m[i] * np.dot(g, ws.pw[el0] + mv(ws.Rw[el0], d))
+        for j in range(md.k[i] * (1 - md.rigid[i])):
             el = el0 + j
             e = ws.e[el]
             ed = ws.ed[el]

@@ -4,6 +4,8 @@ per link) and :class:`Work` (the workspace of the sweeps), named tuples of array
 Elastic coordinates are padded to six per element, (u, v, w, φx, φy, φz): an inextensible link
 gets a decoupled dummy u (unit effective mass, no coupling, zero load) that never enters q.
 Index 4 of the per-body tables is the outboard node (ξ = 1), 0…3 the Gauss points.
+A rigid link keeps its k element slots as rigid segments of length L/k (no coordinates, e ≡ 0,
+exp(φ) = I): its body enters at the root slot (docs/spatial.md §5, "Rigid links").
 """
 
 from __future__ import annotations
@@ -53,6 +55,10 @@ class Model(NamedTuple):
     mel: np.ndarray  # (n,) element mass Σ m_g
     CS: np.ndarray  # (n, 3, 6) Σ m_g Σ_g
     CSS: np.ndarray  # (n, 6, 6) Σ m_g Σ_gᵀ Σ_g
+    rigid: np.ndarray  # (n,) 1: rigid link (its k slots are rigid segments of length l, no e)
+    rb_m: np.ndarray  # (n,) a rigid link's mass
+    rb_c: np.ndarray  # (n, 3) its centre of mass (link frame)
+    rb_J: np.ndarray  # (n, 3, 3) its inertia about the centre of mass (link frame)
 
 
 class Work(NamedTuple):

@@ -553,7 +553,7 @@ def check_state(md, q):
             return ST_NONFINITE
     for i in range(md.n):
         off = 0 if md.ext[i] == 1 else -1
-        for j in range(md.k[i]):
+        for j in range(md.k[i] * (1 - md.rigid[i])):  # a rigid link has no coordinates
             r0 = md.ie[md.el0[i] + j]
             for c in range(6):
                 if c + off < 0:
