@@ -45,6 +45,7 @@ from .modal import (  # noqa: F401 - _STENCIL and STEP are read as dttmm.linear'
     check_n,
     derivative,
     eigen_modes,
+    state_pair,
 )
 from .result import tip_deflection
 from .structure import STRAINS, Structure, build_structure, kinematics
@@ -78,13 +79,7 @@ def _point(case: Case, st: Structure, mot: np.ndarray, state) -> tuple[np.ndarra
         for i, d in enumerate(case.scenario.drives):
             q[st.links[i].i_alpha] = d.initial_angle
     else:
-        try:
-            q, qd = (np.array(x, float) for x in state)
-        except (TypeError, ValueError):
-            raise InputError("state", type(state).__name__, "must be a pair (q, qd) of arrays") from None
-        for name, x in (("state[0] (q)", q), ("state[1] (qd)", qd)):
-            if x.shape != (st.n_dof,) or not np.all(np.isfinite(x)):
-                raise InputError(name, f"shape {x.shape}", f"must be {st.n_dof} finite numbers")
+        q, qd = state_pair(state, st.n_dof)
     im = st.alpha_index[st.motion]
     q[im], qd[im] = mot[st.motion, 0], mot[st.motion, 1]
     return q, qd

@@ -198,3 +198,18 @@ def eigen_modes(lin: Linearization, n, zero_tol: float):
     )
     freq = np.where(lam >= 0, np.sqrt(np.abs(lam)), np.nan) / (2 * np.pi)
     return freq, lam, V, zeta, warn
+
+
+def state_pair(state, n_dof: int) -> tuple[np.ndarray, np.ndarray]:
+    """A user's linearisation point ``state = (q, qd)`` as two float arrays of ``n_dof`` finite
+    numbers (copies); InputError naming the part otherwise."""
+    from .errors import InputError
+
+    try:
+        q, qd = (np.array(x, float) for x in state)
+    except (TypeError, ValueError):
+        raise InputError("state", type(state).__name__, "must be a pair (q, qd) of arrays") from None
+    for name, x in (("state[0] (q)", q), ("state[1] (qd)", qd)):
+        if x.shape != (n_dof,) or not np.all(np.isfinite(x)):
+            raise InputError(name, f"shape {x.shape}", f"must be {n_dof} finite numbers")
+    return q, qd

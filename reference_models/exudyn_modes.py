@@ -125,17 +125,23 @@ def frequencies(case: Case, elements_per_link: int, n: int | None = None) -> np.
         raise ImportError(
             f"{METHOD} modes need the exudyn package (pip install 'dttmm[exudyn]'): {exc}"
         ) from exc
+    _, mbs = _build(case, k)
+    return eigen_frequencies(mbs, case, n, METHOD)
+
+
+def eigen_frequencies(mbs, case, n, method: str) -> np.ndarray:
+    """Natural frequencies (Hz) of an assembled Exudyn system: one rigid-body mode (ω² = 0 up to
+    Exudyn's round-off) per torque-driven joint, then the elastic ones; ArithmeticError when the
+    two are not separated. ``method`` names the peer in that message."""
     from exudyn.solver import ComputeODE2Eigenvalues
 
-    _, mbs = _build(case, k)
     lam, _ = ComputeODE2Eigenvalues(mbs, useAbsoluteValues=False, computeComplexEigenvalues=False)
     lam = np.sort(np.asarray(lam, float).real)
-    # one rigid-body mode per free joint (no gravity): ω² = 0 up to Exudyn's round-off
     n_rigid = sum(d.kind == "torque" for d in case.scenario.drives)
     rigid, rest = lam[:n_rigid], lam[n_rigid:]
     if rest.size and (np.any(np.abs(rigid) > 1e-3 * rest[0]) or rest[0] <= 0):
         raise ArithmeticError(
-            f"{METHOD} modes: rigid-body ω² {rigid} not separated from the elastic {rest[:1]}"
+            f"{method} modes: rigid-body ω² {rigid} not separated from the elastic {rest[:1]}"
         )
     lam = np.concatenate([np.zeros(n_rigid), rest])
     lam = lam if n is None else lam[:n]

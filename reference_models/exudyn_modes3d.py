@@ -27,6 +27,7 @@ from dttmm.spatial import SpatialCase
 from dttmm.spatial.model import require_flexible
 
 from .exudyn_beam3d import SHEAR_RATIO, _build
+from .exudyn_modes import eigen_frequencies
 
 __all__ = ["METHOD", "frequencies"]
 
@@ -71,7 +72,7 @@ def frequencies(case, elements_per_link: int, n: int | None = None, *, shear_rat
     """
     k = _check(case, elements_per_link, n)
     try:
-        from exudyn.solver import ComputeODE2Eigenvalues
+        import exudyn.solver  # noqa: F401 - the engine is there (the eigen-analysis imports it)
     except ImportError as exc:
         raise ImportError(
             f"{METHOD} modes need the exudyn package (pip install 'dttmm[exudyn]'): {exc}"
@@ -79,14 +80,4 @@ def frequencies(case, elements_per_link: int, n: int | None = None, *, shear_rat
     B = _build(case, k, shear_ratio, "EP", [])
     B["set_inputs"](0.0, False)
     B["mbs"].Assemble()
-    lam, _ = ComputeODE2Eigenvalues(B["mbs"], useAbsoluteValues=False, computeComplexEigenvalues=False)
-    lam = np.sort(np.asarray(lam, float).real)
-    n_rigid = sum(d.kind == "torque" for d in case.scenario.drives)
-    rigid, rest = lam[:n_rigid], lam[n_rigid:]
-    if rest.size and (np.any(np.abs(rigid) > 1e-3 * rest[0]) or rest[0] <= 0):
-        raise ArithmeticError(
-            f"{METHOD} modes: rigid-body ω² {rigid} not separated from the elastic {rest[:1]}"
-        )
-    lam = np.concatenate([np.zeros(n_rigid), rest])
-    lam = lam if n is None else lam[:n]
-    return np.sqrt(lam) / (2 * np.pi)
+    return eigen_frequencies(B["mbs"], case, n, METHOD)

@@ -35,6 +35,7 @@ from ..modal import (
     check_n,
     derivative,
     eigen_modes,
+    state_pair,
 )
 from .build import STRAINS, build_model, make_work
 from .rotation import log_so3
@@ -134,13 +135,7 @@ def _point(case, md, t, state, mot, k, strain, engine):
         q, hold = equilibrium(case, k, t, strain=strain, engine=engine)
         qd = np.zeros(md.ndof)
     else:
-        try:
-            q, qd = (np.array(x, float) for x in state)
-        except (TypeError, ValueError):
-            raise InputError("state", type(state).__name__, "must be a pair (q, qd) of arrays") from None
-        for name, x in (("state[0] (q)", q), ("state[1] (qd)", qd)):
-            if x.shape != (md.ndof,) or not np.all(np.isfinite(x)):
-                raise InputError(name, f"shape {x.shape}", f"must be {md.ndof} finite numbers")
+        q, qd = state_pair(state, md.ndof)
     im = unl[md.motion[unl] == 1]
     q[md.ia[im]], qd[md.ia[im]] = mot[im, 0], mot[im, 1]
     return q, qd, hold
