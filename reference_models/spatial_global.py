@@ -928,13 +928,6 @@ class _Closure:
     n_eq: int
 
 
-def _mechanism_size(lay: _Layout, fr) -> float:
-    """The mechanism's size (m): the largest distance between the base origin and the link roots
-    and tips at the initial state (the unit of the closure gap's tolerance)."""
-    pts = np.concatenate([lay.base_p[None], fr.p_link.real, fr.p_tip.real])
-    return float(max(np.max(np.linalg.norm(pts[:, None] - pts[None], axis=-1)), 1e-300))
-
-
 def _closure_data(case, lay: _Layout) -> tuple:
     """The closures of the case's model with their constants at the initial state (the drives'
     initial angles, motion drives at t = 0, elastic coordinates zero)."""
@@ -943,7 +936,7 @@ def _closure_data(case, lay: _Layout) -> tuple:
     q0, _ = _initial_state(case, lay)
     q0[lay.presc] = _prescribed(case, 0.0, False)[:, 0]
     fr = _frames(lay, q0)
-    size = _mechanism_size(lay, fr)
+    size = model.size  # the unit of the closures' position tolerance
     out = []
     for c, cl in enumerate(model.closures):
         a = names.index(cl.link)
@@ -961,7 +954,7 @@ def _closure_data(case, lay: _Layout) -> tuple:
                 raise InputError(
                     f"model.closures[{c}].to_point",
                     tuple(cl.to_point),
-                    f"closure {cl.name!r} is open at the initial state by {gap:.3g} m "
+                    f"closure {model.closure_names[c]!r} is open at the initial state by {gap:.3g} m "
                     f"(more than 1e-9 of the mechanism's size {size:.3g} m)",
                 )
         axis = np.array(getattr(cl, "axis", (0.0, 0.0, 1.0)), float)
@@ -974,7 +967,7 @@ def _closure_data(case, lay: _Layout) -> tuple:
         u2 = np.cross(na, u1)
         out.append(
             _Closure(
-                name=cl.name,
+                name=model.closure_names[c],
                 kind=cl.kind,
                 a=a,
                 b=b,
