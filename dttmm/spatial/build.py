@@ -7,7 +7,7 @@ import numpy as np
 
 from ..errors import InputError
 from .kernel.layout import Model, Work
-from .model import SpatialManipulator
+from .model import SpatialManipulator, require_serial
 from .rotation import rpy_matrix
 
 __all__ = ["STRAINS", "build_model", "make_work", "gauss_points"]
@@ -102,6 +102,7 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
     joints (unlocked links only)."""
     if not isinstance(manip, SpatialManipulator):
         raise InputError("model", manip, "must be a dttmm.spatial.SpatialManipulator")
+    require_serial(manip, "the spatial DT-TMM")
     n = manip.n_links
     motion = np.zeros(n, np.int64) if motion is None else np.asarray(motion, np.int64)
     xi, wq = gauss_points()
