@@ -60,6 +60,14 @@ and ``tip_rotation`` R_tip (nt, n, 3, 3); ``meta["q"]``, ``meta["qd"]`` hold the
 with ``cut_loads=True`` the loads at every element root and link tip, by Newton–Euler of the
 bodies outboard of the cut (:func:`cut_loads`).
 
+**Trees and closed loops** (docs/spatial.md "Global solver: trees and loops"): every link's
+frames start from its parent's tip frame (the base for a link on the base); a cut's load sums
+its own link's bodies beyond it and every body in the subtree of its link. A closure adds
+g(q) = 0 (points equal; a revolute two axis equations, a weld three) with its analytic Jacobian
+J; the Newmark family solves the step's equations with Jᵀλ_{n+1} and g(q_{n+1}) = 0 by Newton on
+(q̈, λ) (index 3); RK4 with a closure is refused. ``closure_loads`` (nt, n_closures, 6),
+``closure_residual`` and ``closure_angle_residual`` (nt, n_closures) are returned.
+
 Readings of docs/spatial.md fixed here: the hub is rigid with the link frame R_link (it sits
 before the roll of the element frames); tip deflections and twist use R_link as the root
 frame; the second-order strain only concerns extensible links (inextensible links keep
