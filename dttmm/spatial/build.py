@@ -7,7 +7,7 @@ import numpy as np
 
 from ..errors import InputError
 from .kernel.layout import Model, Work
-from .model import SpatialManipulator, require_serial
+from .model import SpatialManipulator
 from .rotation import rpy_matrix
 
 __all__ = ["STRAINS", "build_model", "make_work", "gauss_points"]
@@ -102,7 +102,6 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
     joints (unlocked links only)."""
     if not isinstance(manip, SpatialManipulator):
         raise InputError("model", manip, "must be a dttmm.spatial.SpatialManipulator")
-    require_serial(manip, "the spatial DT-TMM")
     n = manip.n_links
     motion = np.zeros(n, np.int64) if motion is None else np.asarray(motion, np.int64)
     xi, wq = gauss_points()
@@ -225,6 +224,7 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         rb_m=rb_m,
         rb_c=rb_c,
         rb_J=rb_J,
+        par=np.array(manip.parents, np.int64),
     )
 
 
@@ -257,6 +257,9 @@ def make_work(md: Model) -> Work:
         acc=z((n, 3)),
         slope=z(n),
         wdF=z((n, 3)),
+        Pacc=z((n + 1, 6, 7)),
+        nacc=np.zeros(n + 1, np.int64),
+        Atip=z((n + 1, 6)),
         M12=z((12, 12)),
         r12=z(12),
         E3=z((3, 3)),

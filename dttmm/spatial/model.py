@@ -30,6 +30,7 @@ __all__ = [
     "SpatialSection",
     "embed_planar",
     "require_flexible",
+    "require_open_chain",
     "require_serial",
 ]
 
@@ -617,6 +618,14 @@ def require_serial(model: SpatialManipulator, method: str) -> None:
         i = next(i for i, p in enumerate(model.parents) if p != i - 1)
         field_, value = f"model.links[{i}].parent", model.links[i].parent
     raise InputError(field_, value, f"trees and closed loops are not supported by {method} yet")
+
+
+def require_open_chain(model: SpatialManipulator, method: str) -> None:
+    """Refuse a closed loop (a tree runs) for a method that takes no loop closure."""
+    if model.closures:
+        raise InputError(
+            "model.closures", f"{len(model.closures)} closures", f"closed loops are not supported by {method}"
+        )
 
 
 def require_flexible(model: SpatialManipulator, method: str) -> None:

@@ -20,6 +20,7 @@ from ..timegrid import step_schedule
 from .build import STRAINS, build_model, make_work
 from .case import SpatialCase
 from .kernel.core import INPUT_COLS, LOAD_COL
+from .model import require_open_chain
 from .result import SpatialResult
 from .rotation import log_so3
 from .scenario import load_inputs
@@ -250,6 +251,7 @@ def accelerations(
     """
     case = as_spatial_case(case)
     require_open_loop(case, "dttmm.spatial.accelerations")
+    require_open_chain(case.model, "dttmm.spatial.accelerations")
     k = plumbing.elements_per_link(elements_per_link)
     plumbing.choice("strain", strain, STRAINS)
     engine, core, _ = _kernel(engine)
@@ -489,6 +491,7 @@ def simulate(
     )
     engine, core, loop = _kernel(engine)
     _check_closed_loop(case, engine)
+    require_open_chain(case.model, "the spatial DT-TMM")
     check_run_size(case, k, h, cut_loads=cut_loads, energy=energy, shape_points=p)
     md = build_model(case.model, k, strain, _motion_flags(case))
     ws = make_work(md)
@@ -601,7 +604,7 @@ def simulate(
             link_root=root,
             link_tip=tip,
             tip_deflection=defl,
-            end_effector=tip[:, -1, :].copy(),
+            end_effector=tip[:, case.model.end_effector_index, :].copy(),
             wall_time=wall,
             n_steps=int(n_steps),
             meta=dict(meta_),
