@@ -52,8 +52,9 @@ from dttmm import plumbing
 from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult, load_case
-from dttmm.spatial.model import require_flexible, require_serial
+from dttmm.spatial.model import require_flexible
 from dttmm.spatial.rotation import log_so3
+from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
 from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
 from ._spatial_mechanics import rot_axis, rpy_matrix
@@ -102,10 +103,13 @@ def reference_frames(case: SpatialCase):
     the joint axis in the world."""
     m = case.model
     alpha, rate = _initial_joint_states(case)
-    R_par, p_par = rpy_matrix(m.base_rpy), np.array(m.base_xyz, float)
-    om = np.zeros(3)
     out = []
     for i, link in enumerate(m.links):
+        par = m.parents[i]
+        if par < 0:
+            R_par, p_par, om = rpy_matrix(m.base_rpy), np.array(m.base_xyz, float), np.zeros(3)
+        else:
+            R_par, p_par, om = out[par]["R_tip"], out[par]["p_tip"], out[par]["omega"]
         j = link.joint
         R_J = R_par @ rpy_matrix(j.origin_rpy)
         p_J = p_par + R_par @ np.array(j.origin_xyz, float)
@@ -118,8 +122,15 @@ def reference_frames(case: SpatialCase):
         out.append(
             dict(R_J=R_J, p_J=p_J, R_link=R_l, p_link=p_J, R_tip=R_l, p_tip=p_t, omega=om.copy(), a_w=aw)
         )
-        R_par, p_par = R_l, p_t
     return out
+
+
+def _ancestors(model, i) -> list:
+    """Link i and the links it hangs from, base first."""
+    out = [i]
+    while model.parents[out[-1]] >= 0:
+        out.append(model.parents[out[-1]])
+    return out[::-1]
 
 
 def _piecewise(times, values):
@@ -183,6 +194,28 @@ def _all_loads(case, tip_loads):
     return world + [(*x, True) for x in _follower_loads(case)]
 
 
+def _closure_frames(case, frames) -> list:
+    """Per closure of the case (docs/spatial.md "Trees and closed loops"): the joint frame at the
+    initial state in ``link``'s and ``to``'s tip frames (rotation with z along a revolute's axis,
+    origin the closure point; world components for the ground) and the constrained axes of its
+    ``ObjectJointGeneric`` (revolute: all but the rotation about z; spherical: the translations;
+    weld: all six)."""
+    model = case.model
+    out = []
+    for cl in model.closures:
+        a = model.link_index(cl.link)
+        b = -1 if cl.to == "ground" else model.link_index(cl.to)
+        Ra, xa0 = frames[a]["R_tip"], frames[a]["p_tip"]
+        Rb, xb0 = (frames[b]["R_tip"], frames[b]["p_tip"]) if b >= 0 else (np.eye(3), np.zeros(3))
+        pa = np.array(cl.point, float)
+        x = xa0 + Ra @ pa
+        pb = Rb.T @ (x - xb0) if cl.to_point is None else np.array(cl.to_point, float)
+        A = _axis_frame(np.array(cl.axis, float) / np.linalg.norm(cl.axis))
+        axes = {"revolute": [1, 1, 1, 1, 1, 0], "spherical": [1, 1, 1, 0, 0, 0], "weld": [1] * 6}[cl.kind]
+        out.append(dict(a=a, b=b, pa=pa, pb=pb, Ra=A, Rb=Rb.T @ Ra @ A, axes=axes))
+    return out
+
+
 def _build(case, k, shear_ratio, node, loads):
     """The Exudyn system of ``case`` (not assembled) and the handles the outputs need."""
     import exudyn as exu
@@ -239,9 +272,10 @@ def _build(case, k, shear_ratio, node, loads):
         nodes = []
         for j in range(k + 1):
             p = fr["p_link"] + fr["R_link"] @ np.array([j * l, 0.0, 0.0])
+            rates = _initial_joint_states(case)[1]
             v = sum(
-                (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * r_)
-                for m_, r_ in zip(range(i + 1), _initial_joint_states(case)[1][: i + 1])
+                (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * rates[m_])
+                for m_ in _ancestors(model, i)
             ) + np.zeros(3)
             if node == "EP":
                 ep = np.array(RotationMatrix2EulerParameters(Rn))
@@ -307,12 +341,13 @@ def _build(case, k, shear_ratio, node, loads):
     drives = iter(sc.drives)
     for i, link in enumerate(model.links):
         fr, j = frames[i], link.joint
-        if i == 0:
+        par = model.parents[i]
+        if par < 0:
             parent, R_pn, p_pn = ground, np.eye(3), np.zeros(3)
         else:
-            parent = tip_nodes[i - 1]
-            R_pn = frames[i - 1]["R_tip"] @ rolls[i - 1]
-            p_pn = frames[i - 1]["p_tip"]
+            parent = tip_nodes[par]
+            R_pn = frames[par]["R_tip"] @ rolls[par]
+            p_pn = frames[par]["p_tip"]
         A = np.eye(3) if j.locked else _axis_frame(j.axis)
         # marker 0: the joint frame R_J·A at p_J in the parent's node frame
         m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
@@ -335,7 +370,7 @@ def _build(case, k, shear_ratio, node, loads):
             mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 1, 1, 1, 0]))
             a = np.array(j.axis, float)
             targets = [(root_nodes[i], rolls[i].T @ a)]
-            if i > 0:
+            if par >= 0:
                 targets.append((parent, -(R_pn.T @ fr["R_J"] @ a)))
             for nd, vec in targets:
                 ld = mbs.AddLoad(
@@ -344,6 +379,17 @@ def _build(case, k, shear_ratio, node, loads):
                     )
                 )
                 inputs.append((ld, d.torque, vec))
+    closures = []
+    for cl in _closure_frames(case, frames):  # the loops, each closed by a joint
+        a, b = cl["a"], cl["b"]
+        ma = rigid_marker(tip_nodes[a], rolls[a].T @ cl["Ra"], rolls[a].T @ cl["pa"])
+        if b < 0:
+            mb = rigid_marker(ground, cl["Rb"], cl["pb"])
+        else:
+            mb = rigid_marker(tip_nodes[b], rolls[b].T @ cl["Rb"], rolls[b].T @ cl["pb"])
+        closures.append(
+            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[mb, ma], constrainedAxes=cl["axes"]))
+        )
     for i, F, T, law, follower in loads:
         mk = rigid_marker(tip_nodes[i])
         if follower:  # tip-frame components -> the node frame R_tip Rx(roll)
@@ -371,6 +417,7 @@ def _build(case, k, shear_ratio, node, loads):
         bodies=bodies,
         rolls=rolls,
         motion_joints=motion_joints,
+        closures=closures,
         inputs=inputs,
         set_inputs=set_inputs,
         kmax=kmax,
@@ -388,7 +435,6 @@ def check_case(case):
                 "scenario.drives", d.law.name, f"closed-loop drives are not supported by {METHOD}"
             )
     require_flexible(case.model, METHOD)
-    require_serial(case.model, METHOD)
     for i, link in enumerate(case.model.links):
         if link.beam.damping:
             raise InputError(
@@ -685,11 +731,12 @@ def simulate(
         j = model.links[i].joint
         a = np.array(j.axis, float)
         R_rpy = rpy_matrix(j.origin_rpy)
-        if i == 0:
+        par = model.parents[i]
+        if par < 0:
             R_par = np.broadcast_to(rpy_matrix(model.base_rpy), (nt, 3, 3))
             w_par = np.zeros((nt, 3))
         else:
-            R_par, w_par = Rt[:, i - 1], w_tip[:, i - 1]
+            R_par, w_par = Rt[:, par], w_tip[:, par]
         R_J = R_par @ R_rpy
         rel = np.einsum("tji,tjk->tik", R_J, Rl[:, i])
         vee = 0.5 * np.stack(
@@ -755,6 +802,11 @@ def simulate(
     if shape_points:
         nodes = [[np.hstack([stored(x) for x in node_]) for node_ in link] for link in s_shape]
         shapes = spatial_link_shapes(case, nodes, shape_points)
+    if model.closures:  # the loops' gaps at the tip frames (what the closing joints hold)
+        rc = resolve_closures(model, *rigid_tip_frames(model, initial_angles(case)))
+        gaps = [closure_gaps(rc, Rt[t_], tip[t_]) for t_ in range(nt)]
+        meta["closure_residual"] = np.array([g_[0] for g_ in gaps])
+        meta["closure_angle_residual"] = np.array([g_[1] for g_ in gaps])
     return SpatialResult(
         t=t_out,
         link_shapes=shapes,
@@ -764,7 +816,7 @@ def simulate(
         link_root=root,
         link_tip=tip,
         tip_deflection=defl,
-        end_effector=tip[:, -1].copy(),
+        end_effector=tip[:, model.end_effector_index].copy(),
         wall_time=wall,
         n_steps=steps,
         meta=meta,
