@@ -5,6 +5,7 @@ file, the engines that refuse them, the tree sweep of the spatial DT-TMM and its
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import tomllib
 from pathlib import Path
 
@@ -210,6 +211,36 @@ def test_rigid_tree_accelerations_equal_pinocchio():
     assert worst < 1e-12, worst
 
 
+@pytest.mark.parametrize("f", [1e3, 1e4])
+def test_stiff_tree_approaches_pinocchio(f):
+    """The branched arm with every stiffness × f (k = 2, Newmark, h = 5e-4, 0.2 s) against
+    Pinocchio's rigid tree (same parents; ABA integrated by SciPy's DOP853): the joint angles
+    differ by the links' elastic compliance, which falls as 1/f."""
+    pin = pytest.importorskip("pinocchio")
+    from scipy.integrate import solve_ivp
+
+    case = _short(_stiffened(load_case(BRANCHED), f), 0.2, 0.01)
+    r = sp.simulate(case, elements_per_link=2, h=5e-4)
+    pm = _pin_tree(case.model)
+    pd = pm.createData()
+    drives = case.scenario.drives
+
+    def rhs(t, y):
+        tau = np.array([d.torque(t) for d in drives])
+        return np.concatenate([y[4:], pin.aba(pm, pd, y[:4], y[4:], tau)])
+
+    bps = sorted({b for d in drives for b in d.law.breakpoints if b < 0.2} | {0.0, 0.2})
+    y, ref = np.zeros(8), np.zeros((r.t.size, 4))
+    for a, b in itertools.pairwise(bps):
+        sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-12, atol=1e-13, dense_output=True)
+        sel = (r.t >= a) & (r.t <= b)
+        ref[sel] = sol.sol(r.t[sel])[:4].T
+        y = sol.y[:, -1]
+    err = np.max(np.abs(r.joint_angle - ref))
+    assert np.max(np.abs(ref)) > 0.05
+    assert err < {1e3: 1e-3, 1e4: 1e-4}[f], (f, err)
+
+
 def test_explicit_parents_change_nothing():
     """A chain written with explicit `parent` keys runs bit for bit as the same chain without."""
     case = _short(load_case(TOPO.parent / "three_joint_arm.toml"), 0.02, 0.005)
@@ -222,3 +253,91 @@ def test_explicit_parents_change_nothing():
     a, b = sp.simulate(case, **kw), sp.simulate(named, **kw)
     for name in ("joint_angle", "joint_torque", "link_tip", "end_effector", "cut_loads", "energy", "twist"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+# ------------------------------------------------------------------ closed loops --------------
+
+FIVE_BAR = TOPO / "five_bar.toml"
+
+
+def _stiffened(case, f):
+    """Every link's stiffnesses (EA, GJ, EIy, EIz) × f."""
+    links = []
+    for lk in case.model.links:
+        b = lk.beam
+        beam = dataclasses.replace(b, EA=b.EA * f, GJ=b.GJ * f, EIy=b.EIy * f, EIz=b.EIz * f)
+        links.append(dataclasses.replace(lk, beam=beam))
+    return dataclasses.replace(case, model=dataclasses.replace(case.model, links=tuple(links)))
+
+
+def _five_bar_tip(case, t):
+    """The rigid five-bar's distal tip at time t (m): the base angles from the motion laws, the
+    tip where the two distal circles meet on the initial (upper) side."""
+    m = case.model
+    pl, pr = m.links[0], m.links[2]
+    out = []
+    for tt in np.atleast_1d(t):
+        B = []
+        for lk, d in ((pl, case.scenario.drives[0]), (pr, case.scenario.drives[2])):
+            th = lk.joint.origin_rpy[2] + d.motion(float(tt))[0]
+            B.append(np.array(lk.joint.origin_xyz[:2]) + lk.beam.length * np.array([np.cos(th), np.sin(th)]))
+        L = m.links[1].beam.length
+        mid, dv = 0.5 * (B[0] + B[1]), B[1] - B[0]
+        h = np.sqrt(L * L - 0.25 * dv @ dv)
+        nrm = np.array([-dv[1], dv[0]]) / np.linalg.norm(dv)
+        out.append([*(mid + h * nrm), 0.0])
+    return np.array(out)
+
+
+def test_loop_refusals():
+    """A closed loop runs with the Newmark family to the stop rule and open-loop drives; the
+    rest is refused in one line (RK4, fixed or "auto" sweep counts, closed-loop laws, statics,
+    linearisation, the one-state forward dynamics)."""
+    case = _short(load_case(FOUR_BAR), 0.002, 0.001)
+    for kw, field in (({"integrator": "rk4"}, "integrator"), ({"iterations": "auto"}, "iterations")):
+        with pytest.raises(InputError, match=field) as info:
+            sp.simulate(case, elements_per_link=1, h=1e-3, engine="python", **kw)
+        assert "\n" not in str(info.value)
+    pd = dttmm.Drive("torque", dttmm.PD(kp=1.0, kd=0.1, reference=dttmm.Constant(0.0)))
+    drives = (case.scenario.drives[0], pd, case.scenario.drives[2])
+    c2 = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=drives))
+    with pytest.raises(InputError, match=r"scenario.drives\[1\].law"):
+        sp.simulate(c2, elements_per_link=1, h=1e-3, engine="python")
+    with pytest.raises(InputError, match="closed loops are not supported by dttmm.spatial.accelerations"):
+        sp.accelerations(case, 1, np.zeros(3 + 3 * 6), np.zeros(3 + 3 * 6), engine="python")
+    with pytest.raises(InputError, match="not supported by the spatial statics"):
+        sp.statics(case, elements_per_link=1, engine="python")
+
+
+def test_four_bar_closure_holds():
+    """Bauchau's four-bar (k = 2, h = 1e-3, 0.2 s: the crank spun up to −0.6 rad/s): the closure
+    holds at position level to ≤ 1e-10 × the mechanism's size at every output time (step ends),
+    its axis to ≤ 1e-10 rad; the crank follows its law; the tilted joint loads the loop."""
+    case = load_case(FOUR_BAR)
+    r = sp.simulate(case, elements_per_link=2, h=1e-3, cut_loads=True)
+    assert r.status == "ok"
+    size = case.model.size
+    assert np.max(r.closure_residual) <= 1e-10 * size, np.max(r.closure_residual)
+    assert np.max(r.closure_angle_residual) <= 1e-10, np.max(r.closure_angle_residual)
+    law = case.scenario.drives[0]
+    assert np.allclose(r.joint_angle[:, 0], [law.motion(t)[0] for t in r.t], rtol=0, atol=1e-14)
+    assert np.max(np.abs(r.closure_loads)) > 1e-3  # the tilted axis: the links bend against it
+    # the tip cut of BC (the load on its massless outboard side) balances the closure load
+    k = 2
+    tip_bc = 2 * (k + 1) - 1
+    assert np.allclose(r.cut_loads[-1, tip_bc], -r.closure_loads[-1, 0], rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("f", [1e2, 1e3])
+def test_stiff_five_bar_follows_rigid_geometry(f):
+    """The five-bar with every stiffness × f: its distal tip follows the rigid mechanism's
+    closed-form loop-closure geometry (two circles about the driven proximal tips) to within
+    the links' elastic deflection, which falls as 1/f."""
+    case = _short(_stiffened(load_case(FIVE_BAR), f), 0.1, 0.01)
+    r = sp.simulate(case, elements_per_link=2, h=5e-4)
+    ref = _five_bar_tip(case, r.t)
+    err = np.max(np.abs(r.end_effector - ref))
+    travel = np.max(np.abs(ref - ref[0]))
+    assert travel > 0.01
+    assert err < {1e2: 2e-4, 1e3: 2e-5}[f], (f, err)
+    assert np.max(r.closure_residual) <= 1e-10 * case.model.size
