@@ -490,7 +490,7 @@ def test_bauchau_four_bar_holds_its_tilted_revolute():
 # the spatial DT-TMM on trees and loops = this solver
 # ----------------------------------------------------------------------------------------------
 
-TOPOLOGY = [CASES / "spatial" / "topology" / "branched_arm.toml"]
+TOPOLOGY = sorted((CASES / "spatial" / "topology").glob("*.toml"))
 
 
 def _gap(a, b, name):
@@ -500,8 +500,9 @@ def _gap(a, b, name):
 
 
 def _compare(case, k, h, integrator="newmark", cut_loads=False):
-    """DT-TMM and the global solver on one case: the largest gaps of the positions (m), joint
-    angles (rad), closure loads and cut loads (relative to their largest entry)."""
+    """DT-TMM and the global solver on one case: the largest gaps of the positions (m) and
+    joint angles (rad); of the closure loads and cut loads from the first step end on, relative
+    to their largest entry; the DT-TMM's largest loop gap (m)."""
     runs = [
         run(case, elements_per_link=k, h=h, integrator=integrator, cut_loads=cut_loads)
         for run in (dttmm.spatial.simulate, sg.simulate)
@@ -511,11 +512,13 @@ def _compare(case, k, h, integrator="newmark", cut_loads=False):
     a, b = runs
     gaps = {name: _gap(a, b, name) for name in ("link_root", "link_tip", "end_effector", "joint_angle")}
     if case.model.closures:
-        ref = np.max(np.abs(_out(b, "closure_loads")))
-        gaps["closure_loads"] = _gap(a, b, "closure_loads") / ref
-        gaps["closure_residual"] = float(np.max(_out(a, "closure_residual")))
+        ref = np.max(np.abs(b.closure_loads))
+        gaps["closure_loads"] = float(np.max(np.abs(a.closure_loads[1:] - b.closure_loads[1:]))) / ref
+        gaps["closure_residual"] = float(np.max(a.closure_residual))
     if cut_loads:
-        gaps["cut_loads"] = _gap(a, b, "cut_loads") / np.max(np.abs(b.cut_loads))
+        gaps["cut_loads"] = float(np.max(np.abs(a.cut_loads[1:] - b.cut_loads[1:]))) / np.max(
+            np.abs(b.cut_loads)
+        )
     return gaps
 
 
@@ -525,29 +528,87 @@ def _short(case, duration=0.02, output_step=0.005):
     )
 
 
+_POSITIONS = ("link_root", "link_tip", "end_effector", "joint_angle")
+
+
 @pytest.mark.parametrize("path", TOPOLOGY, ids=lambda p: p.stem)
 def test_dttmm_equals_global_on_the_shipped_topology_cases(path):
     """Every shipped tree and loop case, its first 0.02 s, k = 2, h = 1 ms, Newmark: the
     spatial DT-TMM's link roots and tips, end effector and joint angles equal the global
-    solver's to 1e-9 (m, rad); the closure loads to 1e-7 of their largest; the DT-TMM's loop
-    gaps ≤ 1e-10 of the mechanism's size. Measured: branched_arm 1.1e-16 m, 2.1e-17 rad (over
-    0.1 s: 2.2e-16 m, 3.6e-16 rad)."""
+    solver's to 1e-9 (m, rad), the DT-TMM's loop gaps ≤ 1e-10 of the mechanism's size.
+    Measured: branched_arm 1.1e-16 m, 2.1e-17 rad (over 0.1 s: 2.2e-16 m, 3.6e-16 rad);
+    five_bar 1.1e-16 m, 1.9e-15 rad; four_bar 4.7e-14 m, 2.8e-12 rad (see the closure-load
+    test below: the gap grows with the loads, 2.1e-9 m at 0.1 s)."""
     case = _short(dttmm.load_case(path))
     gaps = _compare(case, 2, 1e-3)
-    assert max(gaps[n] for n in ("link_root", "link_tip", "end_effector", "joint_angle")) <= 1e-9, gaps
+    assert max(gaps[n] for n in _POSITIONS) <= 1e-9, gaps
     if case.model.closures:
-        assert gaps["closure_loads"] <= 1e-7 and gaps["closure_residual"] <= 1e-10 * case.model.size, gaps
+        assert gaps["closure_residual"] <= 1e-10 * case.model.size, gaps
+
+
+_TILTED = (
+    "the DT-TMM's revolute closure moment has a component along the joint's axis (measured on four_bar: "
+    "8e-8 … 2.3e-4 of the moment over 0.09 s; the global solver's: 1e-17)"
+)
+
+
+@pytest.mark.parametrize(
+    "name", ["five_bar", pytest.param("four_bar", marks=pytest.mark.xfail(strict=True, reason=_TILTED))]
+)
+def test_dttmm_closure_and_cut_loads_equal_global(name):
+    """The loop cases, 0.02 s, k = 2, h = 1 ms: the closure loads and cut loads (from the first
+    step end on) equal the global solver's to 1e-8 of their largest (five_bar measured 6.8e-10
+    and 2.5e-10); on four_bar the DT-TMM's revolute closure at the tilted joint C transmits a
+    moment about its own axis, which a revolute joint cannot (the global solver's moment is
+    perpendicular to the axis to 1e-17): closure loads 2.1e-6 apart at 0.02 s."""
+    case = _short(dttmm.load_case(CASES / "spatial" / "topology" / f"{name}.toml"))
+    gaps = _compare(case, 2, 1e-3, cut_loads=True)
+    assert gaps["closure_loads"] <= 1e-8 and gaps["cut_loads"] <= 1e-8, gaps
+
+
+@pytest.mark.xfail(strict=True, reason=_TILTED)
+def test_dttmm_revolute_closure_transmits_no_moment_about_its_axis():
+    """A revolute joint turns freely about its axis: the moment the closure at C of the shipped
+    four-bar transmits has no component along R_tip,BC·axis (relative to its magnitude ≤ 1e-9,
+    over 0.1 s, k = 2, h = 1 ms); the global solver's is 1e-17."""
+    case = _short(dttmm.load_case(CASES / "spatial" / "topology" / "four_bar.toml"), 0.1, 0.01)
+    axis = np.array(case.model.closures[0].axis)
+    res = dttmm.spatial.simulate(case, elements_per_link=2, h=1e-3)
+    n = np.einsum("tij,j->ti", res.tip_rotation[1:, 1], axis)
+    M = res.closure_loads[1:, 0, 3:]
+    assert np.max(np.abs(np.einsum("ti,ti->t", M, n)) / np.linalg.norm(M, axis=1)) <= 1e-9
+
+
+@pytest.mark.xfail(
+    strict=True, reason="the DT-TMM samples its closure loads at t = 0 from the first step end"
+)
+def test_dttmm_closure_loads_at_the_start_are_the_initial_state_s():
+    """At t = 0 the closure loads are those of the initial state's forward dynamics (closures at
+    acceleration level), as the global solver's (the crank-rocker released in gravity: λ_0 =
+    (0.020, 0.052) N where the first step end has (0.051, 0.194) N)."""
+    model, _ = four_bar()
+    case = _case(model, [Drive("torque", Constant(0.0))] * 3, 0.01, 0.005)
+    a = dttmm.spatial.simulate(case, elements_per_link=1, h=1e-3)
+    b = sg.simulate(case, elements_per_link=1, h=1e-3)
+    np.testing.assert_allclose(a.closure_loads[0], b.closure_loads[0], rtol=1e-8, atol=1e-12)
 
 
 @pytest.mark.parametrize("integrator", ["newmark", "generalized-alpha"])
-def test_dttmm_equals_global_on_the_test_tree(integrator):
+def test_dttmm_equals_global_on_the_test_tree_and_loop(integrator):
     """The tree of five flexible links (branches at a tip and at the base, payloads, a rotated
-    base, gravity) under joint torques, 0.02 s, k = 2, h = 1 ms: DT-TMM = the global solver to
-    1e-9 (m, rad; measured 1.1e-16 m, 2.4e-17 rad); the cut loads to 1e-9 of their largest
-    (measured 1.3e-14)."""
+    base, gravity) under joint torques, and the crank-rocker released in gravity, 0.02 s,
+    k = 2, h = 1 ms: DT-TMM = the global solver to 1e-9 (m, rad; measured 1.1e-16 m,
+    3.8e-15 rad); cut and closure loads (from the first step end) to 1e-8 of their largest
+    (measured 1.3e-14 on the tree, 2.0e-10 and 1.0e-10 on the loop)."""
     drives = [Drive("torque", Sine(a, 3.0)) for a in (0.5, 0.3, -0.3, 0.1, 0.2)]
     gaps = _compare(_case(tree(), drives, 0.02, 0.005), 2, 1e-3, integrator, cut_loads=True)
     assert max(gaps.values()) <= 1e-9, gaps
+    model, _ = four_bar()
+    gaps = _compare(
+        _case(model, [Drive("torque", Constant(0.0))] * 3, 0.02, 0.005), 2, 1e-3, integrator, True
+    )
+    assert max(gaps[n] for n in _POSITIONS) <= 1e-9, gaps
+    assert gaps["closure_loads"] <= 1e-8 and gaps["cut_loads"] <= 1e-8, gaps
 
 
 # ----------------------------------------------------------------------------------------------
