@@ -675,7 +675,7 @@ def test_exudyn_four_bar_mid_span_deflection_over_the_paper_s_duration():
     deflection of BC (its centre line's midpoint minus its chord's, world z) from Exudyn's GE
     beam at k = 8, h = 1 ms (ρ∞ = 0.8) is within 2e-6 m of the global solver's −4.3951e-4 m at
     t = 7.96 s (k = 2, h = 1 ms, a 614 s run, its loop gap ≤ 2.3e-16 m; Exudyn k = 8:
-    −4.4029e-4 m, k = 16: −4.3972e-4 m, extrapolated −4.3953e-4 m). About 40 s."""
+    −4.4029e-4 m, k = 16: −4.3972e-4 m, extrapolated −4.3953e-4 m). About 25 s."""
     pytest.importorskip("exudyn")
     from reference_models import exudyn_beam3d as eb
 
