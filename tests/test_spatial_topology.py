@@ -211,11 +211,9 @@ def test_rigid_tree_accelerations_equal_pinocchio():
     assert worst < 1e-12, worst
 
 
-@pytest.mark.parametrize("f", [1e3, 1e4])
-def test_stiff_tree_approaches_pinocchio(f):
-    """The branched arm with every stiffness × f (k = 2, Newmark, h = 5e-4, 0.2 s) against
-    Pinocchio's rigid tree (same parents; ABA integrated by SciPy's DOP853): the joint angles
-    differ by the links' elastic compliance, which falls as 1/f."""
+def _tree_gap(f):
+    """max |joint angle − Pinocchio's| (rad) of the branched arm with every stiffness × f (k = 2,
+    Newmark, h = 5e-4, 0.2 s), and the largest joint angle."""
     pin = pytest.importorskip("pinocchio")
     from scipy.integrate import solve_ivp
 
@@ -236,9 +234,18 @@ def test_stiff_tree_approaches_pinocchio(f):
         sel = (r.t >= a) & (r.t <= b)
         ref[sel] = sol.sol(r.t[sel])[:4].T
         y = sol.y[:, -1]
-    err = np.max(np.abs(r.joint_angle - ref))
-    assert np.max(np.abs(ref)) > 0.05
-    assert err < {1e3: 1e-3, 1e4: 1e-4}[f], (f, err)
+    return float(np.max(np.abs(r.joint_angle - ref))), float(np.max(np.abs(ref)))
+
+
+def test_stiff_tree_approaches_pinocchio():
+    """The branched arm with every stiffness × 1e3 and × 1e4 against Pinocchio's rigid tree
+    (same parents; ABA integrated by SciPy's DOP853, rtol 1e-12): the joint angles (up to
+    0.9 rad) differ by the links' compliance, which falls as 1/stiffness (measured 8.8e-5 and
+    9.3e-6 rad; 8.6e-4 at × 1e2)."""
+    soft, swing = _tree_gap(1e3)
+    stiff, _ = _tree_gap(1e4)
+    assert swing > 0.5
+    assert soft < 1.5e-4 and stiff < 1.5e-5 and 7 < soft / stiff < 13, (soft, stiff)
 
 
 def test_explicit_parents_change_nothing():
@@ -298,7 +305,9 @@ def test_loop_refusals():
         with pytest.raises(InputError, match=field) as info:
             sp.simulate(case, elements_per_link=1, h=1e-3, engine="python", **kw)
         assert "\n" not in str(info.value)
-    pd = dttmm.Drive("torque", dttmm.PD(kp=1.0, kd=0.1, reference=dttmm.Constant(0.0)))
+    from dttmm.drives import PD
+
+    pd = dttmm.Drive("torque", PD(1.0, 0.1, dttmm.Constant(0.0)))
     drives = (case.scenario.drives[0], pd, case.scenario.drives[2])
     c2 = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=drives))
     with pytest.raises(InputError, match=r"scenario.drives\[1\].law"):
@@ -328,16 +337,20 @@ def test_four_bar_closure_holds():
     assert np.allclose(r.cut_loads[-1, tip_bc], -r.closure_loads[-1, 0], rtol=1e-6, atol=1e-9)
 
 
-@pytest.mark.parametrize("f", [1e2, 1e3])
-def test_stiff_five_bar_follows_rigid_geometry(f):
-    """The five-bar with every stiffness × f: its distal tip follows the rigid mechanism's
-    closed-form loop-closure geometry (two circles about the driven proximal tips) to within
-    the links' elastic deflection, which falls as 1/f."""
+def _five_bar_gap(f):
     case = _short(_stiffened(load_case(FIVE_BAR), f), 0.1, 0.01)
     r = sp.simulate(case, elements_per_link=2, h=5e-4)
     ref = _five_bar_tip(case, r.t)
-    err = np.max(np.abs(r.end_effector - ref))
-    travel = np.max(np.abs(ref - ref[0]))
-    assert travel > 0.01
-    assert err < {1e2: 2e-4, 1e3: 2e-5}[f], (f, err)
     assert np.max(r.closure_residual) <= 1e-10 * case.model.size
+    return float(np.max(np.abs(r.end_effector - ref))), float(np.max(np.abs(ref - ref[0])))
+
+
+def test_stiff_five_bar_follows_rigid_geometry():
+    """The five-bar with every stiffness × 10 and × 100 (k = 2, h = 5e-4, 0.1 s): its distal
+    tip follows the rigid mechanism's closed-form loop-closure geometry (where the circles about
+    the driven proximal tips cross) to within the links' deflection, which falls as 1/stiffness
+    (measured 3.1e-6 and 3.0e-7 m while the tip travels 0.04 m; 1.1e-4 m unstiffened)."""
+    soft, travel = _five_bar_gap(10.0)
+    stiff, _ = _five_bar_gap(100.0)
+    assert travel > 0.03
+    assert soft < 5e-6 and stiff < 5e-7 and 7 < soft / stiff < 14, (soft, stiff)
