@@ -416,3 +416,15 @@ def test_tree_with_closed_loop_and_motion_drives_equals_global_solver():
     assert np.max(np.abs(r.link_tip - g.link_tip)) < 1e-12
     assert np.max(np.abs(r.joint_torque - g.joint_torque)) < 1e-9
     assert np.max(np.abs(r.joint_torque[:, 2])) > 0.1 and np.max(np.abs(r.joint_torque[:, 3])) > 0.05
+
+
+def test_planar_five_bar_through_dttmm_simulate():
+    """`dttmm.load_case` and `dttmm.simulate` take a loop case (a planar mechanism written as a
+    spatial case, every axis z) and hand it to the spatial kernel: the same arrays as
+    dttmm.spatial.simulate; the motion stays in the plane."""
+    case = _short(dttmm.load_case(FIVE_BAR), 0.02, 0.01)
+    a = dttmm.simulate(case, elements_per_link=2, h=1e-3)
+    b = sp.simulate(case, elements_per_link=2, h=1e-3)
+    for name in ("link_tip", "joint_angle", "joint_torque", "closure_loads", "closure_residual"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert np.max(np.abs(a.link_tip[..., 2])) == 0.0
