@@ -313,13 +313,13 @@ def _check_closures(case: SpatialCase, integrator: str, iters) -> None:
             )
 
 
-def _closure_samples(ts, t_end, lamh, nc):
-    """The closure loads (nt, nc, 6) on the output grid: λ of each step end, linear between
-    step ends (0 at t = 0 before the first step: the loop starts at rest, unloaded)."""
+def _closure_samples(ts, t_end, lam0, lamh, nc):
+    """The closure loads (nt, nc, 6) on the output grid: λ_0 at t = 0, λ of each step end,
+    linear between them."""
     tt = np.concatenate(([0.0], t_end))
     out = np.zeros((ts.size, 6 * nc))
     for c in range(6 * nc):
-        out[:, c] = np.interp(ts, tt, np.concatenate(([lamh[0, c] if lamh.shape[0] else 0.0], lamh[:, c])))
+        out[:, c] = np.interp(ts, tt, np.concatenate(([lam0[c]], lamh[:, c])))
     return out.reshape(ts.size, nc, 6)
 
 
@@ -572,6 +572,7 @@ def simulate(
         ok0 = loop.start(md, ws, opts, drv, cw, q, qd, qdd, torque0, z, zerr)
     if not ok0:
         raise InputError("case", case.name or "<case>", "the system is singular at t = 0")
+    lam0 = cw.cl.lam.copy()  # the closure loads at t = 0 (none without closures)
     aux = qdd.copy()
     ts = sc.output_times
     nt = ts.size
@@ -634,7 +635,7 @@ def simulate(
         sel = slice(0, upto_)
         lam = None
         if rc is not None:
-            lam = _closure_samples(ts[sel], t_end, cw.cl.lamh, len(case.model.closures))
+            lam = _closure_samples(ts[sel], t_end, lam0, cw.cl.lamh, len(case.model.closures))
         root, tip, Rl, Rt, defl, twist, en, loads, link_shapes = _outputs(
             core,
             md,

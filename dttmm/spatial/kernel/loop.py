@@ -714,6 +714,17 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload):
     kinematics; the accelerations are affine in λ), then the sweep with that λ into ``xn``."""
     m = cl.g.shape[0]
     closure_geometry(ws, cl)
+    # λ in the directions of this iterate (orthonormal per closure): a revolute closure's
+    # moment stays perpendicular to its current axis (no moment about it)
+    mu = np.zeros(m)
+    for c in range(m):
+        for r in range(cl.B.shape[0]):
+            mu[c] += cl.B[r, c] * cl.lam[r]
+    for r in range(cl.lam.shape[0]):
+        t = 0.0
+        for c in range(m):
+            t += cl.B[r, c] * mu[c]
+        cl.lam[r] = t
     if cq == 0.0:
         # the forward dynamics (the initial state): the relative accelerations vanish,
         # Bᵀ rel(λ) = 0, in place of the position condition
