@@ -537,8 +537,8 @@ def test_dttmm_equals_global_on_the_shipped_topology_cases(path):
     spatial DT-TMM's link roots and tips, end effector and joint angles equal the global
     solver's to 1e-9 (m, rad), the DT-TMM's loop gaps ≤ 1e-10 of the mechanism's size.
     Measured: branched_arm 1.1e-16 m, 2.1e-17 rad (over 0.1 s: 2.2e-16 m, 3.6e-16 rad);
-    five_bar 1.1e-16 m, 1.9e-15 rad; four_bar 4.7e-14 m, 2.8e-12 rad (see the closure-load
-    test below: the gap grows with the loads, 2.1e-9 m at 0.1 s)."""
+    five_bar 1.1e-16 m, 1.9e-15 rad; four_bar 2.8e-17 m, 4.0e-16 rad (over 0.1 s: 8.3e-17 m,
+    1.6e-15 rad)."""
     case = _short(dttmm.load_case(path))
     gaps = _compare(case, 2, 1e-3)
     assert max(gaps[n] for n in _POSITIONS) <= 1e-9, gaps
@@ -546,31 +546,21 @@ def test_dttmm_equals_global_on_the_shipped_topology_cases(path):
         assert gaps["closure_residual"] <= 1e-10 * case.model.size, gaps
 
 
-_TILTED = (
-    "the DT-TMM's revolute closure moment has a component along the joint's axis (measured on four_bar: "
-    "8e-8 … 2.3e-4 of the moment over 0.09 s; the global solver's: 1e-17)"
-)
-
-
-@pytest.mark.parametrize(
-    "name", ["five_bar", pytest.param("four_bar", marks=pytest.mark.xfail(strict=True, reason=_TILTED))]
-)
+@pytest.mark.parametrize("name", ["five_bar", "four_bar"])
 def test_dttmm_closure_and_cut_loads_equal_global(name):
     """The loop cases, 0.02 s, k = 2, h = 1 ms: the closure loads and cut loads (from the first
-    step end on) equal the global solver's to 1e-8 of their largest (five_bar measured 6.8e-10
-    and 2.5e-10); on four_bar the DT-TMM's revolute closure at the tilted joint C transmits a
-    moment about its own axis, which a revolute joint cannot (the global solver's moment is
-    perpendicular to the axis to 1e-17): closure loads 2.1e-6 apart at 0.02 s."""
+    step end on) equal the global solver's to 1e-8 of their largest (measured: five_bar 6.8e-10
+    and 2.5e-10, four_bar 3.2e-9 and 4.5e-10)."""
     case = _short(dttmm.load_case(CASES / "spatial" / "topology" / f"{name}.toml"))
     gaps = _compare(case, 2, 1e-3, cut_loads=True)
     assert gaps["closure_loads"] <= 1e-8 and gaps["cut_loads"] <= 1e-8, gaps
 
 
-@pytest.mark.xfail(strict=True, reason=_TILTED)
 def test_dttmm_revolute_closure_transmits_no_moment_about_its_axis():
-    """A revolute joint turns freely about its axis: the moment the closure at C of the shipped
-    four-bar transmits has no component along R_tip,BC·axis (relative to its magnitude ≤ 1e-9,
-    over 0.1 s, k = 2, h = 1 ms); the global solver's is 1e-17."""
+    """A revolute joint turns freely about its axis: the moment the DT-TMM's closure at C of the
+    shipped four-bar (the tilted axis) transmits has no component along R_tip,BC·axis (relative
+    to its magnitude ≤ 1e-9 over 0.1 s, k = 2, h = 1 ms; measured 3.9e-17, the global solver's
+    1e-17)."""
     case = _short(dttmm.load_case(CASES / "spatial" / "topology" / "four_bar.toml"), 0.1, 0.01)
     axis = np.array(case.model.closures[0].axis)
     res = dttmm.spatial.simulate(case, elements_per_link=2, h=1e-3)
@@ -579,13 +569,10 @@ def test_dttmm_revolute_closure_transmits_no_moment_about_its_axis():
     assert np.max(np.abs(np.einsum("ti,ti->t", M, n)) / np.linalg.norm(M, axis=1)) <= 1e-9
 
 
-@pytest.mark.xfail(
-    strict=True, reason="the DT-TMM samples its closure loads at t = 0 from the first step end"
-)
 def test_dttmm_closure_loads_at_the_start_are_the_initial_state_s():
     """At t = 0 the closure loads are those of the initial state's forward dynamics (closures at
-    acceleration level), as the global solver's (the crank-rocker released in gravity: λ_0 =
-    (0.020, 0.052) N where the first step end has (0.051, 0.194) N)."""
+    acceleration level) in both solvers (the crank-rocker released in gravity: λ_0 =
+    (0.020, 0.052) N where the first step end has (0.051, 0.194) N; measured 1e-15 N apart)."""
     model, _ = four_bar()
     case = _case(model, [Drive("torque", Constant(0.0))] * 3, 0.01, 0.005)
     a = dttmm.spatial.simulate(case, elements_per_link=1, h=1e-3)
