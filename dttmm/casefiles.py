@@ -16,7 +16,8 @@ __all__ = ["case_to_dict", "load_case"]
 
 def load_case(path):
     """A :class:`dttmm.Case`, or a :class:`dttmm.spatial.SpatialCase` for a file with
-    ``kind = "spatial"`` or a ``[model]`` naming a ``urdf`` (docs/urdf.md); the name defaults to the file's stem. InputError (one line, naming the
+    ``kind = "spatial"`` or a ``[model]`` naming a ``urdf`` (docs/urdf.md); the name defaults to
+    the file's stem. InputError (one line, naming the
     field and value) for an unreadable file, invalid TOML, or any key or value the schema
     refuses."""
     text = planar.read_case_text(path)

@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field, Strict, ValidationError
+from pydantic import Strict, ValidationError
 
 from .errors import InputError
 from .schema import BIG, Finite, NonNegative, Positive, _short, _Strict, input_error
@@ -415,10 +415,14 @@ def _section_data(ov: FlexibleFile, where: str) -> dict:
     given = [k for k in _BEAM if getattr(ov, k) is not None]
     if ov.section is not None:
         if given:
-            raise InputError(f"{where}.{given[0]}", getattr(ov, given[0]), "give a section or the beam data, not both")
+            raise InputError(
+                f"{where}.{given[0]}", getattr(ov, given[0]), "give a section or the beam data, not both"
+            )
         shapes = {k: v for k, v in ov.section.model_dump().items() if v is not None}
         if len(shapes) != 1:
-            raise InputError(f"{where}.section", _short(shapes), "must give exactly one of tube, rectangle, i_beam")
+            raise InputError(
+                f"{where}.section", _short(shapes), "must give exactly one of tube, rectangle, i_beam"
+            )
         if ov.material is None:
             raise InputError(f"{where}.material", None, "is required with a section")
         mat = ov.material if isinstance(ov.material, str) else ov.material.model_dump(exclude_none=True)
@@ -540,7 +544,9 @@ def read_urdf(
         d = nxt.pos
         length = float(np.linalg.norm(d))
         if length < 1e-6:
-            raise InputError(fw, body.link, f"the next joint '{nxt.joint.name}' is at its joint: no beam length")
+            raise InputError(
+                fw, body.link, f"the next joint '{nxt.joint.name}' is at its joint: no beam length"
+            )
         ra = _beam_frame(d, axis)
         beam = SpatialSection(
             length=length, **_section_data(ov, fw), roll=ov.roll, damping=ov.damping, _where=f"{fw}.beam"
