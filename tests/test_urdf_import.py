@@ -483,7 +483,7 @@ def test_case_file_form(tmp_path):
     beam = case.model.links[0].beam
     assert isinstance(beam, sp.SpatialSection) and beam.length == pytest.approx(0.2)
     assert beam.EIz == pytest.approx(210e9 * math.pi / 64 * (0.02**4 - 0.016**4))
-    assert sp.load_case(tmp_path / "arm.toml") == case
+    assert dttmm.load_case(tmp_path / "arm.toml") == case  # the same file read again
     with pytest.raises(dttmm.InputError, match=r"^model\.flexibel = .*unknown key.*flexible"):
         case_from_urdf_dict(_doc(flexibel={}), tmp_path)
     with pytest.raises(

@@ -245,11 +245,6 @@ def load_case(path) -> SpatialCase:
         raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
     if "name" not in data:
         data["name"] = Path(path).stem
-    model = data.get("model")
-    if isinstance(model, dict) and "urdf" in model:  # a robot from its URDF (docs/urdf.md)
-        from ..urdf_import import case_from_urdf_dict
-
-        return case_from_urdf_dict(data, Path(path).parent)
     return case_from_dict(data)
 
 
