@@ -296,39 +296,44 @@ TUBE = {"tube": {"outer_diameter": 0.085, "wall": 0.004}}
 
 @pytest.mark.parametrize("keep", [True, False])
 def test_overlay_geometry_and_inertia_against_pinocchio(keep):
-    """The UR5 with its upper arm a tube from the shoulder-lift joint to the elbow joint: the
-    rigid limit of the overlaid arm (``reference_models.pinocchio_spatial`` builds it, the beam
-    as a rigid rod) has the joint placements of Pinocchio's URDF model at random angles, and its
-    forward dynamics is ``pin.aba`` of the URDF model whose upper-arm body has the rod added
-    (keep_inertia) or replaced by it, the rod computed here from the URDF's elbow origin d:
-    mass ρA|d| at d/2, inertia about it m|d|²/12 (I − d̂d̂ᵀ) + |d| ρI (I + d̂d̂ᵀ) (a tube)."""
+    """The UR5 with its upper arm and forearm tubes (consecutive flexible links, each from its
+    joint to the next one): the rigid limit of the overlaid arm (``reference_models.
+    pinocchio_spatial`` builds it, each beam a rigid rod) has the joint placements and the tool
+    point of Pinocchio's URDF model at random angles, and its forward dynamics is ``pin.aba`` of
+    the URDF model whose two bodies have their rod added (keep_inertia) or replaced by it, each
+    rod computed here from the URDF's next-joint origin d: mass ρA|d| at d/2, inertia about it
+    m|d|²/12 (I − d̂d̂ᵀ) + |d| ρI (I + d̂d̂ᵀ) (a tube)."""
     _robots()
     pin = pytest.importorskip("pinocchio")
     from reference_models import pinocchio_spatial as ps
 
-    arm = read_urdf(UR5, {"upper_arm_link": {"section": TUBE, "material": "aluminium", "keep_inertia": keep}})
+    overlay = {"section": TUBE, "material": "aluminium", "keep_inertia": keep}
+    arm = read_urdf(UR5, {"upper_arm_link": overlay, "forearm_link": overlay}, tool="tool0")
     case = arm.case(Scenario(1.0, 0.1, tuple(Drive("torque", Sine(0.0, 1.0)) for _ in range(6))))
     mine = ps.build_model(case.model)
     ref = _pin_model(UR5)
-    jid = ref.getJointId("shoulder_lift_joint")
-    d = ref.jointPlacements[ref.getJointId("elbow_joint")].translation.copy()
-    L = np.linalg.norm(d)
-    u = d / L
     ro, ri = 0.0425, 0.0385
     rho_i = ALU[2] * math.pi / 4 * (ro**4 - ri**4)
-    m = ALU[2] * math.pi * (ro**2 - ri**2) * L
-    rod = pin.Inertia(
-        m, d / 2, m * L * L / 12 * (np.eye(3) - np.outer(u, u)) + L * rho_i * (np.eye(3) + np.outer(u, u))
-    )
-    ref.inertias[jid] = (ref.inertias[jid] + rod) if keep else rod
+    for body, nxt in (("shoulder_lift_joint", "elbow_joint"), ("elbow_joint", "wrist_1_joint")):
+        d = ref.jointPlacements[ref.getJointId(nxt)].translation.copy()
+        L = np.linalg.norm(d)
+        u = d / L
+        m = ALU[2] * math.pi * (ro**2 - ri**2) * L
+        rod = pin.Inertia(
+            m, d / 2, m * L * L / 12 * (np.eye(3) - np.outer(u, u)) + L * rho_i * (np.eye(3) + np.outer(u, u))
+        )
+        jid = ref.getJointId(body)
+        ref.inertias[jid] = (ref.inertias[jid] + rod) if keep else rod
     dm, dr = mine.createData(), ref.createData()
+    tool_mine, tool_ref = mine.getFrameId("tip"), ref.getFrameId("tool0")
     rng = np.random.default_rng(4)
     for _ in range(3):
         q, v, tau = rng.normal(size=6), rng.normal(size=6), 10 * rng.normal(size=6)
-        pin.forwardKinematics(mine, dm, q)
-        pin.forwardKinematics(ref, dr, q)
+        pin.framesForwardKinematics(mine, dm, q)
+        pin.framesForwardKinematics(ref, dr, q)
         for j in range(1, 7):
             assert np.max(np.abs(dm.oMi[j].translation - dr.oMi[j].translation)) < 1e-14
+        assert np.max(np.abs(dm.oMf[tool_mine].translation - dr.oMf[tool_ref].translation)) < 1e-14
         ref_a = pin.aba(ref, dr, q, v, tau)
         assert np.max(np.abs(pin.aba(mine, dm, q, v, tau) - ref_a)) < 1e-12 * np.max(np.abs(ref_a))
 
