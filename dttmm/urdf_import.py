@@ -49,9 +49,11 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Strict, ValidationError
 
+from .case import _drive
 from .errors import InputError
 from .schema import BIG, Finite, NonNegative, Positive, _short, _Strict, input_error
 from .sections import IBeam, Material, Rectangle, Tube, section_properties
+from .spatial.case import SpatialCase, SpatialScenarioFile, _load
 from .spatial.model import (
     BoundedVector3,
     SpatialJoint,
@@ -62,12 +64,14 @@ from .spatial.model import (
     Vector3,
 )
 from .spatial.rotation import rpy_matrix
+from .spatial.scenario import SpatialScenario
 
 __all__ = [
     "ROBOTS_PREFIX",
     "FlexibleFile",
     "JointLimits",
     "UrdfArm",
+    "UrdfCaseFile",
     "case_from_urdf_dict",
     "load_urdf",
     "matrix_rpy",
@@ -468,8 +472,6 @@ class UrdfArm:
     def case(self, scenario, name: str | None = None, provenance: dict | None = None):
         """A :class:`dttmm.spatial.SpatialCase` of this arm and ``scenario`` (one drive per
         unlocked joint, in the order of :attr:`joints`); the provenance records the import."""
-        from .spatial.case import SpatialCase
-
         prov = {**(provenance or {}), **self.provenance()}
         return SpatialCase(self.model, scenario, self.name if name is None else name, prov)
 
@@ -616,36 +618,23 @@ class UrdfModelFile(_Strict):
     flexible: dict[str, FlexibleFile] = {}
 
 
-def _case_file():
-    from .spatial.case import SpatialScenarioFile
+class UrdfCaseFile(_Strict):
+    """A whole case file whose arm comes from a URDF (``kind = "spatial"``, optional)."""
 
-    class UrdfCaseFile(_Strict):
-        kind: Literal["spatial"] = "spatial"
-        name: str = ""
-        model: UrdfModelFile
-        scenario: SpatialScenarioFile
-        provenance: dict[str, Any] | None = None
-
-    return UrdfCaseFile
-
-
-_CASE_FILE = None
+    kind: Literal["spatial"] = "spatial"
+    name: str = ""
+    model: UrdfModelFile
+    scenario: SpatialScenarioFile
+    provenance: dict[str, Any] | None = None
 
 
 def case_from_urdf_dict(data: dict, base_dir=None):
     """A :class:`dttmm.spatial.SpatialCase` from a parsed case document whose ``[model]`` names a
     ``urdf`` (a path relative to ``base_dir``, or ``example-robot-data:<path>``)."""
-    global _CASE_FILE
-    from .case import _drive
-    from .spatial.case import _load
-    from .spatial.scenario import SpatialScenario
-
-    if _CASE_FILE is None:
-        _CASE_FILE = _case_file()
     try:
-        spec = _CASE_FILE.model_validate(data)
+        spec = UrdfCaseFile.model_validate(data)
     except ValidationError as exc:
-        raise input_error(exc, _CASE_FILE) from None
+        raise input_error(exc, UrdfCaseFile) from None
     m = spec.model
     try:
         path = resolve_urdf(m.urdf, base_dir)
