@@ -554,3 +554,27 @@ def test_shipped_cases_against_the_exudyn_peer(name, ratio):
         for k in (2, 4)
     ]
     assert gaps[0] < 3e-5 and gaps[0] / gaps[1] > ratio, gaps
+
+
+def test_export_and_import_agree():
+    """``dttmm urdf`` of the shipped flexible Panda (its rigid limit as URDF, written by
+    dttmm/urdf.py) read back by :func:`read_urdf`: the DT-TMM's q̈ of the re-imported rigid arm =
+    ``pin.aba`` of the rigid limit that ``reference_models.pinocchio_spatial`` builds from the
+    flexible case (the beams as rods, the kept bodies, the locked joints welded)."""
+    _robots()
+    pin = pytest.importorskip("pinocchio")
+    from dttmm.urdf import case_to_urdf
+    from reference_models import pinocchio_spatial as ps
+
+    case = dttmm.load_case(ROBOTS / "panda.toml")
+    torques = Scenario(1.0, 0.1, tuple(Drive("torque", Sine(0.0, 1.0)) for _ in range(7)))
+    back = read_urdf(case_to_urdf(case), gravity=case.model.gravity).case(torques)
+    model = ps.build_model(case.model)
+    data = model.createData()
+    rng = np.random.default_rng(6)
+    for _ in range(2):
+        q, v = rng.normal(size=7), rng.normal(size=7)
+        tau = 5 * rng.normal(size=7)
+        ref = pin.aba(model, data, q, v, tau)
+        qdd = sp.accelerations(back, 1, q, v, 0.0, forces=tau, engine="python")
+        assert np.max(np.abs(qdd - ref)) < 1e-11 * np.max(np.abs(ref))
