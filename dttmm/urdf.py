@@ -91,8 +91,10 @@ def _spatial_urdf(case, name):
 
     from .spatial import SpatialCase
     from .spatial.build import rx
+    from .spatial.model import require_serial
 
     model = case.model if isinstance(case, SpatialCase) else case
+    require_serial(model, "the URDF export")
     name = name or (case.name if isinstance(case, SpatialCase) and case.name else "arm")
     robot = ET.Element("robot", name=name)
     g = model.gravity

@@ -57,7 +57,7 @@ from dttmm import plumbing
 from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult, load_case
-from dttmm.spatial.model import require_flexible
+from dttmm.spatial.model import require_flexible, require_serial
 from dttmm.spatial.rotation import log_so3
 
 from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
@@ -112,6 +112,7 @@ def check_case(case, tip_loads=None):
                 "scenario.drives", d.law.name, f"closed-loop drives are not supported by {METHOD}"
             )
     require_flexible(case.model, METHOD)
+    require_serial(case.model, METHOD)
     for i, link in enumerate(case.model.links):
         b = link.beam
         if abs(b.EIy - b.EIz) > _REL * max(b.EIy, b.EIz):

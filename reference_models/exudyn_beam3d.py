@@ -62,6 +62,7 @@ from dttmm.shapes import shape_points as check_shape_points
 from dttmm.shapes import straight_shapes
 from dttmm.spatial import SpatialCase, SpatialResult, load_case
 from dttmm.spatial.rotation import log_so3
+from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
 from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
 from ._spatial_mechanics import rot_axis, rpy_matrix
@@ -110,10 +111,13 @@ def reference_frames(case: SpatialCase):
     the joint axis in the world."""
     m = case.model
     alpha, rate = _initial_joint_states(case)
-    R_par, p_par = rpy_matrix(m.base_rpy), np.array(m.base_xyz, float)
-    om = np.zeros(3)
     out = []
     for i, link in enumerate(m.links):
+        par = m.parents[i]
+        if par < 0:
+            R_par, p_par, om = rpy_matrix(m.base_rpy), np.array(m.base_xyz, float), np.zeros(3)
+        else:
+            R_par, p_par, om = out[par]["R_tip"], out[par]["p_tip"], out[par]["omega"]
         j = link.joint
         R_J = R_par @ rpy_matrix(j.origin_rpy)
         p_J = p_par + R_par @ np.array(j.origin_xyz, float)
@@ -126,8 +130,15 @@ def reference_frames(case: SpatialCase):
         out.append(
             dict(R_J=R_J, p_J=p_J, R_link=R_l, p_link=p_J, R_tip=R_l, p_tip=p_t, omega=om.copy(), a_w=aw)
         )
-        R_par, p_par = R_l, p_t
     return out
+
+
+def _ancestors(model, i) -> list:
+    """Link i and the links it hangs from, base first."""
+    out = [i]
+    while model.parents[out[-1]] >= 0:
+        out.append(model.parents[out[-1]])
+    return out[::-1]
 
 
 def _piecewise(times, values):
@@ -189,6 +200,28 @@ def _all_loads(case, tip_loads):
     """(link, F, T, law, follower) of every tip load of a run."""
     world = [(*x, False) for x in _check_tip_loads(case, tip_loads, followers=True)]
     return world + [(*x, True) for x in _follower_loads(case)]
+
+
+def _closure_frames(case, frames) -> list:
+    """Per closure of the case (docs/spatial.md "Trees and closed loops"): the joint frame at the
+    initial state in ``link``'s and ``to``'s tip frames (rotation with z along a revolute's axis,
+    origin the closure point; world components for the ground) and the constrained axes of its
+    ``ObjectJointGeneric`` (revolute: all but the rotation about z; spherical: the translations;
+    weld: all six)."""
+    model = case.model
+    out = []
+    for cl in model.closures:
+        a = model.link_index(cl.link)
+        b = -1 if cl.to == "ground" else model.link_index(cl.to)
+        Ra, xa0 = frames[a]["R_tip"], frames[a]["p_tip"]
+        Rb, xb0 = (frames[b]["R_tip"], frames[b]["p_tip"]) if b >= 0 else (np.eye(3), np.zeros(3))
+        pa = np.array(cl.point, float)
+        x = xa0 + Ra @ pa
+        pb = Rb.T @ (x - xb0) if cl.to_point is None else np.array(cl.to_point, float)
+        A = _axis_frame(np.array(cl.axis, float) / np.linalg.norm(cl.axis))
+        axes = {"revolute": [1, 1, 1, 1, 1, 0], "spherical": [1, 1, 1, 0, 0, 0], "weld": [1] * 6}[cl.kind]
+        out.append(dict(a=a, b=b, pa=pa, pb=pb, Ra=A, Rb=Rb.T @ Ra @ A, axes=axes))
+    return out
 
 
 def _build(case, k, shear_ratio, node, loads):
@@ -269,8 +302,7 @@ def _build(case, k, shear_ratio, node, loads):
 
     def velocity(i, p):
         return sum(
-            (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * r_)
-            for m_, r_ in zip(range(i + 1), alpha_rates[: i + 1])
+            (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * alpha_rates[m_]) for m_ in _ancestors(model, i)
         ) + np.zeros(3)
 
     for i, link in enumerate(model.links):
@@ -340,12 +372,13 @@ def _build(case, k, shear_ratio, node, loads):
     drives = iter(sc.drives)
     for i, link in enumerate(model.links):
         fr, j = frames[i], link.joint
-        if i == 0:
+        par = model.parents[i]
+        if par < 0:
             parent, R_pn, p_pn = ground, np.eye(3), np.zeros(3)
         else:
-            parent = tip_nodes[i - 1]
-            R_pn = frames[i - 1]["R_tip"] @ rolls[i - 1]
-            p_pn = frames[i - 1]["p_tip"] - frames[i - 1]["R_tip"] @ reach[i - 1]  # the node's position
+            parent = tip_nodes[par]
+            R_pn = frames[par]["R_tip"] @ rolls[par]
+            p_pn = frames[par]["p_tip"] - frames[par]["R_tip"] @ reach[par]  # the node's position
         A = np.eye(3) if j.locked else _axis_frame(j.axis)
         # marker 0: the joint frame R_J·A at p_J in the parent's node frame
         m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
@@ -368,7 +401,7 @@ def _build(case, k, shear_ratio, node, loads):
             mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 1, 1, 1, 0]))
             a = np.array(j.axis, float)
             targets = [(root_nodes[i], rolls[i].T @ a)]
-            if i > 0:
+            if par >= 0:
                 targets.append((parent, -(R_pn.T @ fr["R_J"] @ a)))
             for nd, vec in targets:
                 ld = mbs.AddLoad(
@@ -377,6 +410,18 @@ def _build(case, k, shear_ratio, node, loads):
                     )
                 )
                 inputs.append((ld, d.torque, vec))
+    closures = []
+    for cl in _closure_frames(case, frames):  # the loops, each closed by a joint
+        a, b = cl["a"], cl["b"]
+        # (on a rigid link the tip is at L·x from its node: ``reach``)
+        ma = rigid_marker(tip_nodes[a], rolls[a].T @ cl["Ra"], rolls[a].T @ cl["pa"] + reach[a])
+        if b < 0:
+            mb = rigid_marker(ground, cl["Rb"], cl["pb"])
+        else:
+            mb = rigid_marker(tip_nodes[b], rolls[b].T @ cl["Rb"], rolls[b].T @ cl["pb"] + reach[b])
+        closures.append(
+            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[mb, ma], constrainedAxes=cl["axes"]))
+        )
     for i, F, T, law, follower in loads:
         mk = rigid_marker(tip_nodes[i], None, reach[i])
         if follower:  # tip-frame components -> the node frame R_tip Rx(roll)
@@ -405,6 +450,7 @@ def _build(case, k, shear_ratio, node, loads):
         rolls=rolls,
         reach=reach,
         motion_joints=motion_joints,
+        closures=closures,
         inputs=inputs,
         set_inputs=set_inputs,
         kmax=kmax,
@@ -726,11 +772,12 @@ def simulate(
         j = model.links[i].joint
         a = np.array(j.axis, float)
         R_rpy = rpy_matrix(j.origin_rpy)
-        if i == 0:
+        par = model.parents[i]
+        if par < 0:
             R_par = np.broadcast_to(rpy_matrix(model.base_rpy), (nt, 3, 3))
             w_par = np.zeros((nt, 3))
         else:
-            R_par, w_par = Rt[:, i - 1], w_tip[:, i - 1]
+            R_par, w_par = Rt[:, par], w_tip[:, par]
         R_J = R_par @ R_rpy
         rel = np.einsum("tji,tjk->tik", R_J, Rl[:, i])
         vee = 0.5 * np.stack(
@@ -799,6 +846,11 @@ def simulate(
         if flexible:
             beams = SimpleNamespace(model=SimpleNamespace(links=[model.links[i] for i in flexible]))
             shapes[:, flexible] = spatial_link_shapes(beams, nodes, shape_points)
+    if model.closures:  # the loops' gaps at the tip frames (what the closing joints hold)
+        rc = resolve_closures(model, *rigid_tip_frames(model, initial_angles(case)))
+        gaps = [closure_gaps(rc, Rt[t_], tip[t_]) for t_ in range(nt)]
+        meta["closure_residual"] = np.array([g_[0] for g_ in gaps])
+        meta["closure_angle_residual"] = np.array([g_[1] for g_ in gaps])
     return SpatialResult(
         t=t_out,
         link_shapes=shapes,
@@ -808,7 +860,7 @@ def simulate(
         link_root=root,
         link_tip=tip,
         tip_deflection=defl,
-        end_effector=tip[:, -1].copy(),
+        end_effector=tip[:, model.end_effector_index].copy(),
         wall_time=wall,
         n_steps=steps,
         meta=meta,

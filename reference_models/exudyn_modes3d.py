@@ -24,7 +24,7 @@ import numpy as np
 from dttmm import plumbing
 from dttmm.errors import InputError
 from dttmm.spatial import SpatialCase
-from dttmm.spatial.model import require_flexible
+from dttmm.spatial.model import require_flexible, require_serial
 
 from .exudyn_beam3d import SHEAR_RATIO, _build
 from .exudyn_modes import eigen_frequencies
@@ -49,6 +49,7 @@ def _check(case, elements_per_link, n) -> int:
     if getattr(case.scenario, "loads", ()):
         raise InputError("scenario.loads", "...", "the Exudyn eigenvalues are taken without external loads")
     require_flexible(case.model, METHOD)
+    require_serial(case.model, METHOD)
     for i, lk in enumerate(case.model.links):
         if lk.beam.rhoIy <= 0.0 or lk.beam.rhoIz <= 0.0:
             raise InputError(

@@ -76,7 +76,7 @@ from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import polyline_shapes, stations
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
-from dttmm.spatial.model import require_flexible
+from dttmm.spatial.model import require_flexible, require_serial
 from dttmm.spatial.rotation import log_so3, rpy_matrix
 from dttmm.spatial.scenario import require_no_loads
 from dttmm.timegrid import step_schedule
@@ -552,6 +552,7 @@ def _check(case, k, h, integrator, options):
     require_open_loop(case, METHOD)
     require_no_loads(case, METHOD)
     require_flexible(case.model, METHOD)
+    require_serial(case.model, METHOD)
     return k, h, opts
 
 

@@ -42,6 +42,7 @@ from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.shapes import straight_shapes
 from dttmm.spatial import SpatialCase, SpatialResult
+from dttmm.spatial.model import require_serial
 from dttmm.spatial.scenario import require_no_loads
 from dttmm.timegrid import step_schedule
 
@@ -77,6 +78,7 @@ def link_inertia(link) -> pin.Inertia:
 def build_model(manipulator) -> pin.Model:
     """The rigid spatial arm as a Pinocchio model with gravity set (joint ids 1..n_joints, one
     per unlocked joint, base first)."""
+    require_serial(manipulator, "pinocchio-spatial")
     model = pin.Model()
     parent = 0
     # placement of the parent frame in the parent joint's frame

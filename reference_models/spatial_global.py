@@ -60,6 +60,14 @@ and ``tip_rotation`` R_tip (nt, n, 3, 3); ``meta["q"]``, ``meta["qd"]`` hold the
 with ``cut_loads=True`` the loads at every element root and link tip, by Newton–Euler of the
 bodies outboard of the cut (:func:`cut_loads`).
 
+**Trees and closed loops** (docs/spatial.md "Global solver: trees and loops"): every link's
+frames start from its parent's tip frame (the base for a link on the base); a cut's load sums
+its own link's bodies beyond it and every body in the subtree of its link. A closure adds
+g(q) = 0 (points equal; a revolute two axis equations, a weld three) with its analytic Jacobian
+J; the Newmark family solves the step's equations with Jᵀλ_{n+1} and g(q_{n+1}) = 0 by Newton on
+(q̈, λ) (index 3); RK4 with a closure is refused. ``closure_loads`` (nt, n_closures, 6),
+``closure_residual`` and ``closure_angle_residual`` (nt, n_closures) are returned.
+
 Readings of docs/spatial.md fixed here: the hub is rigid with the link frame R_link (it sits
 before the roll of the element frames); tip deflections and twist use R_link as the root
 frame; the second-order strain only concerns extensible links (inextensible links keep
@@ -71,6 +79,7 @@ schedule, the Newmark-family coefficients, the stop rule of the iteration and th
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -177,6 +186,11 @@ class _Layout:
     motion: np.ndarray  # (nj,) bool
     presc: np.ndarray  # q indices of motion-driven α
     free: np.ndarray
+    # topology
+    parent: np.ndarray  # (n,) the parent link of each link, −1 for the base
+    outboard: np.ndarray  # (n, n) bool: link j lies in the subtree of link i (j ≠ i)
+    end_effector: int = -1  # the link whose tip is the end effector
+    closures: tuple = ()  # (_Closure, …)
 
 
 def _check_case(case) -> SpatialCase:
@@ -264,7 +278,15 @@ def _layout(case, k, strain="linear") -> _Layout:
     D = np.zeros((N, N))
     for e in range(nel):
         D += mu[e] * (sel[e].T @ K_el[e] @ sel[e])
-    return _Layout(
+    parent = np.array(getattr(model, "parents", range(-1, n - 1)), int)
+    outboard = np.zeros((n, n), bool)
+    for j in range(n):  # parents come first: a link's ancestors are marked before it
+        i = parent[j]
+        while i >= 0:
+            outboard[i, j] = True
+            i = parent[i]
+    ee = getattr(model, "end_effector_index", n - 1)
+    lay = _Layout(
         n_links=n,
         k=k,
         n_dof=N,
@@ -305,7 +327,13 @@ def _layout(case, k, strain="linear") -> _Layout:
         motion=motion,
         presc=presc,
         free=np.setdiff1d(np.arange(N), presc),
+        parent=parent,
+        outboard=outboard,
+        end_effector=int(ee),
     )
+    if getattr(model, "closures", ()):
+        lay.closures = _closure_data(case, lay)
+    return lay
 
 
 # ----------------------------------------------------------------------------------------------
@@ -351,11 +379,16 @@ def _frames(lay: _Layout, q: np.ndarray) -> _Frames:
         "Jw_tip": np.empty((n, 3, N), dt),
         "nodes": np.empty((nel, 3), dt),
     }
-    R = lay.base_R.astype(dt)
-    p = lay.base_p.astype(dt)
-    Jr = np.zeros((3, N), dt)
-    Jw = np.zeros((3, N), dt)
+    base = (lay.base_R.astype(dt), lay.base_p.astype(dt), np.zeros((3, N), dt), np.zeros((3, N), dt))
+    R, p, Jr, Jw = base
     for i in range(n):
+        par = lay.parent[i]
+        if par != i - 1:  # a branch: start from the parent's tip frame (the base for −1)
+            R, p, Jr, Jw = (
+                base
+                if par < 0
+                else (out["R_tip"][par], out["p_tip"][par], out["Jr_tip"][par], out["Jw_tip"][par])
+            )
         # joint frame: R_J = R_par R_rpy, p_J = p_par + R_par o
         off = R @ lay.origin_p[i]
         p = p + off
@@ -463,29 +496,36 @@ def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
 
 
 def _cut_table(lay: _Layout):
-    """Cuts (link i: the roots of its k elements, then its tip; (n(k + 1),)) and, for every
-    point-mass and rotary body of :func:`_bodies`, the index of the first cut it is *not*
-    outboard of: a body is outboard of cut c when c < reach. Gauss points of element e lie
-    beyond the roots of elements ≤ e; a hub lies beyond the cuts of the links before its own
-    (it is on the inboard side of its link's root cut); a payload beyond every cut of its link
-    up to and including the link's tip; a rigid link's body beyond its link's root cut only."""
+    """Cuts (link i: the roots of its k elements, then its tip; (n(k + 1),)) and the bodies of
+    :func:`_bodies` (then one more column per link: a load at its tip frame) outboard of each:
+    a bool table (n(k + 1), bodies + n). On its own link a body is outboard of the local cuts
+    below its local reach: Gauss points of element e beyond the roots of elements ≤ e; a hub
+    beyond none (it is on the inboard side of its link's root cut); a payload (and a load at
+    the tip frame) beyond every cut of its link up to and including the link's tip; a rigid
+    link's body beyond its link's root cut only. Every body of a link in the subtree of link i
+    is outboard of every cut of link i."""
     n, k = lay.n_links, lay.k
     nel, ng = lay.m_g.shape
     per = k + 1
     el = np.arange(nel)
-    gauss = np.repeat((el // k) * per + el % k + 1, ng)
-    hub = np.arange(n) * per
-    pay = np.arange(n) * per + per
-    body = np.arange(n) * per + 1
-    return np.concatenate([gauss, hub, pay, body])
+    link = np.concatenate([np.repeat(el // k, ng), np.arange(n), np.arange(n), np.arange(n), np.arange(n)])
+    reach = np.concatenate(
+        [np.repeat(el % k + 1, ng), np.zeros(n, int), np.full(n, per), np.ones(n, int), np.full(n, per)]
+    )
+    cut_link = np.repeat(np.arange(n), per)
+    cut_slot = np.tile(np.arange(per), n)
+    own = (link[None, :] == cut_link[:, None]) & (cut_slot[:, None] < reach[None, :])
+    return own | lay.outboard[cut_link][:, link]
 
 
-def _cut_loads(lay: _Layout, q, qd, qdd, tip_loads=None) -> np.ndarray:
+def _cut_loads(lay: _Layout, q, qd, qdd, tip_loads=None, point_loads=()) -> np.ndarray:
     """Loads (n(k + 1), 6) at the cuts: force and moment about the cut point (W components) that
     the inboard part exerts on the outboard part, by Newton–Euler of the outboard bodies:
     F = Σ m (a − g), M = Σ (r − r_c) × m (a − g) + Σ (I ω̇ + ω × I ω), less the external loads
     ``tip_loads`` (n, 6) (world force and moment at each link's tip point, outboard of every cut
-    of its link up to and including the tip, like a payload)."""
+    of its link up to and including the tip, like a payload) and ``point_loads`` ((link, point,
+    force, moment), …: world components, the moment about the point, at a point fixed in the
+    link's tip frame, with a tip load's reach: the closure loads)."""
     b = _bodies(lay, q + 1j * _EPS * qd)
     fr = _frames(lay, q)
     Jv, Jw = b.Jv.real, b.Jw.real
@@ -500,18 +540,22 @@ def _cut_loads(lay: _Layout, q, qd, qdd, tip_loads=None) -> np.ndarray:
     points = np.concatenate(
         [np.concatenate([fr.rI[i * k : (i + 1) * k], fr.p_tip[i : i + 1]]) for i in range(n)]
     )
-    reach = _cut_table(lay)
+    table = _cut_table(lay)
+    nb = b.m.size
     out = np.zeros((points.shape[0], 6))
     for c, rc in enumerate(points):
-        sel = reach > c
+        sel = table[c, :nb]
         out[c, :3] = force[sel].sum(axis=0)
         out[c, 3:] = np.cross(r[sel] - rc, force[sel]).sum(axis=0) + spin[sel].sum(axis=0)
-    if tip_loads is not None:
-        load_reach = reach[-2 * n : -n]  # a tip load has its link's payload's reach
-        for c, rc in enumerate(points):
-            for i in np.flatnonzero(load_reach > c):
-                out[c, :3] -= tip_loads[i, :3]
-                out[c, 3:] -= np.cross(fr.p_tip[i] - rc, tip_loads[i, :3]) + tip_loads[i, 3:]
+    loads = (
+        [] if tip_loads is None else [(i, fr.p_tip[i], tip_loads[i, :3], tip_loads[i, 3:]) for i in range(n)]
+    )
+    loads += list(point_loads)
+    for c, rc in enumerate(points):
+        for i, at, F, M in loads:
+            if table[c, nb + i]:
+                out[c, :3] -= F
+                out[c, 3:] -= np.cross(at - rc, F) + M
     return out
 
 
@@ -524,6 +568,10 @@ def cut_loads(case, elements_per_link, q, qd, t=0.0, strain="linear") -> np.ndar
     lay = _layout(case, elements_per_link, strain)
     require_open_loop(case, "the spatial global solver")
     q, qd = _as_state(lay, q, "q"), _as_state(lay, qd, "qd")
+    if lay.closures:  # the closures held at acceleration level; their loads act as tip loads
+        qdd, _, lam = _forward_constrained(case, lay, q, qd, float(t), False)
+        points = _closure_loads(lay, q, lam)[1]
+        return _cut_loads(lay, q, qd, qdd, _tip_loads(case, lay, _frames(lay, q), float(t), False), points)
     qdd = _forward(case, lay, q, qd, float(t), False)[0]
     return _cut_loads(lay, q, qd, qdd, _tip_loads(case, lay, _frames(lay, q), float(t), False))
 
@@ -649,9 +697,13 @@ def _initial_state(case, lay: _Layout):
     return q, qd
 
 
-def _forward(case, lay, q, qd, t, left, tau_closed=None):
+def _forward(case, lay, q, qd, t, left, tau_closed=None, lam=None):
     """q̈ of M q̈ = Q − h − f_int − f_d with the motion joints prescribed; their torques.
-    ``tau_closed`` (n_joints,): the torques of the closed-loop joints (as recorded)."""
+    ``tau_closed`` (n_joints,): the torques of the closed-loop joints (as recorded). With
+    closures, ``lam`` (m,) the multipliers as recorded (their force Jᵀλ is added), or None:
+    the closures held at acceleration level, J q̈ + J̇q̇ = 0 (see :func:`_forward_constrained`)."""
+    if lay.closures and lam is None:
+        return _forward_constrained(case, lay, q, qd, t, left)[:2]
     P, F = lay.presc, lay.free
     pres = _prescribed(case, t, left)
     M, f = _assemble(lay, q, qd)
@@ -661,10 +713,28 @@ def _forward(case, lay, q, qd, t, left, tau_closed=None):
         for j, d in enumerate(case.scenario.drives):
             if d.closed_loop:
                 rhs[lay.alpha_idx[lay.joints[j]]] += tau_closed[j]
+    if lay.closures:
+        rhs += _constraints(lay, q)[1].T @ lam
     qdd = np.zeros(lay.n_dof)
     qdd[P] = pres[:, 2]
     qdd[F] = np.linalg.solve(M[np.ix_(F, F)], rhs[F] - M[np.ix_(F, P)] @ qdd[P])
     return qdd, M[P] @ qdd - rhs[P]
+
+
+def _forward_constrained(case, lay, q, qd, t, left):
+    """The forward dynamics of a closed mechanism: M q̈ − Jᵀλ = Q − h − f_int − f_d with the
+    closures at acceleration level, J q̈ = −J̇q̇, the motion joints prescribed. Returns (q̈, the
+    motion joints' torques, λ)."""
+    P, F = lay.presc, lay.free
+    pres = _prescribed(case, t, left)
+    M, f = _assemble(lay, q, qd)
+    rhs = f + _torques(case, lay, t, left) - _elastic(lay, q)[1] - _damping(lay, q, qd)[0]
+    rhs += _load_forces(case, lay, q, t, left)
+    _, J, Jdqd = _constraints(lay, q, qd)
+    x = np.zeros(lay.n_dof)
+    x[P] = pres[:, 2]
+    qdd, lam = _solve(M, rhs, x, P, F, (J, -Jdqd - J[:, P] @ x[P]))
+    return qdd, M[P] @ qdd - rhs[P] - (J.T @ lam)[P], lam
 
 
 def _joint_torques(case, lay, t, left, tau_p, tau_c=None) -> np.ndarray:
@@ -783,22 +853,26 @@ class _Control:
         return out
 
 
-def _solve_closed(lay, ctl, A, rhs, x, P, F, t, left, q, qd, ff, ref, zc, dz, cq, cv):
-    """One solve of A q̈ = rhs with the laws linearised at x (motion joints prescribed in x).
-    Returns (new q̈, the laws' τ at x)."""
+def _solve_closed(lay, ctl, A, rhs, x, P, F, t, left, q, qd, ff, ref, zc, dz, cq, cv, con=None):
+    """One solve of A q̈ = rhs with the laws linearised at x (motion joints prescribed in x),
+    with the closures ``con`` of :func:`_solve`. Returns (new q̈, the laws' τ at x, λ)."""
     A, rhs = A.copy(), rhs.copy()
     tau, slope = ctl.laws_at(t, left, q, qd, x, ff, ref, zc, dz, cq, cv, A, rhs)
-    new = x.copy()
-    new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ x[P])
+    if con is None:
+        new = x.copy()
+        new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ x[P])
+        lam = np.zeros(0)
+    else:
+        new, lam = _solve(A, rhs, x, P, F, con)
     ctl.applied(tau, slope, new, x)
-    return new, tau
+    return new, tau, lam
 
 
 def _forward_closed(case, lay, ctl, q, qd, t, left, opt):
     """:func:`_forward` with the closed-loop laws at time t and the integral states ctl.z: the
     laws' dependence on q̈ (through H; user laws: also their moment) is iterated until
     :func:`dttmm.iteration.stop_rule` holds. Returns (q̈, τ_p, τ of the closed-loop joints
-    (n_joints,), converged)."""
+    (n_joints,), converged, the closure multipliers λ (m,))."""
     P, F = lay.presc, lay.free
     pres = _prescribed(case, t, left)
     M, f = _assemble(lay, q, qd)
@@ -810,8 +884,14 @@ def _forward_closed(case, lay, ctl, q, qd, t, left, opt):
     x[P] = pres[:, 2]
     prev, converged = math.inf, False
     ctl.used[:] = 0.0
+    con, lam = None, np.zeros(0)
+    if lay.closures:
+        _, J, Jdqd = _constraints(lay, q, qd)
+        con = (J, -Jdqd - J[:, P] @ x[P])
     for i in range(opt["max_iterations"]):
-        new, _ = _solve_closed(lay, ctl, M, rhs, x, P, F, t, left, q, qd, ff[0], ref[0], zc, dz, 0.0, 0.0)
+        new, _, lam = _solve_closed(
+            lay, ctl, M, rhs, x, P, F, t, left, q, qd, ff[0], ref[0], zc, dz, 0.0, 0.0, con
+        )
         delta = float(np.max(np.abs(new - x)))
         x = new
         if i > 0:
@@ -823,7 +903,208 @@ def _forward_closed(case, lay, ctl, q, qd, t, left, opt):
     full = ctl.full(tau_c)
     rhs2 = rhs.copy()
     rhs2[ctl.rows] += tau_c
-    return x, M[P] @ x - rhs2[P], full, converged
+    if con is not None:
+        rhs2 += con[0].T @ lam
+    return x, M[P] @ x - rhs2[P], full, converged, lam
+
+
+# ----------------------------------------------------------------------------------------------
+# Closed loops: constraint equations g(q) = 0, their Jacobian, the closure loads
+# ----------------------------------------------------------------------------------------------
+
+_CLOSURE_EQUATIONS = {"spherical": 3, "revolute": 5, "weld": 6}
+
+
+@dataclass
+class _Closure:
+    """One closure, its constants fixed at the initial state: the attachment points in the tip
+    frames of ``a`` (``link``) and ``b`` (``to``, −1: ground, its point in world components);
+    revolute: the axis in a's tip frame and two unit vectors fixed in b's frame perpendicular
+    to it at the initial state (and the axis's image there, for the angle gap); weld: the
+    initial relative rotation C0 = R_aᵀ R_b."""
+
+    name: str
+    kind: str
+    a: int
+    b: int
+    pa: np.ndarray
+    pb: np.ndarray
+    axis: np.ndarray
+    axis_b: np.ndarray
+    u: np.ndarray  # (2, 3)
+    C0: np.ndarray
+    n_eq: int
+
+
+def _closure_data(case, lay: _Layout) -> tuple:
+    """The closures of the case's model with their constants at the initial state (the drives'
+    initial angles, motion drives at t = 0, elastic coordinates zero)."""
+    model = case.model
+    names = list(model.link_names)
+    q0, _ = _initial_state(case, lay)
+    q0[lay.presc] = _prescribed(case, 0.0, False)[:, 0]
+    fr = _frames(lay, q0)
+    size = model.size  # the unit of the closures' position tolerance
+    out = []
+    for c, cl in enumerate(model.closures):
+        a = names.index(cl.link)
+        b = -1 if cl.to == "ground" else names.index(cl.to)
+        Ra, Rb = fr.R_tip[a], (fr.R_tip[b] if b >= 0 else np.eye(3))
+        ob = fr.p_tip[b] if b >= 0 else np.zeros(3)
+        pa = np.array(cl.point, float)
+        xa = fr.p_tip[a] + Ra @ pa
+        if cl.to_point is None:
+            pb = Rb.T @ (xa - ob)
+        else:
+            pb = np.array(cl.to_point, float)
+            gap = float(np.linalg.norm(ob + Rb @ pb - xa))
+            if gap > 1e-9 * size:
+                raise InputError(
+                    f"model.closures[{c}].to_point",
+                    tuple(cl.to_point),
+                    f"closure {model.closure_names[c]!r} is open at the initial state by {gap:.3g} m "
+                    f"(more than 1e-9 of the mechanism's size {size:.3g} m)",
+                )
+        axis = np.array(getattr(cl, "axis", (0.0, 0.0, 1.0)), float)
+        axis = axis / np.linalg.norm(axis)
+        na = Ra @ axis
+        # two unit vectors perpendicular to the axis at the initial state, fixed in b's frame
+        trial = np.eye(3)[int(np.argmin(np.abs(na)))]
+        u1 = np.cross(na, trial)
+        u1 /= np.linalg.norm(u1)
+        u2 = np.cross(na, u1)
+        out.append(
+            _Closure(
+                name=model.closure_names[c],
+                kind=cl.kind,
+                a=a,
+                b=b,
+                pa=pa,
+                pb=pb,
+                axis=axis,
+                axis_b=Rb.T @ na,
+                u=np.array([Rb.T @ u1, Rb.T @ u2]),
+                C0=Ra.T @ Rb,
+                n_eq=_CLOSURE_EQUATIONS[cl.kind],
+            )
+        )
+    return tuple(out)
+
+
+def _closure_terms(lay: _Layout, fr):
+    """Per closure at the frames ``fr`` (any dtype): g (n_eq,) and the maps G_a, G_b (n_eq, 6)
+    of the twists (v, ω) of the two attachment points onto ġ, with the points' Jacobians
+    (3, N) (v = J_r q̇, ω = J_ω q̇; zero for ground) and the points (world):
+    position  g = x_a − x_b                        (ġ = v_a − v_b);
+    revolute  g_j = n_a · u_j,b, j = 1, 2          (ġ_j = (n_a × u_j)·(ω_a − ω_b));
+    weld      g = ½ Σ_i A_i × B_i, A = R_a C0, B = R_b (ġ = C_a ω_a + C_b ω_b,
+              C_a = ½ Σ [B_i]×[A_i]×, C_b = −½ Σ [A_i]×[B_i]×).
+    The generalized force of the multipliers λ is Jᵀλ, J = G_a [J_ra; J_ωa] + G_b [J_rb; J_ωb];
+    G_aᵀλ is the load (force, moment about x_a) that b exerts on a."""
+    out = []
+    N = lay.n_dof
+    for cl in lay.closures:
+        Ra = fr.R_tip[cl.a]
+        ca = Ra @ cl.pa
+        xa = fr.p_tip[cl.a] + ca
+        Jra = fr.Jr_tip[cl.a] - skew(ca) @ fr.Jw_tip[cl.a]
+        Jwa = fr.Jw_tip[cl.a]
+        if cl.b >= 0:
+            Rb = fr.R_tip[cl.b]
+            cb = Rb @ cl.pb
+            xb = fr.p_tip[cl.b] + cb
+            Jrb = fr.Jr_tip[cl.b] - skew(cb) @ fr.Jw_tip[cl.b]
+            Jwb = fr.Jw_tip[cl.b]
+        else:
+            Rb = np.eye(3)
+            xb = cl.pb.astype(xa.dtype)
+            Jrb = Jwb = np.zeros((3, N), xa.dtype)
+        g = [xa - xb]
+        Ga = [np.hstack([np.eye(3), np.zeros((3, 3))])]
+        Gb = [np.hstack([-np.eye(3), np.zeros((3, 3))])]
+        if cl.kind == "revolute":
+            na = Ra @ cl.axis
+            ub = cl.u @ Rb.T  # (2, 3) world
+            g.append(ub @ na)
+            m = np.cross(na, ub)
+            Ga.append(np.hstack([np.zeros((2, 3)), m]))
+            Gb.append(np.hstack([np.zeros((2, 3)), -m]))
+        elif cl.kind == "weld":
+            A, B = Ra @ cl.C0, Rb
+            g.append(0.5 * sum(np.cross(A[:, i], B[:, i]) for i in range(3)))
+            Ca = 0.5 * sum(skew(B[:, i]) @ skew(A[:, i]) for i in range(3))
+            Cb = -0.5 * sum(skew(A[:, i]) @ skew(B[:, i]) for i in range(3))
+            Ga.append(np.hstack([np.zeros((3, 3)), Ca]))
+            Gb.append(np.hstack([np.zeros((3, 3)), Cb]))
+        g, Ga, Gb = np.concatenate(g), np.vstack(Ga), np.vstack(Gb)
+        J = Ga[:, :3] @ Jra + Ga[:, 3:] @ Jwa + Gb[:, :3] @ Jrb + Gb[:, 3:] @ Jwb
+        out.append((g, J, Ga, Gb, xa, xb))
+    return out
+
+
+def _constraints(lay: _Layout, q, qd=None):
+    """g(q) (m,), J = ∂g/∂q (m, N) and, with q̇, J̇q̇ (m,) (complex step along q̇)."""
+    if qd is None:
+        terms = _closure_terms(lay, _frames(lay, q))
+        return np.concatenate([t[0] for t in terms]), np.vstack([t[1] for t in terms]), None
+    terms = _closure_terms(lay, _frames(lay, q + 1j * _EPS * qd))
+    J = np.vstack([t[1] for t in terms])
+    return np.concatenate([t[0].real for t in terms]), J.real, (J @ qd).imag / _EPS
+
+
+def _closure_loads(lay: _Layout, q, lam):
+    """(n_closures, 6): force and moment (about the closure point) that ``to`` exerts on
+    ``link``, world components; and the point loads of :func:`_cut_loads` (both sides)."""
+    out = np.zeros((len(lay.closures), 6))
+    points = []
+    i0 = 0
+    for c, (cl, (_, _, Ga, Gb, xa, xb)) in enumerate(zip(lay.closures, _closure_terms(lay, _frames(lay, q)))):
+        lc = lam[i0 : i0 + cl.n_eq]
+        i0 += cl.n_eq
+        la, lb = Ga.T @ lc, Gb.T @ lc
+        out[c] = la
+        points.append((cl.a, xa, la[:3], la[3:]))
+        if cl.b >= 0:
+            points.append((cl.b, xb, lb[:3], lb[3:]))
+    return out, points
+
+
+def _closure_gaps(lay: _Layout, q):
+    """(position gap |x_a − x_b| (m), angle gap (rad)) per closure: revolute the angle between
+    the axis in ``link`` and its initial image in ``to``, weld the relative rotation's angle
+    from its initial value, spherical 0."""
+    fr = _frames(lay, q)
+    pos, ang = np.zeros(len(lay.closures)), np.zeros(len(lay.closures))
+    for c, (cl, (_, _, _, _, xa, xb)) in enumerate(zip(lay.closures, _closure_terms(lay, fr))):
+        pos[c] = np.linalg.norm(xa - xb)
+        Ra = fr.R_tip[cl.a]
+        Rb = fr.R_tip[cl.b] if cl.b >= 0 else np.eye(3)
+        if cl.kind == "revolute":
+            na, nb = Ra @ cl.axis, Rb @ cl.axis_b
+            ang[c] = math.atan2(float(np.linalg.norm(np.cross(na, nb))), float(na @ nb))
+        elif cl.kind == "weld":
+            ang[c] = float(np.linalg.norm(log_so3((Ra @ cl.C0).T @ Rb)))
+    return pos, ang
+
+
+def _solve(A, rhs, x, P, F, con=None):
+    """x with its free part from A x = rhs (the prescribed part x[P] given); with the closures
+    ``con`` = (J, b): A x − Jᵀλ = rhs and J_F x_F = b together (LU). Returns (x, λ)."""
+    new = x.copy()
+    r = rhs[F] - A[np.ix_(F, P)] @ x[P]
+    if con is None:
+        new[F] = np.linalg.solve(A[np.ix_(F, F)], r)
+        return new, np.zeros(0)
+    J, b = con
+    JF = J[:, F]
+    m, nf = JF.shape[0], F.size
+    K = np.zeros((nf + m, nf + m))
+    K[:nf, :nf] = A[np.ix_(F, F)]
+    K[:nf, nf:] = -JF.T
+    K[nf:, :nf] = JF
+    sol = np.linalg.solve(K, np.concatenate([r, b]))
+    new[F] = sol[:nf]
+    return new, sol[nf:]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -958,12 +1239,15 @@ class _State:
     qdd: np.ndarray
     a: np.ndarray
     tau: np.ndarray
+    lam: np.ndarray = None  # closure multipliers
 
 
 def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv, ctl=None, h=0.0):
     """The step's iteration (left-limit drive values at t1); returns (q̈, τ_p, solves, ok, τ of
-    the closed-loop joints (n_joints,) or None). Closed-loop laws (``ctl``) at t1 with the
-    iterate's state, z_{n+1} = z_n + h/2 (e_n + α_ref(t1) − α_{n+1}); ctl.z, ctl.e move to t1."""
+    the closed-loop joints (n_joints,) or None, λ). Closed-loop laws (``ctl``) at t1 with the
+    iterate's state, z_{n+1} = z_n + h/2 (e_n + α_ref(t1) − α_{n+1}); ctl.z, ctl.e move to t1.
+    Closures (index 3): the step's equations carry Jᵀλ and g(q_{n+1}) = 0, linearised at the
+    iterate as J_F q̈_F = J_F q̈_F⁽ⁱ⁾ − g/c_q; Newton on (q̈, λ) stopped on q̈ by the stop rule."""
     P, F = lay.presc, lay.free
     pres = _prescribed(case, t1, True)
     Qt = _torques(case, lay, t1, True)
@@ -987,8 +1271,16 @@ def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv, ctl=None, h=0.0):
         B = cq * KT + cv * Dt
         A = M + B
         rhs = f + Qt - fi - fd + B @ qdd + _load_forces(case, lay, q, t1, True)
+        con = None
+        if lay.closures:
+            g, J, _ = _constraints(lay, q)
+            con = (J, J[:, F] @ qdd[F] - g / cq)
         if ctl:
-            new, _ = _solve_closed(lay, ctl, A, rhs, qdd, P, F, t1, True, q, qd, ff, ref, zc, dz, cq, cv)
+            new, _, lam = _solve_closed(
+                lay, ctl, A, rhs, qdd, P, F, t1, True, q, qd, ff, ref, zc, dz, cq, cv, con
+            )
+        elif con is not None:
+            new, lam = _solve(A, rhs, qdd, P, F, con)
         else:
             new = qdd.copy()
             new[F] = np.linalg.solve(A[np.ix_(F, F)], rhs[F] - A[np.ix_(F, P)] @ qdd[P])
@@ -1006,6 +1298,8 @@ def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv, ctl=None, h=0.0):
     tau_p = np.zeros(P.size)
     full = None
     tau_c = np.zeros(0)
+    if not lay.closures:
+        lam = np.zeros(0)
     if ctl:
         tau_c, _ = ctl.laws_at(t1, True, q, qd, qdd, ff, ref, zc, dz, cq, cv)
         full = ctl.full(tau_c)
@@ -1017,8 +1311,10 @@ def _iterate(case, lay, opt, t1, qt, qtd, qdd0, cq, cv, ctl=None, h=0.0):
         rhs = f + Qt - _elastic(lay, q)[1] - _damping(lay, q, qd)[0] + _load_forces(case, lay, q, t1, True)
         if ctl:
             rhs[ctl.rows] += tau_c
+        if lay.closures:
+            rhs += _constraints(lay, q)[1].T @ lam
         tau_p = M[P] @ qdd - rhs[P]
-    return qdd, tau_p, i + 1, converged, full
+    return qdd, tau_p, i + 1, converged, full, lam
 
 
 def _initial(case, lay, ctl=None, opt=None) -> _State:
@@ -1026,12 +1322,15 @@ def _initial(case, lay, ctl=None, opt=None) -> _State:
     pres = _prescribed(case, 0.0, False)
     q[lay.presc], qd[lay.presc] = pres[:, 0], pres[:, 1]
     if ctl:
-        qdd, tau_p, tau_c, ok = _forward_closed(case, lay, ctl, q, qd, 0.0, False, opt)
+        qdd, tau_p, tau_c, ok, lam = _forward_closed(case, lay, ctl, q, qd, 0.0, False, opt)
         if not ok:
             ctl.unconverged_solves += 1
         _, ref = ctl.tables([0.0], False)
         ctl.e[:] = np.where(ctl.user, 0.0, ref[0, :, 0] - q[ctl.rows])
-        return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p, tau_c))
+        return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p, tau_c), lam)
+    if lay.closures:
+        qdd, tau_p, lam = _forward_constrained(case, lay, q, qd, 0.0, False)
+        return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p), lam)
     qdd, tau_p = _forward(case, lay, q, qd, 0.0, False)
     return _State(0.0, q, qd, qdd, qdd.copy(), _joint_torques(case, lay, 0.0, False, tau_p))
 
@@ -1049,7 +1348,7 @@ def _newmark_run(case, lay, h, opt, coef, rec, ctl=None):
         qtd = st.qd + dt * (1 - gamma) * st.a + gamma * dt * mix
         cq = beta * dt * dt * (1 - af) / (1 - am)
         cv = gamma * dt * (1 - af) / (1 - am)
-        qdd, tau_p, n_solves, ok, tau_c = _iterate(case, lay, opt, t1, qt, qtd, st.qdd, cq, cv, ctl, dt)
+        qdd, tau_p, n_solves, ok, tau_c, lam = _iterate(case, lay, opt, t1, qt, qtd, st.qdd, cq, cv, ctl, dt)
         solves.append(n_solves)
         if not ok:
             unconverged.append(n)
@@ -1058,17 +1357,17 @@ def _newmark_run(case, lay, h, opt, coef, rec, ctl=None):
         pres = _prescribed(case, t1, True)
         P = lay.presc
         q[P], qd[P], a[P] = pres[:, 0], pres[:, 1], pres[:, 2]
-        new = _State(t1, q, qd, qdd, a, _joint_torques(case, lay, t1, True, tau_p, tau_c))
+        new = _State(t1, q, qd, qdd, a, _joint_torques(case, lay, t1, True, tau_p, tau_c), lam)
         rec.check(new, n)
         rec.emit(st, new)
         if restart[n]:
             if ctl:
-                qdd_r, _, _, ok_r = _forward_closed(case, lay, ctl, new.q, new.qd, t1, False, opt)
+                qdd_r, _, _, ok_r, _ = _forward_closed(case, lay, ctl, new.q, new.qd, t1, False, opt)
                 if not ok_r:
                     ctl.unconverged_solves += 1
             else:
                 qdd_r, _ = _forward(case, lay, new.q, new.qd, t1, False)
-            new = _State(t1, new.q, new.qd, qdd_r, qdd_r.copy(), new.tau)
+            new = _State(t1, new.q, new.qd, qdd_r, qdd_r.copy(), new.tau, new.lam)
         st = new
     return {
         "n_steps": len(t_end),
@@ -1134,6 +1433,7 @@ class _Recorder:
         self.q = np.zeros((nt, lay.n_dof))
         self.qd = np.zeros((nt, lay.n_dof))
         self.tau = np.zeros((nt, lay.joints.size))
+        self.lam = np.zeros((nt, sum(cl.n_eq for cl in lay.closures)))
         self.count = 0
         self.tol_t = 1e-9 * h
         self.meta = {}
@@ -1145,21 +1445,23 @@ class _Recorder:
     def next_time(self):
         return self.t[self.count] if self.count < self.t.size else math.inf
 
-    def add(self, q, qd, tau):
+    def add(self, q, qd, tau, lam=None):
         i = self.count
         self.q[i], self.qd[i], self.tau[i] = q, qd, tau
+        if self.lam.shape[1]:
+            self.lam[i] = lam
         self.count += 1
 
     def start(self, st):
         if self.next_time <= self.tol_t:
-            self.add(st.q, st.qd, st.tau)
+            self.add(st.q, st.qd, st.tau, st.lam)
 
     def emit(self, s0: _State, s1: _State):
         lay = self.lay
         while self.next_time <= s1.t + self.tol_t:
             t = self.next_time
             if abs(t - s1.t) <= self.tol_t:
-                self.add(s1.q, s1.qd, s1.tau)
+                self.add(s1.q, s1.qd, s1.tau, s1.lam)
                 continue
             y, yd = plumbing.hermite_sample(t, [s0.t, s1.t], [s0.q, s1.q], [s0.qd, s1.qd], derivative=True)
             q, qd = y[0], yd[0]
@@ -1171,7 +1473,8 @@ class _Recorder:
             for j, d in enumerate(self.case.scenario.drives):
                 if d.kind == "torque" and not d.closed_loop:  # closed loop: linear, as DT-TMM
                     tau[j] = d.torque(t, False)
-            self.add(q, qd, tau)
+            lam = (1 - s) * s0.lam + s * s1.lam if self.lam.shape[1] else None  # linear, as τ
+            self.add(q, qd, tau, lam)
 
     def check(self, st: _State, n: int):
         x = np.concatenate([st.q, st.qd, st.qdd])
@@ -1198,13 +1501,23 @@ class _Recorder:
         a = lay.alpha_idx[lay.joints]
         meta = {**meta, "q": self.q[:n].copy(), "qd": self.qd[:n].copy()}
         loads = None
+        nc = len(lay.closures)
+        closure = {}
+        if nc:
+            cl_loads, gaps, angles = np.zeros((n, nc, 6)), np.zeros((n, nc)), np.zeros((n, nc))
+            for i in range(n):
+                cl_loads[i] = _closure_loads(lay, self.q[i], self.lam[i])[0]
+                gaps[i], angles[i] = _closure_gaps(lay, self.q[i])
+            closure = {"closure_loads": cl_loads, "closure_residual": gaps, "closure_angle_residual": angles}
         if self.want_loads:
             loads = np.zeros((n, nl * (lay.k + 1), 6))
             for i in range(n):
                 t = float(self.t[i])
-                qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0, self.tau[i])[0]
+                lam = self.lam[i] if nc else None
+                qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0, self.tau[i], lam)[0]
                 ext = _tip_loads(self.case, lay, _frames(lay, self.q[i]), t, t > 0.0)
-                loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd, ext)
+                points = _closure_loads(lay, self.q[i], lam)[1] if nc else ()
+                loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd, ext, points)
         shapes = _link_shapes(self.case, lay, self.q[:n], self.shape_points) if self.shape_points else None
         return SpatialResult(
             t=self.t[:n].copy(),
@@ -1215,7 +1528,7 @@ class _Recorder:
             link_root=root,
             link_tip=tip,
             tip_deflection=defl,
-            end_effector=tip[:, -1].copy(),
+            end_effector=tip[:, lay.end_effector].copy(),
             wall_time=float(wall),
             n_steps=int(n_steps),
             meta=meta,
@@ -1227,7 +1540,16 @@ class _Recorder:
             twist=twist,
             link_rotation=Rl,
             tip_rotation=Rt,
+            **_result_closure_fields(closure, meta),
         )
+
+
+def _result_closure_fields(closure: dict, meta: dict) -> dict:
+    """The closure outputs as :class:`SpatialResult` fields (in ``meta`` where it has none)."""
+    fields = {f.name for f in dataclasses.fields(SpatialResult)}
+    out = {k: v for k, v in closure.items() if k in fields}
+    meta.update({k: v for k, v in closure.items() if k not in fields})
+    return out
 
 
 def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
@@ -1316,6 +1638,13 @@ def simulate(
     opt = _check_options(integrator, tol, max_iterations, options)
     _check_closed_loop(case, integrator)
     lay = _layout(case, elements_per_link, strain)
+    if lay.closures and integrator not in _STEPPED:
+        raise InputError(
+            "integrator",
+            integrator,
+            f"the spatial global solver holds closed loops (model.closures: {len(lay.closures)}) with "
+            f"{' and '.join(map(repr, _STEPPED))} only (index-3 multipliers)",
+        )
     ctl = _Control(case, lay)
     meta = {
         "method": "spatial-global",

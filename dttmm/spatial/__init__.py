@@ -11,6 +11,7 @@ package's kernel (:func:`simulate`); link shapes at any coordinates:
 
 from .case import SpatialCase, case_from_dict, load_case
 from .model import (
+    SpatialClosure,
     SpatialHub,
     SpatialJoint,
     SpatialLink,
@@ -34,6 +35,7 @@ __all__ = [
     "SpatialScenario",
     "SpatialHub",
     "SpatialJoint",
+    "SpatialClosure",
     "SpatialLink",
     "SpatialManipulator",
     "SpatialPayload",

@@ -224,6 +224,7 @@ def build_model(manip: SpatialManipulator, k: int, strain: str = "linear", motio
         rb_m=rb_m,
         rb_c=rb_c,
         rb_J=rb_J,
+        par=np.array(manip.parents, np.int64),
     )
 
 
@@ -256,6 +257,9 @@ def make_work(md: Model) -> Work:
         acc=z((n, 3)),
         slope=z(n),
         wdF=z((n, 3)),
+        Pacc=z((n + 1, 6, 7)),
+        nacc=np.zeros(n + 1, np.int64),
+        Atip=z((n + 1, 6)),
         M12=z((12, 12)),
         r12=z(12),
         E3=z((3, 3)),

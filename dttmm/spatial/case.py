@@ -18,6 +18,8 @@ from ..schema import Finite, NonNegative, Positive, _short, _Strict, fields_mode
 from .model import (
     BoundedVector3,
     InertiaValue,
+    SpatialClosure,
+    SpatialClosureFields,
     SpatialHub,
     SpatialJoint,
     SpatialLink,
@@ -53,6 +55,10 @@ class SpatialCase:
     def __post_init__(self):
         check_case(self, SpatialManipulator, "dttmm.spatial.SpatialManipulator", "n_joints", "unlocked joint")
         check_load_links(self)
+        if self.model.closures:
+            from .topology import check_initial_closures
+
+            check_initial_closures(self)
 
     @property
     def n_joints(self) -> int:
@@ -113,6 +119,8 @@ class SpatialLinkFile(_Strict):
     joint: JointFile = JointFile()
     hub: HubFile | None = None
     payload: PayloadFile | None = None
+    name: Annotated[str, Strict()] = ""
+    parent: Annotated[str, Strict()] | None = None
 
 
 class BaseFile(_Strict):
@@ -124,6 +132,8 @@ class SpatialModelFile(_Strict):
     gravity: BoundedVector3 = [0.0, 0.0, 0.0]
     base: BaseFile = BaseFile()
     links: Annotated[list[SpatialLinkFile], Strict(), Field(min_length=1)]
+    closures: Annotated[list[SpatialClosureFields], Strict()] = []
+    end_effector: Annotated[str, Strict()] | None = None
 
 
 def _factor_table(name: str):
@@ -186,9 +196,24 @@ def case_from_dict(data: dict) -> SpatialCase:
             if d.payload is None
             else SpatialPayload(d.payload.mass, d.payload.offset, d.payload.inertia, _where=f"{w}.payload")
         )
-        links.append(SpatialLink(beam, joint, hub, pay, _where=w))
+        links.append(SpatialLink(beam, joint, hub, pay, d.name, d.parent, _where=w))
     m = spec.model
-    manip = SpatialManipulator(tuple(links), tuple(m.gravity), tuple(m.base.xyz), tuple(m.base.rpy))
+    closures = tuple(
+        SpatialClosure(
+            c.kind,
+            c.link,
+            c.to,
+            tuple(c.point),
+            None if c.to_point is None else tuple(c.to_point),
+            tuple(c.axis),
+            c.name,
+            _where=f"model.closures[{j}]",
+        )
+        for j, c in enumerate(m.closures)
+    )
+    manip = SpatialManipulator(
+        tuple(links), tuple(m.gravity), tuple(m.base.xyz), tuple(m.base.rpy), closures, m.end_effector
+    )
     sc = spec.scenario
     drives = tuple(_drive(d, i) for i, d in enumerate(sc.drives))
     loads = tuple(_load(d, j) for j, d in enumerate(sc.loads))
@@ -256,6 +281,17 @@ def _load_to_dict(ld: SpatialLoad) -> dict:
     return d
 
 
+def _closure_to_dict(cl: SpatialClosure) -> dict:
+    """A ``[[model.closures]]`` table of the closure ``cl``."""
+    d = {"kind": cl.kind, "link": cl.link, "to": cl.to, "point": list(cl.point)}
+    if cl.to_point is not None:
+        d["to_point"] = list(cl.to_point)
+    d["axis"] = list(cl.axis)
+    if cl.name:
+        d["name"] = cl.name
+    return d
+
+
 def case_to_dict(case: SpatialCase) -> dict:
     """The spatial case as a spatial case document (``kind = "spatial"``): what
     :func:`case_from_dict` builds the same case from (inertias as full 3×3 rows)."""
@@ -299,16 +335,25 @@ def case_to_dict(case: SpatialCase) -> dict:
         if link.payload is not None:
             p = link.payload
             d["payload"] = {"mass": p.mass, "offset": list(p.offset), "inertia": rows(p.inertia)}
+        if link.name:
+            d["name"] = link.name
+        if link.parent is not None:
+            d["parent"] = link.parent
         links.append(d)
     m = case.model
+    model = {
+        "gravity": list(m.gravity),
+        "base": {"xyz": list(m.base_xyz), "rpy": list(m.base_rpy)},
+        "links": links,
+    }
+    if m.closures:
+        model["closures"] = [_closure_to_dict(cl) for cl in m.closures]
+    if m.end_effector is not None:
+        model["end_effector"] = m.end_effector
     out = {
         "kind": "spatial",
         "name": case.name,
-        "model": {
-            "gravity": list(m.gravity),
-            "base": {"xyz": list(m.base_xyz), "rpy": list(m.base_rpy)},
-            "links": links,
-        },
+        "model": model,
         "scenario": scenario_to_dict(case.scenario),
     }
     loads = [_load_to_dict(ld) for ld in getattr(case.scenario, "loads", ())]

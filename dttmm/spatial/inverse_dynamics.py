@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from .model import require_serial
 from .rotation import rpy_matrix
 
 __all__ = ["link_body", "rigid_inverse_dynamics"]
@@ -84,6 +85,7 @@ def _rot(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
 def rigid_inverse_dynamics(manipulator, q, qd, qdd) -> np.ndarray:
     """Joint torques (..., m) of the rigid spatial arm at the angles, rates and accelerations
     (..., m) of its m unlocked joints (drive order), under the arm's gravity (N·m)."""
+    require_serial(manipulator, "the rigid inverse dynamics (computed_torque)")
     q, qd, qdd = (np.asarray(x, float) for x in (q, qd, qdd))
     unl = manipulator.unlocked
     m = len(unl)

@@ -38,6 +38,7 @@ from ..modal import (
     state_pair,
 )
 from .build import STRAINS, build_model, make_work
+from .model import require_open_chain
 from .rotation import log_so3
 from .solver import _drive_values, _kernel, _motion_flags, as_spatial_case, initial_state
 
@@ -77,6 +78,7 @@ class _Arm:
 
     def __init__(self, case, k, strain, engine, motion=None):
         _, self.core, _ = _kernel(engine)
+        require_open_chain(case.model, "the spatial linearisation")
         flags = _motion_flags(case) if motion is None else motion
         self.md = build_model(case.model, k, strain, flags)
         self.ws = make_work(self.md)

@@ -8,7 +8,7 @@ with :func:`dataclasses.replace`.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, Strict
@@ -19,6 +19,8 @@ from ..schema import Bounded, Finite, NonNegative, Positive, _short, _Strict, ch
 from .rotation import rpy_matrix
 
 __all__ = [
+    "CLOSURE_EQUATIONS",
+    "SpatialClosure",
     "SpatialHub",
     "SpatialJoint",
     "SpatialLink",
@@ -28,6 +30,8 @@ __all__ = [
     "SpatialSection",
     "embed_planar",
     "require_flexible",
+    "require_open_chain",
+    "require_serial",
 ]
 
 Vector3 = Annotated[list[Finite], Strict(), Field(min_length=3, max_length=3)]
@@ -85,6 +89,31 @@ class GravityFields(_Strict):
     gravity: BoundedVector3 = [0.0, 0.0, 0.0]
     base_xyz: BoundedVector3 = [0.0, 0.0, 0.0]
     base_rpy: Vector3 = [0.0, 0.0, 0.0]
+
+
+class LinkNameFields(_Strict):
+    name: Annotated[str, Strict()] = ""
+    parent: Annotated[str, Strict()] | None = None
+
+
+#: the number of position-level constraint equations of each closure kind
+CLOSURE_EQUATIONS = {"revolute": 5, "spherical": 3, "weld": 6}
+
+
+class SpatialClosureFields(_Strict):
+    """A loop closure (docs/spatial.md "Trees and closed loops")."""
+
+    kind: Literal["revolute", "spherical", "weld"]
+    link: Annotated[str, Strict()]
+    to: Annotated[str, Strict()] = "ground"
+    point: BoundedVector3 = [0.0, 0.0, 0.0]
+    to_point: BoundedVector3 | None = None
+    axis: Vector3 = [0.0, 0.0, 1.0]
+    name: Annotated[str, Strict()] = ""
+
+
+#: names a link may not take: the base frame and the ground of a closure
+RESERVED_NAMES = ("base", "ground")
 
 
 def _set(obj, values: dict):
@@ -257,16 +286,25 @@ class SpatialPayload:
 class SpatialLink:
     """One link: its beam (a :class:`SpatialSection`: flexible) or its body (a
     :class:`SpatialRigidBody`: rigid), the joint at its root, a hub at the root, a payload at the
-    tip."""
+    tip; ``name`` ("" → "link{i}", 1-based, resolved by the manipulator) and ``parent`` (None →
+    the previous link, the base for the first; "base" → the base frame; otherwise the name of a
+    link listed before this one: the joint's origin is in that link's tip frame)."""
 
     beam: SpatialSection | SpatialRigidBody
     joint: SpatialJoint = field(default_factory=SpatialJoint)
     hub: SpatialHub | None = None
     payload: SpatialPayload | None = None
+    name: str = ""
+    parent: str | None = None
     _where: str = field(default="link", repr=False, compare=False)
 
     def __post_init__(self):
         w = self._where
+        _set(self, check_fields(LinkNameFields, w, name=self.name, parent=self.parent))
+        if self.name in RESERVED_NAMES:
+            raise InputError(
+                f"{w}.name", self.name, f"is reserved ({' and '.join(RESERVED_NAMES)} name frames)"
+            )
         if not isinstance(self.beam, (SpatialSection, SpatialRigidBody)):
             raise InputError(
                 f"{w}.beam",
@@ -314,17 +352,71 @@ class SpatialLink:
 
 
 @dataclass(frozen=True)
+class SpatialClosure:
+    """A joint that closes a loop (docs/spatial.md "Trees and closed loops"): ``kind``
+    "revolute" (5 equations), "spherical" (3) or "weld" (6) between the point ``point`` of link
+    ``link`` (m, in its tip frame) and the point ``to_point`` of ``to`` (another link's name, in
+    its tip frame, or "ground": world frame; None: where ``point`` is at the initial state);
+    ``axis`` (revolute): unit vector in ``link``'s tip frame, its image in ``to``'s frame fixed at
+    the initial state; ``name`` ("" → "closure{j}", 1-based)."""
+
+    kind: str
+    link: str
+    to: str = "ground"
+    point: tuple = (0.0, 0.0, 0.0)
+    to_point: tuple | None = None
+    axis: tuple = (0.0, 0.0, 1.0)
+    name: str = ""
+    _where: str = field(default="closure", repr=False, compare=False)
+
+    def __post_init__(self):
+        w = self._where
+        ok = check_fields(
+            SpatialClosureFields,
+            w,
+            kind=self.kind,
+            link=self.link,
+            to=self.to,
+            point=self.point,
+            to_point=self.to_point,
+            axis=self.axis,
+            name=self.name,
+        )
+        ok["point"] = tuple(float(x) for x in ok["point"])
+        if ok["to_point"] is not None:
+            ok["to_point"] = tuple(float(x) for x in ok["to_point"])
+        a = np.array(ok["axis"], dtype=float)
+        n = float(np.linalg.norm(a))
+        if not abs(n - 1.0) <= 1e-6:
+            raise InputError(f"{w}.axis", ok["axis"], f"must be a unit vector (its norm is {n:.6g})")
+        ok["axis"] = tuple(float(x) for x in a / n)
+        if ok["link"] == "ground":
+            raise InputError(f"{w}.link", ok["link"], "must name a link (`to` may be the ground)")
+        if ok["link"] == ok["to"]:
+            raise InputError(f"{w}.to", ok["to"], "must differ from `link` (a closure joins two bodies)")
+        _set(self, ok)
+
+    @property
+    def n_equations(self) -> int:
+        return CLOSURE_EQUATIONS[self.kind]
+
+
+@dataclass(frozen=True)
 class SpatialManipulator:
-    """A spatial serial arm: revolute joints and flexible or rigid links, base first (docs/spatial.md §1).
+    """A spatial arm: revolute joints and flexible or rigid links, parents first (docs/spatial.md
+    §1): a chain (every parent the previous link, the default), a tree (``SpatialLink.parent``)
+    or a mechanism with closed loops (``closures``: :class:`SpatialClosure`).
 
     ``gravity`` (m/s², in the world frame); ``base_xyz`` (m) and ``base_rpy`` (rad) place the base
-    frame in the world.
+    frame in the world; ``end_effector``: a link name (None: the last link).
     """
 
     links: tuple
     gravity: tuple = (0.0, 0.0, 0.0)
     base_xyz: tuple = (0.0, 0.0, 0.0)
     base_rpy: tuple = (0.0, 0.0, 0.0)
+    closures: tuple = ()
+    end_effector: str | None = None
 
     def __post_init__(self):
         if not isinstance(self.links, (tuple, list)):
@@ -344,10 +436,119 @@ class SpatialManipulator:
                 GravityFields, "model", gravity=self.gravity, base_xyz=self.base_xyz, base_rpy=self.base_rpy
             ),
         )
+        names = tuple(link.name or f"link{i + 1}" for i, link in enumerate(links))
+        index: dict[str, int] = {}
+        parents = []
+        for i, (link, name) in enumerate(zip(links, names)):
+            if name in index:
+                raise InputError(
+                    f"model.links[{i}].name",
+                    name,
+                    f"is the name of model.links[{index[name]}] (names are unique)",
+                )
+            p = link.parent
+            if p is None:
+                parents.append(i - 1)
+            elif p == "base":
+                parents.append(-1)
+            elif p in index:
+                parents.append(index[p])
+            else:
+                later = p in names
+                raise InputError(
+                    f"model.links[{i}].parent",
+                    p,
+                    "must name a link listed before this one (parents come first)"
+                    if later
+                    else f"names no link (links: {', '.join(names[:i]) or 'none before this one'}; or 'base')",
+                )
+            index[name] = i
+        object.__setattr__(self, "_names", names)
+        object.__setattr__(self, "_parents", tuple(parents))
+        if not isinstance(self.closures, (tuple, list)):
+            raise InputError(
+                "model.closures", _short(self.closures), "must be a tuple of dttmm.spatial.SpatialClosure"
+            )
+        closures = tuple(self.closures)
+        cnames = set()
+        for j, cl in enumerate(closures):
+            w = f"model.closures[{j}]"
+            if not isinstance(cl, SpatialClosure):
+                raise InputError(w, _short(cl), "must be a dttmm.spatial.SpatialClosure")
+            if cl.link not in index:
+                raise InputError(f"{w}.link", cl.link, f"names no link (links: {', '.join(names)})")
+            if cl.to != "ground" and cl.to not in index:
+                raise InputError(f"{w}.to", cl.to, f"names no link (links: {', '.join(names)}; or 'ground')")
+            cname = cl.name or f"closure{j + 1}"
+            if cname in cnames:
+                raise InputError(f"{w}.name", cname, "is the name of an earlier closure (names are unique)")
+            cnames.add(cname)
+        object.__setattr__(self, "closures", closures)
+        if self.end_effector is not None and (
+            not isinstance(self.end_effector, str) or self.end_effector not in index
+        ):
+            raise InputError(
+                "model.end_effector",
+                _short(self.end_effector),
+                f"must name a link (links: {', '.join(names)})",
+            )
 
     @property
     def n_links(self) -> int:
         return len(self.links)
+
+    @property
+    def link_names(self) -> tuple[str, ...]:
+        """Every link's name (the default "link{i}", 1-based, where none is given)."""
+        return self._names
+
+    @property
+    def closure_names(self) -> tuple[str, ...]:
+        return tuple(cl.name or f"closure{j + 1}" for j, cl in enumerate(self.closures))
+
+    @property
+    def parents(self) -> tuple[int, ...]:
+        """The parent's index of every link (−1: the base); a parent comes before its children."""
+        return self._parents
+
+    def link_index(self, name: str) -> int:
+        """The index of the link called ``name``."""
+        try:
+            return self._names.index(name)
+        except ValueError:
+            raise InputError("link", name, f"names no link (links: {', '.join(self._names)})") from None
+
+    def children(self, i: int) -> tuple[int, ...]:
+        """The indices of the links whose parent is link ``i`` (−1: the base)."""
+        return tuple(j for j, p in enumerate(self._parents) if p == i)
+
+    @property
+    def leaves(self) -> tuple[int, ...]:
+        """The links with no child (their tips are free ends of the tree)."""
+        has_child = set(self._parents)
+        return tuple(i for i in range(len(self.links)) if i not in has_child)
+
+    @property
+    def end_effector_index(self) -> int:
+        """The index of the end-effector link (default: the last link)."""
+        return len(self.links) - 1 if self.end_effector is None else self._names.index(self.end_effector)
+
+    @property
+    def n_closure_equations(self) -> int:
+        return sum(cl.n_equations for cl in self.closures)
+
+    @property
+    def serial(self) -> bool:
+        """Whether the arm is a serial chain (every parent the previous link, no closure)."""
+        return not self.closures and all(p == i - 1 for i, p in enumerate(self._parents))
+
+    @property
+    def size(self) -> float:
+        """The mechanism's size (m): the sum over links of the length and the joint origin's
+        distance; the scale of the closures' position tolerances."""
+        return float(
+            sum(link.beam.length + float(np.linalg.norm(link.joint.origin_xyz)) for link in self.links)
+        )
 
     @property
     def n_joints(self) -> int:
@@ -405,6 +606,26 @@ def embed_planar(manipulator: Manipulator, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0
         links.append(SpatialLink(beam, SpatialJoint(_where=f"{w}.joint"), hub, pay, _where=w))
     g = rot @ np.array([manipulator.gravity[0], manipulator.gravity[1], 0.0])
     return SpatialManipulator(tuple(links), tuple(float(x) for x in g), base_xyz, base_rpy)
+
+
+def require_serial(model: SpatialManipulator, method: str) -> None:
+    """Refuse a tree or a closed loop for an engine that runs serial chains only."""
+    if model.serial:
+        return
+    if model.closures:
+        field_, value = "model.closures", f"{len(model.closures)} closures"
+    else:
+        i = next(i for i, p in enumerate(model.parents) if p != i - 1)
+        field_, value = f"model.links[{i}].parent", model.links[i].parent
+    raise InputError(field_, value, f"trees and closed loops are not supported by {method} yet")
+
+
+def require_open_chain(model: SpatialManipulator, method: str) -> None:
+    """Refuse a closed loop (a tree runs) for a method that takes no loop closure."""
+    if model.closures:
+        raise InputError(
+            "model.closures", f"{len(model.closures)} closures", f"closed loops are not supported by {method}"
+        )
 
 
 def require_flexible(model: SpatialManipulator, method: str) -> None:

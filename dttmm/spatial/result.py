@@ -29,6 +29,13 @@ class SpatialResult(Result):
     twist: np.ndarray | None = None
     link_rotation: np.ndarray | None = None
     tip_rotation: np.ndarray | None = None
+    #: with loop closures (docs/spatial.md "Trees and closed loops"), on the output grid:
+    #: (nt, n_closures, 6) force (N) and moment (N·m, about the closure point), world
+    #: components, that `to` exerts on `link`; the position gap |p_a − p_b| (m) and the angle
+    #: gap (rad; 0 for a spherical closure), (nt, n_closures) each
+    closure_loads: np.ndarray | None = None
+    closure_residual: np.ndarray | None = None
+    closure_angle_residual: np.ndarray | None = None
 
     @property
     def n_links(self) -> int:

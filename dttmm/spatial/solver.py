@@ -20,10 +20,12 @@ from ..timegrid import step_schedule
 from .build import STRAINS, build_model, make_work
 from .case import SpatialCase
 from .kernel.core import INPUT_COLS, LOAD_COL
+from .model import require_open_chain
 from .result import SpatialResult
 from .rotation import log_so3
 from .scenario import load_inputs
 from .shapes import from_frames
+from .topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
 __all__ = ["INTEGRATORS", "accelerations", "as_spatial_case", "link_shapes", "simulate"]
 
@@ -250,6 +252,7 @@ def accelerations(
     """
     case = as_spatial_case(case)
     require_open_loop(case, "dttmm.spatial.accelerations")
+    require_open_chain(case.model, "dttmm.spatial.accelerations")
     k = plumbing.elements_per_link(elements_per_link)
     plumbing.choice("strain", strain, STRAINS)
     engine, core, _ = _kernel(engine)
@@ -294,7 +297,33 @@ def link_shapes(case, elements_per_link: int, q, p: int, *, strain: str = "linea
     return from_frames(case.model, k, RI, rI, e, p)
 
 
-def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads, p=0):
+def _check_closures(case: SpatialCase, integrator: str, iters) -> None:
+    """What a run with loop closures takes: the Newmark family, each step to the stop rule,
+    open-loop drives (docs/spatial.md "Trees and closed loops")."""
+    if integrator == "rk4":
+        raise InputError("integrator", integrator, "closed loops run with the Newmark family only (not rk4)")
+    if iters is not None:
+        raise InputError("iterations", iters, "closed loops run each step to the stop rule (iterations=None)")
+    for j, d in enumerate(case.scenario.drives):
+        if d.closed_loop:
+            raise InputError(
+                f"scenario.drives[{j}].law",
+                d.law.name,
+                "closed-loop laws on a mechanism with closures are not supported yet",
+            )
+
+
+def _closure_samples(ts, t_end, lam0, lamh, nc):
+    """The closure loads (nt, nc, 6) on the output grid: λ_0 at t = 0, λ of each step end,
+    linear between them."""
+    tt = np.concatenate(([0.0], t_end))
+    out = np.zeros((ts.size, 6 * nc))
+    for c in range(6 * nc):
+        out[:, c] = np.interp(ts, tt, np.concatenate(([lam0[c]], lamh[:, c])))
+    return out.reshape(ts.size, nc, 6)
+
+
+def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads, p=0, lam=None, cw=None):
     """Positions, frames, tip deflections, twist, energy, cut loads and (p ≥ 2) link shapes
     (nt, n, p, 3) at the sampled states."""
     n = md.n
@@ -324,6 +353,9 @@ def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads, p=0
         if want_loads:
             tau, mot = _drive_values(case, n, case.scenario.output_times[j], True)
             tau[closed] = otau[j][closed]  # the laws' torques as recorded
+            if lam is not None:  # the closure loads at the sampled state
+                cw[0](ws, cw[1].cl, mot, lam[j].ravel())
+                mot = cw[1].cl.motc.copy()
             core.accelerations(md, ws, oq[j].copy(), oqd[j].copy(), tau, mot, zero, qdd, True, loads[j])
     d = tip - root
     defl = np.stack(
@@ -489,6 +521,8 @@ def simulate(
     )
     engine, core, loop = _kernel(engine)
     _check_closed_loop(case, engine)
+    if case.model.closures:
+        _check_closures(case, integrator, iters)
     check_run_size(case, k, h, cut_loads=cut_loads, energy=energy, shape_points=p)
     md = build_model(case.model, k, strain, _motion_flags(case))
     ws = make_work(md)
@@ -519,7 +553,16 @@ def simulate(
         closed=closed,
         coupled=coupled,
     )
-    cw = loop.new_loop(md.n, md.ndof)
+    rc = None
+    if case.model.closures:
+        rc = resolve_closures(case.model, *rigid_tip_frames(case.model, initial_angles(case)))
+        cl = loop.new_closures(
+            md.n, md.ndof, INPUT_COLS, t_end.size, rc.a, rc.b, rc.kind, rc.pa, rc.pb, rc.ua, rc.ub, rc.R0,
+            case.model.n_closure_equations,
+        )  # fmt: skip
+        cw = loop.new_loop(md.n, md.ndof, cl)
+    else:
+        cw = loop.new_loop(md.n, md.ndof)
     q, qd = initial_state(case, md)
     qdd = np.zeros(md.ndof)
     torque0 = np.zeros(md.n)
@@ -529,6 +572,7 @@ def simulate(
         ok0 = loop.start(md, ws, opts, drv, cw, q, qd, qdd, torque0, z, zerr)
     if not ok0:
         raise InputError("case", case.name or "<case>", "the system is singular at t = 0")
+    lam0 = cw.cl.lam.copy()  # the closure loads at t = 0 (none without closures)
     aux = qdd.copy()
     ts = sc.output_times
     nt = ts.size
@@ -589,9 +633,32 @@ def simulate(
 
     def result(upto_, meta_, status_, warns_):
         sel = slice(0, upto_)
+        lam = None
+        if rc is not None:
+            lam = _closure_samples(ts[sel], t_end, lam0, cw.cl.lamh, len(case.model.closures))
         root, tip, Rl, Rt, defl, twist, en, loads, link_shapes = _outputs(
-            core, md, ws, case, oq[sel], oqd[sel], otau[sel], upto_, energy, cut_loads, p
+            core,
+            md,
+            ws,
+            case,
+            oq[sel],
+            oqd[sel],
+            otau[sel],
+            upto_,
+            energy,
+            cut_loads,
+            p,
+            lam,
+            (loop.closure_inputs, cw),
         )
+        extra = {}
+        if rc is not None:
+            gaps = [closure_gaps(rc, Rt[j], tip[j]) for j in range(upto_)]
+            extra = dict(
+                closure_loads=lam,
+                closure_residual=np.array([g[0] for g in gaps]).reshape(upto_, -1),
+                closure_angle_residual=np.array([g[1] for g in gaps]).reshape(upto_, -1),
+            )
         unl = list(case.model.unlocked)
         return SpatialResult(
             t=ts[sel],
@@ -601,7 +668,7 @@ def simulate(
             link_root=root,
             link_tip=tip,
             tip_deflection=defl,
-            end_effector=tip[:, -1, :].copy(),
+            end_effector=tip[:, case.model.end_effector_index, :].copy(),
             wall_time=wall,
             n_steps=int(n_steps),
             meta=dict(meta_),
@@ -614,6 +681,7 @@ def simulate(
             link_rotation=Rl,
             tip_rotation=Rt,
             link_shapes=link_shapes,
+            **extra,
         )
 
     if stats[loop.S_STATUS] != 0:

@@ -38,6 +38,7 @@ import numpy as np
 from .. import plumbing
 from ..errors import InputError, SimulationError
 from .build import STRAINS, build_model, make_work
+from .model import require_serial
 from .rotation import left_jacobian
 from .scenario import load_inputs
 from .solver import _kernel, as_spatial_case
@@ -101,6 +102,7 @@ class _Problem:
     def __init__(self, case, k, strain, engine, angles):
         self.case = case
         _, self.core, _ = _kernel(engine)
+        require_serial(case.model, "the spatial statics")
         self.md = md = build_model(case.model, k, strain)
         self.ws = make_work(md)
         self.q = np.zeros(md.ndof)

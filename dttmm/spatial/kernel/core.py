@@ -348,11 +348,17 @@ def kinematics(md, ws, q, qd):
     for a in range(3):
         v[a] = 0.0
         w[a] = 0.0
+    copy33(R, ws.RT[0])
+    copy3(p, ws.pT[0])
+    copy3(v, ws.vT[0])
+    copy3(w, ws.wT[0])
     for i in range(md.n):
-        copy33(R, ws.RT[i])
-        copy3(p, ws.pT[i])
-        copy3(v, ws.vT[i])
-        copy3(w, ws.wT[i])
+        ip = md.par[i] + 1
+        if ip != i:  # a branch: start from the parent's tip frame
+            copy33(ws.RT[ip], R)
+            copy3(ws.pT[ip], p)
+            copy3(ws.vT[ip], v)
+            copy3(ws.wT[ip], w)
         al = 0.0
         ald = 0.0
         if md.locked[i] == 0:
@@ -388,10 +394,10 @@ def kinematics(md, ws, q, qd):
             w[a] = Qi[a, 0] * w0 + Qi[a, 1] * w1 + Qi[a, 2] * w2
         matmul33t(R, Qi, T)
         copy33(T, R)
-    copy33(R, ws.RT[md.n])
-    copy3(p, ws.pT[md.n])
-    copy3(v, ws.vT[md.n])
-    copy3(w, ws.wT[md.n])
+        copy33(R, ws.RT[i + 1])
+        copy3(p, ws.pT[i + 1])
+        copy3(v, ws.vT[i + 1])
+        copy3(w, ws.wT[i + 1])
 
 
 @njit(inline="always")
@@ -1343,12 +1349,22 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
     c = ws.c
     T = ws.Tk
     gv = md.grav
-    for a in range(6):
-        c[a] = 0.0
-        for b in range(6):
-            P[a, b] = 0.0
+    for i in range(md.n + 1):
+        ws.nacc[i] = 0
     ok = True
     for i in range(md.n - 1, -1, -1):
+        # the children's (P, c), summed in the tip frame (none: a free tip)
+        Pa = ws.Pacc[i + 1]
+        if ws.nacc[i + 1] == 0:
+            for a in range(6):
+                c[a] = 0.0
+                for b in range(6):
+                    P[a, b] = 0.0
+        else:
+            for a in range(6):
+                c[a] = Pa[a, 6]
+                for b in range(6):
+                    P[a, b] = Pa[a, b]
         # tip frame → outboard element frame (x_O = Qᵀ x_T), then the payload
         Qi = md.Q[i]
         rotate_pc(Qi, True, P, c, T)
@@ -1435,7 +1451,7 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             ws.PF[i, r, 6] = c[r]
         # joint: velocity-product term in root-frame components, then the projection
         C = ws.C[i]
-        wTp = ws.wT[i]
+        wTp = ws.wT[md.par[i] + 1]
         o = md.org[i]
         u0 = wTp[1] * o[2] - wTp[2] * o[1]
         u1 = wTp[2] * o[0] - wTp[0] * o[2]
@@ -1483,12 +1499,31 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             c[r] = t
         rotate_pc(C, False, P, c, T)
         shift_pc(P, c, o[0], o[1], o[2], T)
+        # into the parent's tip frame: the first child's load is copied, further ones added
+        ip = md.par[i] + 1
+        Pa = ws.Pacc[ip]
+        if ws.nacc[ip] == 0:
+            for a in range(6):
+                Pa[a, 6] = c[a]
+                for b in range(6):
+                    Pa[a, b] = P[a, b]
+        else:
+            for a in range(6):
+                Pa[a, 6] += c[a]
+                for b in range(6):
+                    Pa[a, b] += P[a, b]
+        ws.nacc[ip] += 1
     # forward sweep: the base does not move
     A = ws.A6
     for a in range(6):
         A[a] = 0.0
+        ws.Atip[0, a] = 0.0
     ic = 0
     for i in range(md.n):
+        ip = md.par[i] + 1
+        if ip != i:  # a branch: start from the parent's tip acceleration
+            for a in range(6):
+                A[a] = ws.Atip[ip, a]
         C = ws.C[i]
         o = md.org[i]
         zJ = ws.zJ[i]
@@ -1554,6 +1589,8 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
             v2 = A[3 * bl + 2]
             for a in range(3):
                 A[3 * bl + a] = Qi[a, 0] * v0 + Qi[a, 1] * v1 + Qi[a, 2] * v2
+        for a in range(6):
+            ws.Atip[i + 1, a] = A[a]
     for r in range(qdd.shape[0]):
         if not math.isfinite(qdd[r]):
             ok = False

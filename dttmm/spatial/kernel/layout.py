@@ -59,6 +59,7 @@ class Model(NamedTuple):
     rb_m: np.ndarray  # (n,) a rigid link's mass
     rb_c: np.ndarray  # (n, 3) its centre of mass (link frame)
     rb_J: np.ndarray  # (n, 3, 3) its inertia about the centre of mass (link frame)
+    par: np.ndarray  # (n,) index of the parent link (−1: the base); parents come first
 
 
 class Work(NamedTuple):
@@ -74,7 +75,7 @@ class Work(NamedTuple):
     sO: np.ndarray  # (nel, 3) outboard node position, element frame components
     e: np.ndarray  # (nel, 6) padded elastic coordinates
     ed: np.ndarray  # (nel, 6)
-    RT: np.ndarray  # (n + 1, 3, 3) parent frame of joint i (n: the last link's tip frame)
+    RT: np.ndarray  # (n + 1, 3, 3) 0: the base frame; i + 1: the tip frame of link i
     pT: np.ndarray  # (n + 1, 3)
     vT: np.ndarray  # (n + 1, 3)
     wT: np.ndarray  # (n + 1, 3)
@@ -89,6 +90,9 @@ class Work(NamedTuple):
     acc: np.ndarray  # (n, 3) per joint: α̈, torque, α̇
     slope: np.ndarray  # (n,) per torque joint: ∂τ/∂α̈ of a closed-loop law (0: open loop)
     wdF: np.ndarray  # (n, 3) angular acceleration of each link root (root element frame)
+    Pacc: np.ndarray  # (n + 1, 6, 7) the children's (P, c) summed in each tip frame (0: base)
+    nacc: np.ndarray  # (n + 1,) how many children have added to Pacc
+    Atip: np.ndarray  # (n + 1, 6) acceleration of each tip frame (0: the base, at rest)
     # scratch of the sweeps and the kinematics (nothing is allocated per call)
     M12: np.ndarray  # (12, 12) the element's matrix over (A, ë), upper triangle
     r12: np.ndarray  # (12,)

@@ -36,7 +36,7 @@ import numpy as np
 from ... import control
 from ...iteration import stop_rule
 from ._jit import PURE, njit
-from .core import cross, kinematics, mv, set_rates, sweep
+from .core import LOAD_COL, cross, kinematics, mv, set_rates, sweep
 
 _stop_rule = njit(inline="always")(stop_rule)
 #: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
@@ -109,6 +109,47 @@ class Drives(NamedTuple):
     user: object
 
 
+class Closures(NamedTuple):
+    """The loop closures (docs/spatial.md "Trees and closed loops"), nc of them with m
+    equations in all: their data fixed at the initial state (dttmm.spatial.topology) and the
+    scratch of their solve; λ (6 per closure: force, moment about the closure point, world
+    components) is what `to` exerts on `link`."""
+
+    a: np.ndarray  # (nc,) link
+    b: np.ndarray  # (nc,) to (−1: the ground)
+    kind: np.ndarray  # (nc,) 0 spherical, 1 revolute, 2 weld
+    pa: np.ndarray  # (nc, 3) point in a's tip frame
+    pb: np.ndarray  # (nc, 3) point in b's tip frame (world for the ground)
+    ua: np.ndarray  # (nc, 3) revolute axis, a's tip frame
+    ub: np.ndarray  # (nc, 3) its image in b's tip frame
+    R0: np.ndarray  # (nc, 3, 3) weld: R_aᵀ R_b at the initial state
+    lam: np.ndarray  # (6 nc,) λ of the current iterate
+    lamh: np.ndarray  # (n_steps, 6 nc) λ at each step end
+    g: np.ndarray  # (m,) the constraint residual at the iterate
+    B: np.ndarray  # (6 nc, m) the load directions of the m unknowns
+    W: np.ndarray  # (m, m) relative accelerations along the constraints per unit load
+    rel0: np.ndarray  # (6 nc,) relative accelerations of the base sweep
+    rel: np.ndarray  # (6 nc,)
+    motc: np.ndarray  # (n, INPUT_COLS) the inputs with the closure loads
+    xs: np.ndarray  # (n_dof,) q̈ of the column sweeps
+
+
+def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
+    nc = a.shape[0]
+    z = np.zeros
+    return Closures(
+        a=a, b=b, kind=kind, pa=pa, pb=pb, ua=ua, ub=ub, R0=R0,
+        lam=z(6 * nc), lamh=z((n_steps, 6 * nc)), g=z(m), B=z((6 * nc, m)), W=z((m, m)),
+        rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof),
+    )  # fmt: skip
+
+
+def no_closures(n, ndof, cols):
+    e = np.zeros((0, 3))
+    ei = np.zeros(0, np.int64)
+    return new_closures(n, ndof, cols, 0, ei, ei, ei, e, e, e, e, np.zeros((0, 3, 3)), 0)
+
+
 class Loop(NamedTuple):
     """Scratch of the closed-loop laws, (n,) per link unless stated."""
 
@@ -127,11 +168,13 @@ class Loop(NamedTuple):
     xc: np.ndarray  # (n_dof,) previous iterate of the forward dynamics
     fd: np.ndarray  # (2,) forward-dynamics solves out of sweeps, their sweeps
     qddm: np.ndarray  # (n_dof,) q̈ at the start of the previous step (the residual check)
+    cl: Closures  # the loop closures (none: a chain or a tree)
 
 
-def new_loop(n: int, ndof: int) -> Loop:
+def new_loop(n: int, ndof: int, closures: Closures | None = None, cols: int = 15) -> Loop:
     z = np.zeros
     return Loop(
+        cl=no_closures(n, ndof, cols) if closures is None else closures,
         taul=z(n),
         torque=z(n),
         scratch=z(n),
@@ -537,8 +580,189 @@ def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
         )  # fmt: skip
     else:
         ok = accel(md, ws, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, torque)
+    if ok and cw.cl.a.shape[0] > 0:
+        # a closed loop: the accelerations that keep it closed (acceleration level), with
+        # the closure loads λ_0 (the kinematics of ``accel`` are in ws)
+        noload = np.zeros((0, 6))
+        ok = closure_sweep(
+            md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, noload
+        )
+        joint_torques(md, ws, drv.tau_r[ns], torque)
     for i in range(md.n):
         zerr[i] = drv.ref_r[ns, i, 0] - q[md.ia[i]] if drv.code[i] == CODE_PD else 0.0
+    return ok
+
+
+# ------------------------------------------------------------------ loop closures -----------
+
+
+@njit()
+def _tip(ws, cl, j, second):
+    """(R, x, point) of closure j's body a (``second``: b; the ground: identity, 0) in world."""
+    i = cl.b[j] if second else cl.a[j]
+    loc = cl.pb[j] if second else cl.pa[j]
+    if i < 0:
+        R = np.eye(3)
+        x = np.zeros(3)
+    else:
+        R = ws.RT[i + 1]
+        x = ws.pT[i + 1]
+    return R, x, x + mv(R, loc)
+
+
+@njit()
+def closure_geometry(ws, cl):
+    """The constraint residual cl.g and the load directions cl.B at the kinematics in ``ws``:
+    position p_a − p_b (3 rows, world); revolute: t_k·(u_b × u_a) for two unit t_k ⊥ u_a;
+    weld: the axial vector of R_a R0 R_bᵀ (3 rows). To first order each row moves by the
+    relative displacement (point, rotation) of a against b along its direction in cl.B."""
+    for r in range(cl.B.shape[0]):
+        for c in range(cl.B.shape[1]):
+            cl.B[r, c] = 0.0
+    row = 0
+    for j in range(cl.a.shape[0]):
+        Ra, xa, pa = _tip(ws, cl, j, False)
+        Rb, xb, pb = _tip(ws, cl, j, True)
+        for d in range(3):
+            cl.g[row + d] = pa[d] - pb[d]
+            cl.B[6 * j + d, row + d] = 1.0
+        row += 3
+        if cl.kind[j] == 1:
+            ua = mv(Ra, cl.ua[j])
+            ub = mv(Rb, cl.ub[j])
+            e = np.zeros(3)
+            e[np.argmin(np.abs(ua))] = 1.0
+            t1 = cross(ua, e)
+            t1 /= math.sqrt(t1[0] ** 2 + t1[1] ** 2 + t1[2] ** 2)
+            t2 = cross(ua, t1)
+            cr = cross(ub, ua)
+            cl.g[row] = t1[0] * cr[0] + t1[1] * cr[1] + t1[2] * cr[2]
+            cl.g[row + 1] = t2[0] * cr[0] + t2[1] * cr[1] + t2[2] * cr[2]
+            for d in range(3):
+                cl.B[6 * j + 3 + d, row] = t1[d]
+                cl.B[6 * j + 3 + d, row + 1] = t2[d]
+            row += 2
+        elif cl.kind[j] == 2:
+            M = np.zeros((3, 3))
+            R0 = cl.R0[j]
+            for r in range(3):
+                for c in range(3):
+                    t = 0.0
+                    for u in range(3):
+                        for v in range(3):
+                            t += Ra[r, u] * R0[u, v] * Rb[c, v]
+                    M[r, c] = t
+            cl.g[row] = 0.5 * (M[2, 1] - M[1, 2])
+            cl.g[row + 1] = 0.5 * (M[0, 2] - M[2, 0])
+            cl.g[row + 2] = 0.5 * (M[1, 0] - M[0, 1])
+            for d in range(3):
+                cl.B[6 * j + 3 + d, row + d] = 1.0
+            row += 3
+
+
+@njit()
+def closure_inputs(ws, cl, mot, lam):
+    """The inputs ``mot`` with the closure loads λ added to the world tip loads: λ_j = (F, M)
+    on link a at its point, −λ_j on b (moments moved to the tip points)."""
+    for r in range(mot.shape[0]):
+        for c in range(mot.shape[1]):
+            cl.motc[r, c] = mot[r, c]
+    k = LOAD_COL
+    for j in range(cl.a.shape[0]):
+        F = lam[6 * j : 6 * j + 3]
+        M = lam[6 * j + 3 : 6 * j + 6]
+        for second in range(2):
+            i = cl.b[j] if second else cl.a[j]
+            if i < 0:
+                continue
+            R, x, pt = _tip(ws, cl, j, second == 1)
+            sg = -1.0 if second else 1.0
+            mm = M + cross(pt - x, F)
+            for d in range(3):
+                cl.motc[i, k + d] += sg * F[d]
+                cl.motc[i, k + 3 + d] += sg * mm[d]
+
+
+@njit()
+def closure_accelerations(ws, cl, out):
+    """Per closure the relative acceleration of a's point against b's (world, 3) and of their
+    frames' angular accelerations (3), from the last sweep's tip accelerations."""
+    for j in range(cl.a.shape[0]):
+        for second in range(2):
+            i = cl.b[j] if second else cl.a[j]
+            if i < 0:
+                continue
+            R, x, pt = _tip(ws, cl, j, second == 1)
+            A = ws.Atip[i + 1]
+            aw = mv(R, A[:3])
+            bw = mv(R, A[3:])
+            ap = aw + cross(bw, pt - x)
+            for d in range(3):
+                if second == 0:
+                    out[6 * j + d] = ap[d]
+                    out[6 * j + 3 + d] = bw[d]
+                else:
+                    out[6 * j + d] -= ap[d]
+                    out[6 * j + 3 + d] -= bw[d]
+
+
+@njit()
+def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload):
+    """One sweep of a Newmark iterate with loop closures: λ from the closures' position-level
+    condition at the step end, linearised about the iterate, g + c_q W Δμ = 0 with W the
+    relative accelerations along the constraints per unit load (one sweep per unknown at this
+    kinematics; the accelerations are affine in λ), then the sweep with that λ into ``xn``."""
+    m = cl.g.shape[0]
+    closure_geometry(ws, cl)
+    # λ in the directions of this iterate (orthonormal per closure): a revolute closure's
+    # moment stays perpendicular to its current axis (no moment about it)
+    mu = np.zeros(m)
+    for c in range(m):
+        for r in range(cl.B.shape[0]):
+            mu[c] += cl.B[r, c] * cl.lam[r]
+    for r in range(cl.lam.shape[0]):
+        t = 0.0
+        for c in range(m):
+            t += cl.B[r, c] * mu[c]
+        cl.lam[r] = t
+    if cq == 0.0:
+        # the forward dynamics (the initial state): the relative accelerations vanish,
+        # Bᵀ rel(λ) = 0, in place of the position condition
+        cl.g[:] = 0.0
+    closure_inputs(ws, cl, mot, cl.lam)
+    ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
+    closure_accelerations(ws, cl, cl.rel0)
+    lam1 = cl.lam.copy()
+    for c in range(m):
+        for r in range(lam1.shape[0]):
+            lam1[r] = cl.lam[r] + cl.B[r, c]
+        closure_inputs(ws, cl, mot, lam1)
+        ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, cl.xs, False, noload) and ok
+        closure_accelerations(ws, cl, cl.rel)
+        for r in range(m):
+            t = 0.0
+            for d in range(cl.B.shape[0]):
+                t += cl.B[d, r] * (cl.rel[d] - cl.rel0[d])
+            cl.W[r, c] = t if cq == 0.0 else cq * t
+    if not ok:
+        return False
+    if cq == 0.0:
+        for r in range(m):
+            t = 0.0
+            for d in range(cl.B.shape[0]):
+                t += cl.B[d, r] * cl.rel0[d]
+            cl.g[r] = t
+    dmu = np.linalg.solve(cl.W, -cl.g)
+    for r in range(cl.lam.shape[0]):
+        t = 0.0
+        for c in range(m):
+            t += cl.B[r, c] * dmu[c]
+        cl.lam[r] += t
+    closure_inputs(ws, cl, mot, cl.lam)
+    ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
+    for r in range(xn.shape[0]):
+        if not math.isfinite(xn[r]):
+            ok = False
     return ok
 
 
@@ -715,8 +939,12 @@ def run(
                             for i in range(n):
                                 cw.yb[i] = cw.yk[i]
                         correct(md, drv, cw)
-                ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, zero_f, xn, False, noload)
-                used += 1
+                if cw.cl.a.shape[0] > 0:
+                    ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload)
+                    used += cw.cl.g.shape[0] + 2
+                else:
+                    ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, zero_f, xn, False, noload)
+                    used += 1
                 dx = 0.0
                 xmax = 0.0
                 dq = 0.0
@@ -758,6 +986,8 @@ def run(
                     dqc = max(dqc, abs(x[r] - qdd[r]))
                     d2q = max(d2q, abs(x[r] - 2.0 * qdd[r] + qddm[r]))
             joint_torques(md, ws, tau, torque)
+            for r in range(cw.cl.lam.shape[0]):
+                cw.cl.lamh[s, r] = cw.cl.lam[r]
             for r in range(nd):
                 qddm[r] = qdd[r]
                 anew = ((1.0 - opts.alpha_f) * x[r] + opts.alpha_f * qdd[r] - opts.alpha_m * aux[r]) * i1m
@@ -870,6 +1100,11 @@ def run(
                 )  # fmt: skip
             else:
                 ok = accel(md, ws, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, torque)
+                if ok and cw.cl.a.shape[0] > 0:
+                    ok = closure_sweep(
+                        md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, noload
+                    )
+                    joint_torques(md, ws, drv.tau_r[s], torque)
             for r in range(nd):
                 aux[r] = qdd[r]
             if not ok:

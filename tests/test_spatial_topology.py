@@ -1,0 +1,430 @@
+"""Trees and closed loops of spatial arms (docs/spatial.md "Trees and closed loops"): the
+topology data (link names and parents, closures, the end-effector) in the model and the case
+file, the engines that refuse them, the tree sweep of the spatial DT-TMM and its loop closure."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dttmm
+import dttmm.spatial as sp
+from dttmm import InputError
+from dttmm.spatial import SpatialClosure, SpatialLink, SpatialManipulator, SpatialSection
+from dttmm.spatial.case import case_from_dict, case_to_dict, load_case
+
+TOPO = Path(__file__).resolve().parents[1] / "experiments" / "cases" / "spatial" / "topology"
+FOUR_BAR = TOPO / "four_bar.toml"
+
+
+def _beam(length=0.3):
+    return SpatialSection(length=length, GJ=30.0, EIy=40.0, EIz=40.0, rhoA=0.8, rhoJ=4e-4, EA=2e6)
+
+
+def _four_bar_dict() -> dict:
+    return tomllib.loads(FOUR_BAR.read_text())
+
+
+def _refused(data: dict) -> InputError:
+    with pytest.raises(InputError) as info:
+        case_from_dict(data)
+    assert "\n" not in str(info.value)
+    return info.value
+
+
+# ------------------------------------------------------------------ the data layer ------------
+
+
+def test_four_bar_topology():
+    """The shipped four-bar: two branches from the base (AB → BC, CD), one revolute cut joint."""
+    case = load_case(FOUR_BAR)
+    m = case.model
+    assert m.link_names == ("AB", "BC", "CD")
+    assert m.parents == (-1, 0, -1)
+    assert m.children(-1) == (0, 2) and m.children(0) == (1,) and m.children(1) == ()
+    assert m.leaves == (1, 2)
+    assert m.end_effector_index == 2 and not m.serial
+    assert m.n_closure_equations == 5 and m.closure_names == ("C",)
+    assert case.provenance["source"].startswith("O. A. Bauchau")
+
+
+def test_default_names_and_parents():
+    """Unnamed links are link1, link2, …; every parent defaults to the previous link; a chain
+    written with explicit parents is the same arm as one without (serial)."""
+    links = (SpatialLink(_beam()), SpatialLink(_beam()), SpatialLink(_beam()))
+    m = SpatialManipulator(links)
+    assert m.link_names == ("link1", "link2", "link3") and m.parents == (-1, 0, 1) and m.serial
+    explicit = tuple(
+        dataclasses.replace(lk, name=f"l{i}", parent="base" if i == 0 else f"l{i - 1}")
+        for i, lk in enumerate(links)
+    )
+    m2 = SpatialManipulator(explicit, end_effector="l1")
+    assert m2.parents == (-1, 0, 1) and m2.serial and m2.end_effector_index == 1
+    tree = SpatialManipulator((links[0], links[1], dataclasses.replace(links[2], parent="link1")))
+    assert tree.parents == (-1, 0, 0) and tree.leaves == (1, 2) and not tree.serial
+
+
+def test_round_trip():
+    """case_to_dict → case_from_dict rebuilds the four-bar and a tree with an end-effector; the
+    existing (serial) cases write no topology keys."""
+    case = load_case(FOUR_BAR)
+    assert case_from_dict(case_to_dict(case)) == case
+    data = _four_bar_dict()
+    data["model"]["end_effector"] = "BC"
+    data["model"]["closures"][0]["to_point"] = [0.0, 0.0, 0.0]
+    data["model"]["closures"][0]["kind"] = "spherical"
+    c2 = case_from_dict(data)
+    assert c2.model.end_effector == "BC" and c2.model.closures[0].to_point == (0.0, 0.0, 0.0)
+    assert case_from_dict(case_to_dict(c2)) == c2
+    serial = load_case(TOPO.parent / "two_joint_arm.toml")
+    d = case_to_dict(serial)
+    assert "closures" not in d["model"] and "end_effector" not in d["model"]
+    assert all("name" not in lk and "parent" not in lk for lk in d["model"]["links"])
+
+
+@pytest.mark.parametrize(
+    ("edit", "field", "words"),
+    [
+        (lambda d: d["model"]["links"][1].update(parnet="AB"), "parnet", "parent"),
+        (lambda d: d["model"]["closures"][0].update(too="CD"), "too", "to"),
+        (lambda d: d["model"].update(end_efector="BC"), "end_efector", "end_effector"),
+        (lambda d: d["model"]["links"][1].update(parent="CD"), "model.links[1].parent", "listed before"),
+        (lambda d: d["model"]["links"][1].update(parent="XY"), "model.links[1].parent", "names no link"),
+        (lambda d: d["model"]["links"][2].update(name="AB"), "model.links[2].name", "unique"),
+        (lambda d: d["model"]["links"][2].update(name="ground"), "model.links[2].name", "reserved"),
+        (lambda d: d["model"]["closures"][0].update(link="XY"), "model.closures[0].link", "names no link"),
+        (lambda d: d["model"]["closures"][0].update(to="XY"), "model.closures[0].to", "names no link"),
+        (lambda d: d["model"]["closures"][0].update(to="BC"), "model.closures[0].to", "must differ"),
+        (lambda d: d["model"]["closures"][0].update(axis=[1.0, 1.0, 0.0]), "model.closures[0].axis", "unit"),
+        (lambda d: d["model"]["closures"][0].update(kind="prismatic"), "model.closures[0].kind", "revolute"),
+        (lambda d: d["model"].update(end_effector="XY"), "model.end_effector", "must name a link"),
+        (
+            lambda d: d["model"]["closures"][0].update(to_point=[0.0, 1e-3, 0.0]),
+            "model.closures[0].to_point",
+            "open by 0.001 m",
+        ),
+    ],
+)
+def test_refusals(edit, field, words):
+    """Each bad topology entry is a one-line InputError naming the field (an unknown key with
+    the nearest valid one) and its reason."""
+    data = _four_bar_dict()
+    edit(data)
+    msg = str(_refused(data))
+    assert field in msg and words in msg, msg
+
+
+def test_closure_record_refusals():
+    """SpatialClosure checks its own fields; the manipulator checks the names it uses."""
+    with pytest.raises(InputError, match="closure.point"):
+        SpatialClosure("weld", "a", point=(0.0, 1.0))
+    with pytest.raises(InputError, match="closure.link"):
+        SpatialClosure("weld", "ground")
+    with pytest.raises(InputError, match=r"model.closures\[0\]"):
+        SpatialManipulator((SpatialLink(_beam()),), closures=("C",))
+
+
+def test_serial_only_engines_refuse():
+    """The engines that run chains only refuse a tree or a loop in one line, naming themselves."""
+    case = load_case(FOUR_BAR)
+    from dttmm.spatial.inverse_dynamics import rigid_inverse_dynamics
+    from dttmm.urdf import case_to_urdf
+
+    with pytest.raises(InputError, match="trees and closed loops are not supported by the rigid inverse"):
+        rigid_inverse_dynamics(case.model, np.zeros(3), np.zeros(3), np.zeros(3))
+    with pytest.raises(InputError, match="trees and closed loops are not supported by the URDF export"):
+        case_to_urdf(case)
+    pin = pytest.importorskip("pinocchio")  # noqa: F841
+    from reference_models import pinocchio_spatial
+
+    with pytest.raises(InputError, match="not supported by pinocchio-spatial"):
+        pinocchio_spatial.build_model(case.model)
+
+
+# ------------------------------------------------------------------ trees ---------------------
+
+BRANCHED = TOPO / "branched_arm.toml"
+
+
+def _short(case, duration, output_step=None):
+    sc = dataclasses.replace(case.scenario, duration=duration)
+    if output_step is not None:
+        sc = dataclasses.replace(sc, output_step=output_step)
+    return dataclasses.replace(case, scenario=sc)
+
+
+def _rigid_tree(case):
+    """The case with every link a SpatialRigidBody of its undeformed beam's mass, centre and
+    inertia (rod + rotary inertia), hubs and payloads kept."""
+    links = []
+    for lk in case.model.links:
+        b = lk.beam
+        m, L = b.rhoA * b.length, b.length
+        J = np.diag([b.rhoJ * L, b.rhoIy * L + m * L * L / 12, b.rhoIz * L + m * L * L / 12])
+        body = sp.SpatialRigidBody(L, m, (L / 2, 0.0, 0.0), J)
+        links.append(dataclasses.replace(lk, beam=body))
+    return dataclasses.replace(case, model=dataclasses.replace(case.model, links=tuple(links)))
+
+
+def _pin_tree(model):
+    """Pinocchio's rigid model of a spatial tree, built joint by joint with the same parents
+    (every joint unlocked, the base at the world origin)."""
+    pin = pytest.importorskip("pinocchio")
+    from dttmm.spatial.rotation import rpy_matrix
+    from reference_models.pinocchio_spatial import link_inertia
+
+    pm = pin.Model()
+    tip = {-1: (0, pin.SE3(rpy_matrix(model.base_rpy), np.array(model.base_xyz, float)))}
+    for i, link in enumerate(model.links):
+        jpar, place = tip[model.parents[i]]
+        origin = pin.SE3(rpy_matrix(link.joint.origin_rpy), np.array(link.joint.origin_xyz, float))
+        jid = pm.addJoint(
+            jpar, pin.JointModelRevoluteUnaligned(np.array(link.joint.axis)), place * origin, f"j{i}"
+        )
+        pm.appendBodyToJoint(jid, link_inertia(link), pin.SE3.Identity())
+        tip[i] = (jid, pin.SE3(np.eye(3), np.array([link.beam.length, 0.0, 0.0])))
+    pm.gravity.linear = np.array(model.gravity, float)
+    return pm
+
+
+def test_rigid_tree_accelerations_equal_pinocchio():
+    """The branched arm with rigid links: the tree sweep's q̈ at random states = Pinocchio's ABA
+    on a tree built by hand with the same parents (hubs, payloads with offsets, gravity)."""
+    pin = pytest.importorskip("pinocchio")
+    case = _rigid_tree(load_case(BRANCHED))
+    pm = _pin_tree(case.model)
+    pd = pm.createData()
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for _ in range(4):
+        q, v, tau = rng.normal(size=4), rng.normal(size=4), rng.normal(size=4)
+        drives = tuple(dttmm.Drive("torque", dttmm.Constant(float(t))) for t in tau)
+        c = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=drives))
+        qdd = sp.accelerations(c, 1, q, v, engine="python")
+        ref = pin.aba(pm, pd, q, v, tau)
+        worst = max(worst, np.max(np.abs(qdd - ref)) / np.max(np.abs(ref)))
+    assert worst < 1e-12, worst
+
+
+def _tree_gap(f):
+    """max |joint angle − Pinocchio's| (rad) of the branched arm with every stiffness × f (k = 2,
+    Newmark, h = 5e-4, 0.2 s), and the largest joint angle."""
+    pin = pytest.importorskip("pinocchio")
+    from scipy.integrate import solve_ivp
+
+    case = _short(_stiffened(load_case(BRANCHED), f), 0.2, 0.01)
+    r = sp.simulate(case, elements_per_link=2, h=5e-4)
+    pm = _pin_tree(case.model)
+    pd = pm.createData()
+    drives = case.scenario.drives
+
+    def rhs(t, y):
+        tau = np.array([d.torque(t) for d in drives])
+        return np.concatenate([y[4:], pin.aba(pm, pd, y[:4], y[4:], tau)])
+
+    bps = sorted({b for d in drives for b in d.law.breakpoints if b < 0.2} | {0.0, 0.2})
+    y, ref = np.zeros(8), np.zeros((r.t.size, 4))
+    for a, b in itertools.pairwise(bps):
+        sol = solve_ivp(rhs, (a, b), y, method="DOP853", rtol=1e-12, atol=1e-13, dense_output=True)
+        sel = (r.t >= a) & (r.t <= b)
+        ref[sel] = sol.sol(r.t[sel])[:4].T
+        y = sol.y[:, -1]
+    return float(np.max(np.abs(r.joint_angle - ref))), float(np.max(np.abs(ref)))
+
+
+def test_stiff_tree_approaches_pinocchio():
+    """The branched arm with every stiffness × 1e3 and × 1e4 against Pinocchio's rigid tree
+    (same parents; ABA integrated by SciPy's DOP853, rtol 1e-12): the joint angles (up to
+    0.9 rad) differ by the links' compliance, which falls as 1/stiffness (measured 8.8e-5 and
+    9.3e-6 rad; 8.6e-4 at × 1e2)."""
+    soft, swing = _tree_gap(1e3)
+    stiff, _ = _tree_gap(1e4)
+    assert swing > 0.5
+    assert soft < 1.5e-4 and stiff < 1.5e-5 and 7 < soft / stiff < 13, (soft, stiff)
+
+
+def test_explicit_parents_change_nothing():
+    """A chain written with explicit `parent` keys runs bit for bit as the same chain without."""
+    case = _short(load_case(TOPO.parent / "three_joint_arm.toml"), 0.02, 0.005)
+    links = tuple(
+        dataclasses.replace(lk, name=f"l{i}", parent="base" if i == 0 else f"l{i - 1}")
+        for i, lk in enumerate(case.model.links)
+    )
+    named = dataclasses.replace(case, model=dataclasses.replace(case.model, links=links))
+    kw = dict(elements_per_link=2, h=1e-3, cut_loads=True, engine="python")
+    a, b = sp.simulate(case, **kw), sp.simulate(named, **kw)
+    for name in ("joint_angle", "joint_torque", "link_tip", "end_effector", "cut_loads", "energy", "twist"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+# ------------------------------------------------------------------ closed loops --------------
+
+FIVE_BAR = TOPO / "five_bar.toml"
+
+
+def _stiffened(case, f):
+    """Every link's stiffnesses (EA, GJ, EIy, EIz) × f."""
+    links = []
+    for lk in case.model.links:
+        b = lk.beam
+        beam = dataclasses.replace(b, EA=b.EA * f, GJ=b.GJ * f, EIy=b.EIy * f, EIz=b.EIz * f)
+        links.append(dataclasses.replace(lk, beam=beam))
+    return dataclasses.replace(case, model=dataclasses.replace(case.model, links=tuple(links)))
+
+
+def _five_bar_tip(case, t):
+    """The rigid five-bar's distal tip at time t (m): the base angles from the motion laws, the
+    tip where the two distal circles meet on the initial (upper) side."""
+    m = case.model
+    pl, pr = m.links[0], m.links[2]
+    out = []
+    for tt in np.atleast_1d(t):
+        B = []
+        for lk, d in ((pl, case.scenario.drives[0]), (pr, case.scenario.drives[2])):
+            th = lk.joint.origin_rpy[2] + d.motion(float(tt))[0]
+            B.append(np.array(lk.joint.origin_xyz[:2]) + lk.beam.length * np.array([np.cos(th), np.sin(th)]))
+        L = m.links[1].beam.length
+        mid, dv = 0.5 * (B[0] + B[1]), B[1] - B[0]
+        h = np.sqrt(L * L - 0.25 * dv @ dv)
+        nrm = np.array([-dv[1], dv[0]]) / np.linalg.norm(dv)
+        out.append([*(mid + h * nrm), 0.0])
+    return np.array(out)
+
+
+def test_loop_refusals():
+    """A closed loop runs with the Newmark family to the stop rule and open-loop drives; the
+    rest is refused in one line (RK4, fixed or "auto" sweep counts, closed-loop laws, statics,
+    linearisation, the one-state forward dynamics)."""
+    case = _short(load_case(FOUR_BAR), 0.002, 0.001)
+    for kw, field in (({"integrator": "rk4"}, "integrator"), ({"iterations": "auto"}, "iterations")):
+        with pytest.raises(InputError, match=field) as info:
+            sp.simulate(case, elements_per_link=1, h=1e-3, engine="python", **kw)
+        assert "\n" not in str(info.value)
+    from dttmm.drives import PD
+
+    pd = dttmm.Drive("torque", PD(1.0, 0.1, dttmm.Constant(0.0)))
+    drives = (case.scenario.drives[0], pd, case.scenario.drives[2])
+    c2 = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=drives))
+    with pytest.raises(InputError, match=r"scenario.drives\[1\].law"):
+        sp.simulate(c2, elements_per_link=1, h=1e-3, engine="python")
+    with pytest.raises(InputError, match="closed loops are not supported by dttmm.spatial.accelerations"):
+        sp.accelerations(case, 1, np.zeros(3 + 3 * 6), np.zeros(3 + 3 * 6), engine="python")
+    with pytest.raises(InputError, match="not supported by the spatial statics"):
+        sp.statics(case, elements_per_link=1, engine="python")
+
+
+def test_four_bar_closure_holds():
+    """Bauchau's four-bar (k = 2, h = 1e-3, 0.2 s: the crank spun up to −0.6 rad/s): the closure
+    holds at position level to ≤ 1e-10 × the mechanism's size at every output time (step ends),
+    its axis to ≤ 1e-10 rad; the crank follows its law; the tilted joint loads the loop."""
+    case = load_case(FOUR_BAR)
+    r = sp.simulate(case, elements_per_link=2, h=1e-3, cut_loads=True)
+    assert r.status == "ok"
+    size = case.model.size
+    assert np.max(r.closure_residual) <= 1e-10 * size, np.max(r.closure_residual)
+    assert np.max(r.closure_angle_residual) <= 1e-10, np.max(r.closure_angle_residual)
+    law = case.scenario.drives[0]
+    assert np.allclose(r.joint_angle[:, 0], [law.motion(t)[0] for t in r.t], rtol=0, atol=1e-14)
+    assert np.max(np.abs(r.closure_loads)) > 1e-3  # the tilted axis: the links bend against it
+    # the tip cut of BC (the load on its massless outboard side) balances the closure load
+    k = 2
+    tip_bc = 2 * (k + 1) - 1
+    assert np.allclose(r.cut_loads[-1, tip_bc], -r.closure_loads[-1, 0], rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_four_bar_closure_holds_over_two_seconds():
+    """The four-bar over 2 s (the crank turns 1.17 rad at −0.6 rad/s): the closure holds at every
+    step end to ≤ 1e-10 × the mechanism's size and its axis to ≤ 1e-10 rad."""
+    case = _short(load_case(FOUR_BAR), 2.0, 0.01)
+    r = sp.simulate(case, elements_per_link=2, h=1e-3)
+    assert r.status == "ok" and abs(r.joint_angle[-1, 0] + 0.6 * (2.0 - 0.05)) < 1e-12
+    assert np.max(r.closure_residual) <= 1e-10 * case.model.size, np.max(r.closure_residual)
+    assert np.max(r.closure_angle_residual) <= 1e-10, np.max(r.closure_angle_residual)
+
+
+def _five_bar_gap(f):
+    case = _short(_stiffened(load_case(FIVE_BAR), f), 0.1, 0.01)
+    r = sp.simulate(case, elements_per_link=2, h=5e-4)
+    ref = _five_bar_tip(case, r.t)
+    assert np.max(r.closure_residual) <= 1e-10 * case.model.size
+    return float(np.max(np.abs(r.end_effector - ref))), float(np.max(np.abs(ref - ref[0])))
+
+
+def test_stiff_five_bar_follows_rigid_geometry():
+    """The five-bar with every stiffness × 10 and × 100 (k = 2, h = 5e-4, 0.1 s): its distal
+    tip follows the rigid mechanism's closed-form loop-closure geometry (where the circles about
+    the driven proximal tips cross) to within the links' deflection, which falls as 1/stiffness
+    (measured 3.1e-6 and 3.0e-7 m while the tip travels 0.04 m; 1.1e-4 m unstiffened)."""
+    soft, travel = _five_bar_gap(10.0)
+    stiff, _ = _five_bar_gap(100.0)
+    assert travel > 0.03
+    assert soft < 5e-6 and stiff < 5e-7 and 7 < soft / stiff < 14, (soft, stiff)
+
+
+# ------------------------------------------------------------------ DT-TMM = global solver -----
+
+
+@pytest.mark.parametrize("name", ["four_bar", "five_bar", "branched_arm"])
+def test_dttmm_equals_global_solver(name):
+    """The shipped tree and loop cases, k = 2, Newmark, h = 1e-3, 0.05 s: the spatial DT-TMM
+    (tree sweep, cut-joint loads) = the spatial global solver (its own equations: the tree's
+    frame recursion, Lagrange multipliers with its own closure equations), which solve the same
+    discrete equations: link tips ≤ 1e-9 m (measured ≤ 6e-17 m over 0.1 s), joint torques,
+    closure loads and cut loads to round-off relative to their largest values."""
+    from reference_models import spatial_global as sg
+
+    case = _short(load_case(TOPO / f"{name}.toml"), 0.05, 0.01)
+    kw = dict(elements_per_link=2, h=1e-3, cut_loads=True)
+    r, g = sp.simulate(case, **kw), sg.simulate(case, **kw)
+    assert np.max(np.abs(r.link_tip - g.link_tip)) <= 1e-9
+    assert np.max(np.abs(r.end_effector - g.end_effector)) <= 1e-9
+    assert np.max(np.abs(r.link_tip - r.link_tip[0])) > 1e-4  # the mechanism moves
+
+    def rel(a, b):
+        return np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300)
+
+    assert rel(r.joint_angle, g.joint_angle) < 1e-9
+    assert rel(r.cut_loads, g.cut_loads) < 1e-7
+    if case.model.closures:
+        assert rel(r.closure_loads, g.closure_loads) < 1e-7
+        assert np.max(r.closure_residual) <= 1e-10 * case.model.size
+
+
+def test_tree_with_closed_loop_and_motion_drives_equals_global_solver():
+    """The branched arm with a pd law (moment feedback) on one finger and a motion drive on the
+    other (k = 2, h = 1e-3, 0.05 s): DT-TMM = the spatial global solver (measured 5.8e-16 m,
+    torques 1.4e-12 N·m)."""
+    from dttmm.drives import PD
+    from reference_models import spatial_global as sg
+
+    case = load_case(BRANCHED)
+    d = list(case.scenario.drives)
+    d[2] = dttmm.Drive("torque", PD(2.0, 0.05, dttmm.Sine(0.3, 4.0), moment_gain=0.5))
+    d[3] = dttmm.Drive("motion", dttmm.SpinUp(-2.0, 0.05))
+    case = _short(
+        dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=tuple(d))), 0.05, 0.01
+    )
+    r = sp.simulate(case, elements_per_link=2, h=1e-3)
+    g = sg.simulate(case, elements_per_link=2, h=1e-3)
+    assert r.status == "ok"
+    assert np.max(np.abs(r.link_tip - g.link_tip)) < 1e-12
+    assert np.max(np.abs(r.joint_torque - g.joint_torque)) < 1e-9
+    assert np.max(np.abs(r.joint_torque[:, 2])) > 0.1 and np.max(np.abs(r.joint_torque[:, 3])) > 0.05
+
+
+def test_planar_five_bar_through_dttmm_simulate():
+    """`dttmm.load_case` and `dttmm.simulate` take a loop case (a planar mechanism written as a
+    spatial case, every axis z) and hand it to the spatial kernel: the same arrays as
+    dttmm.spatial.simulate; the motion stays in the plane."""
+    case = _short(dttmm.load_case(FIVE_BAR), 0.02, 0.01)
+    a = dttmm.simulate(case, elements_per_link=2, h=1e-3)
+    b = sp.simulate(case, elements_per_link=2, h=1e-3)
+    for name in ("link_tip", "joint_angle", "joint_torque", "closure_loads", "closure_residual"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert np.max(np.abs(a.link_tip[..., 2])) == 0.0
