@@ -302,7 +302,8 @@ def _build(case, k, shear_ratio, node, loads):
 
     def velocity(i, p):
         return sum(
-            (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * alpha_rates[m_]) for m_ in _ancestors(model, i)
+            (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * alpha_rates[m_])
+            for m_ in _ancestors(model, i)
         ) + np.zeros(3)
 
     for i, link in enumerate(model.links):
