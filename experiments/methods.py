@@ -395,6 +395,8 @@ def check_rk4_spatial(case) -> None:
     at the studies' k (8) than the smallest step they give it (1e-5 s): the robots' tubes."""
     from dttmm.errors import InputError
 
+    if getattr(case.model, "closures", ()):
+        raise InputError("integrator", "rk4", "closed loops run with the Newmark family only (not rk4)")
     h = rk4_stable_step(case, _RK4_SPATIAL_K)
     if h < _RK4_SPATIAL_H:
         raise InputError(
