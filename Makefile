@@ -3,6 +3,8 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# the default tier runs on every core (at most 4 worker processes, pytest-xdist); PYTEST_JOBS= runs it in one
+PYTEST_JOBS ?= -n auto --maxprocesses=4
 
 .PHONY: venv test lint test-slow report bench clean
 
@@ -17,7 +19,7 @@ venv: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
-	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q --durations=15
+	OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q $(PYTEST_JOBS) --durations=15
 	OPENBLAS_NUM_THREADS=1 DTTMM_BENCH_QUICK=1 $(BIN)/python -m pytest -q benchmarks --benchmark-disable
 
 lint: $(STAMP)

@@ -22,6 +22,7 @@ from .model import Hub, Link, Manipulator, Payload, Section
 from .resources import check_run_size
 from .result import Result, make_result, tip_deflection
 from .scenario import Scenario
+from .urdf_import import load_urdf, read_urdf
 
 __all__ = [
     "Case",
@@ -55,4 +56,6 @@ __all__ = [
     "frequencies",
     "Linearization",
     "Modes",
+    "load_urdf",
+    "read_urdf",
 ]

@@ -16,7 +16,8 @@ __all__ = ["case_to_dict", "load_case"]
 
 def load_case(path):
     """A :class:`dttmm.Case`, or a :class:`dttmm.spatial.SpatialCase` for a file with
-    ``kind = "spatial"``; the name defaults to the file's stem. InputError (one line, naming the
+    ``kind = "spatial"`` or a ``[model]`` naming a ``urdf`` (docs/urdf.md); the name defaults to
+    the file's stem. InputError (one line, naming the
     field and value) for an unreadable file, invalid TOML, or any key or value the schema
     refuses."""
     text = planar.read_case_text(path)
@@ -26,6 +27,11 @@ def load_case(path):
         raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
     if "name" not in data:
         data["name"] = Path(path).stem
+    model = data.get("model")
+    if isinstance(model, dict) and "urdf" in model:  # a robot from its URDF (docs/urdf.md)
+        from .urdf_import import case_from_urdf_dict
+
+        return case_from_urdf_dict(data, Path(path).parent)
     if data.get("kind") == "spatial":
         from .spatial.case import case_from_dict as spatial_from_dict
 

@@ -35,7 +35,7 @@ import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from .case import Case, load_case
+from .case import Case
 from .cliparse import OneLineParser
 from .errors import InputError
 from .model import Manipulator
@@ -203,21 +203,10 @@ def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
 
 
 def _load_any(path):
-    """A spatial case file (``kind = "spatial"``) by :func:`dttmm.spatial.load_case`, any other by
-    the planar loader."""
-    import tomllib
+    """A case file of any kind (``dttmm.load_case``: planar, spatial, or a robot from its URDF)."""
+    from .casefiles import load_case as load_any
 
-    from .case import read_case_text
-
-    try:
-        kind = tomllib.loads(read_case_text(path)).get("kind")
-    except (InputError, tomllib.TOMLDecodeError):
-        kind = None
-    if kind == "spatial":
-        from .spatial import load_case as load_spatial
-
-        return load_spatial(path)
-    return load_case(path)
+    return load_any(path)
 
 
 def main(argv=None) -> int:

@@ -373,6 +373,40 @@ def _mujoco_spatial_step(k: int) -> float:
     return h
 
 
+#: RK4's stability bound on the imaginary axis: |R(iωh)| ≤ 1 for ωh ≤ 2√2 (2.83)
+_RK4_BOUND = 2 * math.sqrt(2)
+#: the k and the smallest step (s) the studies give the explicit DT-TMM on a spatial arm: the
+#: paper study's k = 8, the quick size's finest explicit step (experiments/plan.py, rk4_h)
+_RK4_SPATIAL_K, _RK4_SPATIAL_H = 8, 1e-5
+
+
+def rk4_stable_step(case, k: int) -> float:
+    """RK4's largest stable step (s) on ``case`` at k elements per link: 2√2/ω_max, ω_max the
+    highest natural frequency of the DT-TMM's own linearisation at rest (:func:`dttmm.linear.
+    frequencies`; measured: ur5 9.9e-6 s, panda 6.9e-6 s at k = 4, where RK4 ran at 1e-5 s on
+    the UR5 and diverged on the Panda; three_joint_arm 2.5e-5 s at k = 8)."""
+    from dttmm.linear import frequencies
+
+    return _RK4_BOUND / (2 * math.pi * float(max(frequencies(case, k))))
+
+
+def check_rk4_spatial(case) -> None:
+    """Refuse (InputError) a spatial arm whose stiffest element modes need a smaller RK4 step
+    at the studies' k (8) than the smallest step they give it (1e-5 s): the robots' tubes."""
+    from dttmm.errors import InputError
+
+    if getattr(case.model, "closures", ()):
+        raise InputError("integrator", "rk4", "closed loops run with the Newmark family only (not rk4)")
+    h = rk4_stable_step(case, _RK4_SPATIAL_K)
+    if h < _RK4_SPATIAL_H:
+        raise InputError(
+            "integrator",
+            "rk4",
+            f"explicit: its stable step on this arm at k = {_RK4_SPATIAL_K} is {h:.2g} s (2√2/ω_max of the "
+            f"arm's modes at rest), below the studies' smallest explicit step {_RK4_SPATIAL_H:g} s",
+        )
+
+
 _BUILTIN = (
     # DT-TMM and the global solver often agree to round-off: their markers differ in shape and
     # size (DT-TMM large and hollow) so both stay visible.
@@ -410,6 +444,7 @@ _BUILTIN = (
         base="dttmm",
         scans=("elements",),
         spatial=_DTTMM_SPATIAL,
+        spatial_check="experiments.methods:check_rk4_spatial",
         spatial_cut_loads=True,
         label="DT-TMM (RK4)",
         style=Style("C4", "v", "-", 5),
@@ -589,6 +624,7 @@ _BUILTIN = (
         ),
         base="dttmm",
         spatial="reference_models.mujoco_spatial:simulate",
+        spatial_check="reference_models.mujoco_spatial:check_case",
         spatial_max_step=_mujoco_spatial_step,
         label="MuJoCo hinge chain",
         style=Style("C5", "X", "-.", 6),
@@ -664,6 +700,7 @@ _BUILTIN = (
         ),
         scans=("elements",),
         spatial="reference_models.pinocchio_spatial:simulate",
+        spatial_check="reference_models.pinocchio_spatial:check_case",
         label="Pinocchio rigid",
         style=Style("k", "*", ":", 9),
     ),

@@ -31,9 +31,15 @@ __all__ = ["CASE_DIR", "PLANS", "SHIPPED", "Plan", "case_fingerprint", "load_cas
 
 CASE_DIR = Path(__file__).resolve().parent / "cases"
 SHIPPED = ("single_link", "three_link", "spin_up")  # the cases of the default report, in order
-#: the spatial arms of the default report (files in ``CASE_DIR/spatial``)
-SPATIAL_SHIPPED = ("three_joint_arm",)
+#: the spatial arms of the default report: the shipped arm (``CASE_DIR/spatial``) and the robots
+#: from their URDF (``CASE_DIR/spatial/robots``, docs/urdf.md)
+SPATIAL_SHIPPED = ("three_joint_arm", "ur5", "panda")
+#: the folder (under ``CASE_DIR``) of each shipped case outside it
+_FOLDERS = {"three_joint_arm": "spatial", "ur5": "spatial/robots", "panda": "spatial/robots"}
 QUICK_MAX_DURATION = 6.0  # s: the quick size shortens longer cases to this
+#: s: the quick size runs the robots' first 0.1 s (the arm released under gravity rings, the move
+#: starts); the spatial global solver (numpy, k ≤ 2) costs ~40 ms a step on them (measured)
+ROBOT_QUICK_DURATION = 0.1
 
 
 @dataclass(frozen=True)
@@ -48,6 +54,7 @@ class Plan:
     output_step : common output grid (s) of every run, or None to keep each TOML's value. The
         Exudyn adapters sample on their step grid, so it must be a multiple of every h studied.
     case_files : case name -> TOML path; a case not listed is read from ``CASE_DIR/<name>.toml``
+        (the shipped spatial arms from their folders under it, ``_FOLDERS``)
     """
 
     name: str
@@ -79,7 +86,7 @@ def case_fingerprint(case) -> str:
 def _case_path(plan: Plan, name: str, case_dir) -> Path:
     if name in plan.case_files:
         return Path(plan.case_files[name])
-    return Path(case_dir) / ("spatial" if name in SPATIAL_SHIPPED else "") / f"{name}.toml"
+    return Path(case_dir) / _FOLDERS.get(name, "") / f"{name}.toml"
 
 
 def load_cases(plan: Plan, case_dir=CASE_DIR) -> dict:
@@ -125,7 +132,7 @@ def plan_for(size: str, case_files=()) -> Plan:
             case = dttmm.load_case(p)
         except InputError as exc:  # name the file as well as the field
             raise InputError(f"{p}: {exc.field}", exc.value, exc.reason) from None
-        shipped = p.resolve().parent == CASE_DIR
+        shipped = p.resolve().parent == CASE_DIR or p.resolve() == _case_path(base, p.stem, CASE_DIR)
         name = case.name if shipped else f"{case.name}-{case_fingerprint(case)}"
         if name in files:
             raise InputError("--case", str(p), f"names the same case as {files[name]} ({name})")
@@ -342,6 +349,8 @@ PLANS = {
             "three_link": None,
             "spin_up": QUICK_MAX_DURATION,
             "three_joint_arm": 0.6,
+            "ur5": ROBOT_QUICK_DURATION,
+            "panda": ROBOT_QUICK_DURATION,
         },
         ref_kh=(32, 2.5e-4),
         ks=[1, 2, 4, 8, 16],
@@ -353,7 +362,8 @@ PLANS = {
         cost_spatial_ks=[1, 2, 4, 8, 16, 32],
         scheme_ks=[1, 2, 4, 8, 16],
         note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s, the spatial "
-        "three_joint_arm to its first 0.6 s (the torque pulses and 0.1 s of free motion); "
+        "three_joint_arm to its first 0.6 s (the torque pulses and 0.1 s of free motion), the robots ur5 and "
+        f"panda to their first {ROBOT_QUICK_DURATION:g} s (released under gravity, the move starting); "
         + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
         bench=_BENCH["quick"],
@@ -361,7 +371,14 @@ PLANS = {
     ),
     "full": _plan(
         "full",
-        durations={"single_link": None, "three_link": None, "spin_up": None, "three_joint_arm": None},
+        durations={
+            "single_link": None,
+            "three_link": None,
+            "spin_up": None,
+            "three_joint_arm": None,
+            "ur5": None,
+            "panda": None,
+        },
         ref_kh=(32, 1e-4),
         ks=[1, 2, 4, 8, 16, 32],
         hs=[4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4],

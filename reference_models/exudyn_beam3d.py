@@ -16,6 +16,13 @@ are Euler–Bernoulli; they are approached with the shear stiffness GA = ``shear
 1e-6 on the shipped cases; see docs/spatial.md "Exudyn 3-D beam"). Inextensible links get
 EA = 1e6·max(EIy, EIz)/L² (as the planar peers).
 
+Rigid links (``SpatialRigidBody``, docs/spatial.md §1): one ``NodeRigidBodyEP`` at the link
+frame carrying an ``ObjectRigidBody`` (the body's mass, its centre of mass, its inertia moved to
+the node by the parallel-axis rule); the link's tip is the point L·x of that node's frame
+(joints, payloads and tip loads beyond it are markers there), its shape the straight segment,
+its tip deflections and twist zero; it has no beam element, so no section loads (``statics``
+gives NaN for it; ``simulate`` refuses ``section_loads`` on an arm with rigid links).
+
 Joints: an unlocked joint is an ``ObjectJointGeneric`` with the rotation about its axis free,
 between the parent marker (ground, or the tip node of link i−1, at the origin o with the joint
 frame R_J·A, A a rotation taking z to the axis a) and the root node of link i; a locked joint
@@ -45,14 +52,15 @@ from __future__ import annotations
 
 import math
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
 from dttmm import plumbing
 from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
+from dttmm.shapes import straight_shapes
 from dttmm.spatial import SpatialCase, SpatialResult, load_case
-from dttmm.spatial.model import require_flexible
 from dttmm.spatial.rotation import log_so3
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
@@ -252,10 +260,69 @@ def _build(case, k, shear_ratio, node, loads):
             ii.MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(rotation=R, translation=list(p)))
         )
 
-    root_nodes, tip_nodes, first_el, elements, bodies, rolls = [], [], [], [], [], []
+    root_nodes, tip_nodes, first_el, elements, bodies, rolls, reach = [], [], [], [], [], [], []
     kmax = 0.0
+    alpha_rates = _initial_joint_states(case)[1]
+
+    def add_body(nd, mass, c, J):
+        """A rigid body on node ``nd``: mass, centre c and inertia J about it (node frame)."""
+        Jn = J + mass * (c @ c * np.eye(3) - np.outer(c, c))
+        body = mbs.AddObject(
+            ii.ObjectRigidBody(
+                nodeNumber=nd,
+                mass=float(mass),
+                inertia=[Jn[0, 0], Jn[1, 1], Jn[2, 2], Jn[1, 2], Jn[0, 2], Jn[0, 1]],
+                centerOfMass=list(c),
+            )
+        )
+        bodies.append((body, nd, c, float(mass)))
+        carrier.setdefault(nd, body)
+        if has_g and mass > 0:
+            mbs.AddLoad(
+                ii.LoadMassProportional(
+                    markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=list(g)
+                )
+            )
+
+    def rigid_node(p, R, v):
+        if node == "EP":
+            ep = np.array(RotationMatrix2EulerParameters(R))
+            ep_t = AngularVelocity2EulerParameters_t(fr["omega"], ep)
+            return mbs.AddNode(
+                ii.NodeRigidBodyEP(
+                    referenceCoordinates=list(p) + list(ep), initialVelocities=list(v) + list(ep_t)
+                )
+            )
+        rv = RotationMatrix2RotationVector(R)
+        return mbs.AddNode(
+            ii.NodeRigidBodyRotVecLG(
+                referenceCoordinates=list(p) + list(rv), initialVelocities=list(v) + list(R.T @ fr["omega"])
+            )
+        )
+
+    def velocity(i, p):
+        return sum(
+            (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * alpha_rates[m_])
+            for m_ in _ancestors(model, i)
+        ) + np.zeros(3)
+
     for i, link in enumerate(model.links):
         b, fr = link.beam, frames[i]
+        if link.rigid:  # one node at the link frame, the body on it; the tip at L·x
+            nd = rigid_node(fr["p_link"], fr["R_link"], velocity(i, fr["p_link"]))
+            rolls.append(np.eye(3))
+            reach.append(np.array([b.length, 0.0, 0.0]))
+            root_nodes.append(nd)
+            tip_nodes.append(nd)
+            first_el.append(None)
+            elements.append([])
+            add_body(nd, b.mass, b.com_vector, b.inertia_matrix)
+            if link.hub is not None:
+                add_body(nd, link.hub.mass, np.zeros(3), link.hub_inertia)
+            if link.payload is not None:
+                add_body(nd, link.payload.mass, reach[-1] + link.payload_offset, link.payload_inertia)
+            continue
+        reach.append(np.zeros(3))
         L, l = b.length, b.length / k
         EA = b.EA if b.EA is not None else INEXTENSIBLE_AXIAL_RATIO * max(b.EIy, b.EIz) / L**2
         GA = shear_ratio * EA
@@ -268,27 +335,10 @@ def _build(case, k, shear_ratio, node, loads):
         Rx = rot_axis((1.0, 0.0, 0.0), b.roll)
         rolls.append(Rx)
         Rn = fr["R_link"] @ Rx
-        om_loc = Rn.T @ fr["omega"]
         nodes = []
         for j in range(k + 1):
             p = fr["p_link"] + fr["R_link"] @ np.array([j * l, 0.0, 0.0])
-            rates = _initial_joint_states(case)[1]
-            v = sum(
-                (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * rates[m_])
-                for m_ in _ancestors(model, i)
-            ) + np.zeros(3)
-            if node == "EP":
-                ep = np.array(RotationMatrix2EulerParameters(Rn))
-                ep_t = AngularVelocity2EulerParameters_t(fr["omega"], ep)
-                nd = ii.NodeRigidBodyEP(
-                    referenceCoordinates=list(p) + list(ep), initialVelocities=list(v) + list(ep_t)
-                )
-            else:
-                rv = RotationMatrix2RotationVector(Rn)
-                nd = ii.NodeRigidBodyRotVecLG(
-                    referenceCoordinates=list(p) + list(rv), initialVelocities=list(v) + list(om_loc)
-                )
-            nodes.append(mbs.AddNode(nd))
+            nodes.append(rigid_node(p, Rn, velocity(i, p)))
         els = [
             mbs.AddObject(
                 ii.ObjectBeamGeometricallyExact(
@@ -313,27 +363,9 @@ def _build(case, k, shear_ratio, node, loads):
             if rb is None or (rb.mass == 0.0 and not np.any(rb.inertia_matrix)):
                 continue
             if rb is link.hub:
-                nd, c, J = nodes[0], np.zeros(3), Rx.T @ rb.inertia_matrix @ Rx
+                add_body(nodes[0], rb.mass, np.zeros(3), Rx.T @ rb.inertia_matrix @ Rx)
             else:
-                c = Rx.T @ np.array(rb.offset, float)
-                J = Rx.T @ rb.inertia_matrix @ Rx + rb.mass * (c @ c * np.eye(3) - np.outer(c, c))
-                nd = nodes[-1]
-            body = mbs.AddObject(
-                ii.ObjectRigidBody(
-                    nodeNumber=nd,
-                    mass=float(rb.mass),
-                    inertia=[J[0, 0], J[1, 1], J[2, 2], J[1, 2], J[0, 2], J[0, 1]],
-                    centerOfMass=list(c),
-                )
-            )
-            bodies.append((body, nd, c, float(rb.mass)))
-            carrier.setdefault(nd, body)
-            if has_g and rb.mass > 0:
-                mbs.AddLoad(
-                    ii.LoadMassProportional(
-                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=list(g)
-                    )
-                )
+                add_body(nodes[-1], rb.mass, Rx.T @ np.array(rb.offset, float), Rx.T @ rb.inertia_matrix @ Rx)
 
     # joints and drives
     inputs = []  # (load, law, sign-vector) set by the pre-step function
@@ -347,7 +379,7 @@ def _build(case, k, shear_ratio, node, loads):
         else:
             parent = tip_nodes[par]
             R_pn = frames[par]["R_tip"] @ rolls[par]
-            p_pn = frames[par]["p_tip"]
+            p_pn = frames[par]["p_tip"] - frames[par]["R_tip"] @ reach[par]  # the node's position
         A = np.eye(3) if j.locked else _axis_frame(j.axis)
         # marker 0: the joint frame R_J·A at p_J in the parent's node frame
         m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
@@ -382,16 +414,17 @@ def _build(case, k, shear_ratio, node, loads):
     closures = []
     for cl in _closure_frames(case, frames):  # the loops, each closed by a joint
         a, b = cl["a"], cl["b"]
-        ma = rigid_marker(tip_nodes[a], rolls[a].T @ cl["Ra"], rolls[a].T @ cl["pa"])
+        # (on a rigid link the tip is at L·x from its node: ``reach``)
+        ma = rigid_marker(tip_nodes[a], rolls[a].T @ cl["Ra"], rolls[a].T @ cl["pa"] + reach[a])
         if b < 0:
             mb = rigid_marker(ground, cl["Rb"], cl["pb"])
         else:
-            mb = rigid_marker(tip_nodes[b], rolls[b].T @ cl["Rb"], rolls[b].T @ cl["pb"])
+            mb = rigid_marker(tip_nodes[b], rolls[b].T @ cl["Rb"], rolls[b].T @ cl["pb"] + reach[b])
         closures.append(
             mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[mb, ma], constrainedAxes=cl["axes"]))
         )
     for i, F, T, law, follower in loads:
-        mk = rigid_marker(tip_nodes[i])
+        mk = rigid_marker(tip_nodes[i], None, reach[i])
         if follower:  # tip-frame components -> the node frame R_tip Rx(roll)
             F, T = rolls[i].T @ F, rolls[i].T @ T
         for vec, Load in ((F, ii.LoadForceVector), (T, ii.LoadTorqueVector)):
@@ -416,6 +449,7 @@ def _build(case, k, shear_ratio, node, loads):
         elements=elements,
         bodies=bodies,
         rolls=rolls,
+        reach=reach,
         motion_joints=motion_joints,
         closures=closures,
         inputs=inputs,
@@ -434,9 +468,8 @@ def check_case(case):
             raise InputError(
                 "scenario.drives", d.law.name, f"closed-loop drives are not supported by {METHOD}"
             )
-    require_flexible(case.model, METHOD)
     for i, link in enumerate(case.model.links):
-        if link.beam.damping:
+        if not link.rigid and link.beam.damping:
             raise InputError(
                 f"model.links[{i}].beam.damping",
                 link.beam.damping,
@@ -536,6 +569,11 @@ def simulate(
         raise InputError("rho_inf", rho_inf, "must lie in [0, 1]")
     loads = _all_loads(case, tip_loads)
     shape_points = check_shape_points(shape_points)
+    if section_loads and case.model.rigid_links:
+        i = case.model.rigid_links[0]
+        raise InputError(
+            "section_loads", True, f"model.links[{i}] is rigid: it has no beam element to take them from"
+        )
     sc = case.scenario
     ratio = sc.output_step / h
     per_out = int(round(ratio))
@@ -586,7 +624,10 @@ def simulate(
         )
         for i, c in motion_joints.items()
     }
-    s_shape = spatial_shape_sensors(mbs, ii, OV, elements, "beam") if shape_points else []
+    flexible = [i for i, els in enumerate(elements) if els]
+    s_shape = (
+        spatial_shape_sensors(mbs, ii, OV, [elements[i] for i in flexible], "beam") if shape_points else []
+    )
     s_sec = []
     if section_loads:
         for e in first_el:
@@ -635,6 +676,7 @@ def simulate(
             [
                 sens(nd, OV.Position)
                 for els in elements
+                if els
                 for nd in [mbs.GetObject(e)["nodeNumbers"][0] for e in els]
                 + [mbs.GetObject(els[-1])["nodeNumbers"][1]]
             ]
@@ -713,9 +755,9 @@ def simulate(
 
     nt = len(t_out)
     root = np.stack([stored(x[0]) for x in s_root], axis=1)
-    tip = np.stack([stored(x[0]) for x in s_tip], axis=1)
     Rl = np.stack([stored(x[1]).reshape(nt, 3, 3) @ rolls[i].T for i, x in enumerate(s_root)], axis=1)
     Rt = np.stack([stored(x[1]).reshape(nt, 3, 3) @ rolls[i].T for i, x in enumerate(s_tip)], axis=1)
+    tip = np.stack([stored(x[0]) + Rt[:, i] @ B["reach"][i] for i, x in enumerate(s_tip)], axis=1)
     w_root = np.stack([stored(x[2]) for x in s_root], axis=1)
     w_tip = np.stack([stored(x[2]) for x in s_tip], axis=1)
     d = tip - root
@@ -758,7 +800,7 @@ def simulate(
             en += stored(sn)[:, 0]
         if has_g:
             ptr = 0
-            for i in range(len(elements)):
+            for i in flexible:
                 b = model.links[i].beam
                 l = b.length / k
                 pos = np.stack([stored(s_pos_all[ptr + j]) for j in range(k + 1)], axis=1)
@@ -801,7 +843,10 @@ def simulate(
     shapes = None
     if shape_points:
         nodes = [[np.hstack([stored(x) for x in node_]) for node_ in link] for link in s_shape]
-        shapes = spatial_link_shapes(case, nodes, shape_points)
+        shapes = straight_shapes(root, tip, shape_points)  # the rigid links'
+        if flexible:
+            beams = SimpleNamespace(model=SimpleNamespace(links=[model.links[i] for i in flexible]))
+            shapes[:, flexible] = spatial_link_shapes(beams, nodes, shape_points)
     if model.closures:  # the loops' gaps at the tip frames (what the closing joints hold)
         rc = resolve_closures(model, *rigid_tip_frames(model, initial_angles(case)))
         gaps = [closure_gaps(rc, Rt[t_], tip[t_]) for t_ in range(nt)]
@@ -834,7 +879,7 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
     case's ``scenario.loads`` and ``tip_loads`` at t = duration, applied in ``load_steps`` load steps; Newton to 1e-12
     relative). Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2),
     ``twist`` (n,), ``section_loads`` (n, 6) (ForceLocal, TorqueLocal of each link's first
-    element, at x = l/2, section frame), ``section_rotation`` (n, 3, 3) (that section frame)."""
+    element, at x = l/2, section frame), ``section_rotation`` (n, 3, 3) (that section frame); NaN for a rigid link (no beam element)."""
     if isinstance(case, str) or hasattr(case, "__fspath__"):
         case = load_case(case)
     if not isinstance(case, SpatialCase):
@@ -857,7 +902,6 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
         raise SimulationError(f"Exudyn {METHOD}: SolveStatic failed", t=0.0, step=0, component="newton")
     OV = exu.OutputVariableType
     root = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["root_nodes"]])
-    tip = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["tip_nodes"]])
     Rl = [
         np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) @ r.T
         for nd, r in zip(B["root_nodes"], B["rolls"])
@@ -866,12 +910,16 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
         np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) @ r.T
         for nd, r in zip(B["tip_nodes"], B["rolls"])
     ]
+    tip = np.array(
+        [mbs.GetNodeOutput(nd, OV.Position) + R @ c for nd, R, c in zip(B["tip_nodes"], Rt, B["reach"])]
+    )
     d = tip - root
+    nan = np.full(3, np.nan)
     sec = np.array(
         [
             np.concatenate(
                 [
-                    mbs.GetObjectOutputBody(e, v, localPosition=[0.0, 0.0, 0.0])
+                    mbs.GetObjectOutputBody(e, v, localPosition=[0.0, 0.0, 0.0]) if e is not None else nan
                     for v in (OV.ForceLocal, OV.TorqueLocal)
                 ]
             )
@@ -887,7 +935,10 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
         section_rotation=np.array(
             [
                 np.reshape(
-                    mbs.GetObjectOutputBody(e, OV.RotationMatrix, localPosition=[0.0, 0.0, 0.0]), (3, 3)
+                    mbs.GetObjectOutputBody(e, OV.RotationMatrix, localPosition=[0.0, 0.0, 0.0])
+                    if e is not None
+                    else np.full(9, np.nan),
+                    (3, 3),
                 )
                 for e in B["first_el"]
             ]

@@ -89,6 +89,7 @@ __all__ = [
     "INTEGRATORS",
     "SpatialLayout",
     "build",
+    "check_case",
     "natural_frequencies",
     "piece_properties",
     "simulate",
@@ -531,6 +532,15 @@ def _outputs(st, X, t, ctrl, T):
         "tip_rotation": Rt,
         "energy": energy,
     }
+
+
+def check_case(case):
+    """Refuse (InputError) what this chain cannot model, on the case alone (what
+    :func:`simulate` refuses whatever its k, h and options): not a spatial case, closed-loop
+    drives, external loads, rigid links."""
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase")
+    _check(case, 1, case.scenario.duration, "implicitfast", {})
 
 
 def _check(case, k, h, integrator, options):

@@ -48,7 +48,7 @@ from dttmm.timegrid import step_schedule
 
 from ._spatial_mechanics import rot_axis, rpy_matrix
 
-__all__ = ["INTEGRATORS", "build_model", "link_inertia", "simulate"]
+__all__ = ["INTEGRATORS", "build_model", "check_case", "link_inertia", "simulate"]
 
 INTEGRATORS = {"rk4": {}, "newmark": {"tol": 1e-12, "max_iter": 25}}
 
@@ -279,6 +279,17 @@ def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0, shape_po
         tip_rotation=Rt,
         link_shapes=straight_shapes(root, tip, shape_points) if shape_points else None,
     )
+
+
+def check_case(case):
+    """Refuse (InputError) what this baseline cannot run, on the case alone (what
+    :func:`simulate` refuses whatever its h and options): not a spatial case, closed-loop
+    drives, external loads, an arm :func:`build_model` refuses."""
+    if not isinstance(case, SpatialCase):
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase")
+    require_open_loop(case, "pinocchio-spatial")
+    require_no_loads(case, "pinocchio-spatial")
+    build_model(case.model)
 
 
 def simulate(

@@ -22,6 +22,7 @@ WRITES = {
     "06": ["06_modes.gif"],
     "07": [],
     "08": ["three_link.urdf"],
+    "09": ["09_robot_from_urdf.png"],
 }
 SLOW = {"07"}  # starts a Dask LocalCluster of two worker processes
 

@@ -339,7 +339,7 @@ def test_urdf_of_rigid_links():
         assert np.max(np.abs(gr - gu)) < 1e-12 * np.max(np.abs(gr))
 
 
-@pytest.mark.parametrize("module", ["mujoco_spatial", "exudyn_beam3d", "exudyn_ancf3d"])
+@pytest.mark.parametrize("module", ["mujoco_spatial", "exudyn_ancf3d"])
 def test_flexible_only_peers_refuse_rigid_links_by_name(module):
     """The peers that model flexible links only refuse a rigid link, naming it."""
     import importlib
