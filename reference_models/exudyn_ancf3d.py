@@ -56,19 +56,28 @@ import numpy as np
 from dttmm import plumbing
 from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
-from dttmm.spatial import SpatialCase, SpatialResult, load_case
+from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
-from dttmm.spatial.rotation import log_so3
 
-from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
-from ._spatial_mechanics import rot_axis, rpy_matrix
-from .exudyn_beam3d import (
-    _axis_frame,
-    _check_tip_loads,
-    _initial_joint_states,
+from ._exudyn3d import (
+    as_case,
+    axis_frame,
+    dynamic_settings,
+    frame_outputs,
+    frame_sensors,
+    initial_joint_states,
+    joint_outputs,
+    motion_sensors,
     reference_frames,
     run_segments,
+    segments,
+    solve_static,
+    static_frames,
+    stored_reader,
 )
+from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
+from ._spatial_mechanics import rot_axis
+from .exudyn_beam3d import _check_tip_loads
 
 __all__ = ["METHOD", "TWIST_LOCKS", "check_case", "frequencies", "simulate", "statics"]
 
@@ -236,7 +245,7 @@ def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
 
     model, sc = case.model, case.scenario
     frames = reference_frames(case)
-    _, rates = _initial_joint_states(case)
+    _, rates = initial_joint_states(case)
     g = np.array(model.gravity, float)
     has_g = bool(np.any(g != 0.0))
     SC = exu.SystemContainer()
@@ -405,7 +414,7 @@ def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
             parent, R_pn, p_pn = ground, np.eye(3), np.zeros(3)
         else:
             parent, R_pn, p_pn = tip_nodes[i - 1], frames[i - 1]["R_tip"], frames[i - 1]["p_tip"]
-        A = np.eye(3) if j.locked else _axis_frame(j.axis)
+        A = np.eye(3) if j.locked else axis_frame(j.axis)
         m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
         m1 = rigid_marker(root_nodes[i], fr["R_link"].T @ fr["R_J"] @ A)
         if j.locked:
@@ -462,12 +471,6 @@ def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
     )
 
 
-def _as_case(case):
-    if isinstance(case, str) or hasattr(case, "__fspath__"):
-        case = load_case(case)
-    return case
-
-
 def _abs_tol(case, B, value):
     if value is not None:
         return plumbing.positive_number("newton_abs_tol", value)
@@ -503,7 +506,7 @@ def simulate(
     slopes, the element's own interpolation; 0, the default: none). Raises InputError on bad
     input or a case the cable cannot model, SimulationError on failure.
     """
-    case = _as_case(case)
+    case = as_case(case)
     loads = check_case(case, tip_loads)
     k = plumbing.elements_per_link(elements_per_link)
     h = plumbing.step_size(h, case.scenario.duration)
@@ -524,7 +527,6 @@ def simulate(
     B = _build(case, k, loads, reduced_integration, twist_lock)
     mbs, exu, ii = B["mbs"], B["exu"], B["ii"]
     root_nodes, tip_nodes, motion_joints = B["root_nodes"], B["tip_nodes"], B["motion_joints"]
-    model, n = case.model, case.model.n_links
     seg_start = [0.0]
     if B["inputs"]:
 
@@ -534,49 +536,16 @@ def simulate(
 
         mbs.SetPreStepUserFunction(pre_step)
     OV = exu.OutputVariableType
-
-    def sens(nd, var):
-        return mbs.AddSensor(
-            ii.SensorNode(nodeNumber=nd, outputVariableType=var, storeInternal=True, writeToFile=False)
-        )
-
-    trio = (OV.Position, OV.RotationMatrix, OV.AngularVelocity)
-    s_root = [tuple(sens(nd, v) for v in trio) for nd in root_nodes]
-    s_tip = [tuple(sens(nd, v) for v in trio) for nd in tip_nodes]
-    s_mot = {
-        i: mbs.AddSensor(
-            ii.SensorObject(
-                objectNumber=c, outputVariableType=OV.TorqueLocal, storeInternal=True, writeToFile=False
-            )
-        )
-        for i, c in motion_joints.items()
-    }
+    s_root = frame_sensors(mbs, ii, OV, root_nodes)
+    s_tip = frame_sensors(mbs, ii, OV, tip_nodes)
+    s_mot = motion_sensors(mbs, ii, OV, motion_joints)
     s_shape = spatial_shape_sensors(mbs, ii, OV, B["cables"], "cable") if shape_points else []
     mbs.Assemble()
 
-    s = exu.SimulationSettings()
-    ti = s.timeIntegration
-    ti.adaptiveStep = False
-    ti.verboseMode = 0
-    ti.generalizedAlpha.spectralRadius = float(rho_inf)
-    ti.generalizedAlpha.computeInitialAccelerations = True
-    ti.newton.relativeTolerance = newton_rel_tol
     abs_tol = _abs_tol(case, B, newton_abs_tol)
-    ti.newton.absoluteTolerance = abs_tol
-    ti.newton.maxIterations = newton_max_iterations
-    ti.newton.useModifiedNewton = bool(modified_newton)
-    ti.newton.modifiedNewtonJacUpdatePerStep = True
-    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
-    s.parallel.numberOfThreads = 1
-    s.solution.file.write = False
-    s.show.computationTime = False
-    s.show.statistics = False
-
+    s, ti = dynamic_settings(exu, rho_inf, newton_rel_tol, abs_tol, newton_max_iterations, modified_newton)
     t_end = n_steps * h
-    bps = [b for b in sc.breakpoints if 0 < b < t_end and abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h)]
-    idx = sorted({0, n_steps, *[int(round(b / h)) for b in bps]})
-    segments = [(a, b) for a, b in zip(idx, idx[1:]) if b > a]
-    on_grid = all(a % per_out == 0 for a, _ in segments)
+    bps, segs, on_grid = segments(sc, h, n_steps, per_out)
     s.solution.sensors.writePeriod = sc.output_step if on_grid else h
     all_sensors = [x for tr in s_root + s_tip for x in tr] + list(s_mot.values())
     all_sensors += [x for link in s_shape for node_ in link for x in node_]
@@ -588,9 +557,7 @@ def simulate(
     check_allocations = exu_solver.solverCheckMemoryAllocations
     exu_solver.solverCheckMemoryAllocations = False
     try:
-        segments_run = run_segments(
-            mbs, exu, s, ti, segments, h, seg_start, B["set_inputs"], all_sensors, rows
-        )
+        segments_run = run_segments(mbs, exu, s, ti, segs, h, seg_start, B["set_inputs"], all_sensors, rows)
     finally:
         exu_solver.solverCheckMemoryAllocations = check_allocations
     wall, cpu, newton, steps, jacobians, failure, it = segments_run
@@ -599,56 +566,10 @@ def simulate(
             f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
         )
 
-    def stored(sn):
-        d = np.concatenate(rows[sn], axis=0)
-        x = d[:, 0] / sc.output_step
-        d = d[np.abs(x - np.round(x)) <= 1e-6 * per_out]
-        if len(d) != len(t_out):
-            raise SimulationError(
-                f"Exudyn {METHOD}: {len(d)} sensor rows for {len(t_out)} outputs",
-                t=t_end,
-                step=steps,
-                component="sensors",
-            )
-        return d[:, 1:]
-
+    stored = stored_reader(rows, sc, t_out, per_out, t_end, steps, METHOD)
     nt = len(t_out)
-    root = np.stack([stored(x[0]) for x in s_root], axis=1)
-    tip = np.stack([stored(x[0]) for x in s_tip], axis=1)
-    Rl = np.stack([stored(x[1]).reshape(nt, 3, 3) for x in s_root], axis=1)
-    Rt = np.stack([stored(x[1]).reshape(nt, 3, 3) for x in s_tip], axis=1)
-    w_root = np.stack([stored(x[2]) for x in s_root], axis=1)
-    w_tip = np.stack([stored(x[2]) for x in s_tip], axis=1)
-    d = tip - root
-    defl = np.stack(
-        [np.einsum("tni,tni->tn", d, Rl[..., 1]), np.einsum("tni,tni->tn", d, Rl[..., 2])], axis=-1
-    )
-    twist = np.array([[log_so3(Rl[t_, i].T @ Rt[t_, i])[0] for i in range(n)] for t_ in range(nt)])
-    unl = list(model.unlocked)
-    ja, jr, jt = np.zeros((nt, len(unl))), np.zeros((nt, len(unl))), np.zeros((nt, len(unl)))
-    alpha0, _ = _initial_joint_states(case)
-    for c_, (i, dr) in enumerate(zip(unl, sc.drives)):
-        j = model.links[i].joint
-        a = np.array(j.axis, float)
-        if i == 0:
-            R_par = np.broadcast_to(rpy_matrix(model.base_rpy), (nt, 3, 3))
-            w_par = np.zeros((nt, 3))
-        else:
-            R_par, w_par = Rt[:, i - 1], w_tip[:, i - 1]
-        R_J = R_par @ rpy_matrix(j.origin_rpy)
-        rel = np.einsum("tji,tjk->tik", R_J, Rl[:, i])
-        vee = 0.5 * np.stack(
-            [rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], -1
-        )
-        ang = np.unwrap(np.arctan2(vee @ a, 0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0)))
-        ang += 2 * np.pi * round((alpha0[i] - ang[0]) / (2 * np.pi))
-        ja[:, c_] = ang
-        jr[:, c_] = np.einsum("ti,ti->t", w_root[:, i] - w_par, R_J @ a)
-        if dr.kind == "motion":
-            jt[:, c_] = stored(s_mot[i])[:, 2]
-            jt[0, c_] = 0.0  # no multiplier before the first step (as the planar peers)
-        else:
-            jt[:, c_] = [dr.torque(float(t_), t_ > 0) for t_ in t_out]
+    root, tip, Rl, Rt, w_root, w_tip, defl, twist = frame_outputs(stored, s_root, s_tip, nt)
+    ja, jr, jt = joint_outputs(case, Rl, Rt, w_root, w_tip, stored, s_mot, t_out)
     meta = dict(
         method=METHOD,
         elements_per_link=k,
@@ -706,7 +627,7 @@ def statics(case, *, elements_per_link, tip_loads=None, load_steps=10, twist_loc
     ``tip_loads`` at t = duration, in ``load_steps`` load steps; Newton to 1e-12 relative).
     Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2) (tip − root
     along the root frame's y and z), ``twist`` (n,)."""
-    case = _as_case(case)
+    case = as_case(case)
     loads = check_case(case, tip_loads)
     k = plumbing.elements_per_link(elements_per_link)
     steps = plumbing.positive_integer("load_steps", load_steps)
@@ -715,34 +636,15 @@ def statics(case, *, elements_per_link, tip_loads=None, load_steps=10, twist_loc
     mbs, exu = B["mbs"], B["exu"]
     B["set_inputs"](case.scenario.duration, True)
     mbs.Assemble()
-    s = exu.SimulationSettings()
-    s.staticSolver.newton.relativeTolerance = 1e-12
-    s.staticSolver.newton.absoluteTolerance = 1e-14 * B["kmax"]
-    s.staticSolver.numberOfLoadSteps = steps
-    s.staticSolver.verboseMode = 0
-    s.solution.file.write = False
-    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
-    if not mbs.SolveStatic(s):
-        raise SimulationError(f"Exudyn {METHOD}: SolveStatic failed", t=0.0, step=0, component="newton")
-    OV = exu.OutputVariableType
-    root = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["root_nodes"]])
-    tip = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["tip_nodes"]])
-    Rl = [np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) for nd in B["root_nodes"]]
-    Rt = [np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) for nd in B["tip_nodes"]]
-    d = tip - root
-    return dict(
-        link_root=root,
-        link_tip=tip,
-        tip_deflection=np.array([[di @ R[:, 1], di @ R[:, 2]] for di, R in zip(d, Rl)]),
-        twist=np.array([log_so3(a.T @ b)[0] for a, b in zip(Rl, Rt)]),
-    )
+    solve_static(mbs, exu, B["kmax"], steps, METHOD)
+    return static_frames(mbs, exu.OutputVariableType, B["root_nodes"], B["tip_nodes"])
 
 
 def frequencies(case, *, elements_per_link, count=8, twist_lock="nodes"):
     """The ``count`` lowest natural frequencies (Hz) of ``case`` linearised at t = 0 (its initial
     configuration, joints as built: the torque-driven joints free), from Exudyn's
     ``ComputeODE2Eigenvalues`` with the constraints projected out (dense SVD null space)."""
-    case = _as_case(case)
+    case = as_case(case)
     check_case(case)
     k = plumbing.elements_per_link(elements_per_link)
     count = plumbing.positive_integer("count", count)

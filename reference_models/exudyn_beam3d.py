@@ -51,7 +51,6 @@ exerts on the inboard part, in the deformed section frame at x = l/2).
 from __future__ import annotations
 
 import math
-import time
 from types import SimpleNamespace
 
 import numpy as np
@@ -60,12 +59,27 @@ from dttmm import plumbing
 from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.shapes import straight_shapes
-from dttmm.spatial import SpatialCase, SpatialResult, load_case
-from dttmm.spatial.rotation import log_so3
+from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
+from ._exudyn3d import (
+    as_case,
+    axis_frame,
+    dynamic_settings,
+    frame_outputs,
+    frame_sensors,
+    initial_joint_states,
+    joint_outputs,
+    motion_sensors,
+    reference_frames,
+    run_segments,
+    segments,
+    solve_static,
+    static_frames,
+    stored_reader,
+)
 from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
-from ._spatial_mechanics import rot_axis, rpy_matrix
+from ._spatial_mechanics import rot_axis
 
 __all__ = ["METHOD", "SHEAR_RATIO", "NODES", "check_case", "simulate", "reference_frames"]
 
@@ -75,62 +89,6 @@ SHEAR_RATIO = 1.0e3
 NODES = ("EP", "RotVecLG")
 #: EA of an inextensible link: ratio·max(EIy, EIz)/L²
 INEXTENSIBLE_AXIAL_RATIO = 1.0e6
-
-
-def _axis_frame(a) -> np.ndarray:
-    """A rotation A with A·e_z = a (columns: two unit vectors normal to a, then a)."""
-    a = np.asarray(a, float)
-    t = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    x = np.cross(t, a)
-    x /= np.linalg.norm(x)
-    return np.column_stack([x, np.cross(a, x), a])
-
-
-def _initial_joint_states(case: SpatialCase):
-    alpha, rate = [], []
-    drives = iter(case.scenario.drives)
-    for link in case.model.links:
-        if link.joint.locked:
-            alpha.append(0.0)
-            rate.append(0.0)
-            continue
-        d = next(drives)
-        if d.kind == "motion":
-            a = d.motion(0.0, False)
-            alpha.append(float(a[0]))
-            rate.append(float(a[1]))
-        else:
-            alpha.append(float(d.initial_angle))
-            rate.append(float(d.initial_rate))
-    return alpha, rate
-
-
-def reference_frames(case: SpatialCase):
-    """Undeformed frames at t = 0: per link (R_J, p_J, R_link, p_link, R_tip, p_tip, ω, a_W)
-    with ω the rigid angular velocity of the link (world) from the initial joint rates and a_W
-    the joint axis in the world."""
-    m = case.model
-    alpha, rate = _initial_joint_states(case)
-    out = []
-    for i, link in enumerate(m.links):
-        par = m.parents[i]
-        if par < 0:
-            R_par, p_par, om = rpy_matrix(m.base_rpy), np.array(m.base_xyz, float), np.zeros(3)
-        else:
-            R_par, p_par, om = out[par]["R_tip"], out[par]["p_tip"], out[par]["omega"]
-        j = link.joint
-        R_J = R_par @ rpy_matrix(j.origin_rpy)
-        p_J = p_par + R_par @ np.array(j.origin_xyz, float)
-        a = np.array(j.axis, float)
-        aw = R_J @ a
-        R_l = R_J @ rot_axis(a, alpha[i])
-        om = om + aw * rate[i]
-        L = link.beam.length
-        p_t = p_J + R_l @ np.array([L, 0.0, 0.0])
-        out.append(
-            dict(R_J=R_J, p_J=p_J, R_link=R_l, p_link=p_J, R_tip=R_l, p_tip=p_t, omega=om.copy(), a_w=aw)
-        )
-    return out
 
 
 def _ancestors(model, i) -> list:
@@ -218,7 +176,7 @@ def _closure_frames(case, frames) -> list:
         pa = np.array(cl.point, float)
         x = xa0 + Ra @ pa
         pb = Rb.T @ (x - xb0) if cl.to_point is None else np.array(cl.to_point, float)
-        A = _axis_frame(np.array(cl.axis, float) / np.linalg.norm(cl.axis))
+        A = axis_frame(np.array(cl.axis, float) / np.linalg.norm(cl.axis))
         axes = {"revolute": [1, 1, 1, 1, 1, 0], "spherical": [1, 1, 1, 0, 0, 0], "weld": [1] * 6}[cl.kind]
         out.append(dict(a=a, b=b, pa=pa, pb=pb, Ra=A, Rb=Rb.T @ Ra @ A, axes=axes))
     return out
@@ -262,7 +220,7 @@ def _build(case, k, shear_ratio, node, loads):
 
     root_nodes, tip_nodes, first_el, elements, bodies, rolls, reach = [], [], [], [], [], [], []
     kmax = 0.0
-    alpha_rates = _initial_joint_states(case)[1]
+    alpha_rates = initial_joint_states(case)[1]
 
     def add_body(nd, mass, c, J):
         """A rigid body on node ``nd``: mass, centre c and inertia J about it (node frame)."""
@@ -380,7 +338,7 @@ def _build(case, k, shear_ratio, node, loads):
             parent = tip_nodes[par]
             R_pn = frames[par]["R_tip"] @ rolls[par]
             p_pn = frames[par]["p_tip"] - frames[par]["R_tip"] @ reach[par]  # the node's position
-        A = np.eye(3) if j.locked else _axis_frame(j.axis)
+        A = np.eye(3) if j.locked else axis_frame(j.axis)
         # marker 0: the joint frame R_J·A at p_J in the parent's node frame
         m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
         m1 = rigid_marker(root_nodes[i], rolls[i].T @ A)
@@ -477,40 +435,6 @@ def check_case(case):
             )
 
 
-def run_segments(mbs, exu, s, ti, segments, h, seg_start, set_inputs, sensors, rows):
-    """SolveDynamic over the segments (restarting at each); the sensor rows go to ``rows``.
-    Returns (wall, cpu, Newton iterations, steps, Jacobians, failure message or None, it)."""
-    wall = cpu = 0.0
-    newton = steps = jacobians = 0
-    failure = it = None
-    for a, b in segments:
-        seg_start[0] = a * h
-        set_inputs(a * h, False)
-        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
-        t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
-            err = None
-        except Exception as exc:  # Exudyn raises on singular Jacobians
-            ok, err = False, exc
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        it = mbs.sys["dynamicSolver"].it
-        steps += max(int(it.currentStepIndex) - 1, 0)
-        newton += int(it.newtonStepsCount)
-        jacobians += int(it.newtonJacobiCount)
-        for sn in sensors:
-            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
-            rows[sn].append(d if not rows[sn] else d[1:])
-        if not ok:
-            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
-            break
-        mbs.systemData.SetSystemState(
-            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
-        )
-    return wall, cpu, newton, steps, jacobians, failure, it
-
-
 def simulate(
     case,
     *,
@@ -543,10 +467,7 @@ def simulate(
     ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: 1e-10·max stiffness/l), ``newton_max_iterations``
     (25), ``modified_newton`` (True). Raises InputError on bad input, SimulationError on failure.
     """
-    if isinstance(case, (str,)) or hasattr(case, "__fspath__"):
-        case = load_case(case)
-    if not isinstance(case, SpatialCase):
-        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase or a path to one")
+    case = as_case(case)
     check_case(case)
     k = plumbing.elements_per_link(elements_per_link)
     h = plumbing.step_size(h, case.scenario.duration)
@@ -592,7 +513,7 @@ def simulate(
         B["inputs"],
         B["set_inputs"],
     )
-    kmax, model, n = B["kmax"], case.model, case.model.n_links
+    kmax, model = B["kmax"], case.model
     seg_start = [0.0]
     if inputs:
 
@@ -609,21 +530,9 @@ def simulate(
             ii.SensorNode(nodeNumber=nd, outputVariableType=var, storeInternal=True, writeToFile=False)
         )
 
-    s_root = [
-        (sens(nd, OV.Position), sens(nd, OV.RotationMatrix), sens(nd, OV.AngularVelocity))
-        for nd in root_nodes
-    ]
-    s_tip = [
-        (sens(nd, OV.Position), sens(nd, OV.RotationMatrix), sens(nd, OV.AngularVelocity)) for nd in tip_nodes
-    ]
-    s_mot = {
-        i: mbs.AddSensor(
-            ii.SensorObject(
-                objectNumber=c, outputVariableType=OV.TorqueLocal, storeInternal=True, writeToFile=False
-            )
-        )
-        for i, c in motion_joints.items()
-    }
+    s_root = frame_sensors(mbs, ii, OV, root_nodes)
+    s_tip = frame_sensors(mbs, ii, OV, tip_nodes)
+    s_mot = motion_sensors(mbs, ii, OV, motion_joints)
     flexible = [i for i, els in enumerate(elements) if els]
     s_shape = (
         spatial_shape_sensors(mbs, ii, OV, [elements[i] for i in flexible], "beam") if shape_points else []
@@ -701,29 +610,12 @@ def simulate(
         )
     mbs.Assemble()
 
-    s = exu.SimulationSettings()
-    ti = s.timeIntegration
-    ti.adaptiveStep = False
-    ti.verboseMode = 0
-    ti.generalizedAlpha.spectralRadius = float(rho_inf)
-    ti.generalizedAlpha.computeInitialAccelerations = True
-    ti.newton.relativeTolerance = float(newton_rel_tol)
     abs_tol = float(newton_abs_tol) if newton_abs_tol is not None else max(1e-10 * kmax * 1e-6, 1e-10)
-    ti.newton.absoluteTolerance = abs_tol
-    ti.newton.maxIterations = int(newton_max_iterations)
-    ti.newton.useModifiedNewton = bool(modified_newton)
-    ti.newton.modifiedNewtonJacUpdatePerStep = True
-    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
-    s.parallel.numberOfThreads = 1
-    s.solution.file.write = False
-    s.show.computationTime = False
-    s.show.statistics = False
-
+    s, ti = dynamic_settings(
+        exu, rho_inf, float(newton_rel_tol), abs_tol, int(newton_max_iterations), modified_newton
+    )
     t_end = n_steps * h
-    bps = [b for b in sc.breakpoints if 0 < b < t_end and abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h)]
-    idx = sorted({0, n_steps, *[int(round(b / h)) for b in bps]})
-    segments = [(a, b) for a, b in zip(idx, idx[1:]) if b > a]
-    on_grid = all(a % per_out == 0 for a, _ in segments)
+    bps, segs, on_grid = segments(sc, h, n_steps, per_out)
     s.solution.sensors.writePeriod = sc.output_step if on_grid else h
     all_sensors = (
         [x for tr in s_root + s_tip for x in tr] + list(s_mot.values()) + [x for p in s_sec for x in p] + s_en
@@ -733,66 +625,19 @@ def simulate(
     all_sensors += [x for link in s_shape for node_ in link for x in node_]
     rows = {sn: [] for sn in all_sensors}
     wall, cpu, newton, steps, _, failure, it = run_segments(
-        mbs, exu, s, ti, segments, h, seg_start, set_inputs, all_sensors, rows
+        mbs, exu, s, ti, segs, h, seg_start, set_inputs, all_sensors, rows
     )
     if failure is not None:
         raise SimulationError(
             f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
         )
 
-    def stored(sn):
-        d = np.concatenate(rows[sn], axis=0)
-        x = d[:, 0] / sc.output_step
-        d = d[np.abs(x - np.round(x)) <= 1e-6 * per_out]
-        if len(d) != len(t_out):
-            raise SimulationError(
-                f"Exudyn {METHOD}: {len(d)} sensor rows for {len(t_out)} outputs",
-                t=t_end,
-                step=steps,
-                component="sensors",
-            )
-        return d[:, 1:]
-
+    stored = stored_reader(rows, sc, t_out, per_out, t_end, steps, METHOD)
     nt = len(t_out)
-    root = np.stack([stored(x[0]) for x in s_root], axis=1)
-    Rl = np.stack([stored(x[1]).reshape(nt, 3, 3) @ rolls[i].T for i, x in enumerate(s_root)], axis=1)
-    Rt = np.stack([stored(x[1]).reshape(nt, 3, 3) @ rolls[i].T for i, x in enumerate(s_tip)], axis=1)
-    tip = np.stack([stored(x[0]) + Rt[:, i] @ B["reach"][i] for i, x in enumerate(s_tip)], axis=1)
-    w_root = np.stack([stored(x[2]) for x in s_root], axis=1)
-    w_tip = np.stack([stored(x[2]) for x in s_tip], axis=1)
-    d = tip - root
-    defl = np.stack(
-        [np.einsum("tni,tni->tn", d, Rl[..., 1]), np.einsum("tni,tni->tn", d, Rl[..., 2])], axis=-1
+    root, tip, Rl, Rt, w_root, w_tip, defl, twist = frame_outputs(
+        stored, s_root, s_tip, nt, rolls, B["reach"]
     )
-    twist = np.array([[log_so3(Rl[t_, i].T @ Rt[t_, i])[0] for i in range(n)] for t_ in range(nt)])
-    # joint angles, rates, torques of the unlocked joints
-    unl = list(model.unlocked)
-    ja, jr, jt = np.zeros((nt, len(unl))), np.zeros((nt, len(unl))), np.zeros((nt, len(unl)))
-    alpha0, _ = _initial_joint_states(case)
-    for c_, (i, dr) in enumerate(zip(unl, sc.drives)):
-        j = model.links[i].joint
-        a = np.array(j.axis, float)
-        R_rpy = rpy_matrix(j.origin_rpy)
-        par = model.parents[i]
-        if par < 0:
-            R_par = np.broadcast_to(rpy_matrix(model.base_rpy), (nt, 3, 3))
-            w_par = np.zeros((nt, 3))
-        else:
-            R_par, w_par = Rt[:, par], w_tip[:, par]
-        R_J = R_par @ R_rpy
-        rel = np.einsum("tji,tjk->tik", R_J, Rl[:, i])
-        vee = 0.5 * np.stack(
-            [rel[:, 2, 1] - rel[:, 1, 2], rel[:, 0, 2] - rel[:, 2, 0], rel[:, 1, 0] - rel[:, 0, 1]], -1
-        )
-        ang = np.unwrap(np.arctan2(vee @ a, 0.5 * (np.trace(rel, axis1=1, axis2=2) - 1.0)))
-        ang += 2 * np.pi * round((alpha0[i] - ang[0]) / (2 * np.pi))
-        ja[:, c_] = ang
-        jr[:, c_] = np.einsum("ti,ti->t", w_root[:, i] - w_par, R_J @ a)
-        if dr.kind == "motion":
-            jt[:, c_] = stored(s_mot[i])[:, 2]
-            jt[0, c_] = 0.0  # no multiplier before the first step (as the planar peers)
-        else:
-            jt[:, c_] = [dr.torque(float(t_), t_ > 0) for t_ in t_out]
+    ja, jr, jt = joint_outputs(case, Rl, Rt, w_root, w_tip, stored, s_mot, t_out)
     en = None
     if energy:
         en = np.zeros(nt)
@@ -880,10 +725,7 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
     relative). Returns a dict: ``link_root``, ``link_tip`` (n, 3), ``tip_deflection`` (n, 2),
     ``twist`` (n,), ``section_loads`` (n, 6) (ForceLocal, TorqueLocal of each link's first
     element, at x = l/2, section frame), ``section_rotation`` (n, 3, 3) (that section frame); NaN for a rigid link (no beam element)."""
-    if isinstance(case, str) or hasattr(case, "__fspath__"):
-        case = load_case(case)
-    if not isinstance(case, SpatialCase):
-        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase or a path to one")
+    case = as_case(case)
     k = plumbing.elements_per_link(elements_per_link)
     plumbing.choice("node", node, NODES)
     steps = plumbing.positive_integer("load_steps", load_steps)
@@ -891,29 +733,9 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
     mbs, exu = B["mbs"], B["exu"]
     B["set_inputs"](case.scenario.duration, True)
     mbs.Assemble()
-    s = exu.SimulationSettings()
-    s.staticSolver.newton.relativeTolerance = 1e-12
-    s.staticSolver.newton.absoluteTolerance = 1e-14 * B["kmax"]
-    s.staticSolver.numberOfLoadSteps = steps
-    s.staticSolver.verboseMode = 0
-    s.solution.file.write = False
-    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
-    if not mbs.SolveStatic(s):
-        raise SimulationError(f"Exudyn {METHOD}: SolveStatic failed", t=0.0, step=0, component="newton")
+    solve_static(mbs, exu, B["kmax"], steps, METHOD)
     OV = exu.OutputVariableType
-    root = np.array([mbs.GetNodeOutput(nd, OV.Position) for nd in B["root_nodes"]])
-    Rl = [
-        np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) @ r.T
-        for nd, r in zip(B["root_nodes"], B["rolls"])
-    ]
-    Rt = [
-        np.reshape(mbs.GetNodeOutput(nd, OV.RotationMatrix), (3, 3)) @ r.T
-        for nd, r in zip(B["tip_nodes"], B["rolls"])
-    ]
-    tip = np.array(
-        [mbs.GetNodeOutput(nd, OV.Position) + R @ c for nd, R, c in zip(B["tip_nodes"], Rt, B["reach"])]
-    )
-    d = tip - root
+    out = static_frames(mbs, OV, B["root_nodes"], B["tip_nodes"], B["rolls"], B["reach"])
     nan = np.full(3, np.nan)
     sec = np.array(
         [
@@ -927,10 +749,7 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
         ]
     )
     return dict(
-        link_root=root,
-        link_tip=tip,
-        tip_deflection=np.array([[di @ R[:, 1], di @ R[:, 2]] for di, R in zip(d, Rl)]),
-        twist=np.array([log_so3(a.T @ b)[0] for a, b in zip(Rl, Rt)]),
+        **out,
         section_loads=sec,
         section_rotation=np.array(
             [
