@@ -52,8 +52,13 @@ RUNAWAY_ANGLE, RUNAWAY_LENGTHS = 2.0 * np.pi, 10.0
 CODE_OPEN, CODE_PD, CODE_USER = control.CODE_OPEN, control.CODE_PD, control.CODE_USER
 #: columns of Drives.gain: kp, kd, ki, g_M, limit, 1 where the hub has an inertia
 KP, KD, KI, GM, LIMIT, HASJ = range(6)
-#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart)
+#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart);
+#: so too the closures' W
 A_EVERY = 8
+#: with loop closures, W is measured anew at the next iteration of a step whose iterates stop
+#: contracting by this factor (max|Δq̈| above W_STALE × the previous one's, above the round-off
+#: floor of the stop rule)
+W_STALE = 0.5
 #: stats slots (int64): sweeps, max sweeps, unconverged steps, status, failed step, samples
 #: written, forward-dynamics solves out of sweeps, residual checks, flagged checks, step of the
 #: first flag, step of the worst ratio; fstats (float): worst ratio, its relative residual
@@ -127,7 +132,13 @@ class Closures(NamedTuple):
     lamh: np.ndarray  # (n_steps, 6 nc) λ at each step end
     g: np.ndarray  # (m,) the constraint residual at the iterate
     B: np.ndarray  # (6 nc, m) the load directions of the m unknowns
-    W: np.ndarray  # (m, m) relative accelerations along the constraints per unit load
+    W: np.ndarray  # (m, m) relative accelerations along the constraints per unit load (kept)
+    X: np.ndarray  # (m, n_dof) q̈ per unit load of each unknown, measured with W (kept)
+    T: np.ndarray  # (m, n) the joints' sweep torques (ws.acc[:, 1]) per unit load (kept)
+    tq: np.ndarray  # (n,) those of the sweep with the current λ
+    qp: np.ndarray  # (n_dof,) q, q̇ at the sweep's q̈
+    qv: np.ndarray
+    state: np.ndarray  # (2,) int64: W is of a Newmark step (1) or not (0); sweeps of the last solve
     rel0: np.ndarray  # (6 nc,) relative accelerations of the base sweep
     rel: np.ndarray  # (6 nc,)
     motc: np.ndarray  # (n, INPUT_COLS) the inputs with the closure loads
@@ -140,6 +151,7 @@ def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
     return Closures(
         a=a, b=b, kind=kind, pa=pa, pb=pb, ua=ua, ub=ub, R0=R0,
         lam=z(6 * nc), lamh=z((n_steps, 6 * nc)), g=z(m), B=z((6 * nc, m)), W=z((m, m)),
+        X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof), qv=z(ndof), state=np.zeros(2, np.int64),
         rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof),
     )  # fmt: skip
 
@@ -585,7 +597,7 @@ def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
         # the closure loads λ_0 (the kinematics of ``accel`` are in ws)
         noload = np.zeros((0, 6))
         ok = closure_sweep(
-            md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, noload
+            md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, noload, True
         )
         joint_torques(md, ws, drv.tau_r[ns], torque)
     for i in range(md.n):
@@ -707,12 +719,21 @@ def closure_accelerations(ws, cl, out):
 
 
 @njit()
-def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload):
-    """One sweep of a Newmark iterate with loop closures: λ from the closures' position-level
-    condition at the step end, linearised about the iterate, g + c_q W Δμ = 0 with W the
-    relative accelerations along the constraints per unit load (one sweep per unknown at this
-    kinematics; the accelerations are affine in λ), then the sweep with that λ into ``xn``."""
+def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fresh):
+    """One iteration of a Newmark step with loop closures, at the iterate's kinematics in
+    ``ws``: the sweep with the current λ gives q̈⁰ into ``xn``; the closures' position-level
+    condition at the step end, g(q̂ + c_q q̈) = 0, linearised about q̈⁰, g⁰ + c_q W Δμ = 0 with
+    g⁰ the gap at q̂ + c_q q̈⁰ and W the relative accelerations along the constraints per unit
+    load, fixes Δμ; λ += B Δμ and ``xn`` += X Δμ (the accelerations are affine in λ: X the
+    q̈ per unit load). W and X are measured (one sweep per unknown at this kinematics) when
+    ``fresh`` or when cl.state[0] holds none of a Newmark step, else those of an earlier
+    iterate serve (a quasi-Newton step on μ: the fixed point, g = 0 with the step's equations,
+    is the same). At the initial state and a restart (c_q = 0) the condition is at
+    acceleration level, Bᵀ rel(λ) = 0, and the last sweep is the one with the corrected λ.
+    The sweeps taken go to cl.state[1]; ``ws`` ends at the kinematics of q̂ + c_q q̈⁰ (c_q ≠ 0)
+    with the joints' sweep torques ws.acc[:, 1] of the new λ (affine: T). Returns ok."""
     m = cl.g.shape[0]
+    nd = xn.shape[0]
     closure_geometry(ws, cl)
     # λ in the directions of this iterate (orthonormal per closure): a revolute closure's
     # moment stays perpendicular to its current axis (no moment about it)
@@ -725,42 +746,79 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload):
         for c in range(m):
             t += cl.B[r, c] * mu[c]
         cl.lam[r] = t
-    if cq == 0.0:
-        # the forward dynamics (the initial state): the relative accelerations vanish,
-        # Bᵀ rel(λ) = 0, in place of the position condition
-        cl.g[:] = 0.0
     closure_inputs(ws, cl, mot, cl.lam)
     ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
-    closure_accelerations(ws, cl, cl.rel0)
-    lam1 = cl.lam.copy()
-    for c in range(m):
-        for r in range(lam1.shape[0]):
-            lam1[r] = cl.lam[r] + cl.B[r, c]
-        closure_inputs(ws, cl, mot, lam1)
-        ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, cl.xs, False, noload) and ok
-        closure_accelerations(ws, cl, cl.rel)
-        for r in range(m):
-            t = 0.0
-            for d in range(cl.B.shape[0]):
-                t += cl.B[d, r] * (cl.rel[d] - cl.rel0[d])
-            cl.W[r, c] = t if cq == 0.0 else cq * t
+    for i in range(md.n):
+        cl.tq[i] = ws.acc[i, 1]
+    if fresh or cq == 0.0 or cl.state[0] == 0:
+        closure_accelerations(ws, cl, cl.rel0)
+        lam1 = cl.lam.copy()
+        for c in range(m):
+            for r in range(lam1.shape[0]):
+                lam1[r] = cl.lam[r] + cl.B[r, c]
+            closure_inputs(ws, cl, mot, lam1)
+            ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, cl.xs, False, noload) and ok
+            closure_accelerations(ws, cl, cl.rel)
+            for r in range(m):
+                t = 0.0
+                for d in range(cl.B.shape[0]):
+                    t += cl.B[d, r] * (cl.rel[d] - cl.rel0[d])
+                cl.W[r, c] = t
+            for r in range(nd):
+                cl.X[c, r] = cl.xs[r] - xn[r]
+            for i in range(md.n):
+                cl.T[c, i] = ws.acc[i, 1] - cl.tq[i]
+        cl.state[0] = 1 if ok and cq != 0.0 else 0
+        cl.state[1] = m + 1
+    else:
+        cl.state[1] = 1
+    for r in range(nd):
+        if not math.isfinite(xn[r]):
+            ok = False
     if not ok:
         return False
     if cq == 0.0:
+        # the forward dynamics (the initial state, a restart): the relative accelerations
+        # vanish, Bᵀ rel(λ) = 0, in place of the position condition
         for r in range(m):
             t = 0.0
             for d in range(cl.B.shape[0]):
                 t += cl.B[d, r] * cl.rel0[d]
             cl.g[r] = t
+    else:
+        # the gap at the positions of the sweep's q̈ (motion-driven joints at their law)
+        for r in range(nd):
+            cl.qp[r] = qt[r] + cq * xn[r]
+            cl.qv[r] = qdt[r] + cv * xn[r]
+        for i in range(md.n):
+            if md.motion[i] == 1:
+                cl.qp[md.ia[i]] = mot[i, 0]
+                cl.qv[md.ia[i]] = mot[i, 1]
+        kinematics(md, ws, cl.qp, cl.qv)
+        closure_geometry(ws, cl)
     dmu = np.linalg.solve(cl.W, -cl.g)
+    if cq != 0.0:
+        dmu /= cq
     for r in range(cl.lam.shape[0]):
         t = 0.0
         for c in range(m):
             t += cl.B[r, c] * dmu[c]
         cl.lam[r] += t
-    closure_inputs(ws, cl, mot, cl.lam)
-    ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
-    for r in range(xn.shape[0]):
+    if cq == 0.0:
+        closure_inputs(ws, cl, mot, cl.lam)
+        ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
+        cl.state[1] += 1
+    else:
+        # q̈ and the motion-driven joints' torques (:func:`joint_torques`) with the new λ
+        for c in range(m):
+            for r in range(nd):
+                xn[r] += cl.X[c, r] * dmu[c]
+        for i in range(md.n):
+            t = cl.tq[i]
+            for c in range(m):
+                t += cl.T[c, i] * dmu[c]
+            ws.acc[i, 1] = t
+    for r in range(nd):
         if not math.isfinite(xn[r]):
             ok = False
     return ok
@@ -909,6 +967,8 @@ def run(
             tv = cw.taul if opts.closed else tau
             prev = np.inf
             used = 0
+            stale = False
+            measured = False  # W was measured in this step
             converged = False
             fixed = opts.iteration == IT_FIXED
             nmax = opts.n_fixed + 1 if fixed else opts.max_it
@@ -940,8 +1000,14 @@ def run(
                                 cw.yb[i] = cw.yk[i]
                         correct(md, drv, cw)
                 if cw.cl.a.shape[0] > 0:
-                    ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload)
-                    used += cw.cl.g.shape[0] + 2
+                    # W anew every A_EVERY steps, after a restart, and once the iterates stop
+                    # contracting (else the W of an earlier iterate: one sweep per iteration)
+                    wnew = stale
+                    if it == 0:
+                        wnew = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                    ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, wnew)
+                    used += cw.cl.state[1]
+                    measured = measured or cw.cl.state[1] > 1
                 else:
                     ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, zero_f, xn, False, noload)
                     used += 1
@@ -961,6 +1027,10 @@ def run(
                 stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
                 if stop:
                     break
+                # iterates that stop contracting above the round-off floor: W anew
+                stale = (
+                    it >= 1 and not measured and dx > W_STALE * prev and dx > 1e3 * opts.tol * max(1.0, xmax)
+                )
                 if opts.iteration == IT_AUTO and it >= 1 + opts.closed and dx < prev:
                     # the contraction ρ = dx/prev predicts the iteration error left, dx·ρ/(1 − ρ);
                     # stop once it is below auto_fraction × the local truncation error estimate
@@ -1102,7 +1172,7 @@ def run(
                 ok = accel(md, ws, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, torque)
                 if ok and cw.cl.a.shape[0] > 0:
                     ok = closure_sweep(
-                        md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, noload
+                        md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, noload, True
                     )
                     joint_torques(md, ws, drv.tau_r[s], torque)
             for r in range(nd):
