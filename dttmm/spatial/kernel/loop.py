@@ -59,6 +59,11 @@ A_EVERY = 8
 #: contracting by this factor (max|Δq̈| above W_STALE × the previous one's, above the round-off
 #: floor of the stop rule)
 W_STALE = 0.5
+#: a closure gap within this many units of round-off (of the coordinates of its points; of 1
+#: for the angle rows) counts as closed: the position-level condition amplifies a gap by 1/c_q
+#: in q̈, and chasing the round-off would hold the iteration above the stop rule's floor
+GAP_ULPS = 1.0
+EPS = np.finfo(np.float64).eps
 #: stats slots (int64): sweeps, max sweeps, unconverged steps, status, failed step, samples
 #: written, forward-dynamics solves out of sweeps, residual checks, flagged checks, step of the
 #: first flag, step of the worst ratio; fstats (float): worst ratio, its relative residual
@@ -635,8 +640,11 @@ def closure_geometry(ws, cl):
     for j in range(cl.a.shape[0]):
         Ra, xa, pa = _tip(ws, cl, j, False)
         Rb, xb, pb = _tip(ws, cl, j, True)
+        # a gap at the round-off of the points' coordinates counts as none
+        floor = GAP_ULPS * EPS * (abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2]))
         for d in range(3):
-            cl.g[row + d] = pa[d] - pb[d]
+            gd = pa[d] - pb[d]
+            cl.g[row + d] = gd if abs(gd) > floor else 0.0
             cl.B[6 * j + d, row + d] = 1.0
         row += 3
         if cl.kind[j] == 1:
@@ -648,8 +656,10 @@ def closure_geometry(ws, cl):
             t1 /= math.sqrt(t1[0] ** 2 + t1[1] ** 2 + t1[2] ** 2)
             t2 = cross(ua, t1)
             cr = cross(ub, ua)
-            cl.g[row] = t1[0] * cr[0] + t1[1] * cr[1] + t1[2] * cr[2]
-            cl.g[row + 1] = t2[0] * cr[0] + t2[1] * cr[1] + t2[2] * cr[2]
+            g1 = t1[0] * cr[0] + t1[1] * cr[1] + t1[2] * cr[2]
+            g2 = t2[0] * cr[0] + t2[1] * cr[1] + t2[2] * cr[2]
+            cl.g[row] = g1 if abs(g1) > GAP_ULPS * EPS else 0.0
+            cl.g[row + 1] = g2 if abs(g2) > GAP_ULPS * EPS else 0.0
             for d in range(3):
                 cl.B[6 * j + 3 + d, row] = t1[d]
                 cl.B[6 * j + 3 + d, row + 1] = t2[d]
@@ -664,9 +674,9 @@ def closure_geometry(ws, cl):
                         for v in range(3):
                             t += Ra[r, u] * R0[u, v] * Rb[c, v]
                     M[r, c] = t
-            cl.g[row] = 0.5 * (M[2, 1] - M[1, 2])
-            cl.g[row + 1] = 0.5 * (M[0, 2] - M[2, 0])
-            cl.g[row + 2] = 0.5 * (M[1, 0] - M[0, 1])
+            for d in range(3):
+                gd = 0.5 * (M[(d + 2) % 3, (d + 1) % 3] - M[(d + 1) % 3, (d + 2) % 3])
+                cl.g[row + d] = gd if abs(gd) > GAP_ULPS * EPS else 0.0
             for d in range(3):
                 cl.B[6 * j + 3 + d, row + d] = 1.0
             row += 3
@@ -1000,6 +1010,10 @@ def run(
                                 cw.yb[i] = cw.yk[i]
                         correct(md, drv, cw)
                 if cw.cl.a.shape[0] > 0:
+                    if it == 0 and s >= 2 and not drv.restart[s - 1] and not drv.restart[s - 2]:
+                        # λ extrapolated from the last two step ends (the iteration's start)
+                        for r in range(cw.cl.lam.shape[0]):
+                            cw.cl.lam[r] = 2.0 * cw.cl.lamh[s - 1, r] - cw.cl.lamh[s - 2, r]
                     # W anew every A_EVERY steps, after a restart, and once the iterates stop
                     # contracting (else the W of an earlier iterate: one sweep per iteration)
                     wnew = stale
