@@ -138,6 +138,8 @@ class Closures(NamedTuple):
     g: np.ndarray  # (m,) the constraint residual at the iterate
     B: np.ndarray  # (6 nc, m) the load directions of the m unknowns
     W: np.ndarray  # (m, m) relative accelerations along the constraints per unit load (kept)
+    Wi: np.ndarray  # (m, m) its inverse
+    dmu: np.ndarray  # (m,) Δμ
     X: np.ndarray  # (m, n_dof) q̈ per unit load of each unknown, measured with W (kept)
     T: np.ndarray  # (m, n) the joints' sweep torques (ws.acc[:, 1]) per unit load (kept)
     tq: np.ndarray  # (n,) those of the sweep with the current λ
@@ -156,7 +158,7 @@ def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
     return Closures(
         a=a, b=b, kind=kind, pa=pa, pb=pb, ua=ua, ub=ub, R0=R0,
         lam=z(6 * nc), lamh=z((n_steps, 6 * nc)), g=z(m), B=z((6 * nc, m)), W=z((m, m)),
-        X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof), qv=z(ndof), state=np.zeros(2, np.int64),
+        Wi=z((m, m)), dmu=z(m), X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof), qv=z(ndof), state=np.zeros(2, np.int64),
         rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof),
     )  # fmt: skip
 
@@ -613,7 +615,7 @@ def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
 # ------------------------------------------------------------------ loop closures -----------
 
 
-@njit()
+@njit(inline="always")
 def _tip(ws, cl, j, second):
     """(R, x, point) of closure j's body a (``second``: b; the ground: identity, 0) in world."""
     i = cl.b[j] if second else cl.a[j]
@@ -747,10 +749,12 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
     closure_geometry(ws, cl)
     # λ in the directions of this iterate (orthonormal per closure): a revolute closure's
     # moment stays perpendicular to its current axis (no moment about it)
-    mu = np.zeros(m)
+    mu = cl.dmu
     for c in range(m):
+        t = 0.0
         for r in range(cl.B.shape[0]):
-            mu[c] += cl.B[r, c] * cl.lam[r]
+            t += cl.B[r, c] * cl.lam[r]
+        mu[c] = t
     for r in range(cl.lam.shape[0]):
         t = 0.0
         for c in range(m):
@@ -778,6 +782,8 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
                 cl.X[c, r] = cl.xs[r] - xn[r]
             for i in range(md.n):
                 cl.T[c, i] = ws.acc[i, 1] - cl.tq[i]
+        if ok:
+            cl.Wi[:, :] = np.linalg.inv(cl.W)
         cl.state[0] = 1 if ok and cq != 0.0 else 0
         cl.state[1] = m + 1
     else:
@@ -806,9 +812,12 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
                 cl.qv[md.ia[i]] = mot[i, 1]
         kinematics(md, ws, cl.qp, cl.qv)
         closure_geometry(ws, cl)
-    dmu = np.linalg.solve(cl.W, -cl.g)
-    if cq != 0.0:
-        dmu /= cq
+    dmu = cl.dmu
+    for r in range(m):
+        t = 0.0
+        for c in range(m):
+            t -= cl.Wi[r, c] * cl.g[c]
+        dmu[r] = t if cq == 0.0 else t / cq
     for r in range(cl.lam.shape[0]):
         t = 0.0
         for c in range(m):
