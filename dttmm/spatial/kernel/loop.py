@@ -135,11 +135,11 @@ class Closures(NamedTuple):
     R0: np.ndarray  # (nc, 3, 3) weld: R_aᵀ R_b at the initial state
     lam: np.ndarray  # (6 nc,) λ of the current iterate
     lamh: np.ndarray  # (n_steps, 6 nc) λ at each step end
-    g: np.ndarray  # (m,) the constraint residual at the iterate
+    g: np.ndarray  # (m,) the constraint residual at the sweep's q̈ (round-off gaps 0)
     B: np.ndarray  # (6 nc, m) the load directions of the m unknowns
     W: np.ndarray  # (m, m) relative accelerations along the constraints per unit load (kept)
     Wi: np.ndarray  # (m, m) its inverse
-    dmu: np.ndarray  # (m,) Δμ
+    dmu: np.ndarray  # (m,) Δμ (and μ of the re-expression)
     X: np.ndarray  # (m, n_dof) q̈ per unit load of each unknown, measured with W (kept)
     T: np.ndarray  # (m, n) the joints' sweep torques (ws.acc[:, 1]) per unit load (kept)
     tq: np.ndarray  # (n,) those of the sweep with the current λ
