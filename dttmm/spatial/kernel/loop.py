@@ -52,8 +52,20 @@ RUNAWAY_ANGLE, RUNAWAY_LENGTHS = 2.0 * np.pi, 10.0
 CODE_OPEN, CODE_PD, CODE_USER = control.CODE_OPEN, control.CODE_PD, control.CODE_USER
 #: columns of Drives.gain: kp, kd, ki, g_M, limit, 1 where the hub has an inertia
 KP, KD, KI, GM, LIMIT, HASJ = range(6)
-#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart)
+#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart);
+#: so too the closures' W
 A_EVERY = 8
+#: with loop closures, W is measured anew at the next iteration of a step whose iterates stop
+#: contracting by this factor (max|Δq̈| above W_STALE × the previous one's, above the round-off
+#: floor of the stop rule)
+W_STALE = 0.5
+#: a closure gap within this many units of round-off (of the coordinates of its points; of 1
+#: for the angle rows) counts as closed: the position-level condition amplifies a gap by 1/c_q
+#: in q̈, and chasing the round-off holds the iteration above the stop rule's floor. 0: off (1
+#: saves a fifth of the four-bar's sweeps but leaves its closure loads 1.4e-8 of their largest
+#: from the global solver's, against 3.8e-9 at 0)
+GAP_ULPS = 0.0
+EPS = np.finfo(np.float64).eps
 #: stats slots (int64): sweeps, max sweeps, unconverged steps, status, failed step, samples
 #: written, forward-dynamics solves out of sweeps, residual checks, flagged checks, step of the
 #: first flag, step of the worst ratio; fstats (float): worst ratio, its relative residual
@@ -125,9 +137,21 @@ class Closures(NamedTuple):
     R0: np.ndarray  # (nc, 3, 3) weld: R_aᵀ R_b at the initial state
     lam: np.ndarray  # (6 nc,) λ of the current iterate
     lamh: np.ndarray  # (n_steps, 6 nc) λ at each step end
-    g: np.ndarray  # (m,) the constraint residual at the iterate
+    g: np.ndarray  # (m,) the constraint residual at the sweep's q̈ (round-off gaps 0)
     B: np.ndarray  # (6 nc, m) the load directions of the m unknowns
-    W: np.ndarray  # (m, m) relative accelerations along the constraints per unit load
+    W: np.ndarray  # (m, m) relative accelerations along the constraints per unit load (kept)
+    Wi: np.ndarray  # (m, m) its inverse
+    dmu: np.ndarray  # (m,) Δμ (and μ of the re-expression)
+    X: np.ndarray  # (m, n_dof) q̈ per unit load of each unknown, measured with W (kept)
+    T: np.ndarray  # (m, n) the joints' sweep torques (ws.acc[:, 1]) per unit load (kept)
+    tq: np.ndarray  # (n,) those of the sweep with the current λ
+    qp: np.ndarray  # (n_dof,) q, q̇ at the sweep's q̈
+    qv: np.ndarray
+    lam1: np.ndarray  # (6 nc,) scratch: λ of a column sweep
+    Wlu: np.ndarray  # (m, m) scratch of the inversion
+    fr: np.ndarray  # (2, 3, 3) scratch: the two bodies' frames
+    v: np.ndarray  # (8, 3) scratch: their origins, points, axes
+    state: np.ndarray  # (2,) int64: W is of a Newmark step (1) or not (0); sweeps of the last solve
     rel0: np.ndarray  # (6 nc,) relative accelerations of the base sweep
     rel: np.ndarray  # (6 nc,)
     motc: np.ndarray  # (n, INPUT_COLS) the inputs with the closure loads
@@ -140,6 +164,9 @@ def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
     return Closures(
         a=a, b=b, kind=kind, pa=pa, pb=pb, ua=ua, ub=ub, R0=R0,
         lam=z(6 * nc), lamh=z((n_steps, 6 * nc)), g=z(m), B=z((6 * nc, m)), W=z((m, m)),
+        Wi=z((m, m)), dmu=z(m), X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof), qv=z(ndof),
+        lam1=z(6 * nc), Wlu=z((m, m)), fr=z((2, 3, 3)), v=z((8, 3)),
+        state=np.zeros(2, np.int64),
         rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof),
     )  # fmt: skip
 
@@ -585,7 +612,7 @@ def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
         # the closure loads λ_0 (the kinematics of ``accel`` are in ws)
         noload = np.zeros((0, 6))
         ok = closure_sweep(
-            md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, noload
+            md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, noload, True
         )
         joint_torques(md, ws, drv.tau_r[ns], torque)
     for i in range(md.n):
@@ -596,71 +623,109 @@ def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
 # ------------------------------------------------------------------ loop closures -----------
 
 
-@njit()
-def _tip(ws, cl, j, second):
-    """(R, x, point) of closure j's body a (``second``: b; the ground: identity, 0) in world."""
+@njit(inline="always", nrt=False)
+def _tip(ws, cl, j, second, R, x, p):
+    """Closure j's body a (``second``: b; the ground: identity, 0) in world: its tip frame
+    into R, its origin into x, the closure point into p."""
     i = cl.b[j] if second else cl.a[j]
     loc = cl.pb[j] if second else cl.pa[j]
-    if i < 0:
-        R = np.eye(3)
-        x = np.zeros(3)
-    else:
-        R = ws.RT[i + 1]
-        x = ws.pT[i + 1]
-    return R, x, x + mv(R, loc)
+    for r in range(3):
+        for c in range(3):
+            R[r, c] = (1.0 if r == c else 0.0) if i < 0 else ws.RT[i + 1, r, c]
+        x[r] = 0.0 if i < 0 else ws.pT[i + 1, r]
+    for r in range(3):
+        p[r] = x[r] + R[r, 0] * loc[0] + R[r, 1] * loc[1] + R[r, 2] * loc[2]
 
 
-@njit()
+@njit(inline="always", nrt=False)
+def _cross_into(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(inline="always", nrt=False)
+def _mv_into(R, x, out):
+    for r in range(3):
+        out[r] = R[r, 0] * x[0] + R[r, 1] * x[1] + R[r, 2] * x[2]
+
+
+@njit(nrt=False)
 def closure_geometry(ws, cl):
     """The constraint residual cl.g and the load directions cl.B at the kinematics in ``ws``:
     position p_a − p_b (3 rows, world); revolute: t_k·(u_b × u_a) for two unit t_k ⊥ u_a;
     weld: the axial vector of R_a R0 R_bᵀ (3 rows). To first order each row moves by the
-    relative displacement (point, rotation) of a against b along its direction in cl.B."""
+    relative displacement (point, rotation) of a against b along its direction in cl.B. A row
+    within GAP_ULPS units of round-off is 0. Allocates nothing (scratch cl.fr, cl.v)."""
     for r in range(cl.B.shape[0]):
         for c in range(cl.B.shape[1]):
             cl.B[r, c] = 0.0
+    Ra = cl.fr[0]
+    Rb = cl.fr[1]
+    v = cl.v
     row = 0
     for j in range(cl.a.shape[0]):
-        Ra, xa, pa = _tip(ws, cl, j, False)
-        Rb, xb, pb = _tip(ws, cl, j, True)
+        _tip(ws, cl, j, False, Ra, v[0], v[1])
+        _tip(ws, cl, j, True, Rb, v[2], v[3])
+        pa = v[1]
+        pb = v[3]
+        # a gap at the round-off of the points' coordinates counts as none
+        floor = GAP_ULPS * EPS * (abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2]))
         for d in range(3):
-            cl.g[row + d] = pa[d] - pb[d]
+            gd = pa[d] - pb[d]
+            cl.g[row + d] = gd if abs(gd) > floor else 0.0
             cl.B[6 * j + d, row + d] = 1.0
         row += 3
         if cl.kind[j] == 1:
-            ua = mv(Ra, cl.ua[j])
-            ub = mv(Rb, cl.ub[j])
-            e = np.zeros(3)
-            e[np.argmin(np.abs(ua))] = 1.0
-            t1 = cross(ua, e)
-            t1 /= math.sqrt(t1[0] ** 2 + t1[1] ** 2 + t1[2] ** 2)
-            t2 = cross(ua, t1)
-            cr = cross(ub, ua)
-            cl.g[row] = t1[0] * cr[0] + t1[1] * cr[1] + t1[2] * cr[2]
-            cl.g[row + 1] = t2[0] * cr[0] + t2[1] * cr[1] + t2[2] * cr[2]
+            ua = v[4]
+            ub = v[5]
+            t1 = v[6]
+            t2 = v[7]
+            _mv_into(Ra, cl.ua[j], ua)
+            _mv_into(Rb, cl.ub[j], ub)
+            k = 0  # the axis component least in magnitude (the first of equals)
+            for d in range(1, 3):
+                if abs(ua[d]) < abs(ua[k]):
+                    k = d
+            # t1 = ua × e_k
+            t1[0] = ua[1] if k == 2 else (-ua[2] if k == 1 else 0.0)
+            t1[1] = ua[2] if k == 0 else (-ua[0] if k == 2 else 0.0)
+            t1[2] = ua[0] if k == 1 else (-ua[1] if k == 0 else 0.0)
+            nt = math.sqrt(t1[0] ** 2 + t1[1] ** 2 + t1[2] ** 2)
+            for d in range(3):
+                t1[d] /= nt
+            _cross_into(ua, t1, t2)
+            c0 = ub[1] * ua[2] - ub[2] * ua[1]
+            c1 = ub[2] * ua[0] - ub[0] * ua[2]
+            c2 = ub[0] * ua[1] - ub[1] * ua[0]
+            g1 = t1[0] * c0 + t1[1] * c1 + t1[2] * c2
+            g2 = t2[0] * c0 + t2[1] * c1 + t2[2] * c2
+            cl.g[row] = g1 if abs(g1) > GAP_ULPS * EPS else 0.0
+            cl.g[row + 1] = g2 if abs(g2) > GAP_ULPS * EPS else 0.0
             for d in range(3):
                 cl.B[6 * j + 3 + d, row] = t1[d]
                 cl.B[6 * j + 3 + d, row + 1] = t2[d]
             row += 2
         elif cl.kind[j] == 2:
-            M = np.zeros((3, 3))
             R0 = cl.R0[j]
-            for r in range(3):
-                for c in range(3):
-                    t = 0.0
-                    for u in range(3):
-                        for v in range(3):
-                            t += Ra[r, u] * R0[u, v] * Rb[c, v]
-                    M[r, c] = t
-            cl.g[row] = 0.5 * (M[2, 1] - M[1, 2])
-            cl.g[row + 1] = 0.5 * (M[0, 2] - M[2, 0])
-            cl.g[row + 2] = 0.5 * (M[1, 0] - M[0, 1])
+            for d in range(3):
+                # the axial vector of M = R_a R0 R_bᵀ: ½ (M[d2, d1] − M[d1, d2])
+                d1 = (d + 1) % 3
+                d2 = (d + 2) % 3
+                m21 = 0.0
+                m12 = 0.0
+                for u in range(3):
+                    for w in range(3):
+                        m21 += Ra[d2, u] * R0[u, w] * Rb[d1, w]
+                        m12 += Ra[d1, u] * R0[u, w] * Rb[d2, w]
+                gd = 0.5 * (m21 - m12)
+                cl.g[row + d] = gd if abs(gd) > GAP_ULPS * EPS else 0.0
             for d in range(3):
                 cl.B[6 * j + 3 + d, row + d] = 1.0
             row += 3
 
 
-@njit()
+@njit(nrt=False)
 def closure_inputs(ws, cl, mot, lam):
     """The inputs ``mot`` with the closure loads λ added to the world tip loads: λ_j = (F, M)
     on link a at its point, −λ_j on b (moments moved to the tip points)."""
@@ -668,99 +733,209 @@ def closure_inputs(ws, cl, mot, lam):
         for c in range(mot.shape[1]):
             cl.motc[r, c] = mot[r, c]
     k = LOAD_COL
+    R = cl.fr[0]
+    x = cl.v[0]
+    pt = cl.v[1]
     for j in range(cl.a.shape[0]):
-        F = lam[6 * j : 6 * j + 3]
-        M = lam[6 * j + 3 : 6 * j + 6]
+        f0 = lam[6 * j]
+        f1 = lam[6 * j + 1]
+        f2 = lam[6 * j + 2]
         for second in range(2):
             i = cl.b[j] if second else cl.a[j]
             if i < 0:
                 continue
-            R, x, pt = _tip(ws, cl, j, second == 1)
+            _tip(ws, cl, j, second == 1, R, x, pt)
             sg = -1.0 if second else 1.0
-            mm = M + cross(pt - x, F)
-            for d in range(3):
-                cl.motc[i, k + d] += sg * F[d]
-                cl.motc[i, k + 3 + d] += sg * mm[d]
+            s0 = pt[0] - x[0]
+            s1 = pt[1] - x[1]
+            s2 = pt[2] - x[2]
+            cl.motc[i, k] += sg * f0
+            cl.motc[i, k + 1] += sg * f1
+            cl.motc[i, k + 2] += sg * f2
+            cl.motc[i, k + 3] += sg * (lam[6 * j + 3] + s1 * f2 - s2 * f1)
+            cl.motc[i, k + 4] += sg * (lam[6 * j + 4] + s2 * f0 - s0 * f2)
+            cl.motc[i, k + 5] += sg * (lam[6 * j + 5] + s0 * f1 - s1 * f0)
 
 
-@njit()
+@njit(nrt=False)
 def closure_accelerations(ws, cl, out):
     """Per closure the relative acceleration of a's point against b's (world, 3) and of their
     frames' angular accelerations (3), from the last sweep's tip accelerations."""
+    R = cl.fr[0]
+    x = cl.v[0]
+    pt = cl.v[1]
+    aw = cl.v[2]
+    bw = cl.v[3]
     for j in range(cl.a.shape[0]):
+        for d in range(6):
+            out[6 * j + d] = 0.0
         for second in range(2):
             i = cl.b[j] if second else cl.a[j]
             if i < 0:
                 continue
-            R, x, pt = _tip(ws, cl, j, second == 1)
+            _tip(ws, cl, j, second == 1, R, x, pt)
             A = ws.Atip[i + 1]
-            aw = mv(R, A[:3])
-            bw = mv(R, A[3:])
-            ap = aw + cross(bw, pt - x)
+            for r in range(3):
+                aw[r] = R[r, 0] * A[0] + R[r, 1] * A[1] + R[r, 2] * A[2]
+                bw[r] = R[r, 0] * A[3] + R[r, 1] * A[4] + R[r, 2] * A[5]
+            s0 = pt[0] - x[0]
+            s1 = pt[1] - x[1]
+            s2 = pt[2] - x[2]
+            ap0 = aw[0] + bw[1] * s2 - bw[2] * s1
+            ap1 = aw[1] + bw[2] * s0 - bw[0] * s2
+            ap2 = aw[2] + bw[0] * s1 - bw[1] * s0
+            sg = -1.0 if second else 1.0
+            out[6 * j] += sg * ap0
+            out[6 * j + 1] += sg * ap1
+            out[6 * j + 2] += sg * ap2
             for d in range(3):
-                if second == 0:
-                    out[6 * j + d] = ap[d]
-                    out[6 * j + 3 + d] = bw[d]
-                else:
-                    out[6 * j + d] -= ap[d]
-                    out[6 * j + 3 + d] -= bw[d]
+                out[6 * j + 3 + d] += sg * bw[d]
 
 
-@njit()
-def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload):
-    """One sweep of a Newmark iterate with loop closures: λ from the closures' position-level
-    condition at the step end, linearised about the iterate, g + c_q W Δμ = 0 with W the
-    relative accelerations along the constraints per unit load (one sweep per unknown at this
-    kinematics; the accelerations are affine in λ), then the sweep with that λ into ``xn``."""
+@njit(nrt=False)
+def invert(A, Ai, S):
+    """Ai = A⁻¹ by Gauss–Jordan elimination with partial pivoting in the scratch S (m, m).
+    Returns False for a singular A."""
+    m = A.shape[0]
+    for r in range(m):
+        for c in range(m):
+            S[r, c] = A[r, c]
+            Ai[r, c] = 1.0 if r == c else 0.0
+    for c in range(m):
+        piv = c
+        for r in range(c + 1, m):
+            if abs(S[r, c]) > abs(S[piv, c]):
+                piv = r
+        if not abs(S[piv, c]) > 0.0:
+            return False
+        if piv != c:
+            for u in range(m):
+                t = S[c, u]
+                S[c, u] = S[piv, u]
+                S[piv, u] = t
+                t = Ai[c, u]
+                Ai[c, u] = Ai[piv, u]
+                Ai[piv, u] = t
+        d = 1.0 / S[c, c]
+        for u in range(m):
+            S[c, u] *= d
+            Ai[c, u] *= d
+        for r in range(m):
+            if r != c and S[r, c] != 0.0:
+                f = S[r, c]
+                for u in range(m):
+                    S[r, u] -= f * S[c, u]
+                    Ai[r, u] -= f * Ai[c, u]
+    return True
+
+
+@njit(nrt=False)
+def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fresh):
+    """One iteration of a Newmark step with loop closures, at the iterate's kinematics in
+    ``ws``: the sweep with the current λ gives q̈⁰ into ``xn``; the closures' position-level
+    condition at the step end, g(q̂ + c_q q̈) = 0, linearised about q̈⁰, g⁰ + c_q W Δμ = 0 with
+    g⁰ the gap at q̂ + c_q q̈⁰ and W the relative accelerations along the constraints per unit
+    load, fixes Δμ; λ += B Δμ and ``xn`` += X Δμ (the accelerations are affine in λ: X the
+    q̈ per unit load). W and X are measured (one sweep per unknown at this kinematics) when
+    ``fresh`` or when cl.state[0] holds none of a Newmark step, else those of an earlier
+    iterate serve (a quasi-Newton step on μ: the fixed point, g = 0 with the step's equations,
+    is the same). At the initial state and a restart (c_q = 0) the condition is at
+    acceleration level, Bᵀ rel(λ) = 0, and the last sweep is the one with the corrected λ.
+    The sweeps taken go to cl.state[1]; ``ws`` ends at the kinematics of q̂ + c_q q̈⁰ (c_q ≠ 0)
+    with the joints' sweep torques ws.acc[:, 1] of the new λ (affine: T). Returns ok."""
     m = cl.g.shape[0]
+    nd = xn.shape[0]
     closure_geometry(ws, cl)
     # λ in the directions of this iterate (orthonormal per closure): a revolute closure's
     # moment stays perpendicular to its current axis (no moment about it)
-    mu = np.zeros(m)
+    mu = cl.dmu
     for c in range(m):
+        t = 0.0
         for r in range(cl.B.shape[0]):
-            mu[c] += cl.B[r, c] * cl.lam[r]
+            t += cl.B[r, c] * cl.lam[r]
+        mu[c] = t
     for r in range(cl.lam.shape[0]):
         t = 0.0
         for c in range(m):
             t += cl.B[r, c] * mu[c]
         cl.lam[r] = t
-    if cq == 0.0:
-        # the forward dynamics (the initial state): the relative accelerations vanish,
-        # Bᵀ rel(λ) = 0, in place of the position condition
-        cl.g[:] = 0.0
     closure_inputs(ws, cl, mot, cl.lam)
     ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
-    closure_accelerations(ws, cl, cl.rel0)
-    lam1 = cl.lam.copy()
-    for c in range(m):
-        for r in range(lam1.shape[0]):
-            lam1[r] = cl.lam[r] + cl.B[r, c]
-        closure_inputs(ws, cl, mot, lam1)
-        ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, cl.xs, False, noload) and ok
-        closure_accelerations(ws, cl, cl.rel)
-        for r in range(m):
-            t = 0.0
-            for d in range(cl.B.shape[0]):
-                t += cl.B[d, r] * (cl.rel[d] - cl.rel0[d])
-            cl.W[r, c] = t if cq == 0.0 else cq * t
+    for i in range(md.n):
+        cl.tq[i] = ws.acc[i, 1]
+    if fresh or cq == 0.0 or cl.state[0] == 0:
+        closure_accelerations(ws, cl, cl.rel0)
+        lam1 = cl.lam1
+        for c in range(m):
+            for r in range(lam1.shape[0]):
+                lam1[r] = cl.lam[r] + cl.B[r, c]
+            closure_inputs(ws, cl, mot, lam1)
+            ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, cl.xs, False, noload) and ok
+            closure_accelerations(ws, cl, cl.rel)
+            for r in range(m):
+                t = 0.0
+                for d in range(cl.B.shape[0]):
+                    t += cl.B[d, r] * (cl.rel[d] - cl.rel0[d])
+                cl.W[r, c] = t
+            for r in range(nd):
+                cl.X[c, r] = cl.xs[r] - xn[r]
+            for i in range(md.n):
+                cl.T[c, i] = ws.acc[i, 1] - cl.tq[i]
+        ok = ok and invert(cl.W, cl.Wi, cl.Wlu)
+        cl.state[0] = 1 if ok and cq != 0.0 else 0
+        cl.state[1] = m + 1
+    else:
+        cl.state[1] = 1
+    for r in range(nd):
+        if not math.isfinite(xn[r]):
+            ok = False
     if not ok:
         return False
     if cq == 0.0:
+        # the forward dynamics (the initial state, a restart): the relative accelerations
+        # vanish, Bᵀ rel(λ) = 0, in place of the position condition
         for r in range(m):
             t = 0.0
             for d in range(cl.B.shape[0]):
                 t += cl.B[d, r] * cl.rel0[d]
             cl.g[r] = t
-    dmu = np.linalg.solve(cl.W, -cl.g)
+    else:
+        # the gap at the positions of the sweep's q̈ (motion-driven joints at their law)
+        for r in range(nd):
+            cl.qp[r] = qt[r] + cq * xn[r]
+            cl.qv[r] = qdt[r] + cv * xn[r]
+        for i in range(md.n):
+            if md.motion[i] == 1:
+                cl.qp[md.ia[i]] = mot[i, 0]
+                cl.qv[md.ia[i]] = mot[i, 1]
+        kinematics(md, ws, cl.qp, cl.qv)
+        closure_geometry(ws, cl)
+    dmu = cl.dmu
+    for r in range(m):
+        t = 0.0
+        for c in range(m):
+            t -= cl.Wi[r, c] * cl.g[c]
+        dmu[r] = t if cq == 0.0 else t / cq
     for r in range(cl.lam.shape[0]):
         t = 0.0
         for c in range(m):
             t += cl.B[r, c] * dmu[c]
         cl.lam[r] += t
-    closure_inputs(ws, cl, mot, cl.lam)
-    ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
-    for r in range(xn.shape[0]):
+    if cq == 0.0:
+        closure_inputs(ws, cl, mot, cl.lam)
+        ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
+        cl.state[1] += 1
+    else:
+        # q̈ and the motion-driven joints' torques (:func:`joint_torques`) with the new λ
+        for c in range(m):
+            for r in range(nd):
+                xn[r] += cl.X[c, r] * dmu[c]
+        for i in range(md.n):
+            t = cl.tq[i]
+            for c in range(m):
+                t += cl.T[c, i] * dmu[c]
+            ws.acc[i, 1] = t
+    for r in range(nd):
         if not math.isfinite(xn[r]):
             ok = False
     return ok
@@ -909,6 +1084,8 @@ def run(
             tv = cw.taul if opts.closed else tau
             prev = np.inf
             used = 0
+            stale = False
+            measured = False  # W was measured in this step
             converged = False
             fixed = opts.iteration == IT_FIXED
             nmax = opts.n_fixed + 1 if fixed else opts.max_it
@@ -940,8 +1117,18 @@ def run(
                                 cw.yb[i] = cw.yk[i]
                         correct(md, drv, cw)
                 if cw.cl.a.shape[0] > 0:
-                    ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload)
-                    used += cw.cl.g.shape[0] + 2
+                    if it == 0 and s >= 2 and not drv.restart[s - 1] and not drv.restart[s - 2]:
+                        # λ extrapolated from the last two step ends (the iteration's start)
+                        for r in range(cw.cl.lam.shape[0]):
+                            cw.cl.lam[r] = 2.0 * cw.cl.lamh[s - 1, r] - cw.cl.lamh[s - 2, r]
+                    # W anew every A_EVERY steps, after a restart, and once the iterates stop
+                    # contracting (else the W of an earlier iterate: one sweep per iteration)
+                    wnew = stale
+                    if it == 0:
+                        wnew = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                    ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, wnew)
+                    used += cw.cl.state[1]
+                    measured = measured or cw.cl.state[1] > 1
                 else:
                     ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, zero_f, xn, False, noload)
                     used += 1
@@ -961,6 +1148,10 @@ def run(
                 stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
                 if stop:
                     break
+                # iterates that stop contracting above the round-off floor: W anew
+                stale = (
+                    it >= 1 and not measured and dx > W_STALE * prev and dx > 1e3 * opts.tol * max(1.0, xmax)
+                )
                 if opts.iteration == IT_AUTO and it >= 1 + opts.closed and dx < prev:
                     # the contraction ρ = dx/prev predicts the iteration error left, dx·ρ/(1 − ρ);
                     # stop once it is below auto_fraction × the local truncation error estimate
@@ -1102,7 +1293,7 @@ def run(
                 ok = accel(md, ws, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, torque)
                 if ok and cw.cl.a.shape[0] > 0:
                     ok = closure_sweep(
-                        md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, noload
+                        md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, noload, True
                     )
                     joint_torques(md, ws, drv.tau_r[s], torque)
             for r in range(nd):
