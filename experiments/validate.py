@@ -648,7 +648,8 @@ def _spatial_problem(run: Runner, problem: str, case, prov) -> list:
     def not_run(why):
         return [_not_run(rec.name, check, problem, t["quantity"], why, **kw_of(t))[0] for t in trows]
 
-    why = _no_spatial(rec, case) or (_RIGID if rec.physics.strain == "rigid" else "")
+    # a rigid model's first reason is physics: the quantity is a deformation
+    why = (_RIGID if rec.physics.strain == "rigid" else "") or _no_spatial(rec, case)
     if why:
         return not_run(why)
     vals = {t["quantity"]: [] for t in trows}
@@ -1036,7 +1037,7 @@ def spatial_static_deflection(run: Runner) -> list:
     kw = dict(source=src, tolerance=SPATIAL_STATIC_TOL, tolerance_kind="relative")
     check, name = "spatial static deflection", "cantilever_3d"
     qs = {"u_y": "tip u_y at rest (m)", "u_z": "tip u_z at rest (m)", "twist": "tip twist at rest (rad)"}
-    why = _no_spatial(rec, cases["y"]) or (_RIGID if rec.physics.strain == "rigid" else "")
+    why = (_RIGID if rec.physics.strain == "rigid" else "") or _no_spatial(rec, cases["y"])
     if not why and problems_study.statics_of(rec.name) is None:
         why = _NO_STATICS.format(rec.label or rec.name).replace("this problem", "this check")
     if why:
