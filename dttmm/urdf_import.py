@@ -51,9 +51,9 @@ from pydantic import Strict, ValidationError
 
 from .case import _drive
 from .errors import InputError
-from .schema import BIG, Finite, NonNegative, Positive, _short, _Strict, input_error
+from .schema import BIG, Finite, NonNegative, _short, _Strict, input_error
 from .sections import IBeam, Material, Rectangle, Tube, section_properties
-from .spatial.case import SpatialCase, SpatialScenarioFile, _load
+from .spatial.case import BeamDataFile, SpatialCase, SpatialScenarioFile, _load
 from .spatial.model import (
     BoundedVector3,
     SpatialJoint,
@@ -379,7 +379,7 @@ class SectionFile(_Strict):
     i_beam: IBeam | None = None
 
 
-class FlexibleFile(_Strict):
+class FlexibleFile(BeamDataFile):
     """The overlay of one flexible link (``[model.flexible.<link>]``, docs/urdf.md): a
     ``section`` and a ``material`` (dttmm.sections), or the beam data themselves (EA, GJ, EIy,
     EIz, rhoA, rhoJ, rhoIy, rhoIz); ``keep_inertia`` (required): keep the URDF body as a rigid
@@ -390,14 +390,6 @@ class FlexibleFile(_Strict):
     keep_inertia: bool
     section: SectionFile | None = None
     material: Annotated[str, Strict()] | Material | None = None
-    EA: Positive | None = None
-    GJ: Positive | None = None
-    EIy: Positive | None = None
-    EIz: Positive | None = None
-    rhoA: Positive | None = None
-    rhoJ: Positive | None = None
-    rhoIy: NonNegative | None = None
-    rhoIz: NonNegative | None = None
     extensible: bool = True
     roll: Finite = 0.0
     damping: NonNegative = 0.0

@@ -100,11 +100,11 @@ BEAM_REQUIRED = ("GJ", "EIy", "EIz", "rhoA", "rhoJ")
 BEAM_KEYS = ("EA", *BEAM_REQUIRED, "rhoIy", "rhoIz", "roll", "damping")
 
 
-class SpatialLinkFile(_Strict):
-    """One ``[[model.links]]`` table of a spatial case: a flexible link (the beam keys) or a
-    rigid one (``rigid``, and ``length`` ≥ 0 to its tip frame, default 0)."""
+class BeamDataFile(_Strict):
+    """The beam data of a spatial link as a file gives them, each optional (what a link needs is
+    checked where the link is built): EA, GJ, EIy, EIz (N, N·m²), rhoA (kg/m), rhoJ, rhoIy, rhoIz
+    (kg·m)."""
 
-    length: NonNegative | None = None
     EA: Positive | None = None
     GJ: Positive | None = None
     EIy: Positive | None = None
@@ -113,6 +113,13 @@ class SpatialLinkFile(_Strict):
     rhoJ: Positive | None = None
     rhoIy: NonNegative | None = None
     rhoIz: NonNegative | None = None
+
+
+class SpatialLinkFile(BeamDataFile):
+    """One ``[[model.links]]`` table of a spatial case: a flexible link (the beam keys) or a
+    rigid one (``rigid``, and ``length`` ≥ 0 to its tip frame, default 0)."""
+
+    length: NonNegative | None = None
     roll: Finite | None = None
     damping: NonNegative | None = None
     rigid: RigidFile | None = None
