@@ -17,10 +17,16 @@ The mapping (docs/urdf.md "What the import does"):
   carry nothing), and the origins of the joints beyond it are composed through it. So every
   model link is one moving body, a rigid link of length 0 (its tip frame is its link frame, the
   URDF link frame) whose next joint's origin carries the offset — Pinocchio's reading of a URDF.
+* a kinematic tree (a body carrying several moving joints, directly or through links welded to
+  it; several moving joints on the ground): the bodies are listed depth first in the URDF's
+  joint order (a chain: base first), each link's ``parent`` the model link of the body its joint
+  hangs on (``"base"`` on the ground); the model links take the URDF link names (a kept body
+  before its beam ``<link>.body``; a reserved name, ``base`` or ``ground``, takes a "_"). A
+  chain's model is the plain chain it always was (no names, no parents).
 * refused, one line each (:class:`dttmm.InputError` naming the joint or link): ``prismatic``,
-  ``planar`` and ``floating`` joints (unless locked), a link with two parents (a closed loop),
-  more than one root or a link not connected to the root, a body carrying two moving joints (a
-  branched arm), a link carried by a moving joint without ``<inertial>``.
+  ``planar`` and ``floating`` joints (unless locked), a link with two parents (a closed loop:
+  a URDF cannot describe one), more than one root or a link not connected to the root, a link
+  carried by a moving joint without ``<inertial>``, a tree with several leaves and no ``tool``.
 * ``flexible = {link: overlay}`` (see :class:`FlexibleFile`): the beam of that link runs from
   its joint to the origin of the next moving joint; the link frame is turned (R_a, x along the
   beam, z along the part of the joint axis normal to it) so that its x axis points there. With
@@ -31,9 +37,12 @@ The mapping (docs/urdf.md "What the import does"):
   same point turned by R_a (docs/spatial.md §5: a rigid link of length 0 followed by a flexible
   link on a locked joint is a body with an offset centre of mass at the beam's root); the
   beam's mass adds to the body's. Either way the next joint's origin becomes
-  (R_aᵀ o − L e_x, R_aᵀ R_c) in the beam's tip frame (o, R_c: its URDF origin).
-* ``tool = "<link>"``: the end-effector is that link's origin (a link welded to the last body):
-  a massless rigid link on a locked joint reaches it.
+  (R_aᵀ o − L e_x, R_aᵀ R_c) in the beam's tip frame (o, R_c: its URDF origin). In a tree the
+  flexible link must carry exactly one moving joint (the next one).
+* ``tool = "<link>"``: the end-effector is that link's origin (a link welded to the last body of
+  a chain, to a leaf body of a tree): a massless rigid link on a locked joint reaches it; in a
+  tree, a leaf's own link is the end-effector itself (its frame is its tip frame). A tree with
+  several leaves needs a tool (``SpatialManipulator.end_effector``).
 """
 
 from __future__ import annotations
@@ -55,6 +64,7 @@ from .schema import BIG, Finite, NonNegative, _short, _Strict, input_error
 from .sections import IBeam, Material, Rectangle, Tube, section_properties
 from .spatial.case import BeamDataFile, SpatialCase, SpatialScenarioFile, _load
 from .spatial.model import (
+    RESERVED_NAMES,
     BoundedVector3,
     SpatialJoint,
     SpatialLink,
@@ -178,6 +188,9 @@ class _Body:
     frames: dict = field(default_factory=dict)  # link name -> (R, p) in the body frame
     moving: list = field(default_factory=list)  # the moving joints it carries
     rpy: tuple | None = None  # the joint's own origin rpy when no fixed joint comes between
+    index: int = 0  # its place in the list of bodies
+    parent: int = -1  # the index of the moving body it hangs on (−1: the ground)
+    children: list = field(default_factory=list)  # the indices of the bodies it carries
 
 
 def _numbers(el, attr: str, n: int, default, where: str) -> np.ndarray:
@@ -290,7 +303,8 @@ def _nearest(name: str, names) -> str:
 
 
 def _bodies(links: dict, joints: list, lock) -> tuple[list[_Body], dict]:
-    """The chain of moving bodies, base first, and the frames welded to the ground."""
+    """The moving bodies, parents first (depth first in the URDF's joint order: a chain base
+    first), each with its parent body, and the frames welded to the ground."""
     names = {j.name for j in joints}
     for j in lock:
         if j not in names:
@@ -301,7 +315,7 @@ def _bodies(links: dict, joints: list, lock) -> tuple[list[_Body], dict]:
             raise InputError(
                 f"link '{j.child}'",
                 f"parents {parent_of[j.child].parent!r} and {j.parent!r}",
-                "has two parents (a closed loop): only open chains are supported",
+                "has two parents (a closed loop, which a URDF cannot describe): chains and trees only",
             )
         parent_of[j.child] = j
         children[j.parent].append(j)
@@ -309,7 +323,7 @@ def _bodies(links: dict, joints: list, lock) -> tuple[list[_Body], dict]:
     if len(roots) != 1:
         reason = "no root link (a closed loop)" if not roots else f"{len(roots)} root links: one tree needed"
         raise InputError("urdf", ", ".join(roots) or "<none>", reason)
-    chain: list[_Body] = []
+    bodies: list[_Body] = []
     ground = {"frames": {}, "moving": []}
     seen = set()
 
@@ -336,20 +350,14 @@ def _bodies(links: dict, joints: list, lock) -> tuple[list[_Body], dict]:
                         None,
                         f"is missing: the link moves (joint '{j.name}') and needs its mass and inertia",
                     )
-                carrier = ground["moving"] if body is None else body.moving
-                carrier.append(j.name)
-                if len(carrier) > 1:
-                    where = "the ground" if body is None else f"link '{body.link}'"
-                    raise InputError(
-                        f"joint '{j.name}'",
-                        j.type,
-                        f"is a second moving joint on {where} (after '{carrier[0]}'): branched arms "
-                        "are not supported (lock one with lock = [...])",
-                    )
-                new = _Body(j.child, j, r2, p2)
+                (ground["moving"] if body is None else body.moving).append(j.name)
+                new = _Body(j.child, j, r2, p2, index=len(bodies))
                 if link_is_body:
                     new.rpy = tuple(float(x) for x in j.rpy)
-                chain.append(new)
+                if body is not None:
+                    new.parent = body.index
+                    body.children.append(new.index)
+                bodies.append(new)
                 visit(j.child, new, np.eye(3), np.zeros(3))
             elif j.type in _REFUSED:
                 raise InputError(
@@ -365,9 +373,9 @@ def _bodies(links: dict, joints: list, lock) -> tuple[list[_Body], dict]:
     lost = [n for n in links if n not in seen]
     if lost:
         raise InputError(f"link '{lost[0]}'", None, "is not connected to the root (a closed loop)")
-    if not chain:
+    if not bodies:
         raise InputError("urdf", roots[0], "has no revolute or continuous joint: nothing moves")
-    return chain, ground["frames"]
+    return bodies, ground["frames"]
 
 
 # --- the flexible-link overlay ----------------------------------------------------------------
@@ -494,18 +502,20 @@ def read_urdf(
     """The spatial arm of a URDF (a path, ``example-robot-data:<path under robots/>``, or the
     URDF text itself) with the links named in ``flexible`` (``{link: overlay}``, each overlay a
     :class:`FlexibleFile` or its table) made flexible; ``lock`` names joints held at zero (e.g.
-    a gripper's prismatic fingers); ``tool`` a link welded to the last body whose origin is the
-    end-effector; ``gravity`` (m/s², world; URDF has none, the default is −9.81 along z as in
-    Pinocchio), ``base_xyz``/``base_rpy`` the base frame in the world. See the module notes."""
+    a gripper's prismatic fingers); ``tool`` a link welded to the last body (a chain) or to a
+    leaf body (a tree: required with several leaves) whose origin is the end-effector;
+    ``gravity`` (m/s², world; URDF has none, the default is −9.81 along z as in Pinocchio),
+    ``base_xyz``/``base_rpy`` the base frame in the world. See the module notes."""
     root, src = _text_or_path(source)
     name, links, joints = _parse(root)
     lock = tuple(lock)
-    chain, _ = _bodies(links, joints, lock)
+    bodies, _ = _bodies(links, joints, lock)
+    tree = any(b.parent != i - 1 for i, b in enumerate(bodies))
     flexible = dict(flexible or {})
-    by_link = {b.link: i for i, b in enumerate(chain)}
+    by_link = {b.link: i for i, b in enumerate(bodies)}
     for ln in flexible:
         if ln not in by_link:
-            owner = next((b.link for b in chain if ln in b.frames), None)
+            owner = next((b.link for b in bodies if ln in b.frames), None)
             if owner is not None:
                 reason = f"is welded to '{owner}' (a fixed joint): name '{owner}'"
             elif ln in links:
@@ -513,28 +523,52 @@ def read_urdf(
             else:
                 reason = f"is not a link of the URDF{_nearest(ln, links)}"
             raise InputError(f"flexible.{ln}", ln, reason)
-        if by_link[ln] == len(chain) - 1:
+        after = bodies[by_link[ln]].children
+        if not after:
+            where = "a leaf of the tree" if tree else "the last moving link"
+            raise InputError(f"flexible.{ln}", ln, f"is {where}: a flexible link runs to the next joint")
+        if len(after) > 1:
+            nxt = ", ".join(bodies[c].joint.name for c in after)
             raise InputError(
-                f"flexible.{ln}", ln, "is the last moving link: a flexible link runs to the next joint"
+                f"flexible.{ln}",
+                ln,
+                f"carries {len(after)} moving joints ({nxt}): a flexible link runs to its one next joint",
             )
+    leaves = [b for b in bodies if not b.children]
+    owner = _tool_owner(tool, bodies, leaves, links, tree)
+    taken: set = set()
+
+    def model_name(ln: str) -> str:
+        """A tree's model link is named after its URDF link (a reserved name takes a "_")."""
+        while ln in RESERVED_NAMES or ln in taken:
+            ln += "_"
+        taken.add(ln)
+        return ln
+
     out, out_names = [], []
-    rot_next, pos_next = None, None  # the next joint's origin, when a beam has moved it
-    for i, body in enumerate(chain):
+    tips: list[str] = []  # a tree: the model link whose tip frame is each body's frame
+    moved = {}  # body index -> the joint's origin (R, p), where a flexible parent has moved it
+    for i, body in enumerate(bodies):
         jt, w = body.joint, f"link '{body.link}'"
-        rot, pos = (body.rot, body.pos) if rot_next is None else (rot_next, pos_next)
-        rot_next = pos_next = None
+        rot, pos = moved.get(i, (body.rot, body.pos))
+        topo = {}
+        if tree:
+            topo["parent"] = "base" if body.parent < 0 else tips[body.parent]
         m, c, jj = _merge(body.parts)
         axis = jt.axis / np.linalg.norm(jt.axis) if np.linalg.norm(jt.axis) > 0 else jt.axis
         rpy = body.rpy if body.rpy is not None and rot is body.rot else matrix_rpy(rot)
         if body.link not in flexible:
             rigid = SpatialRigidBody(0.0, m, tuple(c), jj, _where=f"{w}.inertial")
             joint = SpatialJoint(tuple(axis), tuple(pos), rpy, _where=f"joint '{jt.name}'")
-            out.append(SpatialLink(rigid, joint, _where=w))
+            if tree:
+                topo["name"] = model_name(body.link)
+            out.append(SpatialLink(rigid, joint, _where=w, **topo))
             out_names.append(body.link)
+            tips.append(topo.get("name", ""))
             continue
         fw = f"flexible.{body.link}"
         ov = _overlay(flexible[body.link], fw)
-        nxt = chain[i + 1]
+        nxt = bodies[body.children[0]]
         d = nxt.pos
         length = float(np.linalg.norm(d))
         if length < 1e-6:
@@ -548,43 +582,83 @@ def read_urdf(
         if ov.keep_inertia:
             rigid = SpatialRigidBody(0.0, m, tuple(c), jj, _where=f"{w}.inertial")
             joint = SpatialJoint(tuple(axis), tuple(pos), rpy, _where=f"joint '{jt.name}'")
-            out.append(SpatialLink(rigid, joint, _where=w))
+            if tree:
+                topo["name"] = model_name(f"{body.link}.body")
+            out.append(SpatialLink(rigid, joint, _where=w, **topo))
             lock_joint = SpatialJoint(origin_rpy=matrix_rpy(ra), locked=True, _where=f"{fw}.joint")
-            out.append(SpatialLink(beam, lock_joint, _where=fw))
+            if tree:
+                topo = {"name": model_name(body.link), "parent": topo["name"]}
+            out.append(SpatialLink(beam, lock_joint, _where=fw, **topo))
             out_names += [body.link, body.link]
         else:
             joint = SpatialJoint(
                 tuple(ra.T @ axis), tuple(pos), matrix_rpy(rot @ ra), _where=f"joint '{jt.name}'"
             )
-            out.append(SpatialLink(beam, joint, _where=fw))
+            if tree:
+                topo["name"] = model_name(body.link)
+            out.append(SpatialLink(beam, joint, _where=fw, **topo))
             out_names.append(body.link)
-        rot_next = ra.T @ nxt.rot
-        pos_next = ra.T @ nxt.pos - np.array([length, 0.0, 0.0])
-    if tool is not None:
-        last = chain[-1]
-        if tool not in last.frames:
-            raise InputError("tool", tool, f"is not a link welded to the last moving link '{last.link}'")
-        rot, pos = last.frames[tool]
+        tips.append(topo.get("name", ""))
+        moved[body.children[0]] = (ra.T @ nxt.rot, ra.T @ nxt.pos - np.array([length, 0.0, 0.0]))
+    end_effector = None
+    if owner is not None and tree and tool == owner.link:
+        end_effector = tips[owner.index]  # a leaf's own link: its frame is its tip frame
+    elif owner is not None:
+        rot, pos = owner.frames[tool]
         reach = float(np.linalg.norm(pos))
         ra = _beam_frame(pos, np.array([0.0, 0.0, 1.0])) if reach > 0 else rot
+        topo = {"name": model_name(tool), "parent": tips[owner.index]} if tree else {}
         out.append(
             SpatialLink(
                 SpatialRigidBody(reach, _where="tool"),
                 SpatialJoint(origin_rpy=matrix_rpy(ra), locked=True, _where="tool.joint"),
                 _where="tool",
+                **topo,
             )
         )
         out_names.append(tool)
-    model = SpatialManipulator(tuple(out), tuple(gravity), tuple(base_xyz), tuple(base_rpy))
+        end_effector = topo.get("name")
+    model = SpatialManipulator(
+        tuple(out), tuple(gravity), tuple(base_xyz), tuple(base_rpy), end_effector=end_effector
+    )
     return UrdfArm(
         model,
-        tuple(b.joint.name for b in chain),
+        tuple(b.joint.name for b in bodies),
         tuple(out_names),
-        tuple(b.joint.limits for b in chain),
+        tuple(b.joint.limits for b in bodies),
         tuple(ln for ln in flexible),
         src,
         name,
     )
+
+
+def _tool_owner(tool, bodies, leaves, links, tree):
+    """The leaf body that carries the link ``tool`` (None without a tool); a tree with several
+    leaves needs one."""
+    if tool is None:
+        if len(leaves) > 1:
+            names = ", ".join(b.link for b in leaves)
+            raise InputError(
+                "tool",
+                None,
+                f"must name the end-effector: the tree has {len(leaves)} leaves ({names}); "
+                "give one of them or a link welded to one",
+            )
+        return None
+    owner = next((b for b in leaves if tool in b.frames), None)
+    if owner is not None:
+        return owner
+    if not tree:
+        raise InputError("tool", tool, f"is not a link welded to the last moving link '{bodies[-1].link}'")
+    names = ", ".join(b.link for b in leaves)
+    inner = next((b.link for b in bodies if tool in b.frames), None)
+    if inner is not None:
+        reason = f"is on '{inner}', which carries moving joints: the end-effector is on a leaf ({names})"
+    elif tool in links:
+        reason = f"does not move: the end-effector is on a leaf ({names})"
+    else:
+        reason = f"is not a link of the URDF{_nearest(tool, links)}"
+    raise InputError("tool", tool, reason)
 
 
 def load_urdf(source, flexible: dict | None = None, **options) -> SpatialManipulator:

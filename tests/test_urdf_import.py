@@ -110,7 +110,7 @@ def test_small_chain_reads():
         (_urdf(CHAIN + _joint("loop", "revolute", "base", "b")), r"^link 'b' = .*two parents"),
         (
             _urdf(CHAIN + _joint("j3", "revolute", "a", "c")),
-            r"^joint 'j3' = 'revolute': is a second moving joint on link 'a'",
+            r"^tool = None: must name the end-effector: the tree has 2 leaves \(b, c\)",
         ),
         (_urdf(CHAIN + _joint("j3", "planar", "b", "c")), r"^joint 'j3'\.type = 'planar'"),
         (_urdf(CHAIN + _joint("j3", "floating", "b", "c")), r"^joint 'j3'\.type = 'floating'"),
