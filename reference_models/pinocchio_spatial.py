@@ -291,6 +291,13 @@ class _Arm:
                 e = tau.copy()
                 e[i] = 1.0
                 A[:, c] = self._constrained(q, v, e)[p] - a0[p]
+            if not np.linalg.cond(A) < 1e12:
+                raise InputError(
+                    "scenario.drives",
+                    [int(i) for i in p],
+                    "motion drives that the closed loop locks (their joints' accelerations do not "
+                    "follow their torques) are not supported by pinocchio-spatial",
+                )
             tau[p] = np.linalg.solve(A, a_p[p] - a0[p])
         a = self._constrained(q, v, tau)
         self.loads = self.closure_loads()
