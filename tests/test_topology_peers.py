@@ -171,6 +171,28 @@ def test_mujoco_statics_refuse_a_tree():
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.parametrize("name", ["branched_arm", "five_bar"])
+def test_peers_fill_the_fields_the_dttmm_fills(name):
+    """Field by field, the arrays the spatial DT-TMM returns on a tree and a loop (k = 2, 0.02 s)
+    come back from MuJoCo and Pinocchio with the same shapes (cut loads: none asked for);
+    ``end_effector`` is the named link's tip in each."""
+    import dttmm.spatial as sp
+
+    case = _case(name, 0.02, 0.005)
+    ref = sp.simulate(case, elements_per_link=2, h=5e-4)
+    peers = {
+        "mujoco": ms.simulate(case, elements_per_link=2, h=3.90625e-5),
+        "pinocchio": ps.simulate(case, h=5e-4),
+    }
+    filled = {f.name for f in dataclasses.fields(ref) if isinstance(getattr(ref, f.name), np.ndarray)}
+    assert {"link_tip", "joint_angle", "end_effector"} <= filled
+    assert ("closure_loads" in filled) == bool(case.model.closures)
+    for who, r in peers.items():
+        for f in filled:
+            assert getattr(r, f) is not None and getattr(r, f).shape == getattr(ref, f).shape, (who, f)
+        assert np.array_equal(r.end_effector, r.link_tip[:, case.model.end_effector_index]), who
+
+
 # ------------------------------------------------------------------ Pinocchio -----------------
 
 
