@@ -45,6 +45,13 @@ i − 1, a point l/2 beyond its last station) moved by ``origin_xyz`` and turned
 locked one welds the body (no joint). Gravity is MuJoCo's ``gravity`` option (the case's
 vector).
 
+Trees and closed loops (docs/spatial.md §11 "Peers on trees and loops"): a link's root piece is a
+child of its parent link's tip piece (the base body for a link on the base); closures are
+equality constraints between sites on the tip pieces (:func:`closure_equalities`: spherical a
+``connect``, revolute two ``connect``s on its axis, weld a ``weld``), solref 2 steps and solimp
+0.9999; their loads come from ``efc_force`` (:func:`closure_loads`). A chain's MJCF is the text
+it was before trees.
+
 Time integration, drives and the fast loop are the planar chain's (:mod:`mujoco_chain`):
 ``implicitfast`` with a fixed step h (the springs explicit: h < 2/ω_max, ``meta["h_stable"]``),
 torque drives as motors with the control τ(t_k + Δt/2) stepped by ``mujoco.rollout``, motion
@@ -56,7 +63,8 @@ joints; link roots (the hub bodies' origins) and link frames (their orientation)
 the end of the last piece) and tip frames (the last piece's orientation); tip deflections
 (components of tip − root along the link frame's y and z axes), twist (x component of
 log(R_rootᵀ R_tip)), end effector, energy (MuJoCo's kinetic + gravity + spring energy; gravity
-zero at the world origin). Cut loads: not computed (None).
+zero at the world origin); with closures ``closure_loads``, ``closure_residual`` and
+``closure_angle_residual`` as the DT-TMM's. Cut loads: not computed (None).
 
 MuJoCo is imported here only.
 """
@@ -79,6 +87,7 @@ from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
 from dttmm.spatial.rotation import log_so3, rpy_matrix
 from dttmm.spatial.scenario import require_no_loads
+from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 from dttmm.timegrid import step_schedule
 
 from ._mujoco_model import _MJCF_NAME, INTEGRATORS
@@ -90,6 +99,8 @@ __all__ = [
     "SpatialLayout",
     "build",
     "check_case",
+    "closure_equalities",
+    "closure_loads",
     "natural_frequencies",
     "piece_properties",
     "simulate",
@@ -187,9 +198,13 @@ def xml(
     h: float,
     integrator: str = "implicitfast",
     station: str = "hinges",
+    angles=None,
 ) -> str:
     """MJCF of the spatial arm (undeformed links, every joint angle 0); body inertias are
-    placeholders (see the module notes: :func:`build` writes the exact ones).
+    placeholders (see the module notes: :func:`build` writes the exact ones). Links hang from
+    their parents' tip pieces (a tree), closures are equality constraints
+    (:func:`closure_equalities`) whose attachment data are resolved with the links undeformed at
+    the joint angles ``angles`` (the unlocked joints; None: all 0), the case's initial state.
 
     ``station``: ``"hinges"`` (three hinges, the order bend z, bend y, twist at odd stations and
     reversed at even ones), ``"hinges-zyx"`` (the same order everywhere) or ``"ball"`` (a ball
@@ -200,20 +215,25 @@ def xml(
     lines = [
         '<mujoco model="dttmm-spatial-chain">',
         '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{_f(h)}" integrator="{_MJCF_NAME[integrator]}" gravity="{_f(g)}">',
+        f'  <option timestep="{_f(h)}" integrator="{_MJCF_NAME[integrator]}" gravity="{_f(g)}"'
+        + (f' tolerance="{_f(CLOSURE_SOLVER_TOL)}"' if manipulator.closures else "")
+        + ">",
         '    <flag contact="disable" energy="enable"/>',
         "  </option>",
         "  <worldbody>",
         f'    <body name="base" pos="{_f(manipulator.base_xyz)}" quat="{_f(_quat(manipulator.base_rotation))}">',
     ]
-    closers = ["    </body>"]
     acts = []
-    depth = 6
-    parent_tip = 0.0  # the tip frame of the parent link: l/2 beyond its last station
-    for i, link in enumerate(manipulator.links):
+    sites, equalities = closure_equalities(manipulator, k, h, angles) if manipulator.closures else ({}, [])
+
+    def emit(i, depth, parent_tip):
+        # link i's pieces nested in one another, its children inside its tip piece; the pieces'
+        # closing tags after the children (a chain: the same text as one nested body list)
+        link = manipulator.links[i]
         b, jn = link.beam, link.joint
         l = b.length / k
         Rr = _rx(b.roll)
+        closers = []
         for j, (offset, m, c, J) in enumerate(piece_properties(link, k)):
             pad = " " * depth
             if j == 0:
@@ -244,17 +264,89 @@ def xml(
             lines.append(f'{pad}  <inertial pos="{_f(c)}" mass="{_f(m)}" diaginertia="{_f([ev, ev, ev])}"/>')
             if j == k:
                 lines.append(f'{pad}  <site name="tip{i}" pos="{_f(l / 2 if k > 0 else 0.0)} 0 0"/>')
+                lines.extend(f"{pad}  {x}" for x in sites.get(i, ()))
+                for child in manipulator.children(i):
+                    emit(child, depth + 2, l / 2)
             closers.append(f"{pad}</body>")
             depth += 2
-        parent_tip = l / 2
-    lines += closers[::-1]
+        lines.extend(closers[::-1])
+
+    for i in manipulator.children(-1):
+        emit(i, 6, 0.0)
+    lines.append("    </body>")
+    lines.extend(f"    {x}" for x in sites.get(-1, ()))
     lines.append("  </worldbody>")
+    if manipulator.closures:
+        lines += ["  <equality>", *(f"    {x}" for x in equalities), "  </equality>"]
     lines.append("  <actuator>")
     for i in manipulator.unlocked:
         lines.append(f'    <motor name="drive{i}" joint="arm{i}" gear="1"/>')
     lines += acts
     lines += ["  </actuator>", "</mujoco>"]
     return "\n".join(lines)
+
+
+#: the closures' equality constraints: solref (time constant in steps, damping ratio) and solimp
+#: (impedance 0.9999 throughout: regularisation 1e-4 of the constraint's own inertia); the time
+#: constant is the least MuJoCo's ``refsafe`` takes (2 steps): the stiffest stable constraint
+CLOSURE_TIMECONST_STEPS, CLOSURE_DAMPRATIO = 2.0, 1.0
+CLOSURE_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+#: the constraint solver's tolerance with closures (MuJoCo's default 1e-8)
+CLOSURE_SOLVER_TOL = 1e-12
+#: a revolute closure: two ``connect`` constraints at the points ± d·axis about the joint, d this
+#: fraction of the shorter of the two links (the ground: the link's length)
+REVOLUTE_ARM = 0.5
+
+
+def revolute_arm(manipulator, closure) -> float:
+    """d (m): half the distance of a revolute closure's two connect points along its axis."""
+    lengths = [manipulator.links[manipulator.link_index(closure.link)].beam.length]
+    if closure.to != "ground":
+        lengths.append(manipulator.links[manipulator.link_index(closure.to)].beam.length)
+    return REVOLUTE_ARM * min(lengths)
+
+
+def closure_equalities(manipulator, k: int, h: float, angles=None):
+    """The closures as MJCF: ({link index (−1: the world): site lines on its tip piece}, equality
+    lines). Spherical: one ``connect`` of a site at ``point`` (link's tip frame) to a site at
+    ``to_point`` (to's). Revolute: two ``connect`` pairs at ``point`` ± d·axis and their images
+    (:func:`revolute_arm`): the two points hold the axis, the rotation about it stays free (6
+    equations of rank 5; MuJoCo's regularised constraint solver takes the redundant one). Weld:
+    one ``weld`` of two sites whose frames coincide at the initial state. Attachment data from
+    :func:`dttmm.spatial.topology.resolve_closures` at the links undeformed at ``angles``."""
+
+    if angles is None:
+        angles = np.zeros(manipulator.n_joints)
+    R, p = rigid_tip_frames(manipulator, angles)
+    rc = resolve_closures(manipulator, R, p)
+    solref = (
+        f'solref="{_f(CLOSURE_TIMECONST_STEPS * h)} {_f(CLOSURE_DAMPRATIO)}" solimp="{_f(CLOSURE_SOLIMP)}"'
+    )
+    sites, eqs = {}, []
+
+    def site(i, name, pos, quat=None):
+        # a site on link i's tip piece (origin l/2 behind the tip, the tip frame's axes) or the world
+        off = np.array([manipulator.links[i].beam.length / k / 2, 0.0, 0.0]) if i >= 0 else np.zeros(3)
+        q = f' quat="{_f(quat)}"' if quat is not None else ""
+        sites.setdefault(i, []).append(f'<site name="{name}" pos="{_f(off + pos)}"{q}/>')
+
+    for j, cl in enumerate(manipulator.closures):
+        a, b = int(rc.a[j]), int(rc.b[j])
+        if cl.kind == "revolute":
+            d = revolute_arm(manipulator, cl)
+            for c, sgn in enumerate((1.0, -1.0)):
+                site(a, f"cl{j}_a{c}", rc.pa[j] + sgn * d * rc.ua[j])
+                site(b, f"cl{j}_b{c}", rc.pb[j] + sgn * d * rc.ub[j])
+                eqs.append(f'<connect name="closure{j}_{c}" site1="cl{j}_a{c}" site2="cl{j}_b{c}" {solref}/>')
+        elif cl.kind == "spherical":
+            site(a, f"cl{j}_a0", rc.pa[j])
+            site(b, f"cl{j}_b0", rc.pb[j])
+            eqs.append(f'<connect name="closure{j}_0" site1="cl{j}_a0" site2="cl{j}_b0" {solref}/>')
+        else:
+            site(a, f"cl{j}_a0", rc.pa[j], (1.0, 0.0, 0.0, 0.0))
+            site(b, f"cl{j}_b0", rc.pb[j], _quat(rc.R0[j].T))
+            eqs.append(f'<weld name="closure{j}_0" site1="cl{j}_a0" site2="cl{j}_b0" {solref}/>')
+    return sites, eqs
 
 
 def _set_inertias(m, manipulator, k):
@@ -302,13 +394,15 @@ def build(
     h: float = 1e-3,
     integrator: str = "implicitfast",
     station="hinges",
+    angles=None,
 ):
-    """Compile the chain with the exact piece inertias: returns (MjModel, MjData, SpatialLayout)."""
+    """Compile the chain with the exact piece inertias: returns (MjModel, MjData, SpatialLayout).
+    ``angles``: the joint angles at which the closures are assembled (:func:`xml`)."""
     plumbing.choice("station", station, STATIONS)
     if not isinstance(manipulator, SpatialManipulator):
         raise InputError("model", manipulator, "must be a dttmm.spatial.SpatialManipulator")
     k = plumbing.elements_per_link(k)
-    m = mujoco.MjModel.from_xml_string(xml(manipulator, k, h, integrator, station))
+    m = mujoco.MjModel.from_xml_string(xml(manipulator, k, h, integrator, station, angles))
     _set_inertias(m, manipulator, k)
     d = mujoco.MjData(m)
     mujoco.mj_setConst(m, d)
@@ -398,6 +492,7 @@ def statics(case, elements_per_link: int, *, loads=None, angles=None, tol: float
     if not isinstance(case, SpatialCase):
         raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
     require_no_loads(case, f"{METHOD} statics (its ``loads`` argument takes a tip load)")
+    require_serial(case.model, f"{METHOD} statics")
     loads = {} if loads is None else dict(loads)
     for key in loads:
         if key not in ("force", "moment"):
@@ -464,7 +559,11 @@ class _Stepper(_PlanarStepper):
 
     def __init__(self, case, k, h, integrator, station):
         self.mj = mujoco
-        self.m, self.d, self.lay = build(case.model, k, h, integrator, station)
+        self.case_model = case.model
+        self.angles = initial_angles(case)
+        if case.model.closures:
+            self.rc = resolve_closures(case.model, *rigid_tip_frames(case.model, self.angles))
+        self.m, self.d, self.lay = build(case.model, k, h, integrator, station, self.angles)
         self.h = h
         self.k = k
         self.drives = case.scenario.drives
@@ -519,19 +618,77 @@ def _outputs(st, X, t, ctrl, T):
             around = ctrl[max(kk - 1, 0) : min(kk + 1, ctrl.shape[0]), i]
             tau[s, i] = around.mean() if around.size else 0.0
     defl, twist = _deflection_twist(root, Rl, tip, Rt)
+    closures = {}
+    if st.case_model.closures:
+        closures = _closure_outputs(st, X, tau, tip, Rt)
     return {
+        **closures,
         "joint_angle": q,
         "joint_rate": v,
         "joint_torque": tau,
         "link_root": root,
         "link_tip": tip,
         "tip_deflection": defl,
-        "end_effector": tip[:, -1].copy(),
+        "end_effector": tip[:, st.case_model.end_effector_index].copy(),
         "twist": twist,
         "link_rotation": Rl,
         "tip_rotation": Rt,
         "energy": energy,
     }
+
+
+def closure_loads(m, d, manipulator) -> np.ndarray:
+    """(n_closures, 6): the closures' loads at the state in d after ``mj_forward`` — force (N) and
+    moment (N·m, about the closure point), world components, that `to` exerts on `link` — from
+    the equality constraints' forces ``efc_force``. A ``connect``'s three rows are the world force
+    on its first body at its first site (its Jacobian is that site's Jacobian minus the second's);
+    a revolute closure's two connects sum to the force, their moments about the closure point (the
+    midpoint of the two sites) to the moment. A ``weld``'s first three rows are the same force;
+    its three rotational rows are A (ω_a − ω_b) with A MuJoCo's quaternion-error map, so their
+    generalised force is the moment Aᵀ f on the first body, A recovered from the rows and the two
+    sites' angular Jacobians (A = J_rot · pinv(J_ωa − J_ωb))."""
+    out = np.zeros((len(manipulator.closures), 6))
+    J = np.zeros((d.nefc, m.nv))
+    if d.nefc:
+        if mujoco.mj_isSparse(m):
+            mujoco.mju_sparse2dense(J, d.efc_J, d.efc_J_rownnz, d.efc_J_rowadr, d.efc_J_colind)
+        else:
+            J[:] = d.efc_J.reshape(d.nefc, m.nv)
+    eq_of = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_EQUALITY, e): e for e in range(m.neq)}
+    for j, cl in enumerate(manipulator.closures):
+        parts = [eq_of[f"closure{j}_{c}"] for c in range(2 if cl.kind == "revolute" else 1)]
+        sites = [int(m.eq_obj1id[e]) for e in parts]
+        centre = np.mean([d.site_xpos[s] for s in sites], axis=0)
+        for e, s in zip(parts, sites):
+            rows = np.flatnonzero((d.efc_id == e) & (d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY))
+            f = d.efc_force[rows]
+            out[j, :3] += f[:3]
+            out[j, 3:] += np.cross(d.site_xpos[s] - centre, f[:3])
+            if cl.kind == "weld":
+                ra, rb = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+                mujoco.mj_jacSite(m, d, None, ra, s)
+                mujoco.mj_jacSite(m, d, None, rb, int(m.eq_obj2id[e]))
+                A = J[rows[3:]] @ np.linalg.pinv(ra - rb)
+                out[j, 3:] += A.T @ f[3:]
+    return out
+
+
+def _closure_outputs(st, X, tau, tip, Rt):
+    """closure_loads (nt, nc, 6) at the output states (``mj_forward`` with the reported joint
+    torques as controls), closure_residual and closure_angle_residual (nt, nc) from the tip frames
+    (:func:`dttmm.spatial.topology.closure_gaps`, the closures resolved as the DT-TMM resolves
+    them)."""
+    m, d, model = st.m, st.d, st.case_model
+    nt, nc = X.shape[0], len(model.closures)
+    loads, gap, angle = np.empty((nt, nc, 6)), np.empty((nt, nc)), np.empty((nt, nc))
+    for s in range(nt):
+        mujoco.mj_setState(m, d, X[s], st.spec)
+        d.ctrl[:] = 0.0
+        d.ctrl[: st.n] = tau[s]
+        mujoco.mj_forward(m, d)
+        loads[s] = closure_loads(m, d, model)
+        gap[s], angle[s] = closure_gaps(st.rc, Rt[s], tip[s])
+    return {"closure_loads": loads, "closure_residual": gap, "closure_angle_residual": angle}
 
 
 def check_case(case):
@@ -562,7 +719,6 @@ def _check(case, k, h, integrator, options):
     require_open_loop(case, METHOD)
     require_no_loads(case, METHOD)
     require_flexible(case.model, METHOD)
-    require_serial(case.model, METHOD)
     return k, h, opts
 
 

@@ -16,6 +16,13 @@ The model is built programmatically (a ``pinocchio.Model``) from the spatial cas
 * frames ``link{i}`` (the link frame) and ``link{i}_tip`` (the tip frame), and ``tip``;
 * ``model.gravity.linear`` = the case's gravity (Pinocchio's default −z is replaced).
 
+A tree places each joint in its parent link's tip frame. Closed loops (docs/spatial.md §11
+"Peers on trees and loops") run on ``pinocchio.constraintDynamics`` with one
+``RigidConstraintModel`` per closure (:func:`closure_models`: a 3-D point contact for a spherical
+closure and for a revolute one about an axis parallel to every joint axis, a 6-D contact for a
+weld; other revolute closures are refused, :func:`require_rigid_closures`), Baumgarte-corrected,
+RK4 only; motion drives' torques are solved so that their joints follow the laws.
+
 q is the vector of the unlocked joints' angles. Torque drives give τ(t); motion drives follow
 their law and their torque is the inverse dynamics (RNEA); the free accelerations solve
 M_ff q̈_f = τ_f − b_f (b = RNEA(q, q̇, q̈ with q̈_f = 0)), by ``pinocchio.aba`` when every joint
@@ -42,13 +49,26 @@ from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.shapes import straight_shapes
 from dttmm.spatial import SpatialCase, SpatialResult
-from dttmm.spatial.model import require_serial
 from dttmm.spatial.scenario import require_no_loads
+from dttmm.spatial.topology import (
+    closure_gaps,
+    initial_angles,
+    resolve_closures,
+    rigid_tip_frames,
+)
 from dttmm.timegrid import step_schedule
 
 from ._spatial_mechanics import rot_axis, rpy_matrix
 
-__all__ = ["INTEGRATORS", "build_model", "check_case", "link_inertia", "simulate"]
+__all__ = [
+    "INTEGRATORS",
+    "build_model",
+    "check_case",
+    "closure_models",
+    "link_inertia",
+    "require_rigid_closures",
+    "simulate",
+]
 
 INTEGRATORS = {"rk4": {}, "newmark": {"tol": 1e-12, "max_iter": 25}}
 
@@ -77,13 +97,20 @@ def link_inertia(link) -> pin.Inertia:
 
 def build_model(manipulator) -> pin.Model:
     """The rigid spatial arm as a Pinocchio model with gravity set (joint ids 1..n_joints, one
-    per unlocked joint, base first)."""
-    require_serial(manipulator, "pinocchio-spatial")
+    per unlocked joint, base first). A tree: each joint is placed in its parent link's tip frame
+    (the base frame for a link on the base). Closures are not part of the model
+    (:func:`closure_models`)."""
+    return _build(manipulator)[0]
+
+
+def _build(manipulator):
+    """(model, tips): the model and, per link, (joint id, placement of its tip frame in that
+    joint's frame)."""
     model = pin.Model()
-    parent = 0
-    # placement of the parent frame in the parent joint's frame
-    place = pin.SE3(rpy_matrix(manipulator.base_rpy), np.array(manipulator.base_xyz, float))
+    # per link: the joint that carries it and the placement of its tip frame in that joint's frame
+    tips = {-1: (0, pin.SE3(rpy_matrix(manipulator.base_rpy), np.array(manipulator.base_xyz, float)))}
     for i, link in enumerate(manipulator.links, start=1):
+        parent, place = tips[manipulator.parents[i - 1]]
         j = link.joint
         origin = pin.SE3(rpy_matrix(j.origin_rpy), np.array(j.origin_xyz, float))
         place = place * origin
@@ -96,17 +123,112 @@ def build_model(manipulator) -> pin.Model:
         model.addFrame(pin.Frame(f"link{i}", parent, place, pin.FrameType.OP_FRAME), False)
         place = place * pin.SE3(np.eye(3), np.array([link.beam.length, 0.0, 0.0]))
         model.addFrame(pin.Frame(f"link{i}_tip", parent, place, pin.FrameType.OP_FRAME), False)
+        tips[i - 1] = (parent, place)
+    parent, place = tips[manipulator.end_effector_index]
     model.addFrame(pin.Frame("tip", parent, place, pin.FrameType.OP_FRAME), False)
     model.gravity.linear = np.array(manipulator.gravity, float)
-    return model
+    return model, tips
+
+
+#: the closures' Baumgarte correction (Pinocchio's corrector: the constraint's acceleration
+#: −Kd ġ − Kp g), a critically damped 2 ms time scale: the drift of the position gap, O(h⁴) per
+#: RK4 step, is held at round-off without stiffening the step
+CLOSURE_KP, CLOSURE_KD = 2.5e5, 1.0e3
+#: Pinocchio's proximal constraint solver (constraintDynamics): accuracy, μ, iterations; μ > 0
+#: regularises a redundant row (the out-of-plane row of a planar loop's point contact)
+PROXIMAL = (1e-13, 1e-8, 100)
+
+
+def _parallel_axes(manipulator, axis_world, angles) -> bool:
+    """Whether every unlocked joint's axis is parallel to ``axis_world`` with the links rigid at
+    the joint angles ``angles`` (a mechanism that turns about one direction only: a revolute
+    closure about it needs no constraint on its axis)."""
+    R, _ = rigid_tip_frames(manipulator, angles)
+    Rb = rpy_matrix(manipulator.base_rpy)
+    for i, link in enumerate(manipulator.links):
+        if link.joint.locked:
+            continue
+        par = manipulator.parents[i]
+        Rp = Rb if par < 0 else R[par]
+        u = Rp @ rpy_matrix(link.joint.origin_rpy) @ np.array(link.joint.axis, float)
+        if np.linalg.norm(np.cross(u, axis_world)) > 1e-12:
+            return False
+    return True
+
+
+def require_rigid_closures(manipulator, angles=None) -> None:
+    """Refuse (one-line InputError) a closure Pinocchio's rigid constraints cannot hold: a
+    revolute closure is 5 equations and ``RigidConstraintModel`` has the 3-D point contact and
+    the 6-D weld only, so it runs as a 3-D point contact only where every joint axis is parallel
+    to the closure's axis (the rigid mechanism then turns about that direction only and the axis
+    constraint holds by itself)."""
+    if not manipulator.closures:
+        return
+    angles = np.zeros(manipulator.n_joints) if angles is None else angles
+    R, p = rigid_tip_frames(manipulator, angles)
+    rc = resolve_closures(manipulator, R, p)
+    for j, cl in enumerate(manipulator.closures):
+        if cl.kind != "revolute":
+            continue
+        a = int(rc.a[j])
+        u = R[a] @ rc.ua[j]
+        if not _parallel_axes(manipulator, u, angles):
+            raise InputError(
+                f"model.closures[{j}].axis",
+                list(cl.axis),
+                "a revolute closure whose axis is not parallel to every joint axis is not supported by "
+                "pinocchio-spatial (its rigid constraints are the 3-D point and the 6-D weld; the "
+                "revolute needs 5 equations)",
+            )
+
+
+def closure_models(model, tips, manipulator, angles):
+    """The closures as Pinocchio ``RigidConstraintModel``s between the two links' joints: a
+    spherical or (planar, :func:`require_rigid_closures`) revolute closure a 3-D point contact at
+    the closure point, a weld a 6-D contact whose two placements coincide at the initial state;
+    the frames are those of :func:`dttmm.spatial.topology.resolve_closures`, the constraint's
+    reference frame LOCAL (the placement on `link`)."""
+    require_rigid_closures(manipulator, angles)
+    R, p = rigid_tip_frames(manipulator, angles)
+    rc = resolve_closures(manipulator, R, p)
+    out = []
+    for j, cl in enumerate(manipulator.closures):
+        a, b = int(rc.a[j]), int(rc.b[j])
+        ja, tip_a = tips[a]
+        kind = pin.ContactType.CONTACT_6D if cl.kind == "weld" else pin.ContactType.CONTACT_3D
+        pa = tip_a * pin.SE3(np.eye(3), rc.pa[j])
+        if b < 0:
+            jb, pb = 0, pin.SE3(R[a], rc.pb[j])  # the world: the attachment frame parallel to a's
+        else:
+            jb, tip_b = tips[b]
+            pb = tip_b * pin.SE3(rc.R0[j].T, rc.pb[j])
+        cm = pin.RigidConstraintModel(kind, model, ja, pa, jb, pb, pin.ReferenceFrame.LOCAL)
+        cm.name = manipulator.closure_names[j]
+        bp = cm.m_baumgarte_parameters
+        bp.Kp, bp.Kd = CLOSURE_KP, CLOSURE_KD
+        cm.setBaumgarteCorrectorParameters(bp)
+        out.append(cm)
+    return out
 
 
 class _Arm:
     def __init__(self, case):
         self.case = case
-        self.model = build_model(case.model)
+        self.model, tips = _build(case.model)
         self.data = self.model.createData()
         self.drives = case.scenario.drives
+        self.ee = case.model.end_effector_index
+        self.cms = ()
+        if case.model.closures:
+            self.cms = pin.StdVec_RigidConstraintModel()
+            for cm in closure_models(self.model, tips, case.model, initial_angles(case)):
+                self.cms.append(cm)
+            self.cds = pin.StdVec_RigidConstraintData()
+            for cm in self.cms:
+                self.cds.append(cm.createData())
+            pin.initConstraintDynamics(self.model, self.data, self.cms, self.cds)
+            self.prox = pin.ProximalSettings(*PROXIMAL)
+            self.loads = np.zeros((len(self.cms), 6))
         self.n = len(self.drives)
         self.f = np.array([i for i, d in enumerate(self.drives) if d.kind == "torque"], int)
         self.p = np.array([i for i, d in enumerate(self.drives) if d.kind == "motion"], int)
@@ -133,8 +255,58 @@ class _Arm:
             if a is not None:
                 a[i] = acc
 
+    def _constrained(self, q, v, tau):
+        a = pin.constraintDynamics(self.model, self.data, q, v, tau, self.cms, self.cds, self.prox)
+        return a.copy()
+
+    def closure_loads(self) -> np.ndarray:
+        """(nc, 6): the closures' loads of the last constrained solve, world components, force and
+        moment about the closure point, that `to` exerts on `link` (``data.lambda_c`` is the load
+        on joint 1's placement in its frame: the generalised force is J_cᵀλ, J_c the placement's
+        LOCAL Jacobian on `link` minus the other's)."""
+        lam = self.data.lambda_c
+        out, r = np.zeros((len(self.cms), 6)), 0
+        for c, (cm, cd) in enumerate(zip(self.cms, self.cds)):
+            R = cd.oMc1.rotation
+            m = cm.residualSize()
+            out[c, :3] = R @ lam[r : r + 3]
+            if m == 6:
+                out[c, 3:] = R @ lam[r + 3 : r + 6]
+            r += m
+        return out
+
+    def _loop_forward(self, t, left, q, v):
+        """q̈ and torques with closures: Pinocchio's constraintDynamics (its proximal solver), the
+        motion joints' torques u found so that their accelerations are the laws' (q̈ is affine in
+        u: one solve at u = 0 and one per motion joint give the map, a last one the result)."""
+        tau = self.torque(t, left)
+        a_p = np.zeros(self.n)
+        self.prescribe(t, left, q, v, a_p)
+        p = self.p
+        if p.size:
+            tau[p] = 0.0
+            a0 = self._constrained(q, v, tau)
+            A = np.empty((p.size, p.size))
+            for c, i in enumerate(p):
+                e = tau.copy()
+                e[i] = 1.0
+                A[:, c] = self._constrained(q, v, e)[p] - a0[p]
+            if not np.linalg.cond(A) < 1e12:
+                raise InputError(
+                    "scenario.drives",
+                    [int(i) for i in p],
+                    "motion drives that the closed loop locks (their joints' accelerations do not "
+                    "follow their torques) are not supported by pinocchio-spatial",
+                )
+            tau[p] = np.linalg.solve(A, a_p[p] - a0[p])
+        a = self._constrained(q, v, tau)
+        self.loads = self.closure_loads()
+        return a, tau
+
     def forward(self, t, left, q, v):
         """q̈ (n,) with the motion joints prescribed, and the joint torques (n,)."""
+        if len(self.cms):
+            return self._loop_forward(t, left, q, v)
         tau = self.torque(t, left)
         if not self.p.size:
             return pin.aba(self.model, self.data, q, v, tau).copy(), tau
@@ -260,7 +432,19 @@ def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0, shape_po
             tip[r, i] = arm.data.oMf[ft].translation
             Rl[r, i] = arm.data.oMf[fr].rotation
             Rt[r, i] = arm.data.oMf[ft].rotation
+    closures = {}
+    if len(arm.cms):
+        model = arm.case.model
+        rc = resolve_closures(model, *rigid_tip_frames(model, initial_angles(arm.case)))
+        nc = len(arm.cms)
+        loads, gap, ang = np.zeros((nt, nc, 6)), np.zeros((nt, nc)), np.zeros((nt, nc))
+        for r in range(nt):
+            arm.forward(float(times[r]), False, q[r].copy(), v[r].copy())
+            loads[r] = arm.loads
+            gap[r], ang[r] = closure_gaps(rc, Rt[r], tip[r])
+        closures = {"closure_loads": loads, "closure_residual": gap, "closure_angle_residual": ang}
     return SpatialResult(
+        **closures,
         t=times,
         joint_angle=q,
         joint_rate=v,
@@ -268,7 +452,7 @@ def _result(arm, nodes, times, h, n_steps, meta, status="ok", wall=0.0, shape_po
         link_root=root,
         link_tip=tip,
         tip_deflection=np.zeros((nt, nl, 2)),
-        end_effector=tip[:, -1].copy(),
+        end_effector=tip[:, arm.ee].copy(),
         wall_time=wall,
         n_steps=int(n_steps),
         meta=dict(meta),
@@ -290,6 +474,7 @@ def check_case(case):
     require_open_loop(case, "pinocchio-spatial")
     require_no_loads(case, "pinocchio-spatial")
     build_model(case.model)
+    require_rigid_closures(case.model, initial_angles(case))
 
 
 def simulate(
@@ -341,6 +526,12 @@ def simulate(
         opts["max_iter"] = plumbing.positive_integer("max_iter", opts["max_iter"])
     require_open_loop(case, "pinocchio-spatial")
     require_no_loads(case, "pinocchio-spatial")
+    if case.model.closures and integrator != "rk4":
+        raise InputError(
+            "integrator",
+            integrator,
+            "closed loops run with rk4 only in pinocchio-spatial (constraintDynamics)",
+        )
     arm = _Arm(case)
     scen = case.scenario
     T, restart = step_schedule(scen.duration, h, scen.breakpoints)

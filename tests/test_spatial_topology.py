@@ -130,7 +130,8 @@ def test_closure_record_refusals():
 
 
 def test_serial_only_engines_refuse():
-    """The engines that run chains only refuse a tree or a loop in one line, naming themselves."""
+    """The engines that run chains only refuse a tree or a loop in one line, naming themselves;
+    Pinocchio's rigid model refuses the four-bar's tilted revolute closure."""
     case = load_case(FOUR_BAR)
     from dttmm.spatial.inverse_dynamics import rigid_inverse_dynamics
     from dttmm.urdf import case_to_urdf
@@ -143,7 +144,7 @@ def test_serial_only_engines_refuse():
     from reference_models import pinocchio_spatial
 
     with pytest.raises(InputError, match="not supported by pinocchio-spatial"):
-        pinocchio_spatial.build_model(case.model)
+        pinocchio_spatial.check_case(case)  # the tilted revolute C (tests/test_topology_peers.py)
 
 
 # ------------------------------------------------------------------ trees ---------------------
