@@ -461,8 +461,9 @@ def simulate(
     ``node`` ("EP" only here; see the module notes), ``tip_loads`` (list of dicts ``link``,
     ``force``, ``torque`` (world, N and N·m), ``times``, ``factors``: the load times a
     piecewise-linear factor, at the link's tip node; in addition to the case's own
-    ``scenario.loads``), ``section_loads`` (record as ``cut_loads`` (nt, n, 6) Exudyn's
-    section force and moment in the first element of each link), ``energy`` (beam kinetic +
+    ``scenario.loads``), ``section_loads`` (True or "first", or "middle": record as
+    ``cut_loads`` (nt, n, 6) Exudyn's section force and moment in the first element of each link,
+    or in element k // 2 + 1, whose centre is the link's mid-span for odd k), ``energy`` (beam kinetic +
     strain energy, rigid bodies' kinetic energy and the gravity potential at the nodes),
     ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: 1e-10·max stiffness/l), ``newton_max_iterations``
     (25), ``modified_newton`` (True). Raises InputError on bad input, SimulationError on failure.
@@ -539,7 +540,14 @@ def simulate(
     )
     s_sec = []
     if section_loads:
-        for e in first_el:
+        sel = (
+            "first"
+            if section_loads is True
+            else plumbing.choice("section_loads", section_loads, ("first", "middle"))
+        )
+        # "middle": the element at the middle of each link, whose centre is the mid-span for odd k
+        chosen = first_el if sel == "first" else [els[k // 2] for els in elements]
+        for e in chosen:
             s_sec.append(
                 [
                     mbs.AddSensor(
@@ -678,7 +686,11 @@ def simulate(
         wall_time_solve=wall,
         cpu_time=cpu,
         exudyn=exu.__version__,
-        section_loads="ForceLocal/TorqueLocal of the first element of each link (section frame, x = l/2)"
+        section_loads=(
+            "ForceLocal/TorqueLocal of the "
+            + ("first element" if section_loads in (True, "first") else f"element {k // 2 + 1} of {k}")
+            + " of each link (section frame, at the element's centre)"
+        )
         if section_loads
         else None,
         energy="beam kinetic + strain (Exudyn), rigid-body kinetic, gravity potential at element midpoints"

@@ -151,11 +151,15 @@ class Closures(NamedTuple):
     Wlu: np.ndarray  # (m, m) scratch of the inversion
     fr: np.ndarray  # (2, 3, 3) scratch: the two bodies' frames
     v: np.ndarray  # (8, 3) scratch: their origins, points, axes
-    state: np.ndarray  # (2,) int64: W is of a Newmark step (1) or not (0); sweeps of the last solve
+    state: np.ndarray  # (4,) int64: W is of a Newmark step (1) or not (0); sweeps of the last
+    # solve; secant updates of W on (1) or off (0); a previous iterate of this step in gp, dmp (1)
     rel0: np.ndarray  # (6 nc,) relative accelerations of the base sweep
     rel: np.ndarray  # (6 nc,)
     motc: np.ndarray  # (n, INPUT_COLS) the inputs with the closure loads
     xs: np.ndarray  # (n_dof,) q̈ of the column sweeps
+    gp: np.ndarray  # (m,) the gap of the previous iterate of the step (before its Δμ)
+    dmp: np.ndarray  # (m,) its Δμ
+    W2: np.ndarray  # (m, m) scratch: W's secant update
 
 
 def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
@@ -166,8 +170,8 @@ def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
         lam=z(6 * nc), lamh=z((n_steps, 6 * nc)), g=z(m), B=z((6 * nc, m)), W=z((m, m)),
         Wi=z((m, m)), dmu=z(m), X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof), qv=z(ndof),
         lam1=z(6 * nc), Wlu=z((m, m)), fr=z((2, 3, 3)), v=z((8, 3)),
-        state=np.zeros(2, np.int64),
-        rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof),
+        state=np.zeros(4, np.int64),
+        rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof), gp=z(m), dmp=z(m), W2=z((m, m)),
     )  # fmt: skip
 
 
@@ -910,6 +914,29 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
                 cl.qv[md.ia[i]] = mot[i, 1]
         kinematics(md, ws, cl.qp, cl.qv)
         closure_geometry(ws, cl)
+        if cl.state[2] == 1 and cl.state[3] == 1:
+            # a secant (Broyden) update of W from the previous iterate's gap g_p and its Δμ, s,
+            # against this gap g: W += ((g − g_p)/c_q − W s) sᵀ / (sᵀ s). W measured
+            # at fixed kinematics misses the loads' change with the kinematics (their moment
+            # arms and directions), which with large closure loads near a singular
+            # configuration turns the fixed point away; the secant sees it
+            ss = 0.0
+            for c in range(m):
+                ss += cl.dmp[c] * cl.dmp[c]
+            if ss > 0.0:
+                for r in range(m):
+                    wsc = 0.0
+                    for c in range(m):
+                        wsc += cl.W[r, c] * cl.dmp[c]
+                    f = ((cl.g[r] - cl.gp[r]) / cq - wsc) / ss
+                    for c in range(m):
+                        cl.W2[r, c] = cl.W[r, c] + f * cl.dmp[c]
+                if invert(cl.W2, cl.Wi, cl.Wlu):
+                    for r in range(m):
+                        for c in range(m):
+                            cl.W[r, c] = cl.W2[r, c]
+                else:
+                    invert(cl.W, cl.Wi, cl.Wlu)
     dmu = cl.dmu
     for r in range(m):
         t = 0.0
@@ -926,6 +953,10 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
         ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
         cl.state[1] += 1
     else:
+        for r in range(m):
+            cl.gp[r] = cl.g[r]
+            cl.dmp[r] = dmu[r]
+        cl.state[3] = 1
         # q̈ and the motion-driven joints' torques (:func:`joint_torques`) with the new λ
         for c in range(m):
             for r in range(nd):
@@ -1086,6 +1117,7 @@ def run(
             used = 0
             stale = False
             measured = False  # W was measured in this step
+            bro = False  # secant updates of W in this step
             converged = False
             fixed = opts.iteration == IT_FIXED
             nmax = opts.n_fixed + 1 if fixed else opts.max_it
@@ -1126,6 +1158,10 @@ def run(
                     wnew = stale
                     if it == 0:
                         wnew = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                        cw.cl.state[2] = 0
+                        cw.cl.state[3] = 0
+                    elif bro:
+                        cw.cl.state[2] = 1
                     ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, wnew)
                     used += cw.cl.state[1]
                     measured = measured or cw.cl.state[1] > 1
@@ -1149,9 +1185,12 @@ def run(
                 if stop:
                     break
                 # iterates that stop contracting above the round-off floor: W anew
-                stale = (
-                    it >= 1 and not measured and dx > W_STALE * prev and dx > 1e3 * opts.tol * max(1.0, xmax)
-                )
+                stalled = it >= 1 and dx > W_STALE * prev and dx > 1e3 * opts.tol * max(1.0, xmax)
+                stale = stalled and not measured
+                # iterates that stop contracting with a W of this step: secant updates of W for
+                # the rest of the step (the loads' change with the kinematics, which a measured
+                # W misses, holds the fixed point back)
+                bro = bro or (stalled and measured)
                 if opts.iteration == IT_AUTO and it >= 1 + opts.closed and dx < prev:
                     # the contraction ρ = dx/prev predicts the iteration error left, dx·ρ/(1 − ρ);
                     # stop once it is below auto_fraction × the local truncation error estimate
