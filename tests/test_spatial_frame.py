@@ -78,3 +78,23 @@ def test_columns_equal_the_arrays(cut_loads):
     if cut_loads:
         np.testing.assert_array_equal(b.cut_loads, r.cut_loads)
     assert b.status == r.status and b.n_steps == r.n_steps
+
+
+def test_closure_columns_and_back():
+    """The four-bar (one revolute closure): the closure loads and gaps become columns
+    closure_{force,moment}_{x,y,z}_1, closure_residual_1, closure_angle_residual_1, equal to the
+    arrays, and come back through from_frame (a chain has none of them)."""
+    case = load_case(ARM.parent / "topology" / "four_bar.toml")
+    case = dc.replace(case, scenario=dc.replace(case.scenario, duration=0.01, output_step=2e-3))
+    r = simulate(case, elements_per_link=2, h=1e-3)
+    df = r.to_frame()
+    assert r.closure_loads.shape == (r.t.size, 1, 6)
+    for a, x in enumerate("xyz"):
+        np.testing.assert_array_equal(df[f"closure_force_{x}_1"], r.closure_loads[:, 0, a])
+        np.testing.assert_array_equal(df[f"closure_moment_{x}_1"], r.closure_loads[:, 0, 3 + a])
+    np.testing.assert_array_equal(df["closure_residual_1"], r.closure_residual[:, 0])
+    np.testing.assert_array_equal(df["closure_angle_residual_1"], r.closure_angle_residual[:, 0])
+    b = SpatialResult.from_frame(df)
+    for f in ("closure_loads", "closure_residual", "closure_angle_residual"):
+        np.testing.assert_array_equal(getattr(b, f), getattr(r, f))
+    assert not any(c.startswith("closure_") for c in _run(False).to_frame().columns)

@@ -50,7 +50,9 @@ class SpatialResult(Result):
         column c of the 3×3 matrix, 1-based); end_effector_{x,y,z}; energy (if computed); with
         cut loads recorded on the output grid, per cut c = 1..n_cuts (k + 1 per link, base link
         first) cut_force_{x,y,z}_c and cut_moment_{x,y,z}_c (world components); with link shapes,
-        per link i and point m = 1..p link_shape_{x,y,z}_i_m. ``meta`` goes to
+        per link i and point m = 1..p link_shape_{x,y,z}_i_m; with loop closures, per closure
+        j = 1..n_closures closure_force_{x,y,z}_j and closure_moment_{x,y,z}_j (world, what `to`
+        exerts on `link`), closure_residual_j and closure_angle_residual_j. ``meta`` goes to
         ``DataFrame.attrs``.
         """
         import pandas as pd
@@ -90,6 +92,15 @@ class SpatialResult(Result):
                 for m in range(p):
                     for c, ax in enumerate("xyz"):
                         cols[f"link_shape_{ax}_{i + 1}_{m + 1}"] = self.link_shapes[:, i, m, c]
+        if self.closure_loads is not None:
+            for j in range(self.closure_loads.shape[1]):
+                for part, off in (("force", 0), ("moment", 3)):
+                    for c, ax in enumerate("xyz"):
+                        cols[f"closure_{part}_{ax}_{j + 1}"] = self.closure_loads[:, j, off + c]
+                for name in ("closure_residual", "closure_angle_residual"):
+                    values = getattr(self, name)
+                    if values is not None:
+                        cols[f"{name}_{j + 1}"] = values[:, j]
         df = pd.DataFrame(cols)
         df.attrs.update(
             {k: v for k, v in self.meta.items() if isinstance(v, (str, int, float, bool, type(None)))}
@@ -156,6 +167,21 @@ class SpatialResult(Result):
                 ],
                 axis=1,
             )
+        n_cl = sum(1 for c in df.columns if c.startswith("closure_force_x_"))
+        closure = {}
+        if n_cl:
+            closure["closure_loads"] = np.stack(
+                [
+                    np.column_stack(
+                        [col(f"closure_{part}_{ax}_{j}") for part in ("force", "moment") for ax in "xyz"]
+                    )
+                    for j in range(1, n_cl + 1)
+                ],
+                axis=1,
+            )
+            for name in ("closure_residual", "closure_angle_residual"):
+                if f"{name}_1" in df:
+                    closure[name] = np.column_stack([col(f"{name}_{j}") for j in range(1, n_cl + 1)])
         m = dict(df.attrs)
         m.update(meta or {})
         m.pop("kind", None)
@@ -183,4 +209,5 @@ class SpatialResult(Result):
             cut_loads=loads,
             cut_load_t=col("t").copy() if loads is not None else None,
             link_shapes=link_shapes,
+            **closure,
         )
