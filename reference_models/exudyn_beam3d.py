@@ -41,7 +41,10 @@ pre-step function.
 Time integration: Exudyn's generalized-α (``rho_inf``, default 1: no numerical damping, as
 Exudyn's right-angle cantilever test model) with fixed step h, modified Newton with a Jacobian
 per step, EigenSparse, one thread, no files, no graphics; drive breakpoints on the step grid
-restart the integrator (as the planar peers). Output: a :class:`dttmm.spatial.SpatialResult`
+restart the integrator (as the planar peers). Newton's default absolute tolerance, 1e-16 of the
+largest element stiffness GA/l, lies at the round-off floor of the residual (ε·GA/l·|x|): where
+Newton stalls just above it (the five-bar at k ≥ 8: residual 7e-5 against 6.4e-5, its first step)
+the run is repeated once with 10× the tolerance. Output: a :class:`dttmm.spatial.SpatialResult`
 on the case's output grid (h must divide the output step) with the DT-TMM's fields (§4);
 ``section_loads`` (nt, n, 6) adds Exudyn's ``ForceLocal``/``TorqueLocal`` of the first element of
 every link (constant over the element: one-point integration; the load the outboard part
@@ -465,7 +468,9 @@ def simulate(
     ``cut_loads`` (nt, n, 6) Exudyn's section force and moment in the first element of each link,
     or in element k // 2 + 1, whose centre is the link's mid-span for odd k), ``energy`` (beam kinetic +
     strain energy, rigid bodies' kinetic energy and the gravity potential at the nodes),
-    ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: 1e-10·max stiffness/l), ``newton_max_iterations``
+    ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: 1e-16·max stiffness/l, the residual's
+    round-off floor; where Newton fails there, the run is repeated once with 1e-15·max stiffness/l
+    and ``meta["newton_abs_tol_raised"]`` says so), ``newton_max_iterations``
     (25), ``modified_newton`` (True). Raises InputError on bad input, SimulationError on failure.
     """
     case = as_case(case)
@@ -635,6 +640,28 @@ def simulate(
     wall, cpu, newton, steps, _, failure, it = run_segments(
         mbs, exu, s, ti, segs, h, seg_start, set_inputs, all_sensors, rows
     )
+    if failure is not None and newton_abs_tol is None:
+        # the default absolute tolerance, 1e-16·kmax, is at the round-off floor of the residual
+        # (ε·kmax·|x|): at fine k, or on a loop, Newton can stall just above it (module notes);
+        # the run is repeated once with the tolerance 10× that floor
+        res = simulate(
+            case,
+            elements_per_link=k,
+            h=h,
+            rho_inf=rho_inf,
+            shear_ratio=shear_ratio,
+            node=node,
+            tip_loads=tip_loads,
+            section_loads=section_loads,
+            energy=energy,
+            newton_rel_tol=newton_rel_tol,
+            newton_abs_tol=max(1e-10 * kmax * 1e-5, 1e-10),
+            newton_max_iterations=newton_max_iterations,
+            modified_newton=modified_newton,
+            shape_points=shape_points,
+        )
+        res.meta["newton_abs_tol_raised"] = f"the default {abs_tol:.3g} failed: {failure}"
+        return res
     if failure is not None:
         raise SimulationError(
             f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
