@@ -769,6 +769,31 @@ def runs_on(name: str, case, k: int | None = None) -> bool:
         return False
 
 
+def why_not_options(name: str, case, options=()) -> str:
+    """Why method ``name`` refuses ``case`` with a study's extra ``options`` before the run
+    starts ('' when it takes them): a DT-TMM method on a spatial arm with loop closures takes the
+    Newmark family with every step run to the stop rule only (``dttmm.spatial``'s own rule, so a
+    study option such as ``iterations="auto"`` is sat out, not run into its refusal)."""
+    from dttmm.errors import InputError
+
+    try:
+        rec = get(name)
+    except MethodUnavailable:
+        return ""
+    if not (is_spatial(case) and case.model.closures and rec.spatial == _DTTMM_SPATIAL):
+        return ""
+    opts = dict(rec.options if rec.spatial_options is None else rec.spatial_options)
+    opts.update(dict(options))
+    from dttmm.spatial.solver import _check_closures
+
+    try:
+        _check_closures(case, str(opts.get("integrator", "newmark")), opts.get("iterations"))
+    except InputError as exc:
+        given = ", ".join(f"{k}={v!r}" for k, v in sorted(dict(options).items()))
+        return f"its runs here take {given}, which a closed loop refuses: {exc}" if given else str(exc)
+    return ""
+
+
 def get(name: str) -> Method:
     """The record of ``name`` (built-in, shown or registered); raises MethodUnavailable."""
     m = _EXTRA.get(name) or METHODS.get(name) or _LOOKS.get(name)

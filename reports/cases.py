@@ -117,6 +117,19 @@ def case_section(meta: dict) -> Section | None:
                 + "; ".join(f"{m} sits it out ({why})" for m, why in out.items())
                 + "."
             )
+        runs = {
+            (study, m): why
+            for study, by_case in (meta.get("sitting_out_runs") or {}).items()
+            for m, why in by_case.get(name, {}).items()
+        }
+        if runs:
+            text.append(
+                f"Sat out on {name} before running: "
+                + "; ".join(
+                    f"{m} in the {study.replace('_', '-')} study ({why})" for (study, m), why in runs.items()
+                )
+                + "."
+            )
     text.append(
         "Torque-driven joints follow the torque law given; motion-driven joints follow the angle law and "
         "their torque is an output. Every method solves the same case: the same links, drives and output "
