@@ -387,7 +387,9 @@ def rk4_stable_step(case, k: int) -> float:
     the UR5 and diverged on the Panda; three_joint_arm 2.5e-5 s at k = 8)."""
     from dttmm.linear import frequencies
 
-    return _RK4_BOUND / (2 * math.pi * float(max(frequencies(case, k))))
+    f = frequencies(case, k)
+    # no mode at all (every link rigid and every joint prescribed): nothing limits the step
+    return _RK4_BOUND / (2 * math.pi * float(max(f))) if len(f) else math.inf
 
 
 def check_rk4_spatial(case) -> None:
