@@ -378,10 +378,14 @@ class Runner:
         """The k ladder of the benchmark, static and frequency checks for this method."""
         return self.size.explicit_ks if self.rec.explicit and self.rec.max_step else self.size.ks
 
-    def step(self, k, h):
-        """h, lowered to the record's ``max_step(k)`` for an explicit method."""
-        if self.rec.explicit and self.rec.max_step is not None:
-            return min(h, float(self.rec.max_step(k)))
+    def step(self, k, h, case=None):
+        """h, lowered to the record's ``max_step(k)`` for an explicit method (its
+        ``spatial_max_step(k)`` on a spatial ``case``, where it has one)."""
+        rule = self.rec.max_step
+        if case is not None and methods.is_spatial(case) and self.rec.spatial_max_step is not None:
+            rule = self.rec.spatial_max_step
+        if self.rec.explicit and rule is not None:
+            return min(h, float(rule(k)))
         return h
 
     def run(self, case, k, h):
@@ -1157,7 +1161,7 @@ def robot_rigid_limit(run: Runner) -> list:
             rows += _not_run(rec.name, check, problem, qt, f"the Pinocchio reference: {rwhy}", **kw_t)
             rows += _not_run(rec.name, check, problem, qp, f"the Pinocchio reference: {rwhy}", **kw_p)
             continue
-        h = run.step(ROBOT_K, ROBOT_H)
+        h = run.step(ROBOT_K, ROBOT_H, case)
         res, cpu, why = run.run(case, ROBOT_K, h)
         vt = vp = None
         wt = wp = why
@@ -1302,7 +1306,7 @@ def robot_energy(run: Runner) -> list:
         if why:
             rows += _not_run(rec.name, check, problem, q, why, **kw)
             continue
-        h = run.step(ROBOT_ENERGY_K, ENERGY_H)
+        h = run.step(ROBOT_ENERGY_K, ENERGY_H, case)
         res, cpu, why = run.run(case, ROBOT_ENERGY_K, h)
         value = None
         if not why:
@@ -1382,6 +1386,8 @@ def topology_global(run: Runner) -> list:
         why = _no_spatial(rec, case)
         if not why and rec.spatial == _GLOBAL:
             why = "it is the global solver, this check's reference"
+        elif not why and rec.physics.strain == "rigid":
+            why = "rigid links: the global solver's links bend"
         elif not why and rec.physics.element not in ("hermite-fe", "unknown"):
             why = (
                 f"another discretisation ({rec.physics.element}): only the suite's Hermite elements solve "
@@ -1396,7 +1402,7 @@ def topology_global(run: Runner) -> list:
         if rwhy:
             rows += _not_run(rec.name, check, name, q, f"the global solver: {rwhy}", **kw)
             continue
-        h = run.step(TOPOLOGY_K, TOPOLOGY_H)
+        h = run.step(TOPOLOGY_K, TOPOLOGY_H, case)
         res, cpu, why = run.run(case, TOPOLOGY_K, h)
         v = None if why else float(np.max(np.abs(np.asarray(res.link_tip) - np.asarray(ref.link_tip))))
         rows.append(
@@ -1458,7 +1464,7 @@ def topology_closure(run: Runner) -> list:
         if why:
             rows += _not_run(rec.name, check, name, q, why, **kw)
             continue
-        h = run.step(TOPOLOGY_K, TOPOLOGY_H)
+        h = run.step(TOPOLOGY_K, TOPOLOGY_H, case)
         res, cpu, why = run.run(case, TOPOLOGY_K, h)
         v = None
         if not why:

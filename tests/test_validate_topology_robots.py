@@ -139,14 +139,15 @@ def test_loops_cut_open_fail_exactly_the_loop_rows(tmp_path, cleanup):
 
 def test_topology_rows_not_run_say_why():
     """Before any run: a planar-only method has no spatial engine; the global solver is this
-    check's reference; Exudyn's beam is another discretisation; the explicit DT-TMM refuses
-    the loops (its RK4); the rigid baseline refuses trees and loops."""
+    check's reference; Exudyn's beam and the MuJoCo chain are other discretisations; the rigid
+    baseline has no bending links (and refuses the tilted four-bar); the explicit DT-TMM refuses
+    the loops (its RK4)."""
     size = V.SIZES["quick"]
     for name, words in (
         ("amm", "no spatial engine (planar arms only)"),
         ("global", "this check's reference"),
         ("exudyn-beam", "another discretisation (ge-beam)"),
-        ("pinocchio-rigid", "not supported by pinocchio-spatial"),
+        ("mujoco-chain", "another discretisation (hinge-chain)"),
     ):
         run = V.Runner(name, size)
         rows = V.topology_global(run)
@@ -155,6 +156,9 @@ def test_topology_rows_not_run_say_why():
             rows,
         )
         assert run.worker._proc is None  # nothing ran
+    rows = V.topology_global(V.Runner("pinocchio-rigid", size))  # the tilted four-bar it refuses
+    assert [r["passed"] for r in rows] == [None] * 3 and "5 equations" in rows[0]["reason"], rows
+    assert all("rigid links" in r["reason"] for r in rows[1:]), rows
     rows = V.topology_closure(V.Runner("dttmm-rk4", size))
     assert len(rows) == 2 and all(r["passed"] is None and "rk4" in r["reason"] for r in rows), rows
 
