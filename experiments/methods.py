@@ -384,12 +384,13 @@ def rk4_stable_step(case, k: int) -> float:
     """RK4's largest stable step (s) on ``case`` at k elements per link: 2√2/ω_max, ω_max the
     highest natural frequency of the DT-TMM's own linearisation at rest (:func:`dttmm.linear.
     frequencies`; measured: ur5 9.9e-6 s, panda 6.9e-6 s at k = 4, where RK4 ran at 1e-5 s on
-    the UR5 and diverged on the Panda; three_joint_arm 2.5e-5 s at k = 8)."""
+    the UR5 and diverged on the Panda; three_joint_arm 2.5e-5 s at k = 8); unbounded on an arm of
+    rigid links only."""
     from dttmm.linear import frequencies
 
-    f = frequencies(case, k)
-    # no mode at all (every link rigid and every joint prescribed): nothing limits the step
-    return _RK4_BOUND / (2 * math.pi * float(max(f))) if len(f) else math.inf
+    if all(link.rigid for link in case.model.links):
+        return math.inf  # no element modes: nothing stiff limits the step
+    return _RK4_BOUND / (2 * math.pi * float(max(frequencies(case, k))))
 
 
 def check_rk4_spatial(case) -> None:
