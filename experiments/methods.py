@@ -384,9 +384,12 @@ def rk4_stable_step(case, k: int) -> float:
     """RK4's largest stable step (s) on ``case`` at k elements per link: 2√2/ω_max, ω_max the
     highest natural frequency of the DT-TMM's own linearisation at rest (:func:`dttmm.linear.
     frequencies`; measured: ur5 9.9e-6 s, panda 6.9e-6 s at k = 4, where RK4 ran at 1e-5 s on
-    the UR5 and diverged on the Panda; three_joint_arm 2.5e-5 s at k = 8)."""
+    the UR5 and diverged on the Panda; three_joint_arm 2.5e-5 s at k = 8); unbounded on an arm of
+    rigid links only."""
     from dttmm.linear import frequencies
 
+    if all(link.rigid for link in case.model.links):
+        return math.inf  # no element modes: nothing stiff limits the step
     return _RK4_BOUND / (2 * math.pi * float(max(frequencies(case, k))))
 
 
@@ -767,6 +770,31 @@ def runs_on(name: str, case, k: int | None = None) -> bool:
         return get(name).runs_on(case, k)
     except MethodUnavailable:
         return False
+
+
+def why_not_options(name: str, case, options=()) -> str:
+    """Why method ``name`` refuses ``case`` with a study's extra ``options`` before the run
+    starts ('' when it takes them): a DT-TMM method on a spatial arm with loop closures takes the
+    Newmark family with every step run to the stop rule only (``dttmm.spatial``'s own rule, so a
+    study option such as ``iterations="auto"`` is sat out, not run into its refusal)."""
+    from dttmm.errors import InputError
+
+    try:
+        rec = get(name)
+    except MethodUnavailable:
+        return ""
+    if not (is_spatial(case) and case.model.closures and rec.spatial == _DTTMM_SPATIAL):
+        return ""
+    opts = dict(rec.options if rec.spatial_options is None else rec.spatial_options)
+    opts.update(dict(options))
+    from dttmm.spatial.solver import _check_closures
+
+    try:
+        _check_closures(case, str(opts.get("integrator", "newmark")), opts.get("iterations"))
+    except InputError as exc:
+        given = ", ".join(f"{k}={v!r}" for k, v in sorted(dict(options).items()))
+        return f"its runs here take {given}, which a closed loop refuses: {exc}" if given else str(exc)
+    return ""
 
 
 def get(name: str) -> Method:

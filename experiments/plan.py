@@ -31,15 +31,26 @@ __all__ = ["CASE_DIR", "PLANS", "SHIPPED", "Plan", "case_fingerprint", "load_cas
 
 CASE_DIR = Path(__file__).resolve().parent / "cases"
 SHIPPED = ("single_link", "three_link", "spin_up")  # the cases of the default report, in order
-#: the spatial arms of the default report: the shipped arm (``CASE_DIR/spatial``) and the robots
-#: from their URDF (``CASE_DIR/spatial/robots``, docs/urdf.md)
-SPATIAL_SHIPPED = ("three_joint_arm", "ur5", "panda")
+#: the trees and closed loops of the default report (``CASE_DIR/spatial/topology``, docs/spatial.md §11)
+TOPOLOGY_SHIPPED = ("four_bar", "five_bar", "branched_arm")
+#: the spatial arms of the default report: the shipped arm (``CASE_DIR/spatial``), the robots
+#: from their URDF (``CASE_DIR/spatial/robots``, docs/urdf.md) and the trees and loops
+SPATIAL_SHIPPED = ("three_joint_arm", "ur5", "panda", *TOPOLOGY_SHIPPED)
 #: the folder (under ``CASE_DIR``) of each shipped case outside it
-_FOLDERS = {"three_joint_arm": "spatial", "ur5": "spatial/robots", "panda": "spatial/robots"}
+_FOLDERS = {
+    "three_joint_arm": "spatial",
+    "ur5": "spatial/robots",
+    "panda": "spatial/robots",
+    **dict.fromkeys(TOPOLOGY_SHIPPED, "spatial/topology"),
+}
 QUICK_MAX_DURATION = 6.0  # s: the quick size shortens longer cases to this
 #: s: the quick size runs the robots' first 0.1 s (the arm released under gravity rings, the move
 #: starts); the spatial global solver (numpy, k ≤ 2) costs ~40 ms a step on them (measured)
 ROBOT_QUICK_DURATION = 0.1
+#: s: the quick size runs the trees and loops' first 0.2 s (the four-bar's and the five-bar's
+#: whole run: the crank's spin-up and 0.1 s at its rate, the five-bar's move; the branched arm
+#: through its fingers' torque pulses into the arm's)
+TOPOLOGY_QUICK_DURATION = 0.2
 
 
 @dataclass(frozen=True)
@@ -351,6 +362,7 @@ PLANS = {
             "three_joint_arm": 0.6,
             "ur5": ROBOT_QUICK_DURATION,
             "panda": ROBOT_QUICK_DURATION,
+            **dict.fromkeys(TOPOLOGY_SHIPPED, TOPOLOGY_QUICK_DURATION),
         },
         ref_kh=(32, 2.5e-4),
         ks=[1, 2, 4, 8, 16],
@@ -363,7 +375,8 @@ PLANS = {
         scheme_ks=[1, 2, 4, 8, 16],
         note="quick size: the cases as written (2 s), spin_up shortened to its first 6 s, the spatial "
         "three_joint_arm to its first 0.6 s (the torque pulses and 0.1 s of free motion), the robots ur5 and "
-        f"panda to their first {ROBOT_QUICK_DURATION:g} s (released under gravity, the move starting); "
+        f"panda to their first {ROBOT_QUICK_DURATION:g} s (released under gravity, the move starting), the trees "
+        f"and loops four_bar, five_bar and branched_arm to their first {TOPOLOGY_QUICK_DURATION:g} s; "
         + _GRID_NOTE["quick"],
         variants=_VARIANTS_QUICK,
         bench=_BENCH["quick"],
@@ -378,6 +391,7 @@ PLANS = {
             "three_joint_arm": None,
             "ur5": None,
             "panda": None,
+            **dict.fromkeys(TOPOLOGY_SHIPPED),
         },
         ref_kh=(32, 1e-4),
         ks=[1, 2, 4, 8, 16, 32],

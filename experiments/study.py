@@ -14,7 +14,15 @@ from .plan import PLANS
 from .studies import STUDIES
 from .sweep import run_sweep
 
-__all__ = ["add_cases", "load_tables", "run_studies", "save_tables", "study_main", "study_tasks"]
+__all__ = [
+    "add_cases",
+    "load_tables",
+    "run_studies",
+    "save_tables",
+    "sitting_out",
+    "study_main",
+    "study_tasks",
+]
 
 
 def add_cases(ctx, names=None) -> None:
@@ -33,8 +41,37 @@ def study_tasks(ctx, name: str) -> list:
     """The runs of study ``name``: its module's tasks, each kept where its method runs the case
     at that k. One rule for every study: a spatial arm needs a method with a spatial entry, up to
     its ``spatial_max_k`` (``Method.runs_on``, experiments/methods.py). The studies' own cases
-    must be in ``ctx.cases`` (:func:`add_cases`)."""
-    return [t for t in STUDIES[name].tasks(ctx) if methods.runs_on(t.method, ctx.cases[t.case], t.k)]
+    must be in ``ctx.cases`` (:func:`add_cases`). A run whose study options the method refuses
+    on that case (:func:`experiments.methods.why_not_options`) is sat out before it starts, with
+    the reason (:func:`sitting_out`)."""
+    return [
+        t
+        for t in STUDIES[name].tasks(ctx)
+        if methods.runs_on(t.method, ctx.cases[t.case], t.k)
+        and not methods.why_not_options(t.method, ctx.cases[t.case], t.options)
+    ]
+
+
+def sitting_out(ctx, names=None) -> dict:
+    """study -> case -> method -> why: the runs a study plans that are sat out before they start
+    (a study option the method refuses on the case, :func:`experiments.methods.why_not_options`;
+    the cases a study does not take, its module's ``sitting_out(ctx)``). The studies' own cases
+    must be in ``ctx.cases``."""
+    out: dict = {}
+    for n in (n for n in (names or STUDIES) if n in ctx.plan.studies):
+        mine = out.setdefault(n, {})
+        for t in STUDIES[n].tasks(ctx):
+            case = ctx.cases[t.case]
+            if methods.runs_on(t.method, case, t.k):
+                why = methods.why_not_options(t.method, case, t.options)
+                if why:
+                    mine.setdefault(t.case, {})[t.method] = why
+        fn = getattr(STUDIES[n], "sitting_out", None)
+        for case, whys in (fn(ctx) if fn else {}).items():
+            mine.setdefault(case, {}).update(whys)
+        if not mine:
+            del out[n]
+    return out
 
 
 def run_studies(ctx, names=None, *, scheduler=None, workers=None, progress=True) -> dict:

@@ -19,8 +19,14 @@ For each method (built-in or outside, see :mod:`experiments.methods`) the suite 
   ladders (:attr:`Size.spatial_ks`), and two spatial independent checks: the spatial rigid limit
   against Pinocchio's rigid spatial arm (:func:`spatial_rigid_limit`) and the spatial cantilever
   statics in both bending planes and twist against the closed forms
-  (:func:`spatial_static_deflection`). A method without a spatial entry gets these rows as not
-  run, with the reason.
+  (:func:`spatial_static_deflection`); on the shipped robots (``experiments/cases/spatial/
+  robots/``) the rigid limit against Pinocchio's own reading of the URDF (:func:`robot_rigid_limit`),
+  the tool sag against the cantilever worked by hand (:func:`robot_statics`) and the energy of a
+  free swing (:func:`robot_energy`); on the shipped trees and loops (``experiments/cases/spatial/
+  topology/``) the link tips against the spatial global solver (:func:`topology_global`), the
+  closure gap (:func:`topology_closure`) and the stiff five-bar against its closed-form loop
+  geometry (:func:`five_bar_rigid`); the independent values in :mod:`experiments.handchecks`.
+  A method without a spatial entry gets these rows as not run, with the reason.
 
 Each check returns rows (plain dicts, :data:`ROW_KEYS`); a check a method cannot run is a row
 with ``passed = None`` and the reason. Every simulation runs in a forked child process with a
@@ -60,15 +66,21 @@ __all__ = [
     "Worker",
     "clamped_frequencies",
     "energy_balance",
+    "five_bar_rigid",
     "main",
     "malformed",
     "order_h",
     "order_k",
     "rigid_limit",
+    "robot_energy",
+    "robot_rigid_limit",
+    "robot_statics",
     "scorecard_links",
     "spatial_rigid_limit",
     "spatial_static_deflection",
     "static_deflection",
+    "topology_closure",
+    "topology_global",
     "validate_method",
 ]
 
@@ -109,6 +121,9 @@ class Size:
     spatial_ks : problem -> k ladder of the spatial benchmark problems (their cost: the
         Princeton sweep is 14 equilibria per k, the 45° bend has 8 links)
     spatial_rigid_duration : duration (s) of the spatial rigid-limit run
+    robot_duration, robot_energy_duration : durations (s) of the robots' rigid-limit and
+        energy runs
+    topology_duration : duration (s) of the trees' and loops' runs against the global solver
     """
 
     ks: tuple = (8, 16, 32)
@@ -131,6 +146,9 @@ class Size:
         ("right_angle_cantilever", (8, 16, 32)),
     )
     spatial_rigid_duration: float = 1.0
+    robot_duration: float = 0.5
+    robot_energy_duration: float = 0.5
+    topology_duration: float = 0.1
 
 
 #: The quick size drops the spin-up problems at ω_s = 6 and 10 rad/s and shortens the one at
@@ -156,6 +174,9 @@ SIZES = {
             ("right_angle_cantilever", (4, 8, 16)),
         ),
         spatial_rigid_duration=0.5,
+        robot_duration=0.2,
+        robot_energy_duration=0.2,
+        topology_duration=0.05,
     ),
 }
 
@@ -357,10 +378,14 @@ class Runner:
         """The k ladder of the benchmark, static and frequency checks for this method."""
         return self.size.explicit_ks if self.rec.explicit and self.rec.max_step else self.size.ks
 
-    def step(self, k, h):
-        """h, lowered to the record's ``max_step(k)`` for an explicit method."""
-        if self.rec.explicit and self.rec.max_step is not None:
-            return min(h, float(self.rec.max_step(k)))
+    def step(self, k, h, case=None):
+        """h, lowered to the record's ``max_step(k)`` for an explicit method (its
+        ``spatial_max_step(k)`` on a spatial ``case``, where it has one)."""
+        rule = self.rec.max_step
+        if case is not None and methods.is_spatial(case) and self.rec.spatial_max_step is not None:
+            rule = self.rec.spatial_max_step
+        if self.rec.explicit and rule is not None:
+            return min(h, float(rule(k)))
         return h
 
     def run(self, case, k, h):
@@ -1082,6 +1107,439 @@ def spatial_static_deflection(run: Runner) -> list:
     return rows
 
 
+# ----------------------------------------------------------------------------- robots
+ROBOTS = ("ur5", "panda")
+ROBOT_K = 1  # the rigid robot has no elements: k does not matter
+ROBOT_H = 1e-3  # s, the robots' output step: the values are compared at step ends
+ROBOT_TORQUE_TOL = 1e-6  # relative to the largest torque
+ROBOT_TOOL_TOL = 1e-9  # m
+ROBOT_SAG_TOL = 1e-4  # relative
+ROBOT_ENERGY_TOL = 1e-3  # of M g R
+ROBOT_ENERGY_K = 2
+_ROBOT_SRC = (
+    "Pinocchio's own reading of the unmodified URDF (pin.buildModelFromUrdf): RNEA along the "
+    "prescribed motion, forward kinematics of the tool frame"
+)
+
+
+def _robot_reference(name, duration):
+    """Pinocchio's torques and tool point along the rigid robot's motion, in the worker."""
+    from . import handchecks
+
+    return handchecks.robot_inverse_dynamics(name, handchecks.rigid_robot_case(name, duration))
+
+
+def _sag_reference(name):
+    """The hand-worked tool displacement of the robot's sag case (no method runs in it)."""
+    from . import handchecks
+
+    return handchecks.tool_displacement(name)
+
+
+def robot_rigid_limit(run: Runner) -> list:
+    """The shipped robots (``experiments/cases/spatial/robots/``) with every link rigid (the
+    unmodified URDF, the case's pick-and-place motion prescribed at every joint): the joint
+    torques the motion needs and the tool point against Pinocchio's RNEA and forward kinematics
+    on its own reading of the URDF, at h = 1 ms (the output step)."""
+    from . import handchecks
+
+    rec, rows = run.rec, []
+    for name in ROBOTS:
+        T = run.size.robot_duration
+        case = handchecks.rigid_robot_case(name, T)
+        qt, qp = "max |joint torque − RNEA| / max |RNEA|", "max |tool point − rigid| (m)"
+        kw_t = dict(source=_ROBOT_SRC, tolerance=ROBOT_TORQUE_TOL, tolerance_kind="relative", reference=0.0)
+        kw_p = dict(source=_ROBOT_SRC, tolerance=ROBOT_TOOL_TOL, tolerance_kind="absolute", reference=0.0)
+        check, problem = "robot rigid limit", case.name
+        why = _no_spatial(rec, case) or run.step_unknown
+        if why:
+            rows += _not_run(rec.name, check, problem, qt, why, **kw_t)
+            rows += _not_run(rec.name, check, problem, qp, why, **kw_p)
+            continue
+        ref, _, rwhy = run.call(_robot_reference, name, T)
+        if rwhy:
+            rows += _not_run(rec.name, check, problem, qt, f"the Pinocchio reference: {rwhy}", **kw_t)
+            rows += _not_run(rec.name, check, problem, qp, f"the Pinocchio reference: {rwhy}", **kw_p)
+            continue
+        h = run.step(ROBOT_K, ROBOT_H, case)
+        res, cpu, why = run.run(case, ROBOT_K, h)
+        vt = vp = None
+        wt = wp = why
+        if not why:
+            dt = np.abs(np.asarray(res.joint_torque, float) - ref["torque"])
+            vt = float(np.max(dt) / np.max(np.abs(ref["torque"])))
+            i, j = np.unravel_index(np.argmax(dt), dt.shape)
+            wt = (
+                f"largest at t = {ref['t'][i]:.4g} s, joint {j + 1}: {res.joint_torque[i][j]:.6g} N m "
+                f"against {ref['torque'][i, j]:.6g} N m"
+            )
+            dp = np.linalg.norm(np.asarray(res.end_effector) - ref["tool"], axis=1)
+            vp, i = float(np.max(dp)), int(np.argmax(dp))
+            wp = f"largest at t = {ref['t'][i]:.4g} s"
+        k = ROBOT_K if rec.uses_k else None
+        for q, v, tol, kw, w in (
+            (qt, vt, ROBOT_TORQUE_TOL, kw_t, wt),
+            (qp, vp, ROBOT_TOOL_TOL, kw_p, wp),
+        ):
+            ok = v is not None and v <= tol
+            rows.append(
+                _row(
+                    rec.name,
+                    check,
+                    problem,
+                    q,
+                    value=v,
+                    passed=ok,
+                    reason="" if ok else w,
+                    k=k,
+                    h=h,
+                    cpu_time=cpu,
+                    **kw,
+                )
+            )
+    return rows
+
+
+def robot_statics(run: Runner) -> list:
+    """The tool point's sag under gravity of each robot with one tube flexible (the case file's
+    upper-arm tube, the rest rigid, joints held at zero, the tube horizontal:
+    :func:`experiments.handchecks.sag_case`) by the method's own statics at the k ladder of the
+    static checks, against the cantilever worked by hand (:func:`experiments.handchecks.
+    tool_displacement`), relative 1e-4 at the largest k."""
+    from . import handchecks
+
+    rec, rows = run.rec, []
+    src = (
+        "cantilever formulas worked by hand (Gere & Timoshenko, Appendix G): the tube clamped at its "
+        "joint under its weight and the outboard bodies' weight and moment (masses, centres and the "
+        "tool point from Pinocchio's model of the URDF), the tube's section by hand"
+    )
+    for name in ROBOTS:
+        case = handchecks.sag_case(name)
+        check, problem, q = "robot statics", case.name, "tool sag at rest (m)"
+        kw = dict(source=src, tolerance=ROBOT_SAG_TOL, tolerance_kind="relative")
+        why = (_RIGID if rec.physics.strain == "rigid" else "") or _no_spatial(rec, case)
+        if not why and problems_study.statics_of(rec.name) is None:
+            why = _NO_STATICS.format(rec.label or rec.name).replace("this problem", "this check")
+        try:  # the hand check runs no method: here, not in the method's worker
+            ref, rwhy = _sag_reference(name), ""
+        except Exception as exc:  # noqa: BLE001 - e.g. Pinocchio or the URDFs missing: the rows say so
+            ref, rwhy = None, _one_line(exc)
+        target = None if rwhy else ref["sag"]
+        if why or rwhy:
+            rows += _not_run(
+                rec.name, check, problem, q, why or f"the hand check: {rwhy}", reference=target, **kw
+            )
+            continue
+        vals, cpu, reason = [], 0.0, ""
+        for k in run.ks:
+            got, c, w = run.call(_spatial_statics, rec.name, case, k, 1)
+            cpu += c if np.isfinite(c) else 0.0
+            if w:
+                reason = f"k = {k}: {w}"
+            vals.append(None if w else float(ref["rigid"][2] - got[0][2]))
+        v = vals[-1]
+        rel = abs(v - target) / abs(target) if v is not None else None
+        rows.append(
+            _row(
+                rec.name,
+                check,
+                problem,
+                q,
+                value=v,
+                reference=target,
+                passed=rel is not None and rel <= ROBOT_SAG_TOL,
+                reason=reason,
+                order=_nan_none(
+                    order_in_k(run.ks, [abs(x - target) if x is not None else None for x in vals])
+                ),
+                k=run.ks[-1],
+                cpu_time=cpu,
+                **kw,
+            )
+        )
+    return rows
+
+
+def robot_energy_case(name: str, duration: float):
+    """The shipped robot case ``name`` (its flexible tubes) released from its initial pose at
+    rest under gravity with every joint free (zero torque), for ``duration`` s."""
+    import dttmm
+    from dttmm import Constant, Drive
+
+    from . import handchecks
+
+    case = dttmm.load_case(SHIPPED / "spatial" / "robots" / f"{name}.toml")
+    drives = tuple(
+        Drive("torque", Constant(0.0), initial_angle=float(d.motion(0.0)[0]), initial_rate=0.0)
+        for d in case.scenario.drives
+    )
+    case = replace(case, scenario=replace(case.scenario, drives=drives), name=f"{name}_free")
+    return handchecks.shortened(case, duration)
+
+
+def energy_scale(case) -> float:
+    """M g R of a spatial arm: its whole mass (beams, rigid bodies, hubs, payloads) times |g|
+    times its size (the sum of its link lengths and joint-origin distances)."""
+    mass = sum(lk.beam.mass + lk.hub_mass + lk.payload_mass for lk in case.model.links)
+    return float(mass * np.linalg.norm(case.model.gravity) * case.model.size)
+
+
+def robot_energy(run: Runner) -> list:
+    """Energy balance of each robot's free swing (:func:`robot_energy_case`: undamped, torque-
+    free joints, gravity; the tubes released undeformed ring): max |E(t) − E(0)| / (M g R)
+    (:func:`energy_scale`) ≤ 1e-3, at k = 2, h = 1 ms."""
+    rec, rows = run.rec, []
+    for name in ROBOTS:
+        case = robot_energy_case(name, run.size.robot_energy_duration)
+        q = "max |E(t) − E(0)| / (M g R)"
+        kw = dict(
+            source="conservation of energy: no damping, zero-torque joints do no work (M the arm's mass, "
+            "R its size)",
+            tolerance=ROBOT_ENERGY_TOL,
+            tolerance_kind="absolute",
+            reference=0.0,
+        )
+        check, problem = "robot energy balance", case.name
+        # the cheap reasons first: a spatial check may linearise the arm (the explicit DT-TMM's)
+        why = _missing(rec, ["energy"]) or run.step_unknown or _no_spatial(rec, case)
+        if why:
+            rows += _not_run(rec.name, check, problem, q, why, **kw)
+            continue
+        h = run.step(ROBOT_ENERGY_K, ENERGY_H, case)
+        res, cpu, why = run.run(case, ROBOT_ENERGY_K, h)
+        value = None
+        if not why:
+            e = None if res.energy is None else np.asarray(res.energy, float)
+            if e is None or not np.all(np.isfinite(e)):
+                why = "no finite energy in its Result (energy is None or NaN)"
+            else:
+                value = float(np.max(np.abs(e - e[0])) / energy_scale(case))
+        rows.append(
+            _row(
+                rec.name,
+                check,
+                problem,
+                q,
+                value=value,
+                passed=value is not None and value <= ROBOT_ENERGY_TOL,
+                reason=why,
+                k=ROBOT_ENERGY_K if rec.uses_k else None,
+                h=h,
+                cpu_time=cpu,
+                **kw,
+            )
+        )
+    return rows
+
+
+# ----------------------------------------------------------------------------- trees and loops
+TOPOLOGY = ("four_bar", "five_bar", "branched_arm")
+TOPOLOGY_K = 2
+TOPOLOGY_H = 1e-3  # s, the cases' output step: the values are compared at step ends
+TOPOLOGY_TOL = 1e-9  # m
+CLOSURE_TOL = 1e-10  # × the mechanism's size
+FIVE_BAR_STIFFEN = 1e3
+FIVE_BAR_H = 5e-4
+FIVE_BAR_DURATION = 0.1
+FIVE_BAR_TOL = 1e-6  # m
+_GLOBAL = "reference_models.spatial_global:simulate"
+_GLOBAL_OPTIONS = ("integrator", "strain", "rho_inf")
+
+
+def topology_case(name: str, duration: float):
+    """``experiments/cases/spatial/topology/<name>.toml`` run for ``duration`` s."""
+    from dttmm.spatial import load_case
+
+    from . import handchecks
+
+    return handchecks.shortened(load_case(SHIPPED / "spatial" / "topology" / f"{name}.toml"), duration)
+
+
+def _global_run(case, k, h, options):
+    """The spatial global solver's run (its own equations: tree recursion, Lagrange multipliers)."""
+    from reference_models import spatial_global
+
+    return spatial_global.simulate(case, elements_per_link=k, h=h, **dict(options))
+
+
+def _global_options(rec) -> tuple:
+    opts = dict(rec.options if rec.spatial_options is None else rec.spatial_options)
+    return tuple((k, v) for k, v in sorted(opts.items()) if k in _GLOBAL_OPTIONS)
+
+
+def topology_global(run: Runner) -> list:
+    """The shipped trees and loops (four-bar, five-bar, branched arm) at k = 2, h = 1 ms: every
+    link tip against the spatial global solver's (:mod:`reference_models.spatial_global`, the
+    same discretisation assembled as one system with Lagrange multipliers for the closures, run
+    with the method's integrator and strain), ≤ 1e-9 m. A method of another discretisation
+    solves other discrete equations: not run, with that reason."""
+    rec, rows = run.rec, []
+    src = (
+        "the spatial global solver (reference_models.spatial_global: the tree's frame recursion, "
+        "Lagrange multipliers for the closures) at the same k, h, integrator and strain"
+    )
+    kw = dict(source=src, tolerance=TOPOLOGY_TOL, tolerance_kind="absolute", reference=0.0)
+    q, check = "max |link tip − global solver| (m)", "topology vs global solver"
+    for name in TOPOLOGY:
+        case = topology_case(name, run.size.topology_duration)
+        why = _no_spatial(rec, case)
+        if not why and rec.spatial == _GLOBAL:
+            why = "it is the global solver, this check's reference"
+        elif not why and rec.physics.strain == "rigid":
+            why = "rigid links: the global solver's links bend"
+        elif not why and rec.physics.element not in ("hermite-fe", "unknown"):
+            why = (
+                f"another discretisation ({rec.physics.element}): only the suite's Hermite elements solve "
+                "the global solver's discrete equations (its peers converge to them in k, the report's studies)"
+            )
+        why = why or run.step_unknown
+        if why:
+            rows += _not_run(rec.name, check, name, q, why, **kw)
+            continue
+        opts = _global_options(rec)
+        ref, _, rwhy = run.call(_global_run, case, TOPOLOGY_K, TOPOLOGY_H, opts)
+        if rwhy:
+            rows += _not_run(rec.name, check, name, q, f"the global solver: {rwhy}", **kw)
+            continue
+        h = run.step(TOPOLOGY_K, TOPOLOGY_H, case)
+        res, cpu, why = run.run(case, TOPOLOGY_K, h)
+        v = None if why else float(np.max(np.abs(np.asarray(res.link_tip) - np.asarray(ref.link_tip))))
+        rows.append(
+            _row(
+                rec.name,
+                check,
+                name,
+                q,
+                value=v,
+                passed=v is not None and v <= TOPOLOGY_TOL,
+                reason=why,
+                k=TOPOLOGY_K,
+                h=h,
+                cpu_time=cpu,
+                **kw,
+            )
+        )
+    return rows
+
+
+def closure_gap(res, case) -> tuple:
+    """(max over the output times and closures of the cut joint's position gap (m), how): from
+    the Result's link tips where every closure joins two tips (points at the tip frames'
+    origins, the shipped loops), else the Result's own ``closure_residual``."""
+    model = case.model
+    tips = all(
+        not any(cl.point) and cl.to != "ground" and (cl.to_point is None or not any(cl.to_point))
+        for cl in model.closures
+    )
+    if tips:
+        tip = np.asarray(res.link_tip, float)
+        gaps = [
+            np.linalg.norm(tip[:, model.link_index(cl.link)] - tip[:, model.link_index(cl.to)], axis=-1)
+            for cl in model.closures
+        ]
+        return float(np.max(gaps)), "link tips"
+    own = getattr(res, "closure_residual", None)
+    if own is None:
+        return math.nan, "no link-tip closure and no closure_residual in its Result"
+    return float(np.max(own)), "its closure_residual"
+
+
+def topology_closure(run: Runner) -> list:
+    """The loops (four-bar, five-bar) at k = 2, h = 1 ms: the cut joint's position gap at every
+    output time (step ends), from the Result's link tips, ≤ 1e-10 × the mechanism's size."""
+    rec, rows = run.rec, []
+    q, check = "max closure gap / mechanism size", "topology closure"
+    kw = dict(
+        source="the closure: the cut joint holds its two points together (docs/spatial.md §11)",
+        tolerance=CLOSURE_TOL,
+        tolerance_kind="absolute",
+        reference=0.0,
+    )
+    for name in TOPOLOGY:
+        case = topology_case(name, run.size.topology_duration)
+        if not case.model.closures:
+            continue
+        why = _no_spatial(rec, case) or run.step_unknown
+        if why:
+            rows += _not_run(rec.name, check, name, q, why, **kw)
+            continue
+        h = run.step(TOPOLOGY_K, TOPOLOGY_H, case)
+        res, cpu, why = run.run(case, TOPOLOGY_K, h)
+        v = None
+        if not why:
+            gap, how = closure_gap(res, case)
+            v = gap / case.model.size if np.isfinite(gap) else None
+            why = "" if v is not None else how
+        rows.append(
+            _row(
+                rec.name,
+                check,
+                name,
+                q,
+                value=v,
+                passed=v is not None and v <= CLOSURE_TOL,
+                reason=why,
+                k=TOPOLOGY_K,
+                h=h,
+                cpu_time=cpu,
+                **kw,
+            )
+        )
+    return rows
+
+
+def five_bar_case():
+    """The shipped five-bar with every stiffness × 1e3, run for 0.1 s."""
+    from . import handchecks
+
+    case = topology_case("five_bar", FIVE_BAR_DURATION)
+    return replace(handchecks.stiffened(case, FIVE_BAR_STIFFEN), name="five_bar_stiff")
+
+
+def five_bar_rigid(run: Runner) -> list:
+    """The five-bar with every stiffness × 1e3 (:func:`five_bar_case`), k = 2, h = 5e-4 s: its
+    end-effector (the distal tip) against the rigid five-bar's closed-form loop geometry
+    (:func:`experiments.handchecks.five_bar_tip`), ≤ 1e-6 m."""
+    from . import handchecks
+
+    rec = run.rec
+    case = five_bar_case()
+    q, check = "max |distal tip − rigid loop geometry| (m)", "five-bar rigid limit"
+    kw = dict(
+        source="the rigid five-bar's loop-closure geometry: the distal tip where the circles about the "
+        "driven proximal tips meet",
+        tolerance=FIVE_BAR_TOL,
+        tolerance_kind="absolute",
+        reference=0.0,
+    )
+    why = _no_spatial(rec, case)
+    if not why and rec.explicit:
+        why = "explicit in time: its stable step falls as 1/√EI, so the stiff-link limit is out of its reach"
+    if why:
+        return _not_run(rec.name, check, case.name, q, why, **kw)
+    res, cpu, why = run.run(case, TOPOLOGY_K, FIVE_BAR_H)
+    v = None
+    if not why:
+        ref = handchecks.five_bar_tip(case, np.asarray(res.t))
+        v = float(np.max(np.linalg.norm(np.asarray(res.end_effector) - ref, axis=1)))
+    return [
+        _row(
+            rec.name,
+            check,
+            case.name,
+            q,
+            value=v,
+            passed=v is not None and v <= FIVE_BAR_TOL,
+            reason=why,
+            k=TOPOLOGY_K if rec.uses_k else None,
+            h=FIVE_BAR_H,
+            cpu_time=cpu,
+            **kw,
+        )
+    ]
+
+
 #: β_n L of the clamped-free Euler-Bernoulli beam (roots of cos βL cosh βL = −1).
 BETA_L = (1.8751040687119611, 4.6940911329741745, 7.8547574382376126)
 FREQ_TOL = 1e-4  # relative
@@ -1401,6 +1859,12 @@ CHECKS = {
     "order_h": order_h,
     "spatial_rigid_limit": spatial_rigid_limit,
     "spatial_static_deflection": spatial_static_deflection,
+    "robot_rigid_limit": robot_rigid_limit,
+    "robot_statics": robot_statics,
+    "robot_energy": robot_energy,
+    "topology_global": topology_global,
+    "topology_closure": topology_closure,
+    "five_bar_rigid": five_bar_rigid,
 }
 
 

@@ -46,6 +46,28 @@ def _diag(m) -> str:
     return _value([[float(x) for x in r] for r in m]) if off else _value([float(m[i][i]) for i in range(3)])
 
 
+def _section_columns(link: dict) -> dict:
+    return {
+        "EA, GJ (N, N·m²)": f"{_g(link.get('EA')) if link.get('EA') is not None else 'inextensible'}, "
+        f"{_g(link['GJ'])}",
+        "EIy, EIz (N·m²)": f"{_g(link['EIy'])}, {_g(link['EIz'])}",
+        "ρA (kg/m); ρJ, ρIy, ρIz (kg·m)": f"{_g(link['rhoA'])}; {_g(link['rhoJ'])}, {_g(link['rhoIy'])}, "
+        f"{_g(link['rhoIz'])}",
+        "roll (rad), damping (s)": f"{_g(link['roll'])}, {_g(link['damping'])}",
+    }
+
+
+def _rigid_columns(body: dict) -> dict:
+    """A rigid link's body in the section's columns: no stiffness, its mass, centre and inertia."""
+    return {
+        "EA, GJ (N, N·m²)": "rigid",
+        "EIy, EIz (N·m²)": "rigid",
+        "ρA (kg/m); ρJ, ρIy, ρIz (kg·m)": f"rigid body: m {_g(body['mass'])} kg, centre {_value(body['com'])} m, "
+        f"J {_diag(body['inertia'])} kg·m²",
+        "roll (rad), damping (s)": _NONE,
+    }
+
+
 def spatial_link_table(case: dict) -> pd.DataFrame:
     """A spatial case's links: joint frame and axis, the section's stiffnesses and inertias,
     hub and payload (inertias as diagonals when they have no products), drive; SI units."""
@@ -60,12 +82,7 @@ def spatial_link_table(case: dict) -> pd.DataFrame:
                 if j["locked"]
                 else _value(j["axis"]) + f"; {_value(j['origin_xyz'])}, {_value(j['origin_rpy'])}",
                 "L (m)": _g(link["length"]),
-                "EA, GJ (N, N·m²)": f"{_g(link.get('EA')) if link.get('EA') is not None else 'inextensible'}, "
-                f"{_g(link['GJ'])}",
-                "EIy, EIz (N·m²)": f"{_g(link['EIy'])}, {_g(link['EIz'])}",
-                "ρA (kg/m); ρJ, ρIy, ρIz (kg·m)": f"{_g(link['rhoA'])}; {_g(link['rhoJ'])}, {_g(link['rhoIy'])}, "
-                f"{_g(link['rhoIz'])}",
-                "roll (rad), damping (s)": f"{_g(link['roll'])}, {_g(link['damping'])}",
+                **(_rigid_columns(link["rigid"]) if "rigid" in link else _section_columns(link)),
                 "hub m (kg), J (kg·m²)": f"{_g(hub['mass'])}, {_diag(hub['inertia'])}" if hub else _NONE,
                 "payload m (kg), offset (m), J (kg·m²)": f"{_g(pay['mass'])}, {_value(pay['offset'])}, "
                 f"{_diag(pay['inertia'])}"
@@ -115,6 +132,19 @@ def case_section(meta: dict) -> Section | None:
             text.append(
                 f"{name} is a spatial arm: the studies run it with every method that models it; "
                 + "; ".join(f"{m} sits it out ({why})" for m, why in out.items())
+                + "."
+            )
+        runs = {
+            (study, m): why
+            for study, by_case in (meta.get("sitting_out_runs") or {}).items()
+            for m, why in by_case.get(name, {}).items()
+        }
+        if runs:
+            text.append(
+                f"Sat out on {name} before running: "
+                + "; ".join(
+                    f"{m} in the {study.replace('_', '-')} study ({why})" for (study, m), why in runs.items()
+                )
                 + "."
             )
     text.append(

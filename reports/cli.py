@@ -54,7 +54,7 @@ def run_report(
     from experiments import methods
     from experiments.context import prepare
     from experiments.params import as_dicts
-    from experiments.study import run_studies, save_tables
+    from experiments.study import run_studies, save_tables, sitting_out
 
     from . import provenance
     from .build import build
@@ -90,6 +90,8 @@ def run_report(
             for n, c in ctx.cases.items()
             if methods.is_spatial(c)
         },
+        # runs a study plans but sits out before they start, and why (study -> case -> method)
+        "sitting_out_runs": sitting_out(ctx),
         "case_files": dict(plan.case_files),
     }
     (out / "data" / "report_meta.json").write_text(json.dumps(meta, indent=1, default=str))

@@ -74,6 +74,7 @@ def _why_not_run(method: str, case: str, tables: dict, meta: dict) -> str:
             r = next((x for x in g.get("reason", []) if isinstance(x, str) and x), "")
             return f"every run {g.status.iloc[0]}" + (f": {r}" if r else "")
     why = (meta.get("sitting_out") or {}).get(case, {}).get(method)
+    why = why or ((meta.get("sitting_out_runs") or {}).get("work_precision") or {}).get(case, {}).get(method)
     if why:
         return why
     from experiments import methods

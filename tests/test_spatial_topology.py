@@ -17,6 +17,7 @@ import dttmm.spatial as sp
 from dttmm import InputError
 from dttmm.spatial import SpatialClosure, SpatialLink, SpatialManipulator, SpatialSection
 from dttmm.spatial.case import case_from_dict, case_to_dict, load_case
+from experiments.handchecks import five_bar_tip, stiffened
 
 TOPO = Path(__file__).resolve().parents[1] / "experiments" / "cases" / "spatial" / "topology"
 FOUR_BAR = TOPO / "four_bar.toml"
@@ -270,31 +271,12 @@ FIVE_BAR = TOPO / "five_bar.toml"
 
 def _stiffened(case, f):
     """Every link's stiffnesses (EA, GJ, EIy, EIz) × f."""
-    links = []
-    for lk in case.model.links:
-        b = lk.beam
-        beam = dataclasses.replace(b, EA=b.EA * f, GJ=b.GJ * f, EIy=b.EIy * f, EIz=b.EIz * f)
-        links.append(dataclasses.replace(lk, beam=beam))
-    return dataclasses.replace(case, model=dataclasses.replace(case.model, links=tuple(links)))
+    return stiffened(case, f)
 
 
 def _five_bar_tip(case, t):
-    """The rigid five-bar's distal tip at time t (m): the base angles from the motion laws, the
-    tip where the two distal circles meet on the initial (upper) side."""
-    m = case.model
-    pl, pr = m.links[0], m.links[2]
-    out = []
-    for tt in np.atleast_1d(t):
-        B = []
-        for lk, d in ((pl, case.scenario.drives[0]), (pr, case.scenario.drives[2])):
-            th = lk.joint.origin_rpy[2] + d.motion(float(tt))[0]
-            B.append(np.array(lk.joint.origin_xyz[:2]) + lk.beam.length * np.array([np.cos(th), np.sin(th)]))
-        L = m.links[1].beam.length
-        mid, dv = 0.5 * (B[0] + B[1]), B[1] - B[0]
-        h = np.sqrt(L * L - 0.25 * dv @ dv)
-        nrm = np.array([-dv[1], dv[0]]) / np.linalg.norm(dv)
-        out.append([*(mid + h * nrm), 0.0])
-    return np.array(out)
+    """The rigid five-bar's distal tip at time t (m): the closed-form loop-closure geometry."""
+    return five_bar_tip(case, t)
 
 
 def test_loop_refusals():

@@ -391,10 +391,12 @@ def test_tool_sag_under_gravity_against_the_cantilever():
     outboard at its centre r (tip force W, tip moment about the bending axis, torque about the
     beam axis; masses and centres from Pinocchio's model of the URDF), carried to
     the tool point t by the tip's rotation: δ = wL⁴/8EI + WL³/3EI + M L²/2EI, θ = wL³/6EI +
-    WL²/2EI + M L/EI, φ = T L/GJ; sag = δ − ((θ b̂ + φ x̂) × (t − tip))_z (measured: DT-TMM
-    k = 4 0.132711 mm, hand check 0.132713 mm, 1.7e-5 apart relative)."""
+    WL²/2EI + M L/EI, φ = T L/GJ; sag = δ − ((θ b̂ + φ x̂) × (t − tip))_z, worked by
+    ``experiments.handchecks.tool_displacement`` (the shipped ur5.toml's upper-arm tube, the one
+    here; ``dttmm validate`` checks every method with it) (measured: DT-TMM k = 4 0.132711 mm,
+    hand check 0.132713 mm, 1.7e-5 apart relative)."""
     _robots()
-    pin = pytest.importorskip("pinocchio")
+    pytest.importorskip("pinocchio")
     arm = read_urdf(
         UR5,
         {"upper_arm_link": {"section": TUBE, "material": "aluminium", "keep_inertia": True}},
@@ -405,33 +407,11 @@ def test_tool_sag_under_gravity_against_the_cantilever():
     rigid = sp.statics(read_urdf(UR5, tool="tool0").case(case.scenario), elements_per_link=1)
     sag = rigid.tip_position[2] - res.tip_position[2]
 
-    model = _pin_model(UR5)
-    data = model.createData()
-    q = np.zeros(6)
-    pin.framesForwardKinematics(model, data, q)
-    root = data.oMi[model.getJointId("shoulder_lift_joint")].translation
-    elbow = model.getJointId("elbow_joint")
-    tip = data.oMi[elbow].translation
-    tool = data.oMf[model.getFrameId("tool0")].translation
-    outboard = [model.inertias[j] for j in range(elbow, model.njoints)]  # a chain: the joints beyond
-    mass = sum(i.mass for i in outboard)
-    com = sum(i.mass * data.oMi[j].act(i.lever) for j, i in zip(range(elbow, model.njoints), outboard)) / mass
-    W, r = mass * 9.81, com - tip
-    L = np.linalg.norm(tip - root)
-    x = (tip - root) / L
-    assert abs(x[2]) < 1e-10  # the beam is horizontal (the URDF rounds π/2 to 1.57079632679)
-    down = np.array([0.0, 0.0, -1.0])
-    b = np.cross(x, down)
-    moment = np.cross(r, W * down)
-    M, T = moment @ b, moment @ x
-    E, G, rho = ALU
-    ro, ri = 0.0425, 0.0385
-    inertia = math.pi / 4 * (ro**4 - ri**4)
-    EI, GJ, w = E * inertia, G * 2 * inertia, rho * math.pi * (ro**2 - ri**2) * 9.81
-    delta = w * L**4 / (8 * EI) + W * L**3 / (3 * EI) + M * L**2 / (2 * EI)
-    theta = w * L**3 / (6 * EI) + W * L**2 / (2 * EI) + M * L / EI
-    phi = T * L / GJ
-    hand = delta - np.cross(theta * b + phi * x, tool - tip)[2]
+    # the hand check (experiments.handchecks): the same tube, its joint and the next from
+    # Pinocchio's model of the URDF, the outboard bodies' weight and moment
+    from experiments.handchecks import tool_displacement
+
+    hand = tool_displacement("ur5")["sag"]
     assert hand > 5e-5  # about a tenth of a millimetre
     assert abs(sag - hand) < 1e-4 * hand, (sag, hand)
 

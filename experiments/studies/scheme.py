@@ -33,12 +33,32 @@ def _opts(v: dict) -> tuple:
     return tuple((k, x) for k, x in {**DEFAULTS, **v}.items() if x != DEFAULTS[k])
 
 
+#: why a spatial arm is not in the study: its variants are options of the planar kernel
+SPATIAL_REASON = (
+    "a spatial arm: the scheme's variants (the paper's plain transfer, fixed corrections with it) are "
+    "options of the planar kernel (the spatial kernel runs the Riccati sweep only)"
+)
+
+
+def _planar(ctx, cases) -> list:
+    from .. import methods
+
+    return [c for c in cases if not methods.is_spatial(ctx.cases[c])]
+
+
+def sitting_out(ctx) -> dict:
+    """case -> {method: why} for the plan's cases the study does not run (the spatial arms)."""
+    p = params(ctx, NAME)
+    return {c: {p.method: SPATIAL_REASON} for c in p.cases if c not in _planar(ctx, p.cases)}
+
+
 def tasks(ctx) -> list[Task]:
-    """Every variant over k at the plan's h and over h at the plan's k."""
+    """Every variant over k at the plan's h and over h at the plan's k, on the planar cases (a
+    spatial arm is sat out, :func:`sitting_out`)."""
     p = params(ctx, NAME)
     method = p.method
     out = []
-    for c in p.cases:
+    for c in _planar(ctx, p.cases):
         T = ctx.cases[c].scenario.duration
         for v in p.variants:
             out += [Task(c, method, k, p.h, T, _opts(v)) for k in p.ks]
