@@ -158,7 +158,8 @@ class Method:
         the same common call, '' when the method runs planar arms only; ``spatial_options``:
         the (name, value) pairs its spatial calls get instead of ``options`` (None: the same);
         ``spatial_max_k``: the largest k its spatial runs take in the studies (their cost);
-        ``spatial_max_step``: ``max_step`` for its spatial runs (None: ``max_step``);
+        ``spatial_max_step``: ``max_step`` for its spatial runs, called with (k, case)
+        (None: ``max_step``; :func:`step_rule`);
         ``spatial_check``: ``module:function`` that raises InputError for a spatial case the
         method cannot model (its message is the reason the method sits that case out);
         ``spatial_label``: the label of its spatial engine where it differs from ``label``;
@@ -198,7 +199,7 @@ class Method:
     spatial: str = ""
     spatial_options: tuple[tuple[str, object], ...] | None = None
     spatial_max_k: float = math.inf
-    spatial_max_step: Callable[[int], float] | None = None
+    spatial_max_step: Callable[..., float] | None = None
     spatial_check: str = ""
     spatial_label: str = ""
     spatial_cut_loads: bool = False
@@ -361,16 +362,35 @@ def _mujoco_step(k: int) -> float:
     return min(2e-3, 0.016 / max(int(k), 1) ** 2)
 
 
-def _mujoco_spatial_step(k: int) -> float:
+def _mujoco_spatial_step(k: int, case=None) -> float:
     """Largest step the studies give the spatial MuJoCo chain at k stations per link: 2 ms
     halved until it is at most 0.0032/k^1.6 s. The stable step (2/ω_max, implicitfast) on
     three_joint_arm is 5.4e-3, 1.4e-3, 5.4e-4, 1.8e-4 and 7.6e-5 s at k = 1…16 (measured; the
     section's rotary inertia makes it fall slower than 1/k²), so this keeps 20-60 % margin and
-    divides the 4 ms output grid."""
+    divides the 4 ms output grid. On a ``case`` that is a tree or has loop closures (the rule
+    above, tuned on chains, let the branched arm and the four-bar diverge at k = 2; the four-bar's
+    steel links need about 1e-5 s) the step is halved further until it is below half the stable
+    step of that case's own chain
+    (:func:`reference_models.mujoco_spatial.stability_limit` at rest)."""
     h = 2e-3
     while h > 0.0032 / max(int(k), 1) ** 1.6:
         h /= 2
+    if case is not None and not getattr(case.model, "serial", True):
+        from reference_models import mujoco_spatial
+
+        m, d, _ = mujoco_spatial.build(case.model, max(int(k), 1))
+        limit = mujoco_spatial.stability_limit(m, d)[1]
+        while h > 0.5 * limit:
+            h /= 2
     return h
+
+
+def step_rule(rec, case=None):
+    """The record's step rule for ``case`` as a function of k, or None: its
+    ``spatial_max_step`` (given the case) on a spatial case where it has one, else ``max_step``."""
+    if case is not None and is_spatial(case) and rec.spatial_max_step is not None:
+        return lambda k: rec.spatial_max_step(k, case)
+    return rec.max_step
 
 
 #: RK4's stability bound on the imaginary axis: |R(iωh)| ≤ 1 for ωh ≤ 2√2 (2.83)

@@ -381,9 +381,7 @@ class Runner:
     def step(self, k, h, case=None):
         """h, lowered to the record's ``max_step(k)`` for an explicit method (its
         ``spatial_max_step(k)`` on a spatial ``case``, where it has one)."""
-        rule = self.rec.max_step
-        if case is not None and methods.is_spatial(case) and self.rec.spatial_max_step is not None:
-            rule = self.rec.spatial_max_step
+        rule = methods.step_rule(self.rec, case)
         if self.rec.explicit and rule is not None:
             return min(h, float(rule(k)))
         return h

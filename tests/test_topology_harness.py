@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import dttmm
@@ -33,3 +34,24 @@ def test_a_tree_runs_on_mujoco_and_pinocchio_and_the_serial_engines_say_which_li
         assert methods.get(m).runs_on(case), m
     why = methods.get("exudyn-ancf").why_not_case(case)
     assert why.startswith("model.links[") and ".parent" in why, why
+
+
+@pytest.mark.parametrize("name", ["branched_arm", "five_bar", "four_bar"])
+def test_mujoco_runs_trees_and_loops_at_the_studies_step(name):
+    """The studies' step for the MuJoCo chain on a tree or a loop (the chains' rule, 1 ms at
+    k = 2, let the branched arm and the four-bar diverge) is below half the stable step of the
+    case's own chain, and the run at it stays finite (k = 2, 0.02 s)."""
+    import dataclasses
+
+    from experiments.studies._common import step_for
+    from reference_models import mujoco_spatial as ms
+
+    case = dttmm.load_case(CASES / f"{name}.toml")
+    case = dataclasses.replace(
+        case, scenario=dataclasses.replace(case.scenario, duration=0.02, output_step=0.005)
+    )
+    h = step_for("mujoco-chain", 2, 1e-3, case)
+    m, d, _ = ms.build(case.model, 2)
+    assert h <= 0.5 * ms.stability_limit(m, d)[1]
+    res = ms.simulate(case, elements_per_link=2, h=h)
+    assert res.status == "ok" and np.all(np.isfinite(res.link_tip))

@@ -79,9 +79,7 @@ def step_for(method: str, k: int, h: float, case=None) -> float:
         rec = methods.get(method)
     except methods.MethodUnavailable:
         return h
-    rule = rec.max_step
-    if case is not None and methods.is_spatial(case) and rec.spatial_max_step is not None:
-        rule = rec.spatial_max_step
+    rule = methods.step_rule(rec, case)
     return min(h, rule(k)) if rule is not None else h
 
 
