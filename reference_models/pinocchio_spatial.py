@@ -368,7 +368,7 @@ def _newmark(arm, T, restart, q, v, opts, nodes):
             J = arm._sym(M) + cq * dq + cv * dv
             da = np.linalg.solve(J[np.ix_(F, F)], -r[F])
             an[F] += da
-            if np.abs(da).max(initial=0.0) <= opts["tol"] * (1.0 + np.abs(an).max()):
+            if np.abs(da).max(initial=0.0) <= opts["tol"] * (1.0 + np.abs(an).max(initial=0.0)):
                 break
         else:
             unconverged.append(n)

@@ -198,3 +198,21 @@ def test_rigid_limit_dttmm_against_pinocchio_rk4():
         res = dttmm.spatial.simulate(case, elements_per_link=2, h=1e-4)
         assert res.success
         assert np.max(np.abs(res.joint_angle - rig.joint_angle)) < bound
+
+
+def test_an_arm_without_free_joints_runs_under_newmark_as_under_rk4():
+    """The 3-D cantilever (its one joint clamped: no coordinates) under Pinocchio's Newmark: the
+    rigid beam stays where it is, as under RK4 (the iteration's stop rule took the largest of an
+    empty acceleration vector and raised)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    case = dttmm.load_case(root / "experiments" / "cases" / "spatial" / "cantilever_3d.toml")
+    case = dataclasses.replace(
+        case, scenario=dataclasses.replace(case.scenario, duration=0.02, output_step=0.01)
+    )
+    newmark = ps.simulate(case, h=1e-3, integrator="newmark")
+    rk4 = ps.simulate(case, h=1e-3)
+    assert newmark.status == "ok" and newmark.joint_angle.shape == (3, 0)
+    np.testing.assert_array_equal(newmark.link_tip, rk4.link_tip)
+    np.testing.assert_allclose(newmark.link_tip[-1, -1], [1.2, 0.0, 0.0], atol=1e-15)
