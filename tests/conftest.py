@@ -123,3 +123,14 @@ def loopback_cluster(tmp_path):
                 p.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 p.kill()
+
+
+@pytest.fixture
+def cleanup():
+    """Unregister, after the test, every method the test registered (experiments.methods)."""
+    from experiments import methods
+
+    before = set(methods.names())
+    yield
+    for n in set(methods.names()) - before:
+        methods.unregister(n)

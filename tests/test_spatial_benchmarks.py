@@ -235,14 +235,6 @@ def spatial(case, *, elements_per_link, h, **options):
 )
 
 
-@pytest.fixture
-def cleanup():
-    before = set(methods.names())
-    yield
-    for n in set(methods.names()) - before:
-        methods.unregister(n)
-
-
 def _validate(tmp_path, *args):
     out = tmp_path / "out"
     code = V.main([*args, "--out", str(out)])

@@ -8,7 +8,6 @@ import textwrap
 import pytest
 
 from dttmm import cli
-from experiments import methods
 from experiments import validate as V
 
 GOOD = '''
@@ -92,14 +91,6 @@ def _file(tmp_path, name, text):
     path = tmp_path / name
     path.write_text(textwrap.dedent(text))
     return str(path)
-
-
-@pytest.fixture
-def cleanup():
-    before = set(methods.names())
-    yield
-    for n in set(methods.names()) - before:
-        methods.unregister(n)
 
 
 def _validate(tmp_path, *args):

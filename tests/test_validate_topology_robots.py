@@ -13,7 +13,6 @@ from types import SimpleNamespace
 
 import pytest
 
-from experiments import methods
 from experiments import validate as V
 from experiments.plan import CASE_DIR, PLANS, Plan, load_cases, plan_for
 
@@ -31,14 +30,6 @@ def _robots():
     except metadata.PackageNotFoundError:
         pytest.skip("example-robot-data is not installed (pip install 'dttmm[robots]')")
     pytest.importorskip("pinocchio")
-
-
-@pytest.fixture
-def cleanup():
-    before = set(methods.names())
-    yield
-    for n in set(methods.names()) - before:
-        methods.unregister(n)
 
 
 def _validate(tmp_path, *args):
