@@ -18,7 +18,7 @@ from .casefiles import case_to_dict, load_case
 from .drives import BangBang, Constant, Drive, Sine, SpinUp, Table
 from .errors import InputError, SimulationError
 from .linear import Linearization, Modes, frequencies, linearize, modes
-from .model import Hub, Link, Manipulator, Payload, Section
+from .model import Hub, Link, Manipulator, Payload, RigidBody, Section
 from .resources import check_run_size
 from .result import Result, make_result, tip_deflection
 from .scenario import Scenario
@@ -33,6 +33,7 @@ __all__ = [
     "Section",
     "Hub",
     "Payload",
+    "RigidBody",
     "Link",
     "Manipulator",
     "Scenario",

@@ -13,7 +13,7 @@ from pydantic import Field, Strict, ValidationError, create_model, model_validat
 
 from .drives import LAW_FIELDS, Drive, _prefixed, law_from_table
 from .errors import InputError
-from .model import Hub, Link, Manipulator, Material, Payload, Section, _of_material
+from .model import Hub, Link, Manipulator, Material, Payload, RigidBody, Section, _of_material
 from .scenario import Scenario
 from .schema import _short, _Strict, build, check_fields, field_types, fields_model, input_error
 
@@ -79,12 +79,19 @@ class Case:
 
 # --- the file format: models composed from the fields the classes declare ---------------------
 class _OneForm(_Strict):
-    """The link-table rules: EI and rhoA, or E, rho, width and thickness; EA or inextensible."""
+    """The link-table rules: EI and rhoA, or E, rho, width and thickness; EA or inextensible;
+    or a rigid link (``rigid``: no beam data at all)."""
 
     @model_validator(mode="after")
     def _one_form(self):
         mat = [k for k in field_types(Material) if getattr(self, k) is not None]
         sec = [k for k in ("EI", "rhoA") if getattr(self, k) is not None]
+        if self.rigid is not None:
+            beam = [k for k in ("EI", "rhoA", "EA", *mat) if getattr(self, k) is not None]
+            beam += [k for k, v in (("damping", self.damping), ("inextensible", self.inextensible)) if v]
+            if beam:
+                raise InputError(beam[0], getattr(self, beam[0]), "contradicts rigid (a rigid link has no beam)")
+            return self
         if mat and sec:
             raise InputError(
                 sec[0],
@@ -120,6 +127,7 @@ LinkFile = create_model(
     damping=_SECTION["damping"],
     hub=(fields_model(Hub) | None, None),
     payload=(fields_model(Payload) | None, None),
+    rigid=(fields_model(RigidBody, ("mass", "com", "inertia")) | None, None),
 )
 
 
@@ -173,6 +181,10 @@ _DERIVED = fields_model(Section, ("EI", "rhoA", "EA"))
 
 def _link(spec, i: int) -> Link:
     w = f"model.links[{i}]"
+    hub = None if spec.hub is None else build(Hub, **dict(spec.hub), _where=f"{w}.hub")
+    pay = None if spec.payload is None else build(Payload, **dict(spec.payload), _where=f"{w}.payload")
+    if spec.rigid is not None:
+        return Link(build(RigidBody, length=spec.length, **dict(spec.rigid), _where=f"{w}.rigid"), hub, pay)
     if spec.E is not None:
         material = {k: getattr(spec, k) for k in field_types(Material)}
         ea = None if spec.inextensible else (True if spec.EA is None else spec.EA)
@@ -182,8 +194,6 @@ def _link(spec, i: int) -> Link:
         ea = None if spec.inextensible else spec.EA
         section = {"length": spec.length, "EI": spec.EI, "rhoA": spec.rhoA, "EA": ea, "damping": spec.damping}
     beam = build(Section, **section, _where=w)
-    hub = None if spec.hub is None else build(Hub, **dict(spec.hub), _where=f"{w}.hub")
-    pay = None if spec.payload is None else build(Payload, **dict(spec.payload), _where=f"{w}.payload")
     return Link(beam, hub, pay)
 
 
@@ -266,15 +276,20 @@ def case_to_dict(case: Case) -> dict:
     links = []
     for link in case.model.links:
         b = link.beam
-        d = {"length": b.length, "EI": b.EI, "rhoA": b.rhoA}
-        if b.EA is not None:
-            d["EA"] = b.EA
-        if b.damping:
-            d["damping"] = b.damping
+        if link.rigid:
+            d = {"length": b.length, "rigid": {"mass": b.mass, "com": list(b.com), "inertia": b.inertia}}
+        else:
+            d = {"length": b.length, "EI": b.EI, "rhoA": b.rhoA}
+            if b.EA is not None:
+                d["EA"] = b.EA
+            if b.damping:
+                d["damping"] = b.damping
         if link.hub is not None:
             d["hub"] = {"mass": link.hub.mass, "inertia": link.hub.inertia}
         if link.payload is not None:
             d["payload"] = {"mass": link.payload.mass, "inertia": link.payload.inertia}
+            if link.payload.offset_set:
+                d["payload"]["offset"] = list(link.payload.offset)
         links.append(d)
     out = {
         "name": case.name,

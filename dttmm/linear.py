@@ -119,7 +119,9 @@ def _check(case, elements_per_link, t, strain) -> tuple[Structure, float]:
         raise InputError("t", t, "must be a time in s") from None
     if not np.isfinite(t):
         raise InputError("t", t, "must be finite")
-    return build_structure(case, elements_per_link, strain), t
+    st = build_structure(case, elements_per_link, strain)
+    st.require_flexible("the planar linearisation (dttmm.linear; run the arm on the spatial kernel)")
+    return st, t
 
 
 def linearize(

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from .errors import InputError
 from .schema import Bounded, Checked, NonNegative, Positive, check_fields, tuple_of
 
-__all__ = ["Hub", "Link", "Manipulator", "Payload", "Section"]
+__all__ = ["Hub", "Link", "Manipulator", "Payload", "RigidBody", "Section"]
 
 
 @dataclass(frozen=True)
@@ -93,26 +93,63 @@ class Hub(_Body):
 
 @dataclass(frozen=True)
 class Payload(_Body):
-    """Rigid body at a link tip, fixed to the tip cross-section (kg, kg·m² about the tip)."""
+    """Rigid body at a link tip, fixed to the tip cross-section: mass (kg), ``offset`` (m, its
+    centre of mass in the tip frame: x along the link's tip tangent, y across; default on the
+    axis) and inertia (kg·m² about its centre of mass; with a zero offset that is the tip)."""
 
+    offset: tuple_of(Bounded, min_length=2, max_length=2) = (0.0, 0.0)
     _where: str = field(default="payload", repr=False, compare=False)
+
+    @property
+    def offset_set(self) -> bool:
+        """Whether the centre of mass is off the tip."""
+        return any(x != 0.0 for x in self.offset)
+
+
+@dataclass(frozen=True)
+class RigidBody(Checked):
+    """The body of a rigid link, in place of its beam (the planar form of
+    :class:`dttmm.spatial.SpatialRigidBody`): ``length`` L (m: the next joint, the link's tip,
+    lies L along the link's x axis), ``mass`` (kg), ``com`` (m, the centre of mass in the link
+    frame: x along the link, y across), ``inertia`` (kg·m², about the centre of mass). A rigid
+    link has no elastic coordinates."""
+
+    length: Positive
+    mass: NonNegative = 0.0
+    com: tuple_of(Bounded, min_length=2, max_length=2) = (0.0, 0.0)
+    inertia: NonNegative = 0.0
+    _where: str = field(default="rigid", repr=False, compare=False)
 
 
 @dataclass(frozen=True)
 class Link:
-    """One flexible link: its beam, an optional hub at the root and payload at the tip."""
+    """One link: its beam (a :class:`Section`: flexible) or its body (a :class:`RigidBody`:
+    rigid), an optional hub at the root and payload at the tip."""
 
-    beam: Section
+    beam: Section | RigidBody
     hub: Hub | None = None
     payload: Payload | None = None
 
     def __post_init__(self):
-        if not isinstance(self.beam, Section):
-            raise InputError("link.beam", self.beam, "must be a dttmm.Section")
+        if not isinstance(self.beam, (Section, RigidBody)):
+            raise InputError("link.beam", self.beam, "must be a dttmm.Section or a dttmm.RigidBody")
         if self.hub is not None and not isinstance(self.hub, Hub):
             raise InputError("link.hub", self.hub, "must be a dttmm.Hub or None")
         if self.payload is not None and not isinstance(self.payload, Payload):
             raise InputError("link.payload", self.payload, "must be a dttmm.Payload or None")
+
+    @property
+    def rigid(self) -> bool:
+        """Whether the link is rigid (its ``beam`` a :class:`RigidBody`)."""
+        return isinstance(self.beam, RigidBody)
+
+    @property
+    def length(self) -> float:
+        return self.beam.length
+
+    @property
+    def payload_offset(self) -> tuple:
+        return self.payload.offset if self.payload else (0.0, 0.0)
 
     @property
     def hub_mass(self) -> float:
@@ -133,7 +170,8 @@ class Link:
 
 @dataclass(frozen=True)
 class Manipulator(Checked):
-    """A planar serial arm: n revolute joints (about z) and n flexible links, base first.
+    """A planar serial arm: n revolute joints (about z) and n links (flexible or rigid), base
+    first.
 
     Joint i sits at the root of link i; joint 1 at the origin of the ground frame.
     ``gravity`` is the gravitational acceleration in the plane (m/s²).
@@ -157,3 +195,29 @@ class Manipulator(Checked):
     @property
     def n_links(self) -> int:
         return len(self.links)
+
+    @property
+    def rigid_links(self) -> tuple[int, ...]:
+        """Indices of the rigid links."""
+        return tuple(i for i, link in enumerate(self.links) if link.rigid)
+
+    @property
+    def flexible_only(self) -> bool:
+        """Whether every link is a beam and every payload sits on its tip (the arms every
+        planar method models; rigid links and offset payloads need :func:`require_flexible`'s
+        methods)."""
+        return not any(link.rigid or (link.payload is not None and link.payload.offset_set) for link in self.links)
+
+
+def require_flexible(model: Manipulator, method: str) -> None:
+    """Refuse a planar arm with a rigid link or an offset payload for a method that models
+    flexible links with bodies on the beam axis only (one line naming the field)."""
+    for i, link in enumerate(model.links):
+        if link.rigid:
+            raise InputError(f"model.links[{i}].rigid", link.beam, f"rigid links are not supported by {method}")
+        if link.payload is not None and link.payload.offset_set:
+            raise InputError(
+                f"model.links[{i}].payload.offset",
+                link.payload.offset,
+                f"an offset payload is not supported by {method}",
+            )

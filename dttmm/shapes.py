@@ -85,6 +85,13 @@ def element_shapes(st, q: np.ndarray, p: int) -> np.ndarray:
     root = np.zeros((nt, 2))
     th0 = np.zeros(nt)
     for i, lk in enumerate(st.links):
+        theta = th0 + q[:, lk.i_alpha]
+        if lk.rigid:  # straight: the stations along the link's x axis
+            x = stations(lk.length, p)
+            out[:, i] = root[:, None, :] + _rot_apply(theta[:, None], np.stack([x, np.zeros_like(x)], -1))
+            root = root + _rot_apply(theta, np.array([lk.length, 0.0]))  # the tip
+            th0 = theta
+            continue
         et, k = lk.et, lk.k
         e = q[:, lk.e_slice].reshape(nt, k, et.ne)
         phi = e[:, :, et.iphi]

@@ -51,12 +51,26 @@ def accelerations(
     require_open_loop(case, "dttmm")
     engine = driver.resolve_engine(engine)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
+    _check_plain(case, sweep)
     st = build_structure(case, elements_per_link, strain)
     q = np.asarray(q, float)
     qd = np.asarray(qd, float)
     if q.shape != (st.n_dof,) or qd.shape != (st.n_dof,):
         raise InputError("q/qd", (q.shape, qd.shape), f"must both have shape ({st.n_dof},)")
     return driver.accelerations_at(st, q, qd, t, sweep, engine)
+
+
+def _check_plain(case: Case, sweep: str) -> None:
+    """The plain sweep carries flexible links with bodies on the beam axis only."""
+    if sweep == "plain" and not case.model.flexible_only:
+        i = next(i for i, lk in enumerate(case.model.links) if lk.rigid or (lk.payload and lk.payload.offset_set))
+        what = "a rigid link" if case.model.links[i].rigid else "an offset payload"
+        raise InputError(
+            "sweep",
+            "plain",
+            f"the plain sweep takes no rigid links or offset payloads ({what} at link {i + 1}); "
+            "use sweep='riccati'",
+        )
 
 
 def _check_closed_loop(case: Case, sweep: str, engine: str) -> None:
@@ -146,6 +160,7 @@ def simulate(
     plumbing.choice("integrator", integrator, INTEGRATORS)
     plumbing.choice("sweep", sweep, tuple(SWEEPS))
     plumbing.choice("strain", strain, STRAINS)
+    _check_plain(case, sweep)
     _check_closed_loop(case, sweep, driver.resolve_engine(engine))
     shape_points = shapes.shape_points(shape_points)
     check_run_size(case, elements_per_link, h, cut_loads=cut_loads, energy=energy, shape_points=shape_points)

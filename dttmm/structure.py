@@ -29,6 +29,20 @@ class LinkLayout:
     m_hub: float
     m_pay: float
     length: float
+    rigid: bool = False  # a rigid link: no elastic coordinates, ``et`` None
+    body: tuple = (0.0, 0.0, 0.0, 0.0)  # rigid link: mass, centre of mass (x, y), inertia about it
+    pay_offset: tuple = (0.0, 0.0)  # centre of mass of the payload in the tip frame
+
+    @property
+    def ne(self) -> int:
+        """Elastic coordinates per element (0 for a rigid link)."""
+        return 0 if self.rigid else self.et.ne
+
+    @property
+    def mass(self) -> float:
+        """Mass of the link (beam or body), hub and payload."""
+        own = self.body[0] if self.rigid else self.et.m * self.k
+        return own + self.m_hub + self.m_pay
 
 
 @dataclass
@@ -48,6 +62,17 @@ class Structure:
         return len(self.links)
 
     @property
+    def flexible_only(self) -> bool:
+        """No rigid link and no offset payload (what the numpy reference sweeps model)."""
+        return self.case.model.flexible_only
+
+    def require_flexible(self, what: str) -> None:
+        """Refuse a rigid link or an offset payload for ``what`` (one line naming the field)."""
+        from .model import require_flexible
+
+        require_flexible(self.case.model, what)
+
+    @property
     def alpha_index(self) -> np.ndarray:
         return np.array([lk.i_alpha for lk in self.links])
 
@@ -55,6 +80,8 @@ class Structure:
         names = []
         for i, lk in enumerate(self.links):
             names.append(f"joint {i + 1} angle")
+            if lk.rigid:
+                continue
             comps = ("u", "v", "phi") if lk.et.ne == 3 else ("v", "phi")
             for j in range(lk.k):
                 names += [f"link {i + 1}, element {j + 1}, {c}" for c in comps]
@@ -73,6 +100,25 @@ def build_structure(case: Case, elements_per_link, strain: str = "linear") -> St
     links, off = [], 0
     for link in case.model.links:
         b = link.beam
+        if link.rigid:
+            links.append(
+                LinkLayout(
+                    et=None,
+                    k=k,
+                    i_alpha=off,
+                    e_slice=slice(off + 1, off + 1),
+                    M_hub=np.diag([link.hub_mass, link.hub_mass, link.hub_inertia]),
+                    M_pay=np.diag([link.payload_mass, link.payload_mass, link.payload_inertia]),
+                    m_hub=link.hub_mass,
+                    m_pay=link.payload_mass,
+                    length=b.length,
+                    rigid=True,
+                    body=(b.mass, float(b.com[0]), float(b.com[1]), b.inertia),
+                    pay_offset=tuple(float(x) for x in link.payload_offset),
+                )
+            )
+            off += 1
+            continue
         et = element_type(b.length / k, b.EI, b.rhoA, b.EA, b.damping, strain)
         links.append(
             LinkLayout(
@@ -85,6 +131,7 @@ def build_structure(case: Case, elements_per_link, strain: str = "linear") -> St
                 m_hub=link.hub_mass,
                 m_pay=link.payload_mass,
                 length=b.length,
+                pay_offset=tuple(float(x) for x in link.payload_offset),
             )
         )
         off += 1 + k * et.ne
@@ -134,6 +181,7 @@ def kinematics(st: Structure, q: np.ndarray, qd: np.ndarray, with_terms: bool = 
     Positions: r_O = r_I + A(θ) s_O(e), θ_O = θ + φ; across joint i: θ⁺ = θ⁻ + α_i.
     Velocities: v_O = B_a v_I + B_e ė; across joint i: θ̇⁺ = θ̇⁻ + α̇_i.
     """
+    st.require_flexible("the numpy reference kinematics (dttmm.structure; the kernel runs them)")
     g = st.gravity
     out = []
     p = np.zeros(2)

@@ -129,6 +129,7 @@ Pack = namedtuple(
         "body_pay",
         "pay_m",
         "pay_J",
+        "pay_off",
         "EA",
         "EI",
         "mu",
@@ -188,6 +189,7 @@ def pack(lay, case) -> Pack:
         body_pay=np.array(pay, np.int64),
         pay_m=np.array([m for _, m, _ in lay.payloads] + [0.0], f8),
         pay_J=np.array([J for _, _, J in lay.payloads] + [0.0], f8),
+        pay_off=np.array([*(lay.pay_offset or [(0.0, 0.0)] * len(lay.payloads)), (0.0, 0.0)], f8),
         EA=lay.EA.astype(f8),
         EI=lay.EI.astype(f8),
         mu=lay.mu.astype(f8),
@@ -369,6 +371,25 @@ def _element(P, el, e, c, s, thd, ed, bI, Mel, fel):
 
 
 @njit(cache=True)
+def _offset_payload(P, p, el, th, w, bO, M3, f3):
+    """Mass matrix M3 (3, 3) and force f3 (3,) on (r_tip, θ_tip) of payload p, its centre of
+    mass at ρ = A(θ) d from the tip: M = [[m I, m Eρ], [m (Eρ)ᵀ, J + m ρ·ρ]],
+    F = m (g − b_O + θ̇² ρ), f3 = (F, ρ × F)."""
+    mp = P.pay_m[p]
+    c, s = np.cos(th), np.sin(th)
+    rx = c * P.pay_off[p, 0] - s * P.pay_off[p, 1]
+    ry = s * P.pay_off[p, 0] + c * P.pay_off[p, 1]
+    M3[0, 0], M3[1, 1] = mp, mp
+    M3[0, 1] = M3[1, 0] = 0.0
+    M3[0, 2] = M3[2, 0] = -mp * ry
+    M3[1, 2] = M3[2, 1] = mp * rx
+    M3[2, 2] = P.pay_J[p] + mp * (rx * rx + ry * ry)
+    F0 = mp * (P.gravity[0] - bO[el, 0] + w * w * rx)
+    F1 = mp * (P.gravity[1] - bO[el, 1] + w * w * ry)
+    f3[0], f3[1], f3[2] = F0, F1, rx * F1 - ry * F0
+
+
+@njit(cache=True)
 def _to_twist(r, M6, f6, Iout, wout, Cout):
     """For a frame at r: Iout = Xᵀ M_rr X (3, 3), wout = Xᵀ f_r (3,) and, when Cout has
     rows, Cout = Xᵀ M_re (3, 3); M6 and f6 are on (r_x, r_y, θ, [u, v, φ]). The columns of
@@ -484,12 +505,17 @@ def assemble_ws(P, Wk, q, qd, M, f):
             _to_twist(rI[el], Mel, fel, Ib[b], wb[b], Cel[el])
             for r in range(6):
                 Fel[el, r] = fel[r]
-        else:
+        elif P.pay_off[p, 0] == 0.0 and P.pay_off[p, 1] == 0.0:
             mp = P.pay_m[p]
             M3[0, 0], M3[1, 1], M3[2, 2] = mp, mp, P.pay_J[p]
             f3[0] = mp * (P.gravity[0] - bO[el, 0])
             f3[1] = mp * (P.gravity[1] - bO[el, 1])
             _to_twist(rO[el], M3, f3, Ib[b], wb[b], Cel[el, 0:0])
+        else:  # centre of mass at ρ = A(θ_tip) d off the tip
+            _offset_payload(P, p, el, Wk.th[el] + e[el, 2], thd[el] + ed[el, 2], bO, M3, f3)
+            _to_twist(rO[el], M3, f3, Ib[b], wb[b], Cel[el, 0:0])
+            M3[0, 2] = M3[1, 2] = M3[2, 0] = M3[2, 1] = 0.0
+            f3[2] = 0.0
     N = P.kind.size
     G, F, Ic, W = Wk.G, Wk.F, Wk.Ic, Wk.W
     Ic[:, :] = 0.0

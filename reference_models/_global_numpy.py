@@ -66,7 +66,7 @@ class _Layout:
     mass: np.ndarray  # (Nel,) element beam mass
     hub_m: np.ndarray  # (Nel,) hub mass on the element's inboard frame
     hub_J: np.ndarray  # (Nel,) hub inertia on the element's inboard frame
-    payloads: list  # [(link, mass, inertia)]
+    payloads: list  # [(link, mass, inertia)]: inertia about the payload's centre of mass
     gravity: np.ndarray  # (2,)
     motion: np.ndarray  # (n,) bool, motion-driven joints
     free: np.ndarray  # indices of free coordinates
@@ -78,6 +78,7 @@ class _Layout:
     second: np.ndarray | None = None  # (Nel,) bool: element uses the second-order strain
     mu: np.ndarray | None = None  # (Nel,) Kelvin-Voigt damping coefficient μ (s)
     shape_points: int = 0  # points per link of Result.link_shapes (0: none)
+    pay_offset: list | None = None  # [(x, y)] per payload: its centre of mass in the tip frame
 
 
 def _shape_matrices(length: float) -> tuple[np.ndarray, np.ndarray]:
@@ -147,7 +148,10 @@ def _coordinates(links, k) -> dict:
         kind.append(0)
         owner.append(-1)
         f_pos.append(float(i * k))
-        slots = (0, 1, 2) if link.beam.EA is not None else (1, 2)
+        if link.rigid:
+            slots = ()  # a rigid link: no elastic coordinates
+        else:
+            slots = (0, 1, 2) if link.beam.EA is not None else (1, 2)
         for j in range(k):
             el = i * k + j
             for slot in slots:
@@ -173,6 +177,8 @@ def _stiffness(links, k, e_idx, n_dof) -> tuple[np.ndarray, np.ndarray]:
     K = np.zeros((n_dof, n_dof))
     D = np.zeros((n_dof, n_dof))
     for i, link in enumerate(links):
+        if link.rigid:
+            continue
         Ke = _element_stiffness(link.beam, link.beam.length / k)
         for el in range(i * k, (i + 1) * k):
             slots = np.flatnonzero(e_idx[el] >= 0)
@@ -200,18 +206,28 @@ def _layout(case, k, strain="linear") -> _Layout:
     N = len(co["names"])
     K, D = _stiffness(links, k, co["e_idx"], N)
     length = np.repeat([lk.beam.length / k for lk in links], k).astype(float)
-    rhoA = np.repeat([lk.beam.rhoA for lk in links], k).astype(float)
+    rhoA = np.repeat([0.0 if lk.rigid else lk.beam.rhoA for lk in links], k).astype(float)
     hub_m, hub_J = np.zeros(nel), np.zeros(nel)
     hub_m[::k] = [lk.hub_mass for lk in links]
     hub_J[::k] = [lk.hub_inertia for lk in links]
     payloads = [
         (i, lk.payload_mass, lk.payload_inertia) for i, lk in enumerate(links) if lk.payload is not None
     ]
+    pay_offset = [tuple(lk.payload_offset) for lk in links if lk.payload is not None]
     motion = np.array([d.kind == "motion" for d in case.scenario.drives], bool)
     presc = co["alpha_idx"][motion]
-    EA = np.repeat([0.0 if lk.beam.EA is None else float(lk.beam.EA) for lk in links], k)
-    EI = np.repeat([float(lk.beam.EI) for lk in links], k)
-    second = np.repeat([strain == "second-order" and lk.beam.EA is not None for lk in links], k)
+    EA = np.repeat([0.0 if lk.rigid or lk.beam.EA is None else float(lk.beam.EA) for lk in links], k)
+    EI = np.repeat([0.0 if lk.rigid else float(lk.beam.EI) for lk in links], k)
+    second = np.repeat([strain == "second-order" and not lk.rigid and lk.beam.EA is not None for lk in links], k)
+    moments = _moments(length, rhoA)
+    mass = rhoA * length
+    for i, lk in enumerate(links):
+        if lk.rigid:  # the body of a rigid link: on the frame of its first (massless) segment
+            b, el = lk.beam, i * k
+            d = np.array(b.com, float)
+            mass[el] = b.mass
+            moments["sigma0"][el] = b.mass * d
+            moments["c0"][el] = b.inertia + b.mass * float(d @ d)
     return _Layout(
         n_links=n,
         k=k,
@@ -224,8 +240,8 @@ def _layout(case, k, strain="linear") -> _Layout:
         rhoA=rhoA,
         K=K,
         D=D,
-        **_moments(length, rhoA),
-        mass=rhoA * length,
+        **moments,
+        mass=mass,
         hub_m=hub_m,
         hub_J=hub_J,
         payloads=payloads,
@@ -238,7 +254,8 @@ def _layout(case, k, strain="linear") -> _Layout:
         EA=EA,
         EI=EI,
         second=second,
-        mu=np.repeat([float(lk.beam.damping) for lk in links], k),
+        mu=np.repeat([0.0 if lk.rigid else float(lk.beam.damping) for lk in links], k),
+        pay_offset=pay_offset,
     )
 
 
@@ -544,8 +561,22 @@ def _bodies(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> _Bodies:
     Jpay, Mpay, fpay = [], [], []
     for p, (_, mp, Jp) in enumerate(lay.payloads):
         Jpay.append(np.vstack([Jr[nel + p], Jt[nel + p]]))
-        Mpay.append(np.array([mp, mp, Jp]))
-        fpay.append(np.concatenate([mp * (lay.gravity - bO[tips[p]]), [0.0]]))
+        d = lay.pay_offset[p]
+        if d[0] == 0.0 and d[1] == 0.0:
+            Mpay.append(np.array([mp, mp, Jp]))
+            fpay.append(np.concatenate([mp * (lay.gravity - bO[tips[p]]), [0.0]]))
+        else:  # centre of mass at ρ = A(θ_tip) d: M = [[m I, m Eρ], [m (Eρ)ᵀ, J + m ρ·ρ]]
+            el = tips[p]
+            th, w = fr.theta[el] + fr.e[el, 2], thd[el] + ed[el, 2]
+            rho = _matvec(_rot(np.array([th]))[0], np.array(d, float))
+            Erho = np.array([-rho[1], rho[0]])
+            M3 = np.zeros((3, 3))
+            M3[0, 0] = M3[1, 1] = mp
+            M3[0:2, 2] = M3[2, 0:2] = mp * Erho
+            M3[2, 2] = Jp + mp * float(rho @ rho)
+            F = mp * (lay.gravity - bO[el] + w * w * rho)
+            Mpay.append(M3)
+            fpay.append(np.array([F[0], F[1], float(Erho @ F)]))
     return _Bodies(J, Mel, fel, Jpay, Mpay, fpay)
 
 
@@ -560,7 +591,7 @@ def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
     M = Jf.T @ (b.Mel @ b.J).reshape(nel * 6, -1)
     f = Jf.T @ b.fel.reshape(-1)
     for Jb, Mp, fb in zip(b.Jpay, b.Mpay, b.fpay):
-        M += Jb.T @ (Mp[:, None] * Jb)
+        M += Jb.T @ (Mp[:, None] * Jb if Mp.ndim == 1 else Mp @ Jb)
         f += Jb.T @ fb
     return 0.5 * (M + M.T), f
 
@@ -572,7 +603,7 @@ def _kinetic(lay: _Layout, q: np.ndarray, qd: np.ndarray) -> float:
     T = 0.5 * np.einsum("ei,eij,ej->", pd, b.Mel, pd)
     for Jb, Mp in zip(b.Jpay, b.Mpay):
         v = Jb @ qd
-        T += 0.5 * v @ (Mp * v)
+        T += 0.5 * v @ (Mp * v if Mp.ndim == 1 else Mp @ v)
     return float(T)
 
 
@@ -843,8 +874,12 @@ def _energy(lay: _Layout, q: np.ndarray, qd: np.ndarray, kinetic=None) -> dict:
     sigma = lay.sigma0 + _matvec(lay.Sbar, fr.e)
     first = (lay.mass + lay.hub_m)[:, None] * fr.rI + _matvec(fr.A, sigma)
     moment = first.sum(axis=0)
-    for i, mp, _ in lay.payloads:
+    for p, (i, mp, _) in enumerate(lay.payloads):
         moment = moment + mp * fr.rO[lay.last_el[i]]
+        if lay.pay_offset[p] != (0.0, 0.0):  # its centre of mass off the tip
+            el = lay.last_el[i]
+            th = fr.theta[el] + fr.e[el, 2]
+            moment = moment + mp * _matvec(_rot(np.array([th]))[0], np.array(lay.pay_offset[p], float))
     T = _kinetic(lay, q, qd) if kinetic is None else kinetic(q, qd)
     return {"kinetic": T, "elastic": _strain_energy(lay, q), "gravity": -float(lay.gravity @ moment)}
 

@@ -567,7 +567,7 @@ def energy_scale(structure: Structure, t, energy, torque, rate) -> float:
     """Energy scale (J) of a run: the largest of the energy's range, the work of the joint
     torques ∫ Σ|τ α̇| dt (trapezoid on the output grid) and m |g| L (total mass, gravity,
     summed link lengths)."""
-    mass = sum(lk.et.m * lk.k + lk.m_hub + lk.m_pay for lk in structure.links)
+    mass = sum(lk.mass for lk in structure.links)
     mgl = mass * float(np.linalg.norm(structure.gravity)) * sum(lk.length for lk in structure.links)
     p = np.sum(np.abs(torque * rate), axis=1)
     work = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))) if t.size > 1 else 0.0

@@ -45,7 +45,8 @@ def coord_base(e_start, ne, pad, j):
 
 @njit(nrt=False)
 def angles(md, q, qd, data):
-    """Kinematic pass (base → tip): frame cos/sin and rate of every element, padded e and ė."""
+    """Kinematic pass (base → tip): frame cos/sin and rate of every element, padded e and ė
+    (a rigid link's segments: its root frame, e = ė = 0 as zeroed by :func:`make_data`)."""
     k = md.k
     th0 = 0.0
     thd0 = 0.0
@@ -56,6 +57,15 @@ def angles(md, q, qd, data):
         thd = thd0 + qd[md.i_alpha[i]]
         cth = math.cos(th)
         sth = math.sin(th)
+        if md.rigid[i]:  # rigid link: every segment in the root frame, no elastic coordinates
+            for j in range(k):
+                g = i * k + j
+                data.c[g] = cth
+                data.s[g] = sth
+                data.td[g] = thd
+            th0 = th
+            thd0 = thd
+            continue
         b = 0
         for j in range(k):
             g = i * k + j
@@ -92,6 +102,8 @@ def elastic_known(md, qt, qdt, data):
         off = md.pad[i]
         es, ne = md.e_start[i], md.ne[i]
         so = md.second_order[i]
+        if md.rigid[i]:  # no elastic coordinates: f_known stays zero
+            continue
         for j in range(k):
             g = i * k + j
             b = coord_base(es, ne, off, j)

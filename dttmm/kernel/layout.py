@@ -64,6 +64,12 @@ class Model(NamedTuple):
     m_pay: np.ndarray  # (n,) payload mass and inertia (tip of link i)
     J_pay: np.ndarray
     dummy: np.ndarray  # (n,) 1.0 for the padded dummy u of an inextensible link
+    rigid: np.ndarray  # (n,) bool: a rigid link (ne = 0; its k element slots are rigid massless
+    #                    segments of length sO0[i, 0] = L/k, its body at the root)
+    body: np.ndarray  # (n, 4) rigid link's body: mass, centre of mass (x, y) in the link frame,
+    #                   inertia about the centre of mass
+    pay_off: np.ndarray  # (n, 2) payload's centre of mass in the tip frame
+    pay_offset: np.ndarray  # (n,) bool: the payload's centre of mass is off the tip
     second_order: np.ndarray  # (n,) bool: axial strain u/l + ½ wᵀGw
     EA: np.ndarray  # (n,) second-order strain constants: EA, 1/l, EA·l, G (2, 2)
     inv_l: np.ndarray
@@ -115,8 +121,21 @@ def build_model(structure) -> Model:
     )
     ne, pad = np.zeros(n, np.int64), np.zeros(n, np.int64)
     second_order = np.zeros(n, np.bool_)
+    rigid, pay_offset = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    body, pay_off = np.zeros((n, 4)), np.zeros((n, 2))
     lim = np.full(structure.n_dof, np.inf)
     for i, lk in enumerate(structure.links):
+        f["m_hub"][i], f["J_hub"][i] = lk.m_hub, lk.M_hub[2, 2]
+        f["m_pay"][i], f["J_pay"][i] = lk.m_pay, lk.M_pay[2, 2]
+        pay_off[i] = lk.pay_offset
+        pay_offset[i] = any(x != 0.0 for x in lk.pay_offset)
+        if lk.rigid:
+            rigid[i] = True
+            ne[i], pad[i] = 0, 3
+            body[i] = lk.body
+            f["sO0"][i, 0] = lk.length / lk.k
+            f["dummy"][i] = 1.0
+            continue
         et = lk.et
         p = 3 - et.ne
         ne[i], pad[i] = et.ne, p
@@ -131,8 +150,6 @@ def build_model(structure) -> Model:
         for name, mat in (("D2", et.D2), ("CSS", et.C_SS), ("CSES", et.C_SES), ("K", et.K), ("D", et.D)):
             f[name][i, p:, p:] = mat
         f["su"][i] = et.SO[0, 0] if et.ne == 3 else 0.0
-        f["m_hub"][i], f["J_hub"][i] = lk.m_hub, lk.M_hub[2, 2]
-        f["m_pay"][i], f["J_pay"][i] = lk.m_pay, lk.M_pay[2, 2]
         f["dummy"][i] = 1.0 if p else 0.0
         _check_pattern(f, i)
         if et.second_order:
@@ -158,6 +175,10 @@ def build_model(structure) -> Model:
         im=np.ascontiguousarray(ia[structure.motion]),
         lim=lim,
         second_order=second_order,
+        rigid=rigid,
+        body=body,
+        pay_off=pay_off,
+        pay_offset=pay_offset,
         **f,
     )
 

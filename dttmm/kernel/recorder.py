@@ -93,6 +93,27 @@ def _energy(lc, md, i, frame, e, f):
     return 0.5 * (Taa + 2.0 * Tae + Tee) + 0.5 * Vee, comx * g0 + comy * g1
 
 
+@njit(inline="always")
+def _body_energy(mass, inertia, dx, dy, c, s, thd, vx, vy):
+    """Kinetic energy of a rigid body fixed to a frame (cos θ, sin θ, rate θ̇) whose origin
+    moves at (vx, vy), its centre of mass at d = (dx, dy) in the frame, ``inertia`` about the
+    centre of mass; and m ρ = m A(θ) d (the first moment about the origin, for gravity)."""
+    rx = c * dx - s * dy
+    ry = s * dx + c * dy
+    ux = vx - thd * ry
+    uy = vy + thd * rx
+    return 0.5 * (mass * (ux * ux + uy * uy) + inertia * thd * thd), (mass * rx, mass * ry)
+
+
+@njit(inline="always")
+def _payload_energy(md, i, c, s, thd, vx, vy, px, py, g0, g1):
+    """Kinetic + gravitational energy of the payload of link i (tip frame cos, sin, rate; tip
+    position and velocity)."""
+    m = md.m_pay[i]
+    t, w = _body_energy(m, md.J_pay[i], md.pay_off[i, 0], md.pay_off[i, 1], c, s, thd, vx, vy)
+    return t - (m * (px * g0 + py * g1) + w[0] * g0 + w[1] * g1)
+
+
 @njit(nrt=False)
 def sample(md, q, qd, j, rec):
     """Link roots, tips, root angles and (if recorded) the total energy at the state (q, q̇),
@@ -115,6 +136,25 @@ def sample(md, q, qd, j, rec):
         if want_energy:
             mh, jh = md.m_hub[i], md.J_hub[i]
             etot += 0.5 * (mh * (vx * vx + vy * vy) + jh * thd * thd) - mh * (px * g0 + py * g1)
+        if md.rigid[i]:  # straight segments of length L/k in the root frame; the body at the root
+            c = math.cos(th)
+            s = math.sin(th)
+            if want_energy:
+                tb, wb = _body_energy(md.body[i, 0], md.body[i, 3], md.body[i, 1], md.body[i, 2], c, s, thd, vx, vy)
+                etot += tb - (md.body[i, 0] * (px * g0 + py * g1) + wb[0] * g0 + wb[1] * g1)
+            ls = md.sO0[i, 0]
+            for _jj in range(md.k):
+                px += c * ls
+                py += s * ls
+                vx += -thd * s * ls
+                vy += thd * c * ls
+            rec.tip[j, i, 0] = px
+            rec.tip[j, i, 1] = py
+            if want_energy:
+                etot += _payload_energy(md, i, c, s, thd, vx, vy, px, py, g0, g1)
+            th0 = th
+            thd0 = thd
+            continue
         lc = link_constants(md, i, g0, g1)
         c = math.cos(th)
         s = math.sin(th)
@@ -147,8 +187,11 @@ def sample(md, q, qd, j, rec):
         rec.tip[j, i, 0] = px
         rec.tip[j, i, 1] = py
         if want_energy:
-            mp, jp = md.m_pay[i], md.J_pay[i]
-            etot += 0.5 * (mp * (vx * vx + vy * vy) + jp * thd * thd) - mp * (px * g0 + py * g1)
+            if md.pay_offset[i]:
+                etot += _payload_energy(md, i, math.cos(th), math.sin(th), thd, vx, vy, px, py, g0, g1)
+            else:
+                mp, jp = md.m_pay[i], md.J_pay[i]
+                etot += 0.5 * (mp * (vx * vx + vy * vy) + jp * thd * thd) - mp * (px * g0 + py * g1)
         th0 = th
         thd0 = thd
     if want_energy:

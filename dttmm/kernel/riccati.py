@@ -14,6 +14,8 @@ and factoring the 3×3 SPD block H by LDLᵀ.
 
 from __future__ import annotations
 
+import math
+
 from ._jit import CONTRACT, njit
 from .element import coord_base, element_terms, second_order_damping, second_order_terms
 
@@ -242,8 +244,23 @@ def backward(md, data, tau, acc):
     g1 = md.grav[1]
     Pc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for i in range(md.n - 1, -1, -1):
-        Pc = _rigid_body(Pc, md.m_pay[i], md.J_pay[i], g0, g1)  # payload at the tip of link i
+        if md.pay_offset[i]:  # payload with its centre of mass off the tip, in the tip frame
+            gl = i * k + k - 1
+            cf = math.cos(data.e[gl, 2])
+            sf = math.sin(data.e[gl, 2])
+            ct = data.c[gl] * cf - data.s[gl] * sf
+            st = data.s[gl] * cf + data.c[gl] * sf
+            tdt = data.td[gl] + data.ed[gl, 2]
+            Pc = _offset_body(Pc, md.m_pay[i], md.J_pay[i], md.pay_off[i, 0], md.pay_off[i, 1], ct, st, tdt, g0, g1)
+        else:
+            Pc = _rigid_body(Pc, md.m_pay[i], md.J_pay[i], g0, g1)  # payload at the tip of link i
         _store_Pc(data.P_tip, data.c_tip, i, Pc)
+        if md.rigid[i]:
+            Pc = _rigid_link(md, data, i, Pc, g0, g1)
+            hub, Pc, gains = _joint(md.m_hub[i], md.J_hub[i], md.motion[i], tau[i], acc[i], Pc, g0, g1)
+            _store_Pc(data.P_hub, data.c_hub, i, hub)
+            data.ga[i, 0], data.ga[i, 1], data.ga[i, 2], data.g0[i] = gains
+            continue
         m = md.m[i]
         lc = (
             m,
@@ -325,6 +342,70 @@ def backward(md, data, tau, acc):
 
 
 @njit(fastmath=CONTRACT, inline="always")
+def _rigid_link(md, data, i, Pc, g0, g1):
+    """Carry (P, c) = ``Pc`` from the tip of rigid link i to its root through its k rigid
+    massless segments (the element step without elastic coordinates: P_I = B_aᵀ P B_a,
+    c_I = B_aᵀ(P γ̄_O + c), lever arm r = A(θ)(L/k, 0), γ̄_O = −θ̇² r), adding its body at the
+    root; stores what the forward sweep and the cut loads read (zero gains) and returns (P, c)
+    at the root."""
+    k = md.k
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
+    ls = md.sO0[i, 0]
+    for j in range(k - 1, -1, -1):
+        g = i * k + j
+        c = data.c[g]
+        s = data.s[g]
+        td = data.td[g]
+        rx = c * ls
+        ry = s * ls
+        gb0 = -td * td * rx
+        gb1 = -td * td * ry
+        rho0 = p00 * gb0 + p01 * gb1 + c0
+        rho1 = p01 * gb0 + p11 * gb1 + c1
+        rho2 = p02 * gb0 + p12 * gb1 + c2
+        u0 = -ry * p00 + rx * p01 + p02
+        u1 = -ry * p01 + rx * p11 + p12
+        u2 = -ry * p02 + rx * p12 + p22
+        p22 = -ry * u0 + rx * u1 + u2
+        p02 = u0
+        p12 = u1
+        c0 = rho0
+        c1 = rho1
+        c2 = -ry * rho0 + rx * rho1 + rho2
+        Pc = (p00, p01, p02, p11, p12, p22, c0, c1, c2)
+        if j == 0:  # the link's body, at the root
+            Pc = _offset_body(Pc, md.body[i, 0], md.body[i, 3], md.body[i, 1], md.body[i, 2], c, s, td, g0, g1)
+            p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
+        for r in range(3):
+            data.k0[g, r] = 0.0
+            for t in range(3):
+                data.Ka[g, r, t] = 0.0
+        _store_Pc(data.P, data.c_I, g, Pc)
+        data.rso[g, 0], data.rso[g, 1], data.gbar[g, 0], data.gbar[g, 1] = rx, ry, gb0, gb1
+    return Pc
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def _offset_body(Pc, mass, inertia, dx, dy, c, s, td, g0, g1):
+    """(P, c) across a rigid body fixed to the frame (c = cos θ, s = sin θ, rate θ̇) at the cut,
+    its centre of mass at d = (dx, dy) in the frame, ``inertia`` about the centre of mass:
+    with ρ = A(θ) d, F = m (a + θ̈ E ρ − θ̇² ρ − g) and M = J θ̈ + ρ × F."""
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
+    rx = c * dx - s * dy
+    ry = s * dx + c * dy
+    mw = mass * td * td
+    p00 += mass
+    p11 += mass
+    p02 -= mass * ry
+    p12 += mass * rx
+    p22 += inertia + mass * (rx * rx + ry * ry)
+    c0 -= mw * rx + mass * g0
+    c1 -= mw * ry + mass * g1
+    c2 -= mass * (rx * g1 - ry * g0)
+    return p00, p01, p02, p11, p12, p22, c0, c1, c2
+
+
+@njit(fastmath=CONTRACT, inline="always")
 def _rigid_body(Pc, mass, inertia, g0, g1):
     """(P, c) across a rigid body at the cut: P += diag(m, m, J), c −= m g."""
     p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
@@ -366,11 +447,12 @@ def forward(md, data, xout, torque):
             q0 = data.Ka[g, 0, 0] * a0 + data.Ka[g, 0, 1] * a1 + data.Ka[g, 0, 2] * a2 + data.k0[g, 0]
             q1 = data.Ka[g, 1, 0] * a0 + data.Ka[g, 1, 1] * a1 + data.Ka[g, 1, 2] * a2 + data.k0[g, 1]
             q2 = data.Ka[g, 2, 0] * a0 + data.Ka[g, 2, 1] * a1 + data.Ka[g, 2, 2] * a2 + data.k0[g, 2]
-            b = coord_base(es, ne, off, j)
-            if not off:
-                xout[b] = q0
-            xout[b + 1] = q1
-            xout[b + 2] = q2
+            if ne:  # a rigid link (ne = 0) has no elastic coordinates
+                b = coord_base(es, ne, off, j)
+                if not off:
+                    xout[b] = q0
+                xout[b + 1] = q1
+                xout[b + 2] = q2
             c = data.c[g]
             s = data.s[g]
             rx = data.rso[g, 0]
