@@ -90,7 +90,9 @@ class _OneForm(_Strict):
             beam = [k for k in ("EI", "rhoA", "EA", *mat) if getattr(self, k) is not None]
             beam += [k for k, v in (("damping", self.damping), ("inextensible", self.inextensible)) if v]
             if beam:
-                raise InputError(beam[0], getattr(self, beam[0]), "contradicts rigid (a rigid link has no beam)")
+                raise InputError(
+                    beam[0], getattr(self, beam[0]), "contradicts rigid (a rigid link has no beam)"
+                )
             return self
         if mat and sec:
             raise InputError(

@@ -130,16 +130,38 @@ def pd_torque(kp, kd, ki, gm, limit, j_hub, ff, a_ref, r_ref, z, alpha, rate, om
 
 # --- the rigid model -------------------------------------------------------------------------
 def _rigid_links(case):
-    """Per link: length L, mass m, first moment s about the joint (along the link) and inertia
-    I about the joint of the rigid link (hub + uniform rod + payload)."""
+    """Per link: length L, mass m, first moment about the joint along the link s and across it
+    s_y, and inertia I about the joint of the rigid link (hub + uniform rod or the rigid link's
+    body + payload, its centre of mass offset in the tip frame)."""
     rows = []
     for lk in case.model.links:
-        L, m_rod = lk.beam.length, lk.beam.mass
-        m_p = lk.payload_mass
+        L, m_p = lk.beam.length, lk.payload_mass
+        ox, oy = lk.payload_offset
+        if lk.rigid:
+            b = lk.beam
+            cx, cy = b.com
+            m = lk.hub_mass + b.mass + m_p
+            s = b.mass * cx + m_p * (L + ox)
+            sy = b.mass * cy + m_p * oy
+            inertia = (
+                lk.hub_inertia
+                + b.inertia
+                + b.mass * (cx * cx + cy * cy)
+                + lk.payload_inertia
+                + m_p * ((L + ox) ** 2 + oy * oy)
+            )
+            rows.append((L, m, s, inertia, sy))
+            continue
+        m_rod = lk.beam.mass
         m = lk.hub_mass + m_rod + m_p
         s = m_rod * L / 2.0 + m_p * L
         inertia = lk.hub_inertia + m_rod * L * L / 3.0 + m_p * L * L + lk.payload_inertia
-        rows.append((L, m, s, inertia))
+        sy = 0.0
+        if ox or oy:
+            s += m_p * ox
+            sy = m_p * oy
+            inertia += m_p * (2.0 * L * ox + ox * ox + oy * oy)
+        rows.append((L, m, s, inertia, sy))
     return np.array(rows, float)
 
 
@@ -172,13 +194,16 @@ def rigid_inverse_dynamics(case, q, qd, qdd) -> np.ndarray:
     n_out = np.zeros(lead)  # moment on it
     tau = np.zeros((*lead, n))
     for i in range(n - 1, -1, -1):
-        L, m, s, inertia = par[i]
+        L, m, s, inertia, sy = par[i]
         e, a0 = e_axis[i], acc_origin[i]
         ep = np.stack([-e[..., 1], e[..., 0]], axis=-1)
         # m × the acceleration of the centre of mass (at s/m along the link)
         f_in = m * a0 + (s * wd[..., i, None]) * ep - (s * w[..., i] ** 2)[..., None] * e + f_out
         # moments about joint i: I ω̇ + s e × a_0 + L e × f_out + n_out
         n_in = inertia * wd[..., i] + s * cross(e, a0) + L * cross(e, f_out) + n_out
+        if sy:  # the part s_y e⊥ of the first moment across the link
+            f_in = f_in - (sy * wd[..., i, None]) * e - (sy * w[..., i] ** 2)[..., None] * ep
+            n_in = n_in + sy * cross(ep, a0)
         tau[..., i] = n_in
         f_out, n_out = f_in, n_in
     return tau

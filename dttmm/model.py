@@ -206,7 +206,9 @@ class Manipulator(Checked):
         """Whether every link is a beam and every payload sits on its tip (the arms every
         planar method models; rigid links and offset payloads need :func:`require_flexible`'s
         methods)."""
-        return not any(link.rigid or (link.payload is not None and link.payload.offset_set) for link in self.links)
+        return not any(
+            link.rigid or (link.payload is not None and link.payload.offset_set) for link in self.links
+        )
 
 
 def require_flexible(model: Manipulator, method: str) -> None:
@@ -214,7 +216,9 @@ def require_flexible(model: Manipulator, method: str) -> None:
     flexible links with bodies on the beam axis only (one line naming the field)."""
     for i, link in enumerate(model.links):
         if link.rigid:
-            raise InputError(f"model.links[{i}].rigid", link.beam, f"rigid links are not supported by {method}")
+            raise InputError(
+                f"model.links[{i}].rigid", link.beam, f"rigid links are not supported by {method}"
+            )
         if link.payload is not None and link.payload.offset_set:
             raise InputError(
                 f"model.links[{i}].payload.offset",

@@ -63,7 +63,9 @@ def accelerations(
 def _check_plain(case: Case, sweep: str) -> None:
     """The plain sweep carries flexible links with bodies on the beam axis only."""
     if sweep == "plain" and not case.model.flexible_only:
-        i = next(i for i, lk in enumerate(case.model.links) if lk.rigid or (lk.payload and lk.payload.offset_set))
+        i = next(
+            i for i, lk in enumerate(case.model.links) if lk.rigid or (lk.payload and lk.payload.offset_set)
+        )
         what = "a rigid link" if case.model.links[i].rigid else "an offset payload"
         raise InputError(
             "sweep",

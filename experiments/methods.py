@@ -168,6 +168,8 @@ class Method:
         root bending moment of a spatial arm needs them); ``spatial_loads_note``: why its
         spatial runs give no root bending moment, when there is more to say than that they
         record no cut loads
+    rigid_links : it runs planar arms with rigid links and payloads off the tip (False: it sits
+        such a case out, with the reason)
     """
 
     name: str
@@ -204,6 +206,7 @@ class Method:
     spatial_label: str = ""
     spatial_cut_loads: bool = False
     spatial_loads_note: str = ""
+    rigid_links: bool = False
 
     def __post_init__(self):
         from dttmm.errors import InputError
@@ -238,9 +241,14 @@ class Method:
 
     def why_not_case(self, case) -> str:
         """Why the method cannot run ``case`` ('' when it can): a spatial arm needs a
-        ``spatial`` entry, and passes its ``spatial_check``."""
+        ``spatial`` entry, and passes its ``spatial_check``; a planar arm with rigid links or an
+        offset payload needs ``rigid_links``."""
         if not is_spatial(case):
-            return ""
+            if self.rigid_links or getattr(case.model, "flexible_only", True):
+                return ""
+            return (
+                "no rigid links or offset payloads (planar arms of flexible links, bodies on the beam axis)"
+            )
         if not self.spatial:
             return "no spatial engine (planar arms only)"
         return _spatial_refusal(self.spatial_check, case) if self.spatial_check else ""
@@ -437,6 +445,7 @@ _BUILTIN = (
         "dttmm",
         "dttmm",
         (("integrator", "newmark"),),
+        rigid_links=True,
         role="subject",
         physics=Physics("hermite-fe", "linear"),
         libraries=_DTTMM_LIBS,
@@ -453,6 +462,7 @@ _BUILTIN = (
         "dttmm-rk4",
         "dttmm",
         (("integrator", "rk4"),),
+        rigid_links=True,
         role="subject",
         physics=Physics("hermite-fe", "linear"),
         libraries=_DTTMM_LIBS,
@@ -476,6 +486,7 @@ _BUILTIN = (
         "dttmm-2nd",
         "dttmm",
         (("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
+        rigid_links=True,
         role="subject",
         physics=Physics("hermite-fe", "nonlinear"),
         libraries=_DTTMM_LIBS,
@@ -499,6 +510,7 @@ _BUILTIN = (
         "global",
         "reference_models.global_newmark",
         (("integrator", "newmark"), ("engine", "numba")),
+        rigid_links=True,
         role="reference",
         physics=Physics("hermite-fe", "linear"),
         libraries=_DTTMM_LIBS,
@@ -532,6 +544,7 @@ _BUILTIN = (
             ("rho_inf", 0.8),
             ("engine", "numba"),
         ),
+        rigid_links=True,
         role="reference",
         physics=Physics("hermite-fe", "nonlinear"),
         libraries=_DTTMM_LIBS,
@@ -708,6 +721,7 @@ _BUILTIN = (
         "pinocchio-rigid",
         "reference_models.pinocchio_rigid",
         (("integrator", "rk4"),),
+        rigid_links=True,
         role="baseline",
         physics=Physics("rigid", "rigid"),
         discretisation=None,

@@ -75,6 +75,7 @@ import numpy as np
 
 from dttmm import InputError, SimulationError, make_result, plumbing
 from dttmm.case import Case
+from dttmm.model import require_flexible
 from dttmm.shapes import hermite_shapes, stations
 from dttmm.shapes import shape_points as _shape_points
 
@@ -110,6 +111,7 @@ def stiff_axial_stiffness(beam, ratio: float = INEXTENSIBLE_AXIAL_RATIO) -> floa
 def check_discretisation(case, elements_per_link, h) -> tuple[int, float, int, int]:
     """Validate (k, h) against the case. Returns (k, h, n_steps, steps_per_output)."""
     k, h = plumbing.discretisation(case, elements_per_link, h)
+    require_flexible(case.model, "the Exudyn beams (flexible links, bodies on the beam axis)")
     sc = case.scenario
     ratio = sc.output_step / h
     per_out = int(round(ratio))

@@ -218,7 +218,9 @@ def _layout(case, k, strain="linear") -> _Layout:
     presc = co["alpha_idx"][motion]
     EA = np.repeat([0.0 if lk.rigid or lk.beam.EA is None else float(lk.beam.EA) for lk in links], k)
     EI = np.repeat([0.0 if lk.rigid else float(lk.beam.EI) for lk in links], k)
-    second = np.repeat([strain == "second-order" and not lk.rigid and lk.beam.EA is not None for lk in links], k)
+    second = np.repeat(
+        [strain == "second-order" and not lk.rigid and lk.beam.EA is not None for lk in links], k
+    )
     moments = _moments(length, rhoA)
     mass = rhoA * length
     for i, lk in enumerate(links):

@@ -55,6 +55,7 @@ import numpy as np
 
 from dttmm.control import CODE_USER, gains, time_tables
 from dttmm.errors import InputError
+from dttmm.model import require_flexible
 from dttmm.plumbing import (
     choice,
     newmark_family,
@@ -370,6 +371,7 @@ def simulate(
         non-finite state; ``partial`` holds the outputs up to the last good step.
     """
     N, h, fam, opts = _check(case, elements_per_link, h, variant, integrator, boundary, options)
+    require_flexible(case.model, "assumed modes (flexible links, bodies on the beam axis)")
     scen = case.scenario
     T_end, restart = step_schedule(scen.duration, h, scen.breakpoints)
     T = np.concatenate([[0.0], T_end])

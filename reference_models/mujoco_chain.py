@@ -52,6 +52,7 @@ import numpy as np
 from dttmm import plumbing
 from dttmm.drives import ControlState, require_no_computed_torque
 from dttmm.errors import InputError, SimulationError
+from dttmm.model import require_flexible
 from dttmm.plumbing import versions
 from dttmm.result import make_result
 from dttmm.shapes import polyline_shapes, shape_points, stations
@@ -68,6 +69,7 @@ _BLOCK_BYTES = 8 << 20  # state rows returned per rollout call, at most this man
 def _check(case, k, h, integrator, options):
     """Validated (k, h, opts); raises InputError naming the field."""
     k, h = plumbing.discretisation(case, k, h)
+    require_flexible(case.model, "the MuJoCo chain (flexible links, bodies on the beam axis)")
     if integrator not in INTEGRATORS:
         raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
     for key in options:

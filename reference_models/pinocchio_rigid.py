@@ -1,9 +1,11 @@
 """Rigid-link baseline by Pinocchio: the limit of infinitely stiff links.
 
-Every link is a uniform rigid rod (mass ρA·L, inertia mL²/12 about its centre); a hub is a
+Every flexible link is a uniform rigid rod (mass ρA·L, inertia mL²/12 about its centre), a rigid
+link its own body (mass, centre of mass (x, y) in the link frame, inertia J about it); a hub is a
 rigid body at the link root (mass at the joint, inertia J about it), a payload one at the link
-tip. Joint i is revolute about z at the tip of link i−1 (joint 1 at the origin); q is the
-vector of joint angles (CCW). Gravity is ``model.gravity`` in the x–y plane.
+tip (its centre of mass at its offset in the tip frame, J about it). Joint i is revolute about
+z at the tip of link i−1 (joint 1 at the origin); q is the vector of joint angles (CCW).
+Gravity is ``model.gravity`` in the x–y plane.
 
 Torque-driven joints follow forward dynamics with τ = drive.torque(t); motion-driven joints
 follow their law and their torque comes from inverse dynamics (RNEA). With both kinds the free
@@ -62,14 +64,19 @@ def build_model(manipulator) -> pin.Model:
     for i, link in enumerate(manipulator.links, start=1):
         L, m = link.beam.length, link.beam.mass
         jid = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i}")
-        rod = pin.Inertia(m, np.array([L / 2, 0.0, 0.0]), np.diag([0.0, m * L * L / 12, m * L * L / 12]))
+        if link.rigid:  # the case's body: centre of mass (x, y) in the link frame, J about it
+            b = link.beam
+            rod = pin.Inertia(m, np.array([b.com[0], b.com[1], 0.0]), np.diag([b.inertia] * 3))
+        else:
+            rod = pin.Inertia(m, np.array([L / 2, 0.0, 0.0]), np.diag([0.0, m * L * L / 12, m * L * L / 12]))
         model.appendBodyToJoint(jid, rod, pin.SE3.Identity())
         if link.hub is not None:
             hub = pin.Inertia(link.hub.mass, np.zeros(3), np.diag([0.0, 0.0, link.hub.inertia]))
             model.appendBodyToJoint(jid, hub, pin.SE3.Identity())
         tip = pin.SE3(np.eye(3), np.array([L, 0.0, 0.0]))
         if link.payload is not None:
-            pay = pin.Inertia(link.payload.mass, np.zeros(3), np.diag([0.0, 0.0, link.payload.inertia]))
+            off = np.array([*link.payload.offset, 0.0])  # its centre of mass in the tip frame
+            pay = pin.Inertia(link.payload.mass, off, np.diag([0.0, 0.0, link.payload.inertia]))
             model.appendBodyToJoint(jid, pay, tip)
         model.addJointFrame(jid)
         # pure marker frames: append_inertia=False leaves the body untouched

@@ -22,6 +22,8 @@ DOCUMENTED = {
     "ModelFile": case.ModelFile,
     "LinkFile": case.LinkFile,
     "BodyFields": fields_model(model.Hub),
+    "PayloadFields": fields_model(model.Payload),
+    "RigidBodyFields": fields_model(model.RigidBody, ("mass", "com", "inertia")),
     "ScenarioFile": case.ScenarioFile,
     "DriveFields": fields_model(drives.Drive),
     **{f"{drives.LAWS[n].__name__}Fields": m for n, m in drives.LAW_FIELDS.items()},

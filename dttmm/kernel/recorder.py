@@ -140,7 +140,9 @@ def sample(md, q, qd, j, rec):
             c = math.cos(th)
             s = math.sin(th)
             if want_energy:
-                tb, wb = _body_energy(md.body[i, 0], md.body[i, 3], md.body[i, 1], md.body[i, 2], c, s, thd, vx, vy)
+                tb, wb = _body_energy(
+                    md.body[i, 0], md.body[i, 3], md.body[i, 1], md.body[i, 2], c, s, thd, vx, vy
+                )
                 etot += tb - (md.body[i, 0] * (px * g0 + py * g1) + wb[0] * g0 + wb[1] * g1)
             ls = md.sO0[i, 0]
             for _jj in range(md.k):

@@ -251,7 +251,9 @@ def backward(md, data, tau, acc):
             ct = data.c[gl] * cf - data.s[gl] * sf
             st = data.s[gl] * cf + data.c[gl] * sf
             tdt = data.td[gl] + data.ed[gl, 2]
-            Pc = _offset_body(Pc, md.m_pay[i], md.J_pay[i], md.pay_off[i, 0], md.pay_off[i, 1], ct, st, tdt, g0, g1)
+            Pc = _offset_body(
+                Pc, md.m_pay[i], md.J_pay[i], md.pay_off[i, 0], md.pay_off[i, 1], ct, st, tdt, g0, g1
+            )
         else:
             Pc = _rigid_body(Pc, md.m_pay[i], md.J_pay[i], g0, g1)  # payload at the tip of link i
         _store_Pc(data.P_tip, data.c_tip, i, Pc)
@@ -374,7 +376,9 @@ def _rigid_link(md, data, i, Pc, g0, g1):
         c2 = -ry * rho0 + rx * rho1 + rho2
         Pc = (p00, p01, p02, p11, p12, p22, c0, c1, c2)
         if j == 0:  # the link's body, at the root
-            Pc = _offset_body(Pc, md.body[i, 0], md.body[i, 3], md.body[i, 1], md.body[i, 2], c, s, td, g0, g1)
+            Pc = _offset_body(
+                Pc, md.body[i, 0], md.body[i, 3], md.body[i, 1], md.body[i, 2], c, s, td, g0, g1
+            )
             p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
         for r in range(3):
             data.k0[g, r] = 0.0

@@ -573,7 +573,9 @@ class SpatialManipulator:
 def embed_planar(manipulator: Manipulator, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0.0, 0.0, 0.0)):
     """The planar arm as a spatial arm (docs/spatial.md "A planar case is a spatial case").
 
-    Joint axes z, zero origins, in-plane bending EIz = EI; the out-of-plane data (never excited)
+    Joint axes z, zero origins, in-plane bending EIz = EI; a rigid link becomes a
+    :class:`SpatialRigidBody` (centre of mass (x, y, 0), inertia J about each axis), a payload's
+    offset (x, y, 0); the out-of-plane data (never excited)
     are EIy = GJ = EI and rhoJ = rhoA·L², which keeps their natural frequencies at or below the
     in-plane ones (so an explicit integrator stable for the plane is stable for them too).
     Gravity (g_x, g_y) of the plane becomes R_base·(g_x, g_y, 0) in the world.
@@ -584,24 +586,37 @@ def embed_planar(manipulator: Manipulator, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0
     links = []
     for i, link in enumerate(manipulator.links):
         b, w = link.beam, f"model.links[{i}]"
-        beam = SpatialSection(
-            length=b.length,
-            GJ=b.EI,
-            EIy=b.EI,
-            EIz=b.EI,
-            rhoA=b.rhoA,
-            rhoJ=b.rhoA * b.length**2,
-            EA=b.EA,
-            damping=b.damping,
-            _where=f"{w}.beam",
-        )
+        if link.rigid:  # in-plane inertia J about z; the out-of-plane axes (never excited) J too
+            beam = SpatialRigidBody(
+                length=b.length,
+                mass=b.mass,
+                com=(b.com[0], b.com[1], 0.0),
+                inertia=(b.inertia, b.inertia, b.inertia),
+                _where=f"{w}.rigid",
+            )
+        else:
+            beam = SpatialSection(
+                length=b.length,
+                GJ=b.EI,
+                EIy=b.EI,
+                EIz=b.EI,
+                rhoA=b.rhoA,
+                rhoJ=b.rhoA * b.length**2,
+                EA=b.EA,
+                damping=b.damping,
+                _where=f"{w}.beam",
+            )
         hub = None
         if link.hub is not None:
             hub = SpatialHub(link.hub.mass, (0.0, 0.0, link.hub.inertia), _where=f"{w}.hub")
         pay = None
         if link.payload is not None:
+            off = link.payload.offset
             pay = SpatialPayload(
-                link.payload.mass, (0.0, 0.0, 0.0), (0.0, 0.0, link.payload.inertia), _where=f"{w}.payload"
+                link.payload.mass,
+                (off[0], off[1], 0.0),
+                (0.0, 0.0, link.payload.inertia),
+                _where=f"{w}.payload",
             )
         links.append(SpatialLink(beam, SpatialJoint(_where=f"{w}.joint"), hub, pay, _where=w))
     g = rot @ np.array([manipulator.gravity[0], manipulator.gravity[1], 0.0])
