@@ -54,6 +54,22 @@ def test_dttmm_equals_global_solver(motion, integrator):
     assert np.ptp(a.joint_angle[:, 0]) > 0.05  # the arm moves
 
 
+@pytest.mark.parametrize("moment_gain", [0.0, 0.5])
+def test_closed_loop_dttmm_equals_global_solver(moment_gain):
+    """pd laws on the rigid links (with root-moment feedback: the hub's moment balance holds at
+    a rigid link's root as at a beam's): the same iterates in both solvers."""
+    from dttmm.drives import PD
+
+    case = mixed_case(duration=0.1)
+    d = list(case.scenario.drives)
+    d[0] = Drive("torque", PD(kp=50.0, kd=5.0, reference=Sine(0.3, 1.0), moment_gain=moment_gain))
+    d[2] = Drive("torque", PD(kp=20.0, kd=2.0, reference=Sine(-0.2, 1.5), moment_gain=moment_gain))
+    case = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=tuple(d)))
+    a = dttmm.simulate(case, elements_per_link=2, h=1e-3, progress=False)
+    b = global_newmark.simulate(case, elements_per_link=2, h=1e-3)
+    assert _diff(a, b, "joint_angle") <= 1e-9 and _diff(a, b, "joint_torque") <= 1e-8
+
+
 def test_dttmm_equals_spatial_kernel():
     """The planar case and its spatial embedding (dttmm.spatial.embed_planar: SpatialRigidBody,
     payload offsets (x, y, 0)) are the same arm: equal to round-off."""
@@ -96,6 +112,21 @@ def test_all_rigid_arm_equals_pinocchio():
     assert np.max(np.abs(a.joint_angle - b.joint_angle)) <= 1e-8
     assert np.max(np.abs(a.link_tip - b.link_tip)) <= 1e-8
     assert np.ptp(a.joint_angle[:, 1]) > 0.1
+
+
+def test_rigid_inverse_dynamics_equals_pinocchio_rnea():
+    """The computed-torque feedforward's rigid inverse dynamics (dttmm.control) takes the rigid
+    links' bodies and the payload offsets: equal to Pinocchio's RNEA of the same bodies."""
+    pin_rigid = pytest.importorskip("reference_models.pinocchio_rigid")
+    from dttmm import control
+
+    case = mixed_case()
+    model = pin_rigid.build_model(case.model)
+    data = model.createData()
+    q, qd, qdd = np.random.default_rng(3).normal(size=(3, 20, 3))
+    ours = control.rigid_inverse_dynamics(case, q, qd, qdd)
+    theirs = np.array([pin_rigid.pin.rnea(model, data, a, b, c) for a, b, c in zip(q, qd, qdd)])
+    np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-12)
 
 
 def test_compound_pendulum_period():
