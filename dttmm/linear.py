@@ -120,7 +120,7 @@ def _check(case, elements_per_link, t, strain) -> tuple[Structure, float]:
     if not np.isfinite(t):
         raise InputError("t", t, "must be finite")
     st = build_structure(case, elements_per_link, strain)
-    st.require_flexible("the planar linearisation (dttmm.linear; run the arm on the spatial kernel)")
+    st.require_flexible("the planar linearisation (dttmm.linear, natural modes)")
     return st, t
 
 
