@@ -52,9 +52,13 @@ RUNAWAY_ANGLE, RUNAWAY_LENGTHS = 2.0 * np.pi, 10.0
 CODE_OPEN, CODE_PD, CODE_USER = control.CODE_OPEN, control.CODE_PD, control.CODE_USER
 #: columns of Drives.gain: kp, kd, ki, g_M, limit, 1 where the hub has an inertia
 KP, KD, KI, GM, LIMIT, HASJ = range(6)
-#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart);
-#: so too the closures' W
+#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart)
 A_EVERY = 8
+#: the closures' W anew every this many steps (and after a restart); between, W is extrapolated
+#: from the last two measurements (:func:`closure_predict`). Measured on the four-bar (sweeps
+#: per step, k = 2 over 200 steps / k = 8 over 100): every 8: 4.42 / 4.27, 16: 4.22 / 4.06,
+#: 24: 4.24, 32: 4.30
+W_EVERY = 16
 #: with loop closures, W is measured anew at the next iteration of a step whose iterates stop
 #: contracting by this factor (max|Δq̈| above W_STALE × the previous one's, above the round-off
 #: floor of the stop rule)
@@ -1240,6 +1244,7 @@ def run(
             prev = np.inf
             used = 0
             nclose = cw.cl.a.shape[0]
+            ok = True
             stale = False
             measured = False  # W was measured in this step
             bro = False  # secant updates of W in this step
@@ -1278,11 +1283,11 @@ def run(
                         # λ extrapolated from the last two step ends (the iteration's start)
                         for r in range(cw.cl.lam.shape[0]):
                             cw.cl.lam[r] = 2.0 * cw.cl.lamh[s - 1, r] - cw.cl.lamh[s - 2, r]
-                    # W anew every A_EVERY steps, after a restart, and once the iterates stop
+                    # W anew every W_EVERY steps, after a restart, and once the iterates stop
                     # contracting (else the W of an earlier iterate: one sweep per iteration)
                     wnew = stale
                     if it == 0:
-                        wnew = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                        wnew = s % W_EVERY == 0 or (s > 0 and drv.restart[s - 1])
                         cw.cl.state[2] = 0
                         cw.cl.state[3] = 0
                     elif bro:
