@@ -350,6 +350,71 @@ def test_four_bar_closure_costs_few_sweeps():
     assert loop.meta["max_sweeps"] <= 5 + 6, loop.meta["max_sweeps"]
 
 
+def _closures_with(B, W, X, T):
+    """A Closures record (uncompiled kernel) of one revolute closure (m = 5) holding B, W, X, T."""
+    from dttmm.spatial.kernel_python import loop as kl
+
+    n, nd = T.shape[1], X.shape[1]
+    ei = np.zeros(1, np.int64)
+    cl = kl.new_closures(n, nd, 15, 4, ei, ei, ei + 1, *(np.zeros((1, 3)),) * 4, np.zeros((1, 3, 3)), 5)
+    cl.B[:] = B
+    cl.W[:] = W
+    cl.X[:] = X
+    cl.T[:] = T
+    return kl, cl
+
+
+def _revolute_directions(angle):
+    """Load directions of a revolute closure: the three forces, two moments ⊥ z turned by angle."""
+    B = np.zeros((6, 5))
+    B[:3, :3] = np.eye(3)
+    c, s = np.cos(angle), np.sin(angle)
+    B[3:, 3] = (c, s, 0.0)
+    B[3:, 4] = (-s, c, 0.0)
+    return B
+
+
+def test_closure_compliance_extrapolated_between_measurements():
+    """W, X, T kept in world components at two measured steps and extrapolated linearly to a
+    later step (closure_predict), in that step's load directions: a compliance C(s) = C0 + s C1
+    (world, symmetric) measured at steps 0 and 16 in directions turned by 0.3 and 0.7 rad is
+    predicted at step 20, in directions turned by 1.1 rad, as B(1.1)ᵀ C(20) B(1.1) (exact: C is
+    linear in s and the directions span the same loads); with one measurement kept, the last
+    one turned into the new directions."""
+    rng = np.random.default_rng(7)
+    A0, A1 = rng.normal(size=(6, 6)), rng.normal(size=(6, 6))
+    C0, C1 = A0 @ A0.T + 6 * np.eye(6), 0.01 * (A1 + A1.T)
+    C0[5, :] = C0[:, 5] = 0.0  # no moment about the axis z: outside the directions' span
+    C1[5, :] = C1[:, 5] = 0.0
+    C0[5, 5] = 1.0
+    XW0, XW1 = rng.normal(size=(6, 9)), 0.01 * rng.normal(size=(6, 9))
+    TW0, TW1 = rng.normal(size=(6, 3)), 0.01 * rng.normal(size=(6, 3))
+    XW0[5] = XW1[5] = TW0[5] = TW1[5] = 0.0
+
+    def measured(s, angle):
+        B = _revolute_directions(angle)
+        return B, B.T @ (C0 + s * C1) @ B, B.T @ (XW0 + s * XW1), B.T @ (TW0 + s * TW1)
+
+    kl, cl = _closures_with(*measured(0, 0.3))
+    kl.closure_record(cl, 0)
+    B, W, X, T = measured(16, 0.7)
+    cl.B[:], cl.W[:], cl.X[:], cl.T[:] = B, W, X, T
+    kl.closure_record(cl, 16)
+    cl.B[:] = _revolute_directions(1.1)
+    assert kl.closure_predict(cl, 20)
+    _, W20, X20, T20 = measured(20, 1.1)
+    np.testing.assert_allclose(cl.W, W20, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cl.X, X20, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cl.T, T20, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cl.Wi @ W20, np.eye(5), rtol=0, atol=1e-12)
+    # one measurement kept (after a restart): the last one, in the new directions
+    kl2, one = _closures_with(*measured(16, 0.7))
+    kl2.closure_record(one, 16)
+    one.B[:] = _revolute_directions(1.1)
+    assert kl2.closure_predict(one, 20)
+    np.testing.assert_allclose(one.W, measured(16, 1.1)[1], rtol=0, atol=1e-12)
+
+
 def _five_bar_gap(f):
     case = _short(_stiffened(load_case(FIVE_BAR), f), 0.1, 0.01)
     r = sp.simulate(case, elements_per_link=2, h=5e-4)

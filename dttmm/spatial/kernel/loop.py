@@ -36,7 +36,7 @@ import numpy as np
 from ... import control
 from ...iteration import stop_rule
 from ._jit import PURE, njit
-from .core import LOAD_COL, cross, kinematics, mv, set_rates, sweep
+from .core import LOAD_COL, cross, kinematics, mv, set_rates, sweep, tip_frames
 
 _stop_rule = njit(inline="always")(stop_rule)
 #: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
@@ -149,8 +149,7 @@ class Closures(NamedTuple):
     X: np.ndarray  # (m, n_dof) q̈ per unit load of each unknown, measured with W (kept)
     T: np.ndarray  # (m, n) the joints' sweep torques (ws.acc[:, 1]) per unit load (kept)
     tq: np.ndarray  # (n,) those of the sweep with the current λ
-    qp: np.ndarray  # (n_dof,) q, q̇ at the sweep's q̈
-    qv: np.ndarray
+    qp: np.ndarray  # (n_dof,) q at the sweep's q̈
     lam1: np.ndarray  # (6 nc,) scratch: λ of a column sweep
     Wlu: np.ndarray  # (m, m) scratch of the inversion
     fr: np.ndarray  # (2, 3, 3) scratch: the two bodies' frames
@@ -181,7 +180,7 @@ def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
     return Closures(
         a=a, b=b, kind=kind, pa=pa, pb=pb, ua=ua, ub=ub, R0=R0,
         lam=z(6 * nc), lamh=z((n_steps, 6 * nc)), g=z(m), B=z((6 * nc, m)), W=z((m, m)),
-        Wi=z((m, m)), dmu=z(m), X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof), qv=z(ndof),
+        Wi=z((m, m)), dmu=z(m), X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof),
         lam1=z(6 * nc), Wlu=z((m, m)), fr=z((2, 3, 3)), v=z((8, 3)),
         state=np.zeros(7, np.int64),
         rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof), gp=z(m), dmp=z(m), W2=z((m, m)),
@@ -965,8 +964,9 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
     measurements kept (:func:`closure_predict`). cl.nb[0] gets the iteration's round-off floor
     (:func:`closure_noise`). At the initial state and a restart (c_q = 0) the condition is at
     acceleration level, Bᵀ rel(λ) = 0, and the last sweep is the one with the corrected λ.
-    The sweeps taken go to cl.state[1]; ``ws`` ends at the kinematics of q̂ + c_q q̈⁰ (c_q ≠ 0)
-    with the joints' sweep torques ws.acc[:, 1] of the new λ (affine: T). Returns ok."""
+    The sweeps taken go to cl.state[1]; ``ws`` ends with the link tip frames of q̂ + c_q q̈⁰
+    (c_q ≠ 0; :func:`tip_frames`, the rest of its kinematics those of the iterate) and the
+    joints' sweep torques ws.acc[:, 1] of the new λ (affine: T). Returns ok."""
     m = cl.g.shape[0]
     nd = xn.shape[0]
     closure_geometry(ws, cl)
@@ -1034,12 +1034,10 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
         # the gap at the positions of the sweep's q̈ (motion-driven joints at their law)
         for r in range(nd):
             cl.qp[r] = qt[r] + cq * xn[r]
-            cl.qv[r] = qdt[r] + cv * xn[r]
         for i in range(md.n):
             if md.motion[i] == 1:
                 cl.qp[md.ia[i]] = mot[i, 0]
-                cl.qv[md.ia[i]] = mot[i, 1]
-        kinematics(md, ws, cl.qp, cl.qv)
+        tip_frames(md, ws, cl.qp)
         closure_geometry(ws, cl)
         if cl.state[2] == 1 and cl.state[3] == 1:
             # a secant (Broyden) update of W from the previous iterate's gap g_p and its Δμ, s,
