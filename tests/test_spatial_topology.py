@@ -350,6 +350,24 @@ def test_four_bar_closure_costs_few_sweeps():
     assert loop.meta["max_sweeps"] <= 5 + 6, loop.meta["max_sweeps"]
 
 
+@pytest.mark.parametrize("name", ["topology/branched_arm.toml", "robots/ur5.toml"])
+def test_tip_frames_are_the_kinematics_tip_frames(name):
+    """tip_frames (the closures' gap at the sweep's q̈) gives the link tip frames and origins of
+    kinematics bit for bit at a random configuration: a tree of extensible beams, and a URDF arm
+    of rigid links, locked joints and beams without the axial coordinate."""
+    from dttmm.spatial.build import build_model, make_work
+    from dttmm.spatial.kernel_python import core
+
+    case = dttmm.load_case(TOPO.parent / name)
+    md = build_model(case.model, 3)
+    q = np.random.default_rng(3).normal(scale=0.3, size=md.ndof)
+    full, tips = make_work(md), make_work(md)
+    core.kinematics(md, full, q, np.zeros(md.ndof))
+    core.tip_frames(md, tips, q)
+    assert np.array_equal(full.RT, tips.RT) and np.array_equal(full.pT, tips.pT)
+    assert np.ptp(full.pT[1:], axis=0).max() > 0.1  # the tips are apart
+
+
 def _closures_with(B, W, X, T):
     """A Closures record (uncompiled kernel) of one revolute closure (m = 5) holding B, W, X, T."""
     from dttmm.spatial.kernel_python import loop as kl

@@ -920,15 +920,16 @@ def closure_predict(cl, s):
                     t += cl.B[d, r] * u
             cl.W[r, c] = t
         for q in range(cl.Xa.shape[1]):
-            t = 0.0
-            for d in range(ml):
-                t += cl.B[d, r] * (cl.Xa[d, q] + f * (cl.Xa[d, q] - cl.Xb[d, q]))
-            cl.X[r, q] = t
+            cl.X[r, q] = 0.0
         for q in range(cl.Ta.shape[1]):
-            t = 0.0
-            for d in range(ml):
-                t += cl.B[d, r] * (cl.Ta[d, q] + f * (cl.Ta[d, q] - cl.Tb[d, q]))
-            cl.T[r, q] = t
+            cl.T[r, q] = 0.0
+        for d in range(ml):
+            b = cl.B[d, r]
+            if b != 0.0:  # B is sparse: a direction has 1 or 3 components
+                for q in range(cl.Xa.shape[1]):
+                    cl.X[r, q] += b * (cl.Xa[d, q] + f * (cl.Xa[d, q] - cl.Xb[d, q]))
+                for q in range(cl.Ta.shape[1]):
+                    cl.T[r, q] += b * (cl.Ta[d, q] + f * (cl.Ta[d, q] - cl.Tb[d, q]))
     return invert(cl.W, cl.Wi, cl.Wlu)
 
 
@@ -986,6 +987,9 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
     measure = fresh or cq == 0.0 or cl.state[0] == 0
     if not measure and first and cl.state[4] >= 1:
         measure = not closure_predict(cl, s)
+    # the round-off floor anew with W, X measured or updated (an extrapolation moves it by
+    # about what it moves W: 1e-5)
+    changed = measure
     closure_inputs(ws, cl, mot, cl.lam)
     ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
     for i in range(md.n):
@@ -1057,12 +1061,14 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
                     for c in range(m):
                         cl.W2[r, c] = cl.W[r, c] + f * cl.dmp[c]
                 if invert(cl.W2, cl.Wi, cl.Wlu):
+                    changed = True
                     for r in range(m):
                         for c in range(m):
                             cl.W[r, c] = cl.W2[r, c]
                 else:
                     invert(cl.W, cl.Wi, cl.Wlu)
-    cl.nb[0] = closure_noise(cl, cq) if cq != 0.0 else 0.0
+    if changed:
+        cl.nb[0] = closure_noise(cl, cq) if cq != 0.0 else 0.0
     dmu = cl.dmu
     for r in range(m):
         t = 0.0
