@@ -280,20 +280,20 @@ def _five_bar_tip(case, t):
 
 
 def test_loop_refusals():
-    """A closed loop runs with the Newmark family to the stop rule and open-loop drives; the
-    rest is refused in one line (RK4, fixed or "auto" sweep counts, closed-loop laws, statics,
+    """A closed loop runs with the Newmark family to the stop rule, open-loop drives and pd/pid
+    laws; the rest is refused in one line (RK4, fixed or "auto" sweep counts, user laws, statics,
     linearisation, the one-state forward dynamics)."""
     case = _short(load_case(FOUR_BAR), 0.002, 0.001)
     for kw, field in (({"integrator": "rk4"}, "integrator"), ({"iterations": "auto"}, "iterations")):
         with pytest.raises(InputError, match=field) as info:
             sp.simulate(case, elements_per_link=1, h=1e-3, engine="python", **kw)
         assert "\n" not in str(info.value)
-    from dttmm.drives import PD
+    from dttmm.drives import UserLaw
 
-    pd = dttmm.Drive("torque", PD(1.0, 0.1, dttmm.Constant(0.0)))
-    drives = (case.scenario.drives[0], pd, case.scenario.drives[2])
+    user = dttmm.Drive("torque", UserLaw(lambda t, state: 0.0))
+    drives = (case.scenario.drives[0], user, case.scenario.drives[2])
     c2 = dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=drives))
-    with pytest.raises(InputError, match=r"scenario.drives\[1\].law"):
+    with pytest.raises(InputError, match=r"scenario.drives\[1\].law.*user law"):
         sp.simulate(c2, elements_per_link=1, h=1e-3, engine="python")
     with pytest.raises(InputError, match="closed loops are not supported by dttmm.spatial.accelerations"):
         sp.accelerations(case, 1, np.zeros(3 + 3 * 6), np.zeros(3 + 3 * 6), engine="python")
@@ -501,6 +501,48 @@ def test_tree_with_closed_loop_and_motion_drives_equals_global_solver():
     assert np.max(np.abs(r.link_tip - g.link_tip)) < 1e-12
     assert np.max(np.abs(r.joint_torque - g.joint_torque)) < 1e-9
     assert np.max(np.abs(r.joint_torque[:, 2])) > 0.1 and np.max(np.abs(r.joint_torque[:, 3])) > 0.05
+
+
+def _five_bar_pd(**pd):
+    """The five-bar with pd laws at its two base joints tracking the shipped motion laws."""
+    from dttmm.drives import PD
+
+    case = load_case(FIVE_BAR)
+    d = list(case.scenario.drives)
+    for j in (0, 2):
+        d[j] = dttmm.Drive("torque", PD(200.0, 5.0, d[j].law, **pd))
+    return dataclasses.replace(case, scenario=dataclasses.replace(case.scenario, drives=tuple(d)))
+
+
+def test_five_bar_with_pd_laws_equals_global_solver():
+    """pd laws on a mechanism with closures: the five-bar's base joints under pd laws tracking
+    the pick-and-place motion (k = 2, h = 1e-3, 0.05 s, trapezoidal Newmark): DT-TMM = the
+    spatial global solver (its own implicit laws and Lagrange multipliers), the loop closed at
+    every output time, the laws at work (their torques, the tracking error)."""
+    from reference_models import spatial_global as sg
+
+    case = _short(_five_bar_pd(), 0.05, 0.01)
+    r = sp.simulate(case, elements_per_link=2, h=1e-3)
+    g = sg.simulate(case, elements_per_link=2, h=1e-3)
+    assert r.status == "ok"
+    assert np.max(np.abs(r.link_tip - g.link_tip)) <= 1e-9, np.max(np.abs(r.link_tip - g.link_tip))
+    tq = np.max(np.abs(g.joint_torque))
+    assert np.max(np.abs(r.joint_torque - g.joint_torque)) <= 1e-7 * tq
+    assert np.max(np.abs(r.closure_loads - g.closure_loads)) <= 1e-7 * np.max(np.abs(g.closure_loads))
+    assert np.max(r.closure_residual) <= 1e-10 * case.model.size
+    assert tq > 0.05  # the laws drive the mechanism
+    law = load_case(FIVE_BAR).scenario.drives[0]
+    ref = np.array([law.motion(t)[0] for t in r.t])
+    assert 1e-5 < np.max(np.abs(r.joint_angle[:, 0] - ref)) < 0.2 * np.max(np.abs(ref))  # it tracks
+
+
+def test_closures_refuse_user_laws_and_moment_feedback():
+    """On a mechanism with closures a pd law with moment feedback is refused in one line naming
+    its gain (the laws' torques would depend on the sweep's closure loads)."""
+    case = _short(_five_bar_pd(moment_gain=0.5), 0.01, 0.01)
+    with pytest.raises(InputError, match=r"scenario\.drives\[0\]\.law\.moment_gain") as info:
+        sp.simulate(case, elements_per_link=1, h=1e-3, engine="python")
+    assert "\n" not in str(info.value)
 
 
 def test_planar_five_bar_through_dttmm_simulate():

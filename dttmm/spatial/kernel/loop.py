@@ -626,20 +626,29 @@ def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
     else:
         ok = accel(md, ws, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, torque)
     if ok and cw.cl.a.shape[0] > 0:
-        # a closed loop: the accelerations that keep it closed (acceleration level), with
-        # the closure loads λ_0 (the kinematics of ``accel`` are in ws)
-        noload = np.zeros((0, 6))
-        ok = closure_sweep(
-            md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, noload,
-            True, -1, False,
-        )  # fmt: skip
-        joint_torques(md, ws, drv.tau_r[ns], torque)
+        ok = closure_start(md, ws, opts, drv, cw, q, qd, drv.tau_r[ns], drv.mot_r[ns], qdd, torque)
     for i in range(md.n):
         zerr[i] = drv.ref_r[ns, i, 0] - q[md.ia[i]] if drv.code[i] == CODE_PD else 0.0
     return ok
 
 
 # ------------------------------------------------------------------ loop closures -----------
+
+
+@njit()
+def closure_start(md, ws, opts, drv, cw, q, qd, tau, mot, qdd, torque):
+    """The forward dynamics of a closed mechanism at the state (q, q̇), after :func:`accel` or
+    :func:`accel_closed` (their kinematics in ``ws``): the accelerations that keep it closed
+    (acceleration level) and the closure loads λ into ``qdd`` and cl.lam, the joint torques
+    into ``torque``. With closed-loop laws (pd/pid without moment feedback: their torques do
+    not depend on the sweep) the sweep takes the laws' torques cw.taul, which the torque output
+    keeps. Returns ok."""
+    nd = q.shape[0]
+    noload = np.zeros((0, 6))
+    tv = cw.taul if opts.closed else tau
+    ok = closure_sweep(md, ws, cw.cl, 0.0, 0.0, q, qd, tv, mot, np.zeros(nd), qdd, noload, True, -1, False)
+    joint_torques(md, ws, tv, torque)
+    return ok
 
 
 @njit(inline="always", nrt=False)
@@ -1477,12 +1486,8 @@ def run(
                 )  # fmt: skip
             else:
                 ok = accel(md, ws, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, torque)
-                if ok and cw.cl.a.shape[0] > 0:
-                    ok = closure_sweep(
-                        md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, noload,
-                        True, -1, False,
-                    )  # fmt: skip
-                    joint_torques(md, ws, drv.tau_r[s], torque)
+            if ok and cw.cl.a.shape[0] > 0:
+                ok = closure_start(md, ws, opts, drv, cw, q, qd, drv.tau_r[s], drv.mot_r[s], qdd, torque)
             for r in range(nd):
                 aux[r] = qdd[r]
             if not ok:
