@@ -332,10 +332,11 @@ def test_four_bar_closure_holds_over_two_seconds():
 
 
 def test_four_bar_closure_costs_few_sweeps():
-    """The loop closure's quasi-Newton iteration on the closure loads (W kept between iterations
-    and steps, measured anew every A_EVERY steps): the four-bar (k = 2, h = 1e-3, 0.05 s) takes
-    at most 6 sweeps per step (measured 4.9; 46 with W measured at every iteration), within 2×
-    its cut-open tree's (the same links with closures=(): 3.0), and a step at most m + 6."""
+    """The loop closure's quasi-Newton iteration on the closure loads (W measured anew every
+    W_EVERY steps, extrapolated between; the gaps' round-off floor in the stop rule): the
+    four-bar (k = 2, h = 1e-3, 0.05 s) takes at most 4.5 sweeps per step (measured 3.94; 4.9
+    with W every 8th step, kept; 46 with W measured at every iteration), within 1.4× its
+    cut-open tree's (the same links with closures=(): 2.96), and a step at most m + 6."""
     case = _short(load_case(FOUR_BAR), 0.05, 0.01)
     loop = sp.simulate(case, elements_per_link=2, h=1e-3, energy=False)
     tree = sp.simulate(
@@ -345,8 +346,8 @@ def test_four_bar_closure_costs_few_sweeps():
         energy=False,
     )
     assert loop.status == "ok" and loop.meta["unconverged_steps"] == 0
-    assert loop.meta["sweeps_per_step"] <= 6.0, loop.meta["sweeps_per_step"]
-    assert loop.meta["sweeps_per_step"] <= 2.0 * tree.meta["sweeps_per_step"]
+    assert loop.meta["sweeps_per_step"] <= 4.5, loop.meta["sweeps_per_step"]
+    assert loop.meta["sweeps_per_step"] <= 1.4 * tree.meta["sweeps_per_step"]
     assert loop.meta["max_sweeps"] <= 5 + 6, loop.meta["max_sweeps"]
 
 
