@@ -359,6 +359,21 @@ def test_static_sag_of_a_branch_against_the_exudyn_peer():
     assert gaps[0] < 1e-5 and 3.0 < gaps[0] / gaps[1] < 5.0, gaps
 
 
+def test_tree_statics_is_the_rest_state():
+    """The DT-TMM's statics on a tree (the loads gathered from every branch to the base) at the
+    tree's zero pose under gravity, k = 4: every link tip at the rest state of the damped
+    dynamic run (the same discrete equations reached by the time loop's sweeps: measured
+    3.8e-13 m, the hand sagging 0.21 mm); the end-effector's tip is the tool's (9.6e-14 m)."""
+    held = tuple(Drive("motion", Constant(0.0)) for _ in range(7))
+    res = sp.simulate(_flexible_case(held, 0.4, 0.01, damping=4e-3), elements_per_link=4, h=1e-3)
+    assert res.success and np.max(np.abs(res.link_tip[-1] - res.link_tip[-2])) < 1e-12
+    st = sp.statics(_flexible_case(held, 0.4, 0.01), elements_per_link=4)
+    assert st.link_tips.shape == res.link_tip[-1].shape
+    assert np.max(np.linalg.norm(st.link_tips - res.link_tip[-1], axis=1)) < 1e-9
+    assert np.linalg.norm(st.tip_position - res.end_effector[-1]) < 1e-9
+    assert np.linalg.norm(res.end_effector[0] - st.tip_position) > 1e-4  # the hand sags
+
+
 def test_docs_snippet_runs():
     """The snippet of docs/urdf.md "Branched robots" runs as written (Baxter with a flexible
     upper arm on the left branch): the end-effector is the left gripper, every link has a tip."""

@@ -299,17 +299,27 @@ def link_shapes(case, elements_per_link: int, q, p: int, *, strain: str = "linea
 
 def _check_closures(case: SpatialCase, integrator: str, iters) -> None:
     """What a run with loop closures takes: the Newmark family, each step to the stop rule,
-    open-loop drives (docs/spatial.md "Trees and closed loops")."""
+    open-loop drives and pd/pid laws without moment feedback (docs/spatial.md "Trees and
+    closed loops")."""
     if integrator == "rk4":
         raise InputError("integrator", integrator, "closed loops run with the Newmark family only (not rk4)")
     if iters is not None:
         raise InputError("iterations", iters, "closed loops run each step to the stop rule (iterations=None)")
     for j, d in enumerate(case.scenario.drives):
-        if d.closed_loop:
+        if not d.closed_loop:
+            continue
+        if isinstance(d.law, UserLaw):
             raise InputError(
                 f"scenario.drives[{j}].law",
-                d.law.name,
-                "closed-loop laws on a mechanism with closures are not supported yet",
+                d.law.label,
+                "a user law on a mechanism with closures is not supported (pd and pid laws are)",
+            )
+        if getattr(d.law, "moment_gain", 0.0):
+            raise InputError(
+                f"scenario.drives[{j}].law.moment_gain",
+                d.law.moment_gain,
+                "moment feedback on a mechanism with closures is not supported (pd and pid laws "
+                "without it are)",
             )
 
 

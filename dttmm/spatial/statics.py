@@ -38,7 +38,7 @@ import numpy as np
 from .. import plumbing
 from ..errors import InputError, SimulationError
 from .build import STRAINS, build_model, make_work
-from .model import require_serial
+from .model import require_open_chain
 from .rotation import left_jacobian
 from .scenario import load_inputs
 from .solver import _kernel, as_spatial_case
@@ -52,13 +52,15 @@ LOAD_KEYS = ("force", "moment")
 class StaticResult:
     """The equilibrium of :func:`statics` at the full load, and the path of the increments.
 
-    ``q`` (n_dof,) the coordinates; ``tip_position`` (3,) the tip point of the last link and
-    ``tip_rotation`` (3, 3) its tip frame (world); ``shape`` (n_links·k + 1, 3) the nodes from the
-    first link's root to the last tip (link tips included once; joint origins between links are
-    rigid offsets not listed); ``root_loads`` (6,) force and moment (about the root point, world)
-    that the base exerts on the first link; ``load_factors`` (steps,) and ``tip_path``
-    (steps, 3) the tip position at each converged increment; ``iterations`` (steps,) Newton
-    iterations per increment."""
+    ``q`` (n_dof,) the coordinates; ``tip_position`` (3,) the tip point of the end-effector (the
+    last link of a chain) and ``tip_rotation`` (3, 3) its tip frame (world); ``shape``
+    (n_links·k + 1, 3) the first link's root, then the element nodes of every link in order (a
+    chain: the nodes from the first link's root to the last tip, link tips included once; joint
+    origins between links are rigid offsets not listed); ``root_loads`` (6,) force and moment
+    (about the root point, world) that the base exerts on the first link; ``load_factors``
+    (steps,) and ``tip_path`` (steps, 3) the end-effector's tip position at each converged
+    increment; ``iterations`` (steps,) Newton iterations per increment; ``link_tips`` (n_links, 3)
+    the tip point of every link (a tree: every branch)."""
 
     q: np.ndarray
     tip_position: np.ndarray
@@ -68,6 +70,7 @@ class StaticResult:
     load_factors: np.ndarray
     tip_path: np.ndarray
     iterations: np.ndarray
+    link_tips: np.ndarray
 
 
 def _vector3(field: str, value) -> np.ndarray:
@@ -102,7 +105,7 @@ class _Problem:
     def __init__(self, case, k, strain, engine, angles):
         self.case = case
         _, self.core, _ = _kernel(engine)
-        require_serial(case.model, "the spatial statics")
+        require_open_chain(case.model, "the spatial statics")
         self.md = md = build_model(case.model, k, strain)
         self.ws = make_work(md)
         self.q = np.zeros(md.ndof)
@@ -126,6 +129,7 @@ class _Problem:
                 pad = np.arange(off, 6) if md.rigid[i] == 0 else np.arange(0)  # rigid: no e
                 self.cols.append((i, el, pad, md.ie[el] + pad - off))
         self.grav = np.array(case.model.gravity, float)
+        self.ee = case.model.end_effector_index
         self.cs0 = np.einsum("ig,igj->ij", md.mg, md.s0[:, :4])  # Σ_g m_g s0_g per link
 
     def set(self, e_free):
@@ -147,13 +151,16 @@ class _Problem:
         return f, KT
 
     def external(self, F, M, tips=None):
-        """(Q (n_dof,), root loads (6,)) of gravity, the force F and moment M (world) at the last
-        tip and the per-link tip loads ``tips`` ((n, 12) rows of
+        """(Q (n_dof,), root loads (6,)) of gravity, the force F and moment M (world) at the
+        end-effector's tip and the per-link tip loads ``tips`` ((n, 12) rows of
         :func:`dttmm.spatial.scenario.load_inputs`: world force and moment, tip-frame force and
-        moment) at the current kinematics."""
+        moment) at the current kinematics. The loads gather from the leaves to the base: at a
+        link's tip, those its children's roots carry (a tree: each link's parent comes first)."""
         md, ws, g = self.md, self.ws, self.grav
         Q = np.zeros(md.ndof)
-        Fo, Mo, po = F.copy(), M.copy(), ws.pT[md.n].copy()
+        zero = np.zeros(3)
+        # per link: the load (force, moment about the tip) its children pass to its tip
+        carried = [None] * md.n
 
         def move(p):
             nonlocal Mo, po
@@ -169,6 +176,13 @@ class _Problem:
         root = np.zeros(6)
         for i in range(md.n - 1, -1, -1):
             tip = ws.pT[i + 1]
+            po = tip.copy()
+            if i == self.ee:
+                Fo, Mo = F.copy(), M.copy()
+                if carried[i] is not None:
+                    Fo, Mo = Fo + carried[i][0], Mo + carried[i][1]
+            else:
+                Fo, Mo = (zero, zero) if carried[i] is None else carried[i]
             move(tip.copy())
             if tips is not None:
                 RT = ws.RT[i + 1]
@@ -194,8 +208,13 @@ class _Problem:
             if i == 0:
                 root = -np.concatenate([Fo, Mo])
             add(md.hub_m[i], po)
-            if i > 0:
-                move(ws.pT[i].copy())
+            parent = md.par[i]
+            if parent >= 0:
+                move(ws.pT[parent + 1].copy())
+                if carried[parent] is None:
+                    carried[parent] = (Fo, Mo)
+                else:
+                    carried[parent] = (carried[parent][0] + Fo, carried[parent][1] + Mo)
         return Q, root
 
     def shape(self):
@@ -240,7 +259,7 @@ def _load_time(case, t) -> float:
 def generalized_loads(case, elements_per_link, q, *, loads=None, t=None, engine=None):
     """Generalized force Q (n_dof,) of gravity, the case's ``scenario.loads`` at time ``t``
     (default: the scenario's duration) and the tip loads ``loads`` (``force`` and/or
-    ``moment``, world components, at the last link's tip) at the coordinates q (the joint angles
+    ``moment``, world components, at the end-effector's tip) at the coordinates q (the joint angles
     taken as given; the entries of the unlocked joints are 0: the joints are held), and the root
     section loads (6,) that balance them."""
     F, M = _loads(loads)
@@ -266,7 +285,7 @@ def statics(
     Scenario) pair; its drives are not used) under its gravity, the external loads of its
     scenario (``SpatialScenario.loads``, their factor laws at time ``t``, default the scenario's
     duration) and the extra tip ``loads`` (``{"force": (3,), "moment": (3,)}``, world
-    components, fixed in direction, at the last link's tip), by Newton's method on the elastic
+    components, fixed in direction, at the end-effector's tip), by Newton's method on the elastic
     coordinates with the joints held at ``angles`` (one per unlocked joint, default 0). The
     loads and gravity are applied in ``steps`` equal increments; each
     increment iterates until ‖r‖ ≤ tol·‖Q‖ (Q the generalized load of that increment) or
@@ -326,16 +345,17 @@ def statics(
             rn_prev = rn
             x = x - lu @ r
         factors.append(lam)
-        path.append(pb.ws.pT[pb.md.n].copy())
+        path.append(pb.ws.pT[pb.ee + 1].copy())
         its.append(it)
     q = pb.set(x)
     return StaticResult(
         q=q,
-        tip_position=pb.ws.pT[pb.md.n].copy(),
-        tip_rotation=pb.ws.RT[pb.md.n].copy(),
+        tip_position=pb.ws.pT[pb.ee + 1].copy(),
+        tip_rotation=pb.ws.RT[pb.ee + 1].copy(),
         shape=pb.shape(),
         root_loads=root,
         load_factors=np.array(factors),
         tip_path=np.array(path),
         iterations=np.array(its),
+        link_tips=pb.ws.pT[1:].copy(),
     )

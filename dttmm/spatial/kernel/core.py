@@ -400,6 +400,75 @@ def kinematics(md, ws, q, qd):
         copy3(w, ws.wT[i + 1])
 
 
+@njit(nrt=False)
+def tip_frames(md, ws, q):
+    """The tip frames and origins of every link at q into ws.RT, ws.pT (as :func:`kinematics`
+    computes them, bit for bit), nothing else: the positions of a configuration without its
+    velocities and the sweep's element data (the closures' gaps at the sweep's q̈)."""
+    R = ws.Rk
+    p = ws.pk
+    T = ws.Tk
+    U = ws.Uk
+    copy33(md.Rbase, R)
+    copy3(md.pbase, p)
+    copy33(R, ws.RT[0])
+    copy3(p, ws.pT[0])
+    for i in range(md.n):
+        ip = md.par[i] + 1
+        if ip != i:
+            copy33(ws.RT[ip], R)
+            copy3(ws.pT[ip], p)
+        al = 0.0 if md.locked[i] == 1 else q[md.ia[i]]
+        C = ws.C[i]
+        axis_rotation_into(md.axis[i], al, T)
+        matmul33(md.Crpy[i], T, U)
+        matmul33(U, md.Q[i], C)
+        o = md.org[i]
+        for a in range(3):
+            p[a] += R[a, 0] * o[0] + R[a, 1] * o[1] + R[a, 2] * o[2]
+        matmul33(R, C, T)
+        copy33(T, R)
+        if md.rigid[i] == 1:
+            l = md.l[i]
+            for _j in range(md.k[i]):
+                for a in range(3):
+                    p[a] += R[a, 0] * l
+        else:
+            S4 = md.Sig[i, 4]
+            s04 = md.s0[i, 4]
+            E = ws.E3
+            for j in range(md.k[i]):
+                r = md.ie[md.el0[i] + j]
+                if md.ext[i] == 1:
+                    e0 = q[r]
+                    r += 1
+                else:
+                    e0 = 0.0
+                x, y, z = q[r + 2], q[r + 3], q[r + 4]
+                t2 = x * x + y * y + z * z
+                a_, b_, _c, _db, _dc = so3_coefficients(t2)
+                E[0, 0] = 1.0 + b_ * (x * x - t2)
+                E[0, 1] = -a_ * z + b_ * (x * y)
+                E[0, 2] = a_ * y + b_ * (x * z)
+                E[1, 0] = a_ * z + b_ * (x * y)
+                E[1, 1] = 1.0 + b_ * (y * y - t2)
+                E[1, 2] = -a_ * x + b_ * (y * z)
+                E[2, 0] = -a_ * y + b_ * (x * z)
+                E[2, 1] = a_ * x + b_ * (y * z)
+                E[2, 2] = 1.0 + b_ * (z * z - t2)
+                x0 = s04[0] + S4[0, 0] * e0
+                x1 = s04[1] + q[r]
+                x2 = s04[2] + q[r + 1]
+                for a in range(3):
+                    p[a] += R[a, 0] * x0 + R[a, 1] * x1 + R[a, 2] * x2
+                matmul33(R, E, T)
+                copy33(T, R)
+        matmul33t(R, md.Q[i], T)
+        copy33(T, R)
+        copy33(R, ws.RT[i + 1])
+        copy3(p, ws.pT[i + 1])
+
+
 @njit(inline="always")
 def so3_into(x, y, z, dx, dy, dz, E, J, jd):
     """exp([ψ]×) into E, J_L(ψ) into J and J̇_L ψ̇ into jd, at ψ = (x, y, z), ψ̇ = (dx, dy, dz)."""

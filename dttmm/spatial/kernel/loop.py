@@ -36,7 +36,7 @@ import numpy as np
 from ... import control
 from ...iteration import stop_rule
 from ._jit import PURE, njit
-from .core import LOAD_COL, cross, kinematics, mv, set_rates, sweep
+from .core import LOAD_COL, cross, kinematics, mv, set_rates, sweep, tip_frames
 
 _stop_rule = njit(inline="always")(stop_rule)
 #: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
@@ -52,9 +52,13 @@ RUNAWAY_ANGLE, RUNAWAY_LENGTHS = 2.0 * np.pi, 10.0
 CODE_OPEN, CODE_PD, CODE_USER = control.CODE_OPEN, control.CODE_PD, control.CODE_USER
 #: columns of Drives.gain: kp, kd, ki, g_M, limit, 1 where the hub has an inertia
 KP, KD, KI, GM, LIMIT, HASJ = range(6)
-#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart);
-#: so too the closures' W
+#: a Newmark step measures the sensitivity ∂H/∂τ anew every this many steps (and after a restart)
 A_EVERY = 8
+#: the closures' W anew every this many steps (and after a restart); between, W is extrapolated
+#: from the last two measurements (:func:`closure_predict`). Measured on the four-bar (sweeps
+#: per step, k = 2 over 200 steps / k = 8 over 100): every 8: 4.42 / 4.27, 16: 4.22 / 4.06,
+#: 24: 4.24, 32: 4.30
+W_EVERY = 16
 #: with loop closures, W is measured anew at the next iteration of a step whose iterates stop
 #: contracting by this factor (max|Δq̈| above W_STALE × the previous one's, above the round-off
 #: floor of the stop rule)
@@ -145,14 +149,14 @@ class Closures(NamedTuple):
     X: np.ndarray  # (m, n_dof) q̈ per unit load of each unknown, measured with W (kept)
     T: np.ndarray  # (m, n) the joints' sweep torques (ws.acc[:, 1]) per unit load (kept)
     tq: np.ndarray  # (n,) those of the sweep with the current λ
-    qp: np.ndarray  # (n_dof,) q, q̇ at the sweep's q̈
-    qv: np.ndarray
+    qp: np.ndarray  # (n_dof,) q at the sweep's q̈
     lam1: np.ndarray  # (6 nc,) scratch: λ of a column sweep
     Wlu: np.ndarray  # (m, m) scratch of the inversion
     fr: np.ndarray  # (2, 3, 3) scratch: the two bodies' frames
     v: np.ndarray  # (8, 3) scratch: their origins, points, axes
-    state: np.ndarray  # (4,) int64: W is of a Newmark step (1) or not (0); sweeps of the last
-    # solve; secant updates of W on (1) or off (0); a previous iterate of this step in gp, dmp (1)
+    state: np.ndarray  # (7,) int64: W is of a Newmark step (1) or not (0); sweeps of the last
+    # solve; secant updates of W on (1) or off (0); a previous iterate of this step in gp, dmp (1);
+    # measurements kept in Ca… (0, 1, 2); the step of the last (a) and of the one before (b)
     rel0: np.ndarray  # (6 nc,) relative accelerations of the base sweep
     rel: np.ndarray  # (6 nc,)
     motc: np.ndarray  # (n, INPUT_COLS) the inputs with the closure loads
@@ -160,6 +164,14 @@ class Closures(NamedTuple):
     gp: np.ndarray  # (m,) the gap of the previous iterate of the step (before its Δμ)
     dmp: np.ndarray  # (m,) its Δμ
     W2: np.ndarray  # (m, m) scratch: W's secant update
+    Ca: np.ndarray  # (6 nc, 6 nc) the last measured W in world components, B W Bᵀ
+    Cb: np.ndarray  # (6 nc, 6 nc) the one measured before it
+    Xa: np.ndarray  # (6 nc, n_dof) the last measured X in world components, B X
+    Xb: np.ndarray
+    Ta: np.ndarray  # (6 nc, n) the last measured T in world components, B T
+    Tb: np.ndarray
+    gf: np.ndarray  # (m,) the round-off of each row of g: one unit of its points' coordinates
+    nb: np.ndarray  # (1,) the q̈ change a gap of gf moves through the update (the noise floor)
 
 
 def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
@@ -168,10 +180,12 @@ def new_closures(n, ndof, cols, n_steps, a, b, kind, pa, pb, ua, ub, R0, m):
     return Closures(
         a=a, b=b, kind=kind, pa=pa, pb=pb, ua=ua, ub=ub, R0=R0,
         lam=z(6 * nc), lamh=z((n_steps, 6 * nc)), g=z(m), B=z((6 * nc, m)), W=z((m, m)),
-        Wi=z((m, m)), dmu=z(m), X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof), qv=z(ndof),
+        Wi=z((m, m)), dmu=z(m), X=z((m, ndof)), T=z((m, n)), tq=z(n), qp=z(ndof),
         lam1=z(6 * nc), Wlu=z((m, m)), fr=z((2, 3, 3)), v=z((8, 3)),
-        state=np.zeros(4, np.int64),
+        state=np.zeros(7, np.int64),
         rel0=z(6 * nc), rel=z(6 * nc), motc=z((n, cols)), xs=z(ndof), gp=z(m), dmp=z(m), W2=z((m, m)),
+        Ca=z((6 * nc, 6 * nc)), Cb=z((6 * nc, 6 * nc)), Xa=z((6 * nc, ndof)), Xb=z((6 * nc, ndof)),
+        Ta=z((6 * nc, n)), Tb=z((6 * nc, n)), gf=z(m), nb=z(1),
     )  # fmt: skip
 
 
@@ -612,19 +626,29 @@ def start(md, ws, opts, drv, cw, q, qd, qdd, torque, z, zerr):
     else:
         ok = accel(md, ws, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, torque)
     if ok and cw.cl.a.shape[0] > 0:
-        # a closed loop: the accelerations that keep it closed (acceleration level), with
-        # the closure loads λ_0 (the kinematics of ``accel`` are in ws)
-        noload = np.zeros((0, 6))
-        ok = closure_sweep(
-            md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[ns], drv.mot_r[ns], np.zeros(nd), qdd, noload, True
-        )
-        joint_torques(md, ws, drv.tau_r[ns], torque)
+        ok = closure_start(md, ws, opts, drv, cw, q, qd, drv.tau_r[ns], drv.mot_r[ns], qdd, torque)
     for i in range(md.n):
         zerr[i] = drv.ref_r[ns, i, 0] - q[md.ia[i]] if drv.code[i] == CODE_PD else 0.0
     return ok
 
 
 # ------------------------------------------------------------------ loop closures -----------
+
+
+@njit()
+def closure_start(md, ws, opts, drv, cw, q, qd, tau, mot, qdd, torque):
+    """The forward dynamics of a closed mechanism at the state (q, q̇), after :func:`accel` or
+    :func:`accel_closed` (their kinematics in ``ws``): the accelerations that keep it closed
+    (acceleration level) and the closure loads λ into ``qdd`` and cl.lam, the joint torques
+    into ``torque``. With closed-loop laws (pd/pid without moment feedback: their torques do
+    not depend on the sweep) the sweep takes the laws' torques cw.taul, which the torque output
+    keeps. Returns ok."""
+    nd = q.shape[0]
+    noload = np.zeros((0, 6))
+    tv = cw.taul if opts.closed else tau
+    ok = closure_sweep(md, ws, cw.cl, 0.0, 0.0, q, qd, tv, mot, np.zeros(nd), qdd, noload, True, -1, False)
+    joint_torques(md, ws, tv, torque)
+    return ok
 
 
 @njit(inline="always", nrt=False)
@@ -675,9 +699,11 @@ def closure_geometry(ws, cl):
         pb = v[3]
         # a gap at the round-off of the points' coordinates counts as none
         floor = GAP_ULPS * EPS * (abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2]))
+        ulp = EPS * (abs(pa[0]) + abs(pa[1]) + abs(pa[2]) + abs(pb[0]) + abs(pb[1]) + abs(pb[2]))
         for d in range(3):
             gd = pa[d] - pb[d]
             cl.g[row + d] = gd if abs(gd) > floor else 0.0
+            cl.gf[row + d] = ulp
             cl.B[6 * j + d, row + d] = 1.0
         row += 3
         if cl.kind[j] == 1:
@@ -706,6 +732,8 @@ def closure_geometry(ws, cl):
             g2 = t2[0] * c0 + t2[1] * c1 + t2[2] * c2
             cl.g[row] = g1 if abs(g1) > GAP_ULPS * EPS else 0.0
             cl.g[row + 1] = g2 if abs(g2) > GAP_ULPS * EPS else 0.0
+            cl.gf[row] = EPS
+            cl.gf[row + 1] = EPS
             for d in range(3):
                 cl.B[6 * j + 3 + d, row] = t1[d]
                 cl.B[6 * j + 3 + d, row + 1] = t2[d]
@@ -724,6 +752,7 @@ def closure_geometry(ws, cl):
                         m12 += Ra[d1, u] * R0[u, w] * Rb[d2, w]
                 gd = 0.5 * (m21 - m12)
                 cl.g[row + d] = gd if abs(gd) > GAP_ULPS * EPS else 0.0
+                cl.gf[row + d] = EPS
             for d in range(3):
                 cl.B[6 * j + 3 + d, row + d] = 1.0
             row += 3
@@ -834,7 +863,105 @@ def invert(A, Ai, S):
 
 
 @njit(nrt=False)
-def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fresh):
+def closure_record(cl, s):
+    """Keep W, X, T just measured at step ``s`` of a Newmark run in world components (with
+    the load directions B of this iterate: C = B W Bᵀ, B X, B T) as the last measurement; the
+    one kept before moves back (a second measurement in the same step replaces the last)."""
+    ml = cl.B.shape[0]
+    m = cl.B.shape[1]
+    st = cl.state
+    if st[4] >= 1 and st[5] != s:
+        for d in range(ml):
+            for e in range(ml):
+                cl.Cb[d, e] = cl.Ca[d, e]
+            for r in range(cl.Xa.shape[1]):
+                cl.Xb[d, r] = cl.Xa[d, r]
+            for r in range(cl.Ta.shape[1]):
+                cl.Tb[d, r] = cl.Ta[d, r]
+        st[6] = st[5]
+        st[4] = 2
+    elif st[4] == 0:
+        st[4] = 1
+    st[5] = s
+    for d in range(ml):
+        for e in range(ml):
+            t = 0.0
+            for c in range(m):
+                if cl.B[e, c] != 0.0:
+                    u = 0.0
+                    for r in range(m):
+                        u += cl.B[d, r] * cl.W[r, c]
+                    t += u * cl.B[e, c]
+            cl.Ca[d, e] = t
+        for r in range(cl.Xa.shape[1]):
+            t = 0.0
+            for c in range(m):
+                t += cl.B[d, c] * cl.X[c, r]
+            cl.Xa[d, r] = t
+        for r in range(cl.Ta.shape[1]):
+            t = 0.0
+            for c in range(m):
+                t += cl.B[d, c] * cl.T[c, r]
+            cl.Ta[d, r] = t
+
+
+@njit(nrt=False)
+def closure_predict(cl, s):
+    """W, X, T at step ``s`` in the load directions B of this iterate from the measurements
+    kept: extrapolated linearly in the step from the last two (one kept: the last, turned into
+    these directions). W changes with the configuration from step to step (on the four-bar
+    about 1e-5 of itself per step); the extrapolation halves what the last measurement misses
+    (measured: 1.0e-5 against 2.3e-5 one step after it). Returns whether W could be inverted."""
+    ml = cl.B.shape[0]
+    m = cl.B.shape[1]
+    st = cl.state
+    f = 0.0
+    if st[4] >= 2 and st[5] != st[6]:
+        f = (s - st[5]) / (st[5] - st[6])
+    for r in range(m):
+        for c in range(m):
+            t = 0.0
+            for d in range(ml):
+                if cl.B[d, r] != 0.0:
+                    u = 0.0
+                    for e in range(ml):
+                        u += (cl.Ca[d, e] + f * (cl.Ca[d, e] - cl.Cb[d, e])) * cl.B[e, c]
+                    t += cl.B[d, r] * u
+            cl.W[r, c] = t
+        for q in range(cl.Xa.shape[1]):
+            cl.X[r, q] = 0.0
+        for q in range(cl.Ta.shape[1]):
+            cl.T[r, q] = 0.0
+        for d in range(ml):
+            b = cl.B[d, r]
+            if b != 0.0:  # B is sparse: a direction has 1 or 3 components
+                for q in range(cl.Xa.shape[1]):
+                    cl.X[r, q] += b * (cl.Xa[d, q] + f * (cl.Xa[d, q] - cl.Xb[d, q]))
+                for q in range(cl.Ta.shape[1]):
+                    cl.T[r, q] += b * (cl.Ta[d, q] + f * (cl.Ta[d, q] - cl.Tb[d, q]))
+    return invert(cl.W, cl.Wi, cl.Wlu)
+
+
+@njit(nrt=False)
+def closure_noise(cl, cq):
+    """The round-off floor of the iteration: the largest change of a q̈ component that gaps
+    of one unit of round-off per row (cl.gf) move through the update, max_r Σ_c |(Xᵀ W⁻¹)[r, c]|
+    gf[c] / c_q. An iterate's change below it is the round-off of the gaps, not progress."""
+    m = cl.g.shape[0]
+    nb = 0.0
+    for r in range(cl.X.shape[1]):
+        t = 0.0
+        for c in range(m):
+            z = 0.0
+            for k in range(m):
+                z += cl.X[k, r] * cl.Wi[k, c]
+            t += abs(z) * cl.gf[c]
+        nb = max(nb, t)
+    return nb / cq
+
+
+@njit(nrt=False)
+def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fresh, s, first):
     """One iteration of a Newmark step with loop closures, at the iterate's kinematics in
     ``ws``: the sweep with the current λ gives q̈⁰ into ``xn``; the closures' position-level
     condition at the step end, g(q̂ + c_q q̈) = 0, linearised about q̈⁰, g⁰ + c_q W Δμ = 0 with
@@ -843,10 +970,13 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
     q̈ per unit load). W and X are measured (one sweep per unknown at this kinematics) when
     ``fresh`` or when cl.state[0] holds none of a Newmark step, else those of an earlier
     iterate serve (a quasi-Newton step on μ: the fixed point, g = 0 with the step's equations,
-    is the same). At the initial state and a restart (c_q = 0) the condition is at
+    is the same); at the first iterate of step ``s`` (``first``) those extrapolated from the
+    measurements kept (:func:`closure_predict`). cl.nb[0] gets the iteration's round-off floor
+    (:func:`closure_noise`). At the initial state and a restart (c_q = 0) the condition is at
     acceleration level, Bᵀ rel(λ) = 0, and the last sweep is the one with the corrected λ.
-    The sweeps taken go to cl.state[1]; ``ws`` ends at the kinematics of q̂ + c_q q̈⁰ (c_q ≠ 0)
-    with the joints' sweep torques ws.acc[:, 1] of the new λ (affine: T). Returns ok."""
+    The sweeps taken go to cl.state[1]; ``ws`` ends with the link tip frames of q̂ + c_q q̈⁰
+    (c_q ≠ 0; :func:`tip_frames`, the rest of its kinematics those of the iterate) and the
+    joints' sweep torques ws.acc[:, 1] of the new λ (affine: T). Returns ok."""
     m = cl.g.shape[0]
     nd = xn.shape[0]
     closure_geometry(ws, cl)
@@ -863,11 +993,17 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
         for c in range(m):
             t += cl.B[r, c] * mu[c]
         cl.lam[r] = t
+    measure = fresh or cq == 0.0 or cl.state[0] == 0
+    if not measure and first and cl.state[4] >= 1:
+        measure = not closure_predict(cl, s)
+    # the round-off floor anew with W, X measured or updated (an extrapolation moves it by
+    # about what it moves W: 1e-5)
+    changed = measure
     closure_inputs(ws, cl, mot, cl.lam)
     ok = sweep(md, ws, cq, cv, qt, qdt, tv, cl.motc, zero_f, xn, False, noload)
     for i in range(md.n):
         cl.tq[i] = ws.acc[i, 1]
-    if fresh or cq == 0.0 or cl.state[0] == 0:
+    if measure:
         closure_accelerations(ws, cl, cl.rel0)
         lam1 = cl.lam1
         for c in range(m):
@@ -888,6 +1024,10 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
         ok = ok and invert(cl.W, cl.Wi, cl.Wlu)
         cl.state[0] = 1 if ok and cq != 0.0 else 0
         cl.state[1] = m + 1
+        if cl.state[0] == 1 and s >= 0:
+            closure_record(cl, s)
+        else:
+            cl.state[4] = 0
     else:
         cl.state[1] = 1
     for r in range(nd):
@@ -907,12 +1047,10 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
         # the gap at the positions of the sweep's q̈ (motion-driven joints at their law)
         for r in range(nd):
             cl.qp[r] = qt[r] + cq * xn[r]
-            cl.qv[r] = qdt[r] + cv * xn[r]
         for i in range(md.n):
             if md.motion[i] == 1:
                 cl.qp[md.ia[i]] = mot[i, 0]
-                cl.qv[md.ia[i]] = mot[i, 1]
-        kinematics(md, ws, cl.qp, cl.qv)
+        tip_frames(md, ws, cl.qp)
         closure_geometry(ws, cl)
         if cl.state[2] == 1 and cl.state[3] == 1:
             # a secant (Broyden) update of W from the previous iterate's gap g_p and its Δμ, s,
@@ -932,11 +1070,14 @@ def closure_sweep(md, ws, cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, fres
                     for c in range(m):
                         cl.W2[r, c] = cl.W[r, c] + f * cl.dmp[c]
                 if invert(cl.W2, cl.Wi, cl.Wlu):
+                    changed = True
                     for r in range(m):
                         for c in range(m):
                             cl.W[r, c] = cl.W2[r, c]
                 else:
                     invert(cl.W, cl.Wi, cl.Wlu)
+    if changed:
+        cl.nb[0] = closure_noise(cl, cq) if cq != 0.0 else 0.0
     dmu = cl.dmu
     for r in range(m):
         t = 0.0
@@ -1115,6 +1256,8 @@ def run(
             tv = cw.taul if opts.closed else tau
             prev = np.inf
             used = 0
+            nclose = cw.cl.a.shape[0]
+            ok = True
             stale = False
             measured = False  # W was measured in this step
             bro = False  # secant updates of W in this step
@@ -1153,16 +1296,18 @@ def run(
                         # λ extrapolated from the last two step ends (the iteration's start)
                         for r in range(cw.cl.lam.shape[0]):
                             cw.cl.lam[r] = 2.0 * cw.cl.lamh[s - 1, r] - cw.cl.lamh[s - 2, r]
-                    # W anew every A_EVERY steps, after a restart, and once the iterates stop
+                    # W anew every W_EVERY steps, after a restart, and once the iterates stop
                     # contracting (else the W of an earlier iterate: one sweep per iteration)
                     wnew = stale
                     if it == 0:
-                        wnew = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                        wnew = s % W_EVERY == 0 or (s > 0 and drv.restart[s - 1])
                         cw.cl.state[2] = 0
                         cw.cl.state[3] = 0
                     elif bro:
                         cw.cl.state[2] = 1
-                    ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, wnew)
+                    ok = closure_sweep(
+                        md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, wnew, s, it == 0
+                    )
                     used += cw.cl.state[1]
                     measured = measured or cw.cl.state[1] > 1
                 else:
@@ -1182,6 +1327,17 @@ def run(
                     converged = it == nmax - 1
                     continue
                 stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
+                if (
+                    not stop
+                    and nclose > 0
+                    and it >= 1
+                    and dx <= min(cw.cl.nb[0], 1e3 * opts.tol * max(1.0, xmax))
+                ):
+                    # the change is within the round-off floor of the closures' gaps (which
+                    # the position condition divides by c_q): what is left is round-off (the
+                    # stop rule's stagnation, without the iterations that show it)
+                    stop = True
+                    converged = True
                 if stop:
                     break
                 # iterates that stop contracting above the round-off floor: W anew
@@ -1330,11 +1486,8 @@ def run(
                 )  # fmt: skip
             else:
                 ok = accel(md, ws, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, torque)
-                if ok and cw.cl.a.shape[0] > 0:
-                    ok = closure_sweep(
-                        md, ws, cw.cl, 0.0, 0.0, q, qd, drv.tau_r[s], drv.mot_r[s], zero_f, qdd, noload, True
-                    )
-                    joint_torques(md, ws, drv.tau_r[s], torque)
+            if ok and cw.cl.a.shape[0] > 0:
+                ok = closure_start(md, ws, opts, drv, cw, q, qd, drv.tau_r[s], drv.mot_r[s], qdd, torque)
             for r in range(nd):
                 aux[r] = qdd[r]
             if not ok:
