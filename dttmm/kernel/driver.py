@@ -21,6 +21,7 @@ from ..result import make_result
 from ..scenario import Scenario
 from ..structure import Structure, build_structure
 from ..timegrid import step_schedule
+from ..verdict import energy_growth, verdict
 from . import _jit, loop, userlaw
 from .layout import (
     INT_NEWMARK,
@@ -477,7 +478,9 @@ def simulate_structure(structure: Structure, s: Settings):
         meta["unconverged_solves"] = int(ws.fd_unconverged[0])
     if rec.energy.size and not any(structure.motion):
         _energy_growth(meta, structure, rec.t[:upto], rec.energy[:upto], rec.torque[:upto], rec.rate[:upto])
-    status, warns = verdict(meta, s, n_steps)
+    status, warns = verdict(
+        meta, iterations=s.iterations, tol=s.tol, max_iterations=s.max_iterations, n_steps=n_steps
+    )
     return with_shapes(
         to_result(rec, upto, wall, n_steps, meta, status, warns), structure, rec, s.shape_points
     )
@@ -498,103 +501,12 @@ def with_shapes(res, structure: Structure, rec: Record, p: int):
     return replace(res, link_shapes=element_shapes(structure, rec.q[: res.t.size], p))
 
 
-#: equilibrated condition number of the plain sweep's final system above which a run is
-#: "ill-conditioned": κ·ε > 1e-8, half the digits of a double lost in the last solve alone
-ILL_CONDITIONED = 1e8
-
-
-def verdict(meta: dict, s: Settings, n_steps: int):
-    """(status, warnings) of a finished run: "ill-conditioned" when the plain sweep's largest
-    final-system condition number exceeds :data:`ILL_CONDITIONED`; "unconverged" when a
-    tolerance-driven step used all ``max_iterations`` sweeps, when a forward-dynamics solve with
-    closed-loop laws did (``meta["unconverged_solves"]``), or when the residual check of a
-    fixed sweep count or "auto" (``meta["residual_*"]``) flagged a step; else "ok"."""
-    warns = []
-    status = "ok"
-    n_unconv = meta.get("unconverged_steps", 0)
-    if n_unconv:
-        status = "unconverged"
-        warns.append(
-            f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
-            f"{s.max_iterations} sweeps before reaching tol = {s.tol:g}"
-        )
-    n_fd = meta.get("unconverged_solves", 0)
-    if n_fd:
-        status = "unconverged"
-        warns.append(
-            f"{n_fd} forward-dynamics solves with closed-loop laws (t = 0, restarts, RK4 stages) "
-            f"stopped after max_iterations = {s.max_iterations} sweeps before reaching tol = {s.tol:g}"
-        )
-    n_flag = meta.get("residual_flagged", 0)
-    if n_flag:
-        status = "unconverged"
-        warns.append(
-            f"iterations={s.iterations!r}: the step equations are not solved to the time-discretisation "
-            f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
-            f"{meta['residual_first_t']:.6g} s; worst at t = {meta['residual_worst_t']:.6g} s: one more "
-            f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
-            f"{meta['residual_worst_ratio']:.3g} × the truncation error)"
-        )
-    growth = meta.get("energy_growth", 0.0)
-    if growth > ENERGY_GROWTH:
-        if s.iterations is not None:
-            status = "unconverged"
-        warns.append(
-            f"the energy grew with no input: by {growth:.3g} × the run's energy scale (> {ENERGY_GROWTH:g}) "
-            f"by t = {meta['energy_growth_t']:.6g} s"
-            + (
-                f"; iterations={s.iterations!r} does not solve the step equations well enough"
-                if s.iterations is not None
-                else ""
-            )
-        )
-    cond = meta.get("final_system_cond", 0.0)
-    if cond > ILL_CONDITIONED:
-        status = "ill-conditioned"
-        warns.append(
-            f"plain sweep: final-system condition number up to {cond:.3g} (> {ILL_CONDITIONED:g}); "
-            "use sweep='riccati'"
-        )
-    return status, warns
-
-
-#: energy growth with no input, relative to the run's energy scale, that fails the energy check
-#: (converged runs of the shipped cases stay below 1e-5)
-ENERGY_GROWTH = 1e-3
-
-
-def energy_scale(structure: Structure, t, energy, torque, rate) -> float:
-    """Energy scale (J) of a run: the largest of the energy's range, the work of the joint
-    torques ∫ Σ|τ α̇| dt (trapezoid on the output grid) and m |g| L (total mass, gravity,
-    summed link lengths)."""
+def _energy_growth(meta: dict, structure: Structure, t, energy, torque, rate) -> None:
+    """The energy check (:func:`dttmm.verdict.energy_growth`) of a planar run into
+    ``meta["energy_growth"]``, ``meta["energy_growth_t"]``."""
     mass = sum(lk.mass for lk in structure.links)
     mgl = mass * float(np.linalg.norm(structure.gravity)) * sum(lk.length for lk in structure.links)
-    p = np.sum(np.abs(torque * rate), axis=1)
-    work = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))) if t.size > 1 else 0.0
-    rng = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
-    return max(rng, work, mgl)
-
-
-def _energy_growth(meta: dict, structure: Structure, t, energy, torque, rate) -> None:
-    """Energy check of a torque-driven run: wherever every joint torque is zero on a stretch of
-    output samples, damping can only remove energy, so the total energy must not grow there.
-    Stores the largest growth relative to :func:`energy_scale` (and its time) in
-    ``meta["energy_growth"]``, ``meta["energy_growth_t"]``."""
-    free = np.all(torque == 0.0, axis=1)
-    scale = energy_scale(structure, t, energy, torque, rate)
-    worst, when = 0.0, None
-    idx = np.flatnonzero(free)
-    if idx.size > 1 and scale > 0.0:
-        # stretches of consecutive free samples; growth from each stretch's first sample
-        starts = idx[np.concatenate(([True], np.diff(idx) > 1))]
-        first = starts[np.searchsorted(starts, idx, side="right") - 1]
-        growth = (energy[idx] - energy[first]) / scale
-        growth[~np.isfinite(growth)] = 0.0
-        i = int(np.argmax(growth))
-        if growth[i] > 0.0:
-            worst, when = float(growth[i]), float(t[idx[i]])
-    meta["energy_growth"] = worst
-    meta["energy_growth_t"] = when
+    meta["energy_growth"], meta["energy_growth_t"] = energy_growth(mgl, t, energy, torque, rate)
 
 
 def _raise_failure(structure, status, stats, t_end, meta, partial, t_last):

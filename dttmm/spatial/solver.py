@@ -17,6 +17,7 @@ from ..errors import InputError
 from ..kernel.driver import PROGRESS_AFTER, PROGRESS_CHUNKS, _progress_bar
 from ..resources import check_run_size
 from ..timegrid import step_schedule
+from ..verdict import energy_growth, verdict
 from .build import STRAINS, build_model, make_work
 from .case import SpatialCase
 from .kernel.core import INPUT_COLS, LOAD_COL
@@ -417,32 +418,15 @@ def _run_chunked(loop, args: tuple, n_steps: int, progress: bool | None):
 #: fixed sweep counts and "auto": the residual check (one extra sweep, not applied) runs at
 #: the first step, every CHECK_EVERY-th step and the last step (the planar kernel's rule)
 CHECK_EVERY = 64
-#: energy growth with no input, relative to the run's energy scale, that fails the energy check
-#: (the planar kernel's bound, :data:`dttmm.kernel.driver.ENERGY_GROWTH`)
-ENERGY_GROWTH = 1e-3
 
 
 def _energy_growth(case: SpatialCase, t, energy, torque, rate):
-    """The planar kernel's energy check (:func:`dttmm.kernel.driver._energy_growth`): on every
-    stretch of output samples where all joint torques are zero the energy must not grow;
-    returns (largest growth relative to the energy scale, its time or None). The scale is the
-    largest of the energy's range, the torque work ∫Σ|τα̇|dt and m|g|L."""
+    """The energy check (:func:`dttmm.verdict.energy_growth`) of a spatial run: (largest growth
+    relative to the energy scale, its time or None)."""
     links = case.model.links
     mass = sum(lk.beam.mass + lk.hub_mass + lk.payload_mass for lk in links)
     mgl = mass * float(np.linalg.norm(case.model.gravity)) * sum(lk.beam.length for lk in links)
-    p = np.sum(np.abs(torque * rate), axis=1)
-    work = float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(t))) if t.size > 1 else 0.0
-    rng = float(np.nanmax(energy) - np.nanmin(energy)) if energy.size else 0.0
-    scale = max(rng, work, mgl)
-    idx = np.flatnonzero(np.all(torque == 0.0, axis=1))
-    if idx.size < 2 or scale <= 0.0:
-        return 0.0, None
-    starts = idx[np.concatenate(([True], np.diff(idx) > 1))]
-    first = starts[np.searchsorted(starts, idx, side="right") - 1]
-    growth = (energy[idx] - energy[first]) / scale
-    growth[~np.isfinite(growth)] = 0.0
-    i = int(np.argmax(growth))
-    return (float(growth[i]), float(t[idx[i]])) if growth[i] > 0.0 else (0.0, None)
+    return energy_growth(mgl, t, energy, torque, rate)
 
 
 def simulate(
@@ -710,48 +694,10 @@ def simulate(
 
 
 def _verdict(meta, case, res, iters, tol, max_iterations, n_steps):
-    """(status, warnings) as the planar kernel's :func:`dttmm.kernel.driver.verdict`:
-    "unconverged" when a tolerance-driven step used all ``max_iterations`` sweeps, when a
-    forward-dynamics solve with closed-loop laws did, when the residual check of "auto" or a fixed
-    count flagged a step, or when the energy grew with no input in a run with ``iterations`` set;
-    a fixed sweep count is always "unconverged" (the step equations are not iterated)."""
-    warns = []
-    status = "ok"
-    n_unconv = meta.get("unconverged_steps", 0)
-    if n_unconv:
-        status = "unconverged"
-        warns.append(
-            f"{n_unconv} of {n_steps} steps stopped after max_iterations = {max_iterations} "
-            f"sweeps before reaching tol = {tol:g}"
-        )
-    n_fd = meta.get("unconverged_solves", 0)
-    if n_fd:
-        status = "unconverged"
-        warns.append(
-            f"{n_fd} forward-dynamics solves with closed-loop laws (t = 0, restarts, RK4 stages) "
-            f"stopped after max_iterations = {max_iterations} sweeps before reaching tol = {tol:g}"
-        )
-    if iters is not None and iters != "auto":
-        status = "unconverged"
-        warns.append("fixed sweep count per step")
-    n_flag = meta.get("residual_flagged", 0)
-    if n_flag:
-        status = "unconverged"
-        warns.append(
-            f"iterations={iters!r}: the step equations are not solved to the time-discretisation "
-            f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
-            f"{meta['residual_first_t']:.6g} s; worst at t = {meta['residual_worst_t']:.6g} s: one more "
-            f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
-            f"{meta['residual_worst_ratio']:.3g} × the truncation error)"
-        )
+    """(status, warnings) by the one rule of both kernels (:func:`dttmm.verdict.verdict`), the
+    energy check (a run with energy and no motion drive) into ``meta`` first."""
     if res.energy is not None and not any(d.kind == "motion" for d in case.scenario.drives):
-        growth, when = _energy_growth(case, res.t, res.energy, res.joint_torque, res.joint_rate)
-        meta["energy_growth"], meta["energy_growth_t"] = growth, when
-        if growth > ENERGY_GROWTH:
-            if iters is not None:
-                status = "unconverged"
-            warns.append(
-                f"the energy grew with no input: by {growth:.3g} × the run's energy scale "
-                f"(> {ENERGY_GROWTH:g}) by t = {when:.6g} s"
-            )
-    return status, warns
+        meta["energy_growth"], meta["energy_growth_t"] = _energy_growth(
+            case, res.t, res.energy, res.joint_torque, res.joint_rate
+        )
+    return verdict(meta, iterations=iters, tol=tol, max_iterations=max_iterations, n_steps=n_steps)
