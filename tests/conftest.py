@@ -134,3 +134,47 @@ def cleanup():
     yield
     for n in set(methods.names()) - before:
         methods.unregister(n)
+
+
+def pytest_sessionstart(session):
+    """On a fresh checkout (no numba cache yet), compile the kernels once before the xdist
+    workers start: a few processes side by side, one group of kernels each (tests/_warmup.py).
+    Without it every worker compiles the same kernels itself, side by side. Only in the
+    controlling process of an xdist run; ``DTTMM_TEST_WARMUP=0`` turns it off."""
+    config = session.config
+    if hasattr(config, "workerinput") or not getattr(config.option, "numprocesses", None):
+        return
+    if os.environ.get("DTTMM_TEST_WARMUP", "1") == "0" or config.option.collectonly:
+        return
+    import _warmup
+
+    cold = _warmup.cold_families()
+    groups = [[f for f in g if f in cold] for g in _warmup.GROUPS]
+    groups = [g for g in groups if g]
+    if not groups:
+        return
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+        "OPENBLAS_NUM_THREADS": "1",
+    }
+    t0 = time.perf_counter()
+    procs = [
+        subprocess.Popen(
+            [sys.executable, str(TESTS / "_warmup.py"), *g],
+            env=env,
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for g in groups
+    ]
+    lines = []
+    for g, p in zip(groups, procs):
+        out, _ = p.communicate()
+        # a failed warm-up only costs time: the tests compile what is missing (and show the error)
+        lines.append(f"{'+'.join(g)}: " + ("ok" if p.returncode == 0 else f"failed ({out.strip()[-300:]})"))
+    tr = config.pluginmanager.get_plugin("terminalreporter")
+    if tr is not None:
+        tr.write_line(f"numba warm-up ({time.perf_counter() - t0:.0f} s): " + "; ".join(lines))
