@@ -178,3 +178,17 @@ def pytest_sessionstart(session):
     tr = config.pluginmanager.get_plugin("terminalreporter")
     if tr is not None:
         tr.write_line(f"numba warm-up ({time.perf_counter() - t0:.0f} s): " + "; ".join(lines))
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """A module-scoped fixture is computed once in every xdist worker that runs a test using it
+    (test_report's report, about 40 s, was built in both): such tests go to one worker, a group
+    per module (``xdist_group``, used by ``--dist loadgroup`` in pyproject's addopts). Runs
+    before xdist reads the marks (tryfirst)."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None or item.get_closest_marker("xdist_group"):
+            continue
+        if any(d.scope == "module" for defs in info.name2fixturedefs.values() for d in defs):
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0]))
