@@ -86,6 +86,8 @@ def _global_cache():
 
 
 def _amm_cache():
+    import numba  # noqa: F401  (without numba the assumed modes run uncompiled: nothing to warm)
+
     return str(ROOT / "reference_models" / "__pycache__"), ("_amm_numba.run-", "_amm_numba.assemble-")
 
 

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses as dc
+import functools
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -180,15 +182,32 @@ def pytest_sessionstart(session):
         tr.write_line(f"numba warm-up ({time.perf_counter() - t0:.0f} s): " + "; ".join(lines))
 
 
+_MODULE_FIXTURE = re.compile(r"""@pytest\.fixture\(\s*scope\s*=\s*["']module["']""")
+
+
+@functools.cache
+def _has_module_fixture(module: str) -> bool:
+    path = ROOT / module
+    return path.suffix == ".py" and path.is_file() and bool(_MODULE_FIXTURE.search(path.read_text()))
+
+
 @pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(config, items):
-    """A module-scoped fixture is computed once in every xdist worker that runs a test using it
-    (test_report's report, about 40 s, was built in both): such tests go to one worker, a group
-    per module (``xdist_group``, used by ``--dist loadgroup`` in pyproject's addopts). Runs
-    before xdist reads the marks (tryfirst)."""
-    for item in items:
-        info = getattr(item, "_fixtureinfo", None)
-        if info is None or item.get_closest_marker("xdist_group"):
-            continue
-        if any(d.scope == "module" for defs in info.name2fixturedefs.values() for d in defs):
-            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::", 1)[0]))
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadgroup`` (pyproject's addopts): a module with a module-scoped fixture runs on
+    one xdist worker, its fixtures computed once (test_report's report, about 40 s, and the
+    report drawn again, about 40 s, were computed in both workers of a 2-worker run); every
+    other test is scheduled alone, as with ``--dist load``. ``xdist_group`` marks keep their
+    meaning where pytest carries them in the node id (xdist 3.8 writes ``item._nodeid``, which
+    pytest 9.2 no longer reads, so its own loadgroup scheduler sees no groups)."""
+    if config.getvalue("dist") != "loadgroup":
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ModuleFixtureScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            if nodeid.rfind("@") > nodeid.rfind("]"):
+                return nodeid.split("@")[-1]
+            module = nodeid.split("::", 1)[0]
+            return module if _has_module_fixture(module) else nodeid
+
+    return ModuleFixtureScheduling(config, log)
