@@ -191,7 +191,7 @@ def _has_module_fixture(module: str) -> bool:
     return path.suffix == ".py" and path.is_file() and bool(_MODULE_FIXTURE.search(path.read_text()))
 
 
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
     """``--dist loadgroup`` (pyproject's addopts): a module with a module-scoped fixture runs on
     one xdist worker, its fixtures computed once (test_report's report, about 40 s, and the
