@@ -1403,8 +1403,16 @@ def forward_link(md, ws, i, A, qdd, want_loads, loads, ic):
     return ic
 
 
-@njit(nrt=False)
+@njit(nrt=False, inline="always")
 def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads):
+    """:func:`riccati_sweep` with ``want_loads`` a plain bool: the time loop passes a literal
+    ``False``, :func:`accelerations` a variable, and numba would compile the sweep once for each
+    type (minutes on a fresh checkout); ``bool()`` of either is one type, so one compilation."""
+    return riccati_sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, bool(want_loads), loads)
+
+
+@njit(nrt=False)
+def riccati_sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads):
     """One Riccati sweep at the kinematics in ``ws`` (from :func:`kinematics`): q̈ into ``qdd``,
     per joint α̈ and torque into ws.acc, and with ``want_loads`` the cut loads (nel + n, 6)
     (force, moment; world components) at every element root and link tip. ``qhat``/``qdhat``:
