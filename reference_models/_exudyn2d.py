@@ -78,17 +78,14 @@ from dttmm.model import require_flexible
 from dttmm.shapes import shape_points as _shape_points
 
 from ._exudyn_common import (
-    dynamic_settings,
     gravity_loads,
     import_exudyn,
     link_shapes,
     node_sensors,
     output_grid,
-    run_segments,
-    segments,
     set_pre_step,
     shape_sensors,
-    stored_rows,
+    solve,
 )
 from ._exudyn_control import ClosedLoop
 
@@ -331,7 +328,6 @@ def simulate_exudyn(
         if has_gravity:
             gravity_loads(mbs, ii, elements, g)
 
-    t_bp_grid, t_bp_off, segs, on_out_grid = segments(sc, h, n_steps, per_out)
     seg_start = [0.0]  # start time of the running segment, read by the user functions
 
     # Drive inputs. "pre-step" (default): plain loads / constant offsets whose values a
@@ -430,17 +426,9 @@ def simulate_exudyn(
     if closed is not None:
         closed.assembled(mbs)
 
-    # sensors are written from each segment start every writePeriod: the output step when all
-    # segments start on the output grid, else every step (rows off the grid are dropped)
-    s, ti = dynamic_settings(
-        exu,
-        rho_inf,
-        float(newton_rel_tol),
-        abs_tol,
-        int(newton_max_iterations),
-        modified_newton,
-        sc.output_step if on_out_grid else h,
-        jacobian_per_step,
+    newton = (rho_inf, float(newton_rel_tol), abs_tol, int(newton_max_iterations), modified_newton)
+    run, stored = solve(
+        mbs, exu, sc, h, all_sensors, set_inputs, seg_start, newton, jacobian_per_step, closed
     )
     meta = dict(
         method=element.method,
@@ -459,8 +447,8 @@ def simulate_exudyn(
         ode2_size=int(mbs.systemData.ODE2Size()),
         ae_size=int(mbs.systemData.AEsize()),
         exudyn=exu.__version__,
-        restarts=[float(b) for b in t_bp_grid],
-        breakpoints_off_grid=[float(b) for b in t_bp_off],
+        restarts=[float(b) for b in run.restarts],
+        breakpoints_off_grid=[float(b) for b in run.off_grid],
         axial_stiffness=axial,
         inextensible_axial_ratio=float(inextensible_axial_ratio),
     )
@@ -470,9 +458,6 @@ def simulate_exudyn(
     except Exception:  # versions() is informational only
         meta["versions"] = {"exudyn": exu.__version__}
 
-    # --- solve, segment by segment ------------------------------------------------------------
-    rows = {sn: [] for sn in all_sensors}
-    run = run_segments(mbs, exu, s, ti, segs, h, seg_start, set_inputs, rows, closed)
     failure = None
     if not run.ok:
         err = run.error
@@ -504,7 +489,6 @@ def simulate_exudyn(
         )
 
     # --- outputs ------------------------------------------------------------------------------
-    stored = stored_rows(rows, sc.output_step, per_out)
 
     def series():
         ts = stored(s_hub[0][0])[:, 0]

@@ -23,17 +23,13 @@ from dttmm.spatial import SpatialCase, SpatialResult, load_case
 from dttmm.spatial.rotation import log_so3
 
 from ._exudyn_common import (
-    dynamic_settings,
     gravity_loads,
     import_exudyn,
     link_shapes,
     node_sensors,
-    output_grid,
-    run_segments,
-    segments,
     set_pre_step,
     shape_sensors,
-    stored_rows,
+    solve,
 )
 from ._spatial_mechanics import rot_axis, rpy_matrix
 
@@ -375,30 +371,19 @@ class Run:
         """Assemble, run the segments; returns None, or why the run stopped. Afterwards
         :meth:`stored` reads a sensor on the output grid."""
         arm, sc = self.arm, self.arm.case.scenario
-        per_out, n_steps = output_grid(sc, h)
         arm.mbs.Assemble()
-        self.restarts, _, segs, on_grid = segments(sc, h, n_steps, per_out)
-        s, ti = dynamic_settings(
-            arm.exu,
-            rho_inf,
-            rel_tol,
-            abs_tol,
-            max_iterations,
-            modified_newton,
-            sc.output_step if on_grid else h,
+        newton = (rho_inf, rel_tol, abs_tol, max_iterations, modified_newton)
+        run, grid = solve(
+            arm.mbs, arm.exu, sc, h, self.sensors, arm.set_inputs, self.seg_start, newton, quiet=quiet
         )
-        rows = {sn: [] for sn in self.sensors}
-        run = self.run = run_segments(
-            arm.mbs, arm.exu, s, ti, segs, h, self.seg_start, arm.set_inputs, rows, quiet=quiet
-        )
-        grid, t_out = stored_rows(rows, sc.output_step, per_out), sc.output_times
+        self.run, t_out = run, sc.output_times
 
         def stored(sn):  # the values on the output grid (nt, width); a count that misses it is an error
             d = grid(sn)
             if len(d) != len(t_out):
                 raise SimulationError(
                     f"Exudyn {method}: {len(d)} sensor rows for {len(t_out)} outputs",
-                    t=n_steps * h,
+                    t=run.n_steps * h,
                     step=run.steps,
                     component="sensors",
                 )
@@ -432,7 +417,7 @@ class Run:
             newton_iterations_per_step=run.newton / max(run.steps, 1),
             ode2_size=int(sd.ODE2Size()),
             ae_size=int(sd.AEsize()),
-            restarts=[float(x) for x in self.restarts],
+            restarts=[float(x) for x in run.restarts],
             wall_time_solve=run.wall,
             cpu_time=run.cpu,
             exudyn=self.arm.exu.__version__,

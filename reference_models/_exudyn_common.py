@@ -26,6 +26,7 @@ from dttmm.errors import InputError
 from dttmm.shapes import hermite_shapes, stations
 
 __all__ = [
+    "beam_elements",
     "beam_nodes",
     "body_sensor",
     "dynamic_settings",
@@ -39,6 +40,7 @@ __all__ = [
     "segments",
     "set_pre_step",
     "shape_sensors",
+    "solve",
     "stored_rows",
 ]
 
@@ -189,6 +191,24 @@ def stored_rows(rows, output_step: float, per_out: int):
     return stored
 
 
+def solve(
+    mbs, exu, sc, h, sensors, set_inputs, seg_start, newton, jacobian_per_step=True, closed=None, quiet=False
+):
+    """The assembled system over the scenario's output grid: :func:`segments`, the settings of
+    :func:`dynamic_settings` (``newton``: rho_inf, relative and absolute tolerance, maximum
+    iterations, modified Newton), :func:`run_segments` with ``sensors`` stored. Returns (the run
+    with its ``restarts``, ``off_grid`` breakpoints and ``n_steps``, :func:`stored_rows`)."""
+    per_out, n_steps = output_grid(sc, h)
+    grid, off, segs, on_grid = segments(sc, h, n_steps, per_out)
+    # sensors are written from each segment start every writePeriod: the output step when all
+    # segments start on the output grid, else every step (rows off the grid are dropped)
+    s, ti = dynamic_settings(exu, *newton, sc.output_step if on_grid else h, jacobian_per_step)
+    rows = {sn: [] for sn in sensors}
+    run = run_segments(mbs, exu, s, ti, segs, h, seg_start, set_inputs, rows, closed, quiet)
+    run.restarts, run.off_grid, run.n_steps = grid, off, n_steps
+    return run, stored_rows(rows, sc.output_step, per_out)
+
+
 def node_sensors(mbs, ii, nodes, variables) -> list:
     """Per node, a tuple of sensors (one per output variable), stored internally."""
     return [
@@ -248,6 +268,12 @@ def link_shapes(links, nodes, p: int) -> np.ndarray:
         L = link.beam.length
         out.append(hermite_shapes(np.linspace(0.0, L, c.shape[1]), pos, slope, stations(L, p)))
     return np.stack(out, axis=1)
+
+
+def beam_elements(mbs, item, nodes, **properties) -> list:
+    """A beam element ``item`` (an itemInterface class) with ``properties`` between every two
+    consecutive nodes, base to tip."""
+    return [mbs.AddObject(item(nodeNumbers=[a, b], **properties)) for a, b in zip(nodes, nodes[1:])]
 
 
 def gravity_loads(mbs, ii, bodies, g) -> None:

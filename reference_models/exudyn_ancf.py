@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 
 from ._exudyn2d import simulate_exudyn
+from ._exudyn_common import beam_elements
 
 __all__ = ["simulate", "METHOD"]
 
@@ -42,21 +43,18 @@ class _ANCF:
             )
             for p, v in ((layout.point(i, L * j / k), layout.velocity(i, L * j / k)) for j in range(k + 1))
         ]
-        elements = [
-            mbs.AddObject(
-                ii.ObjectANCFCable2D(
-                    nodeNumbers=[nodes[j], nodes[j + 1]],
-                    length=L / k,
-                    massPerLength=b.rhoA,
-                    bendingStiffness=b.EI,
-                    axialStiffness=EA,
-                    bendingDamping=b.damping * b.EI,
-                    axialDamping=b.damping * EA,
-                    useReducedOrderIntegration=int(bool(reduced_integration)),
-                )
-            )
-            for j in range(k)
-        ]
+        elements = beam_elements(
+            mbs,
+            ii.ObjectANCFCable2D,
+            nodes,
+            length=L / k,
+            massPerLength=b.rhoA,
+            bendingStiffness=b.EI,
+            axialStiffness=EA,
+            bendingDamping=b.damping * b.EI,
+            axialDamping=b.damping * EA,
+            useReducedOrderIntegration=int(bool(reduced_integration)),
+        )
         hub, tip = (layout.rigid_node(mbs, ii, i, s_) for s_ in (0.0, L))
         return hub, tip, elements, (nodes[0], nodes[-1])
 

@@ -24,6 +24,7 @@ import math
 from dttmm import InputError
 
 from ._exudyn2d import simulate_exudyn
+from ._exudyn_common import beam_elements
 
 __all__ = ["simulate", "METHOD", "SHEAR_RATIO", "CROSS_SECTION_INERTIA", "rotary_inertia"]
 
@@ -73,23 +74,20 @@ class _GE:
         L = b.length
         GA = shear_ratio * EA
         nodes = [layout.rigid_node(mbs, ii, i, L * j / k) for j in range(k + 1)]
-        elements = [
-            mbs.AddObject(
-                ii.ObjectBeamGeometricallyExact2D(
-                    nodeNumbers=[nodes[j], nodes[j + 1]],
-                    length=L / k,
-                    massPerLength=b.rhoA,
-                    crossSectionInertia=rotary_inertia(link, EA, cross_section_inertia),
-                    bendingStiffness=b.EI,
-                    axialStiffness=EA,
-                    shearStiffness=GA,
-                    bendingDamping=b.damping * b.EI,
-                    axialDamping=b.damping * EA,
-                    shearDamping=b.damping * GA,
-                )
-            )
-            for j in range(k)
-        ]
+        elements = beam_elements(
+            mbs,
+            ii.ObjectBeamGeometricallyExact2D,
+            nodes,
+            length=L / k,
+            massPerLength=b.rhoA,
+            crossSectionInertia=rotary_inertia(link, EA, cross_section_inertia),
+            bendingStiffness=b.EI,
+            axialStiffness=EA,
+            shearStiffness=GA,
+            bendingDamping=b.damping * b.EI,
+            axialDamping=b.damping * EA,
+            shearDamping=b.damping * GA,
+        )
         return nodes[0], nodes[-1], elements, None
 
 

@@ -64,7 +64,7 @@ from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
 from ._exudyn3d import Arm, Run, all_loads, as_case, axis_frame, reference_frames, solve_static, static_frames
-from ._exudyn_common import beam_nodes, body_sensor, gravity_loads, node_sensors, output_grid
+from ._exudyn_common import beam_elements, beam_nodes, body_sensor, gravity_loads, node_sensors, output_grid
 from ._spatial_mechanics import rot_axis
 
 __all__ = ["METHOD", "SHEAR_RATIO", "NODES", "check_case", "simulate", "reference_frames"]
@@ -155,14 +155,13 @@ def _build(case, k, shear_ratio, node, loads) -> Arm:
             rigid_node(i, p, Rn)
             for p in (fr["p_link"] + fr["R_link"] @ np.array([j * l, 0.0, 0.0]) for j in range(k + 1))
         ]
-        els = [
-            mbs.AddObject(
-                ii.ObjectBeamGeometricallyExact(
-                    nodeNumbers=[nodes[j], nodes[j + 1]], length=l, sectionData=sec
-                )
-            )
-            for j in range(k)
-        ]
+        els = beam_elements(
+            mbs,
+            ii.ObjectBeamGeometricallyExact,
+            nodes,
+            length=l,
+            sectionData=sec,
+        )
         if arm.has_g:
             gravity_loads(mbs, ii, els, list(arm.g))
         arm.root_nodes.append(nodes[0])
