@@ -29,6 +29,7 @@ __all__ = [
     "beam_elements",
     "beam_nodes",
     "body_sensor",
+    "cable_properties",
     "dynamic_settings",
     "eigen_frequencies",
     "gravity_loads",
@@ -274,6 +275,19 @@ def beam_elements(mbs, item, nodes, **properties) -> list:
     """A beam element ``item`` (an itemInterface class) with ``properties`` between every two
     consecutive nodes, base to tip."""
     return [mbs.AddObject(item(nodeNumbers=[a, b], **properties)) for a, b in zip(nodes, nodes[1:])]
+
+
+def cable_properties(beam, l, EI, EA) -> dict:
+    """The element properties a cable and a 2-D beam share: length l, ρA, EI, EA and their
+    Kelvin–Voigt damping μ·EI, μ·EA."""
+    return dict(
+        length=l,
+        massPerLength=beam.rhoA,
+        bendingStiffness=EI,
+        axialStiffness=EA,
+        bendingDamping=beam.damping * EI,
+        axialDamping=beam.damping * EA,
+    )
 
 
 def gravity_loads(mbs, ii, bodies, g) -> None:

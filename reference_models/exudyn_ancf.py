@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 from ._exudyn2d import simulate_exudyn
-from ._exudyn_common import beam_elements
+from ._exudyn_common import beam_elements, cable_properties
 
 __all__ = ["simulate", "METHOD"]
 
@@ -47,12 +47,7 @@ class _ANCF:
             mbs,
             ii.ObjectANCFCable2D,
             nodes,
-            length=L / k,
-            massPerLength=b.rhoA,
-            bendingStiffness=b.EI,
-            axialStiffness=EA,
-            bendingDamping=b.damping * b.EI,
-            axialDamping=b.damping * EA,
+            **cable_properties(b, L / k, b.EI, EA),
             useReducedOrderIntegration=int(bool(reduced_integration)),
         )
         hub, tip = (layout.rigid_node(mbs, ii, i, s_) for s_ in (0.0, L))

@@ -60,7 +60,7 @@ from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
 
 from ._exudyn3d import Arm, Run, as_case, check_tip_loads, reference_frames, solve_static, static_frames
-from ._exudyn_common import beam_elements, gravity_loads, output_grid
+from ._exudyn_common import beam_elements, cable_properties, gravity_loads, output_grid
 from ._spatial_mechanics import rot_axis
 
 __all__ = ["METHOD", "TWIST_LOCKS", "check_case", "frequencies", "simulate", "statics"]
@@ -280,12 +280,7 @@ def _build(case, k, loads, reduced_integration=False, twist_lock="nodes") -> Arm
             mbs,
             ii.ObjectANCFCable,
             nodes,
-            length=l,
-            massPerLength=b.rhoA,
-            bendingStiffness=EI,
-            axialStiffness=EA,
-            bendingDamping=b.damping * EI,
-            axialDamping=b.damping * EA,
+            **cable_properties(b, l, EI, EA),
             useReducedOrderIntegration=int(bool(reduced_integration)),
         )
         if arm.has_g:

@@ -24,7 +24,7 @@ import math
 from dttmm import InputError
 
 from ._exudyn2d import simulate_exudyn
-from ._exudyn_common import beam_elements
+from ._exudyn_common import beam_elements, cable_properties
 
 __all__ = ["simulate", "METHOD", "SHEAR_RATIO", "CROSS_SECTION_INERTIA", "rotary_inertia"]
 
@@ -78,14 +78,9 @@ class _GE:
             mbs,
             ii.ObjectBeamGeometricallyExact2D,
             nodes,
-            length=L / k,
-            massPerLength=b.rhoA,
+            **cable_properties(b, L / k, b.EI, EA),
             crossSectionInertia=rotary_inertia(link, EA, cross_section_inertia),
-            bendingStiffness=b.EI,
-            axialStiffness=EA,
             shearStiffness=GA,
-            bendingDamping=b.damping * b.EI,
-            axialDamping=b.damping * EA,
             shearDamping=b.damping * GA,
         )
         return nodes[0], nodes[-1], elements, None
