@@ -1,41 +1,51 @@
-"""The parts both Exudyn 3-D peers share (:mod:`exudyn_beam3d`, :mod:`exudyn_ancf3d`): the
-undeformed frames at t = 0, the solver settings, the segmented ``SolveDynamic`` run, the sensors
-of the link frames and motion joints, and the conversion of what they stored into the
-:class:`dttmm.spatial.SpatialResult` fields (link frames, tip deflections, twist, joint angles,
-rates and torques) and into the static solution's fields.
+"""The spatial arm of the Exudyn peers (the family's skeleton: :mod:`reference_models._exudyn_common`),
+shared by :mod:`exudyn_beam3d` and :mod:`exudyn_ancf3d`: the undeformed frames at t = 0, the
+tip loads, the system under construction (:class:`Arm`: ground, rigid markers, rigid bodies,
+Euler-parameter nodes, the joints with their drives, the loads at the link tips and the drive
+inputs), the dynamic run (:class:`Run`: the sensors of the link frames, motion joints and beam
+nodes, the segmented ``SolveDynamic`` run, the conversion of what they stored into the
+:class:`dttmm.spatial.SpatialResult` fields: link frames, tip deflections, twist, joint angles,
+rates and torques, link shapes) and the static solution's fields.
 
-An adapter builds its own model (elements, nodes, joints, bodies) and hands over the nodes
-whose frame is the link's root and tip frame (``rolls``: the section roll Rx(roll) of the node
-frames, None where the node frame is the link frame itself).
+An adapter builds its own links (elements, nodes, bodies) on an :class:`Arm` and hands over the
+nodes whose frame is the link's root and tip frame (``rolls``: the section roll Rx(roll) of the
+node frames, None where the node frame is the link frame itself; ``reach``: a rigid link's tip
+beyond its node).
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from dttmm.errors import InputError, SimulationError
-from dttmm.spatial import SpatialCase, load_case
+from dttmm.shapes import straight_shapes
+from dttmm.spatial import SpatialCase, SpatialResult, load_case
 from dttmm.spatial.rotation import log_so3
 
+from ._exudyn_common import (
+    gravity_loads,
+    import_exudyn,
+    link_shapes,
+    node_sensors,
+    set_pre_step,
+    shape_sensors,
+    solve,
+)
 from ._spatial_mechanics import rot_axis, rpy_matrix
 
 __all__ = [
+    "Arm",
+    "Run",
+    "all_loads",
     "as_case",
     "axis_frame",
-    "dynamic_settings",
+    "check_tip_loads",
     "frame_outputs",
-    "frame_sensors",
     "initial_joint_states",
     "joint_outputs",
-    "motion_sensors",
     "reference_frames",
-    "run_segments",
-    "segments",
     "solve_static",
     "static_frames",
-    "stored_reader",
 ]
 
 
@@ -106,115 +116,347 @@ def reference_frames(case: SpatialCase):
     return out
 
 
-def frame_sensors(mbs, ii, OV, nodes) -> list:
-    """(position, rotation matrix, angular velocity) sensors of every node, stored internally."""
+def _piecewise(times, values):
+    times = np.asarray(times, float)
+    values = np.asarray(values, float)
+    return lambda t: float(np.interp(t, times, values))
 
-    def sens(nd, var):
-        return mbs.AddSensor(
-            ii.SensorNode(nodeNumber=nd, outputVariableType=var, storeInternal=True, writeToFile=False)
+
+def _case_load(ld, n: int):
+    """(link, F, T, law(t, left=False)) of a SpatialLoad of the case's scenario."""
+    law = lambda t, left=False, f=ld.factor: float(f(t, left))  # noqa: E731
+    return ld.link_index(n), np.array(ld.force, float), np.array(ld.moment, float), law
+
+
+def check_tip_loads(case, tip_loads, followers=False):
+    """The world loads at link tips: the case's ``scenario.loads`` in the world frame, then the
+    option ``tip_loads``, as (link, F, T, law(t, left=False)) per load. A follower load of the
+    case (frame "tip") is refused unless ``followers`` (then it is left to
+    :func:`follower_loads`)."""
+    out = []
+    n = case.model.n_links
+    for j, ld in enumerate(getattr(case.scenario, "loads", ())):
+        if not ld.follower:
+            out.append(_case_load(ld, n))
+        elif not followers:
+            raise InputError(
+                f"scenario.loads[{j}].frame", ld.frame, "follower loads are not supported by this peer"
+            )
+    for n_, item in enumerate(tip_loads or ()):
+        where = f"tip_loads[{n_}]"
+        if not isinstance(item, dict) or set(item) - {"link", "force", "torque", "times", "factors"}:
+            raise InputError(where, item, "must be a dict with keys link, force, torque, times, factors")
+        i = item.get("link")
+        if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < case.model.n_links:
+            raise InputError(f"{where}.link", i, f"must be a link index in 0..{case.model.n_links - 1}")
+        vecs = []
+        for key in ("force", "torque"):
+            v = np.asarray(item.get(key, (0.0, 0.0, 0.0)), float)
+            if v.shape != (3,) or not np.isfinite(v).all():
+                raise InputError(f"{where}.{key}", item.get(key), "must be 3 finite numbers (world frame)")
+            vecs.append(v)
+        tt = np.asarray(item.get("times", (0.0, case.scenario.duration)), float)
+        ff = np.asarray(item.get("factors", (1.0, 1.0)), float)
+        if tt.ndim != 1 or tt.shape != ff.shape or tt.size < 1 or np.any(np.diff(tt) <= 0):
+            raise InputError(f"{where}.times", item.get("times"), "must increase and match factors in length")
+        pw = _piecewise(tt, ff)
+        out.append((i, vecs[0], vecs[1], lambda t, left=False, f=pw: f(t)))
+    return out
+
+
+def follower_loads(case):
+    """The case's follower loads (frame "tip"), as (link, F, T, law(t, left=False)) with F, T in
+    the tip frame."""
+    n = case.model.n_links
+    return [_case_load(ld, n) for ld in getattr(case.scenario, "loads", ()) if ld.follower]
+
+
+def all_loads(case, tip_loads):
+    """(link, F, T, law, follower) of every tip load of a run."""
+    world = [(*x, False) for x in check_tip_loads(case, tip_loads, followers=True)]
+    return world + [(*x, True) for x in follower_loads(case)]
+
+
+def _ancestors(model, i) -> list:
+    """Link i and the links it hangs from, base first."""
+    out = [i]
+    while model.parents[out[-1]] >= 0:
+        out.append(model.parents[out[-1]])
+    return out[::-1]
+
+
+class Arm:
+    """The Exudyn system of a spatial case under construction (not assembled): the ground, the
+    rigid bodies and markers, the joints and drives, the tip loads and the drive inputs; an
+    adapter adds its links and fills ``root_nodes``, ``tip_nodes`` (the nodes whose frames are
+    the link's root and tip frames) and ``kmax`` (its largest element stiffness)."""
+
+    def __init__(self, case, who: str):
+        exu, ii = import_exudyn(who)
+        self.exu, self.ii, self.case = exu, ii, case
+        self.frames = reference_frames(case)
+        self.rates = initial_joint_states(case)[1]
+        self.g = np.array(case.model.gravity, float)
+        self.has_g = bool(np.any(self.g != 0.0))
+        self.SC = exu.SystemContainer()
+        mbs = self.mbs = self.SC.AddSystem()
+        self.ground = mbs.AddNode(ii.NodePointGround())
+        self.ground_body = mbs.AddObject(ii.ObjectGround())
+        self.carrier = {}  # node -> rigid body on it (for markers away from the node)
+        self.bodies = []  # (body, node, centre of mass, mass)
+        self.inputs = []  # (load, law, vector): what set_inputs sets
+        self.motion_joints = {}
+        self.root_nodes, self.tip_nodes = [], []
+        self.kmax = 0.0
+
+    def velocity(self, i, p) -> np.ndarray:
+        """Rigid velocity at t = 0 of the point p of link i (from the initial joint rates)."""
+        fr = self.frames
+        terms = (
+            np.cross(fr[m]["a_w"], p - fr[m]["p_J"]) * self.rates[m] for m in _ancestors(self.case.model, i)
+        )
+        return sum(terms, np.zeros(3))
+
+    def ep_node(self, i, p, R):
+        """A NodeRigidBodyEP at p with the frame R, moving rigidly with link i at t = 0."""
+        from exudyn.rigidBodyUtilities import (
+            AngularVelocity2EulerParameters_t,
+            RotationMatrix2EulerParameters,
         )
 
-    return [
-        (sens(nd, OV.Position), sens(nd, OV.RotationMatrix), sens(nd, OV.AngularVelocity)) for nd in nodes
-    ]
-
-
-def motion_sensors(mbs, ii, OV, motion_joints: dict) -> dict:
-    """The reaction-torque sensor (``TorqueLocal``) of every motion joint, by link."""
-    return {
-        i: mbs.AddSensor(
-            ii.SensorObject(
-                objectNumber=c, outputVariableType=OV.TorqueLocal, storeInternal=True, writeToFile=False
+        ep = np.array(RotationMatrix2EulerParameters(R))
+        ep_t = AngularVelocity2EulerParameters_t(self.frames[i]["omega"], ep)
+        return self.mbs.AddNode(
+            self.ii.NodeRigidBodyEP(
+                referenceCoordinates=list(p) + list(ep),
+                initialVelocities=list(self.velocity(i, p)) + list(ep_t),
             )
         )
-        for i, c in motion_joints.items()
-    }
 
-
-def dynamic_settings(exu, rho_inf, rel_tol, abs_tol, max_iterations, modified_newton):
-    """Exudyn's generalized-α with a fixed step, modified Newton with a Jacobian per step,
-    EigenSparse, one thread, no files: returns (settings, its timeIntegration)."""
-    s = exu.SimulationSettings()
-    ti = s.timeIntegration
-    ti.adaptiveStep = False
-    ti.verboseMode = 0
-    ti.generalizedAlpha.spectralRadius = float(rho_inf)
-    ti.generalizedAlpha.computeInitialAccelerations = True
-    ti.newton.relativeTolerance = rel_tol
-    ti.newton.absoluteTolerance = abs_tol
-    ti.newton.maxIterations = max_iterations
-    ti.newton.useModifiedNewton = bool(modified_newton)
-    ti.newton.modifiedNewtonJacUpdatePerStep = True
-    s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
-    s.parallel.numberOfThreads = 1
-    s.solution.file.write = False
-    s.show.computationTime = False
-    s.show.statistics = False
-    return s, ti
-
-
-def segments(sc, h: float, n_steps: int, per_out: int):
-    """The drive breakpoints on the step grid (where the integrator restarts), the step ranges
-    between them, and whether every range starts on the output grid."""
-    t_end = n_steps * h
-    bps = [b for b in sc.breakpoints if 0 < b < t_end and abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h)]
-    idx = sorted({0, n_steps, *[int(round(b / h)) for b in bps]})
-    segs = [(a, b) for a, b in zip(idx, idx[1:]) if b > a]
-    return bps, segs, all(a % per_out == 0 for a, _ in segs)
-
-
-def run_segments(mbs, exu, s, ti, segments, h, seg_start, set_inputs, sensors, rows):
-    """SolveDynamic over the segments (restarting at each); the sensor rows go to ``rows``.
-    Returns (wall, cpu, Newton iterations, steps, Jacobians, failure message or None, it)."""
-    wall = cpu = 0.0
-    newton = steps = jacobians = 0
-    failure = it = None
-    for a, b in segments:
-        seg_start[0] = a * h
-        set_inputs(a * h, False)
-        ti.startTime, ti.endTime, ti.numberOfSteps = a * h, b * h, b - a
-        t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
-            err = None
-        except Exception as exc:  # Exudyn raises on singular Jacobians
-            ok, err = False, exc
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        it = mbs.sys["dynamicSolver"].it
-        steps += max(int(it.currentStepIndex) - 1, 0)
-        newton += int(it.newtonStepsCount)
-        jacobians += int(it.newtonJacobiCount)
-        for sn in sensors:
-            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
-            rows[sn].append(d if not rows[sn] else d[1:])
-        if not ok:
-            failure = f"SolveDynamic failed at t = {float(it.currentTime)}" + (f": {err}" if err else "")
-            break
-        mbs.systemData.SetSystemState(
-            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
-        )
-    return wall, cpu, newton, steps, jacobians, failure, it
-
-
-def stored_reader(rows, sc, t_out, per_out: int, t_end: float, steps: int, method: str):
-    """A function of a sensor giving its stored values on the output grid (nt, width); a count
-    that misses the grid is a SimulationError."""
-
-    def stored(sn):
-        d = np.concatenate(rows[sn], axis=0)
-        x = d[:, 0] / sc.output_step
-        d = d[np.abs(x - np.round(x)) <= 1e-6 * per_out]
-        if len(d) != len(t_out):
-            raise SimulationError(
-                f"Exudyn {method}: {len(d)} sensor rows for {len(t_out)} outputs",
-                t=t_end,
-                step=steps,
-                component="sensors",
+    def add_body(self, nd, mass, c, J):
+        """A rigid body on node ``nd``: mass, centre c and inertia J about the node (node frame)."""
+        mbs, ii = self.mbs, self.ii
+        body = mbs.AddObject(
+            ii.ObjectRigidBody(
+                nodeNumber=nd,
+                mass=float(mass),
+                inertia=[J[0, 0], J[1, 1], J[2, 2], J[1, 2], J[0, 2], J[0, 1]],
+                centerOfMass=list(c),
             )
-        return d[:, 1:]
+        )
+        self.bodies.append((body, nd, c, float(mass)))
+        self.carrier.setdefault(nd, body)
+        if self.has_g and mass > 0:
+            gravity_loads(mbs, ii, [body], list(self.g))
+        return body
 
-    return stored
+    def rigid_marker(self, nd, R=None, p=None):
+        """A rigid marker on node ``nd`` with the frame R at the point p (node frame)."""
+        mbs, ii, exu = self.mbs, self.ii, self.exu
+        R = np.eye(3) if R is None else R
+        p = np.zeros(3) if p is None else p
+        if not np.any(p):
+            return mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=nd, localHT=exu.HT(rotation=R)))
+        if nd == self.ground:
+            body = self.ground_body
+        elif nd in self.carrier:
+            body = self.carrier[nd]
+        else:  # a massless body on the node carries the offset marker
+            body = self.carrier[nd] = mbs.AddObject(ii.ObjectRigidBody(nodeNumber=nd, mass=0.0))
+        return mbs.AddMarker(
+            ii.MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(rotation=R, translation=list(p)))
+        )
+
+    def add_joints(self, child, rolls=None, reach=None) -> None:
+        """The joints and their drives: an ``ObjectJointGeneric`` between the parent's marker
+        (ground, or the parent's tip node, at the joint origin with the joint frame R_J·A, A
+        taking z to the axis) and link i's root node, whose marker frame is ``child[i]``·A in
+        the node frame; locked: all six axes; motion drive: all six, the angle prescribed by
+        the offset user function; torque drive: the rotation about the axis free, a body-fixed
+        ``LoadTorqueVector`` pair ±τ·a set by :meth:`set_inputs`."""
+        mbs, ii, model, frames = self.mbs, self.ii, self.case.model, self.frames
+        drives = iter(self.case.scenario.drives)
+        for i, link in enumerate(model.links):
+            fr, j = frames[i], link.joint
+            par = model.parents[i]
+            if par < 0:
+                parent, R_pn, p_pn = self.ground, np.eye(3), np.zeros(3)
+            else:
+                parent, R_pn, p_pn = self.tip_nodes[par], frames[par]["R_tip"], frames[par]["p_tip"]
+                if rolls is not None:
+                    R_pn = R_pn @ rolls[par]
+                if reach is not None:
+                    p_pn = p_pn - frames[par]["R_tip"] @ reach[par]  # the node's position
+            A = np.eye(3) if j.locked else axis_frame(j.axis)
+            # marker 0: the joint frame R_J·A at p_J in the parent's node frame
+            m0 = self.rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
+            m1 = self.rigid_marker(self.root_nodes[i], child[i] @ A)
+            if j.locked:
+                mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1] * 6))
+                continue
+            d = next(drives)
+            if d.kind == "motion":
+
+                def offset(mbs_, t, item, par, law=d.motion):
+                    return [0.0, 0.0, 0.0, 0.0, 0.0, law(t, True)[0]]
+
+                self.motion_joints[i] = mbs.AddObject(
+                    ii.ObjectJointGeneric(
+                        markerNumbers=[m0, m1], constrainedAxes=[1] * 6, offsetUserFunction=offset
+                    )
+                )
+                continue
+            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 1, 1, 1, 0]))
+            a = np.array(j.axis, float)
+            targets = [(self.root_nodes[i], child[i] @ a)]
+            if par >= 0:
+                targets.append((parent, -(R_pn.T @ fr["R_J"] @ a)))
+            for nd, vec in targets:
+                ld = mbs.AddLoad(
+                    ii.LoadTorqueVector(
+                        markerNumber=self.rigid_marker(nd), loadVector=[0.0, 0.0, 0.0], bodyFixed=True
+                    )
+                )
+                self.inputs.append((ld, d.torque, vec))
+
+    def add_loads(self, loads, rolls=None, reach=None) -> None:
+        """The loads (link, F, T, law, follower) at the link tips: world components, or a
+        follower's tip-frame ones turned into the node frame R_tip·Rx(roll), body-fixed."""
+        for i, F, T, law, follower in loads:
+            mk = self.rigid_marker(self.tip_nodes[i], None, None if reach is None else reach[i])
+            if follower:  # tip-frame components -> the node frame R_tip Rx(roll)
+                F, T = rolls[i].T @ F, rolls[i].T @ T
+            for vec, Load in ((F, self.ii.LoadForceVector), (T, self.ii.LoadTorqueVector)):
+                if np.any(vec):
+                    ld = self.mbs.AddLoad(
+                        Load(markerNumber=mk, loadVector=[0.0] * 3, bodyFixed=bool(follower))
+                    )
+                    self.inputs.append((ld, law, vec))
+
+    def set_inputs(self, t, left) -> None:
+        """Every drive torque and tip load at its law's value at t (left or right limit)."""
+        for ld, law, vec in self.inputs:
+            self.mbs.SetLoadParameter(ld, "loadVector", list(law(t, left) * vec))
+
+
+class Run:
+    """A dynamic run of an :class:`Arm`: the sensors of the link frames (position, rotation
+    matrix, angular velocity of the root and tip nodes), of the motion joints (reaction torque)
+    and, for the link shapes, of the beam nodes of the links ``shape_links`` (their elements
+    ``shape_elements``, sensor ``variables``); an adapter adds its own sensors to ``sensors``
+    before :meth:`solve`."""
+
+    def __init__(self, arm, shape_links=(), shape_elements=None, variables=()):
+        mbs, ii = arm.mbs, arm.ii
+        self.arm, self.seg_start, self.shape_links = arm, [0.0], list(shape_links)
+        if arm.inputs:
+            set_pre_step(mbs, arm.set_inputs, self.seg_start)
+        OV = self.OV = arm.exu.OutputVariableType
+        frame = (OV.Position, OV.RotationMatrix, OV.AngularVelocity)
+        self.s_root = node_sensors(mbs, ii, arm.root_nodes, frame)
+        self.s_tip = node_sensors(mbs, ii, arm.tip_nodes, frame)
+        self.s_mot = {
+            i: mbs.AddSensor(
+                ii.SensorObject(
+                    objectNumber=c, outputVariableType=OV.TorqueLocal, storeInternal=True, writeToFile=False
+                )
+            )
+            for i, c in arm.motion_joints.items()
+        }
+        self.s_shape = shape_sensors(mbs, ii, shape_elements, variables) if shape_elements is not None else []
+        self.sensors = [x for tr in self.s_root + self.s_tip for x in tr] + list(self.s_mot.values())
+        self.sensors += [x for link in self.s_shape for node in link for x in node]
+
+    def solve(self, method, h, rho_inf, rel_tol, abs_tol, max_iterations, modified_newton, quiet=False):
+        """Assemble, run the segments; returns None, or why the run stopped. Afterwards
+        :meth:`stored` reads a sensor on the output grid."""
+        arm, sc = self.arm, self.arm.case.scenario
+        arm.mbs.Assemble()
+        newton = (rho_inf, rel_tol, abs_tol, max_iterations, modified_newton)
+        run, grid = solve(
+            arm.mbs, arm.exu, sc, h, self.sensors, arm.set_inputs, self.seg_start, newton, quiet=quiet
+        )
+        self.run, t_out = run, sc.output_times
+
+        def stored(sn):  # the values on the output grid (nt, width); a count that misses it is an error
+            d = grid(sn)
+            if len(d) != len(t_out):
+                raise SimulationError(
+                    f"Exudyn {method}: {len(d)} sensor rows for {len(t_out)} outputs",
+                    t=run.n_steps * h,
+                    step=run.steps,
+                    component="sensors",
+                )
+            return d[:, 1:]
+
+        self.stored = stored
+        if not run.ok:
+            return f"SolveDynamic failed at t = {run.t_reached}" + (f": {run.error}" if run.error else "")
+        return run.short
+
+    def fail(self, method, failure):
+        raise SimulationError(
+            f"Exudyn {method}: {failure}", t=self.run.t_reached, step=self.run.steps, component="newton"
+        )
+
+    def meta(self, method, k, h, rho_inf, rel_tol, abs_tol, modified_newton, **specific) -> dict:
+        """The run's meta: its settings and counts (and ``specific``, the adapter's)."""
+        run, sd = self.run, self.arm.mbs.systemData
+        return dict(
+            method=method,
+            elements_per_link=k,
+            h=h,
+            **specific,
+            integrator="generalized-alpha",
+            rho_inf=float(rho_inf),
+            newton_rel_tol=rel_tol,
+            newton_abs_tol=abs_tol,
+            modified_newton=bool(modified_newton),
+            jacobian_per_step=True,
+            linear_solver="EigenSparse",
+            newton_iterations_per_step=run.newton / max(run.steps, 1),
+            ode2_size=int(sd.ODE2Size()),
+            ae_size=int(sd.AEsize()),
+            restarts=[float(x) for x in run.restarts],
+            wall_time_solve=run.wall,
+            cpu_time=run.cpu,
+            exudyn=self.arm.exu.__version__,
+        )
+
+    def fields(self, end_effector, rolls=None, reach=None, shape_points=0) -> dict:
+        """The SpatialResult's fields from the stored sensors (``rolls``, ``reach``: as
+        :func:`frame_outputs`); the links without beam nodes are drawn straight."""
+        case, stored = self.arm.case, self.stored
+        t_out = case.scenario.output_times
+        nt = len(t_out)
+        root, tip, Rl, Rt, w_root, w_tip, defl, twist = frame_outputs(
+            stored, self.s_root, self.s_tip, nt, rolls, reach
+        )
+        ja, jr, jt = joint_outputs(case, Rl, Rt, w_root, w_tip, stored, self.s_mot, t_out)
+        shapes = None
+        if shape_points:
+            nodes = [[np.hstack([stored(x) for x in node]) for node in link] for link in self.s_shape]
+            shapes = straight_shapes(root, tip, shape_points)  # the rigid links'
+            if self.shape_links:
+                links = [case.model.links[i] for i in self.shape_links]
+                shapes[:, self.shape_links] = link_shapes(links, nodes, shape_points)
+        return dict(
+            t=t_out,
+            link_shapes=shapes,
+            joint_angle=ja,
+            joint_rate=jr,
+            joint_torque=jt,
+            link_root=root,
+            link_tip=tip,
+            tip_deflection=defl,
+            end_effector=tip[:, end_effector].copy(),
+            twist=twist,
+            link_rotation=Rl,
+            tip_rotation=Rt,
+        )
+
+    def result(self, fields, meta, **extra) -> SpatialResult:
+        return SpatialResult(**fields, wall_time=self.run.wall, n_steps=self.run.steps, meta=meta, **extra)
 
 
 def frame_outputs(stored, s_root, s_tip, nt: int, rolls=None, reach=None):

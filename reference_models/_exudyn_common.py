@@ -1,739 +1,345 @@
-"""Shared model building for the Exudyn flexible reference models.
+"""The skeleton of the Exudyn peers, written once for the planar and the spatial ones.
 
-``exudyn_ancf`` (ObjectANCFCable2D) and ``exudyn_beam`` (ObjectBeamGeometricallyExact2D) differ
-only in how one link's beam is meshed and how its ends are tied to the hub and tip bodies; the
-hubs, tip bodies, joints, drives, gravity, sensors, solver settings, failure checks and the
-conversion to :class:`dttmm.Result` live here.
-
-Model conventions (the suite's, see docs/architecture.md and docs/cases.md):
-
-* Planar, counter-clockwise angles, joint 1 at the origin. In the reference configuration every
-  link is straight along its root direction θ_root,i = θ_tip,i−1 + α_i(0) (θ_tip,0 = 0).
-* Every link owns a rigid **hub** body at its root (``link.hub``: mass, inertia about the joint;
-  mass and inertia 0 when absent) and a rigid **tip body** at its tip carrying ``link.payload``
-  (mass 0 when absent); the tip body rotates with the tip cross-section.
-* Joint i is a revolute joint between the tip body of link i−1 (ground for i = 1) and hub i.
-  Torque drive: +τ(t) on hub i, −τ(t) on the tip body of link i−1 (nothing on the ground).
-  Motion drive: the relative rotation coordinate is prescribed by an ObjectConnectorCoordinate
-  whose offset user function gives α(t) − α(0) (node rotation coordinates are displacements
-  from the reference angle); its Lagrange multiplier equals minus the motor torque.
-* Initial velocities: rigid rotation of the whole chain with the initial joint rates.
-* Gravity: mass-proportional loads on every element and every rigid body with mass.
-* Kelvin–Voigt damping D = μK of the link: bending damping μ·EI, axial μ·EA (and shear μ·κGA).
-
-Time integration: Exudyn's generalized-α (spectral radius ``rho_inf``, default 0.8) with a fixed
-step h (adaptive step off: a Newton failure is an error, not a silent step halving), modified
-Newton with one Jacobian per step (``jacobian_per_step``), EigenSparse linear solver, one
-thread, nothing written to files, no graphics.
-
-Drive inputs (``drive_input``): by default the torques are plain loads and the prescribed
-angles plain coordinate-constraint offsets, whose values a PreStepUserFunction sets once per
-step at the step end time, the way Exudyn's documentation recommends prescribing forces and
-actuator values; ``"user-function"`` evaluates them in load/offset user functions at every
-residual evaluation instead (same results to round-off, more Python calls per step).
-
-Drive breakpoints (switches of bang-bang torques, the end of a sine law, …): a breakpoint that
-lies on the step grid ends an integration segment, and the next segment restarts the integrator
-there (state carried over, initial accelerations recomputed), as the suite's step schedule does
-(dttmm.timegrid): the step that ends at the switch sees the left limit of the law, the restart
-and the steps after it the right limit. Without the restart generalized-α drags a jump in the
-acceleration over several steps (O(h) error; measured 0.0125 rad/s in the hub rate of a rigid
-rotor with J = 0.1 kg·m² after a 2 N·m jump at h = 1e-3). A breakpoint off the step grid causes
-no restart: the law is evaluated as a left limit at step ends, so the jump takes effect at the
-first step end after it (listed in ``meta["breakpoints_off_grid"]``). The reported torque of a
-torque drive is the value that acted on the step ending at the output time (left limit; at
-t = 0 the right limit).
-
-Closed-loop drives (``pd``, ``pid``, user laws): the law is the user function of a coordinate
-spring-damper between the joint's two rotation coordinates, evaluated implicitly at the step end
-(no lag; generalized-α keeps its second order); moment feedback enters partly as constant mass
-coupling. Details: :mod:`reference_models._exudyn_control`. The reported torque of such a joint
-is the law's τ at the converged step.
-
-Torque of a motion drive: minus the multiplier of the coordinate constraint (index-3 generalized-α).
-It is less accurate than the positions (it carries the high-frequency content of the stiff
-links; measured first order in h on a soft strip) and at t = 0 it reads 0, because no multiplier
-exists before the first step. The initial accelerations Exudyn computes ignore the prescribed
-α̈(0); for laws with α̈(0) ≠ 0 the start is slightly inconsistent (tip deflections still converge
-at second order in h, measured).
-
-Output grid: sensors are stored internally (every output step, or every step when a restart lies
-off the output grid); h must divide ``scenario.output_step`` (else :class:`dttmm.InputError`;
-no interpolation), and the run ends at the last output time.
-
-Newton: absolute tolerance scaled to the residual's round-off floor (see ``_default_abs_tol``),
-relative 1e-8, at most 25 iterations; a Newton failure, a short run, a sensor grid mismatch or a
-non-finite output raises :class:`dttmm.SimulationError` (with a partial Result when possible).
+The family: the planar chain :mod:`reference_models._exudyn2d` with its elements
+:mod:`exudyn_ancf` (ObjectANCFCable2D) and :mod:`exudyn_beam` (ObjectBeamGeometricallyExact2D),
+the spatial arm :mod:`reference_models._exudyn3d` with :mod:`exudyn_ancf3d` (ObjectANCFCable)
+and :mod:`exudyn_beam3d` (ObjectBeamGeometricallyExact), and the natural modes
+(:mod:`exudyn_modes`, :mod:`exudyn_modes3d`, :func:`exudyn_ancf3d.frequencies`). What they
+share lives here: the import, the output grid (h divides the output step: sensors sample on the
+step grid, no interpolation), the solver settings (generalized-α with a fixed step, modified
+Newton, EigenSparse, one thread, no files), the integration segments (a drive breakpoint on the
+step grid restarts the integrator), the segmented ``SolveDynamic`` run, the sensors (node
+frames, beam nodes, bodies) and their stored rows on the output grid, gravity loads, the
+pre-step function that sets the drive inputs, the link shapes from the beam nodes and the
+eigenvalues of an assembled system. Each element adapter supplies only its bodies and nodes
+and how its sensors become the Result's fields.
 """
 
 from __future__ import annotations
 
-import math
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
-from dttmm import InputError, SimulationError, make_result, plumbing
-from dttmm.case import Case
-from dttmm.model import require_flexible
+from dttmm.errors import InputError
 from dttmm.shapes import hermite_shapes, stations
-from dttmm.shapes import shape_points as _shape_points
-
-from ._exudyn_control import ClosedLoop
 
 __all__ = [
-    "simulate_exudyn",
-    "check_discretisation",
-    "stiff_axial_stiffness",
-    "INEXTENSIBLE_AXIAL_RATIO",
-    "DRIVE_INPUTS",
+    "beam_elements",
+    "beam_nodes",
+    "body_sensor",
+    "cable_properties",
+    "dynamic_settings",
+    "eigen_frequencies",
+    "gravity_loads",
+    "import_exudyn",
+    "link_shapes",
+    "node_sensors",
+    "output_grid",
+    "run_segments",
+    "segments",
+    "set_pre_step",
+    "shape_sensors",
+    "solve",
+    "stored_rows",
 ]
 
-#: How drive values reach Exudyn: set once per step by a PreStepUserFunction (default), or by
-#: load/offset user functions evaluated at every residual evaluation (the slower, older way).
-DRIVE_INPUTS = ("pre-step", "user-function")
 
-#: EA used for links given as inextensible (EA None): EA = ratio · EI / L².
-#: 1e6 corresponds to a slenderness L/r = 1000 (r the radius of gyration); the axial strain
-#: is then below F·L²/(1e6·EI), negligible against the bending deflections of the suite.
-INEXTENSIBLE_AXIAL_RATIO = 1.0e6
-
-_EPS = np.finfo(float).eps
-
-
-def stiff_axial_stiffness(beam, ratio: float = INEXTENSIBLE_AXIAL_RATIO) -> float:
-    """Axial stiffness EA (N) used for ``beam``: its own EA, or ratio·EI/L² when inextensible."""
-    if beam.EA is not None:
-        return float(beam.EA)
-    return float(ratio) * beam.EI / beam.length**2
-
-
-def check_discretisation(case, elements_per_link, h) -> tuple[int, float, int, int]:
-    """Validate (k, h) against the case. Returns (k, h, n_steps, steps_per_output)."""
-    k, h = plumbing.discretisation(case, elements_per_link, h)
-    require_flexible(case.model, "the Exudyn beams (flexible links, bodies on the beam axis)")
-    sc = case.scenario
-    ratio = sc.output_step / h
-    per_out = int(round(ratio))
-    if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
-        raise InputError(
-            "h",
-            h,
-            f"must divide the output step {sc.output_step} "
-            "(the Exudyn models sample on the step grid, no interpolation)",
-        )
-    n_out = len(sc.output_times) - 1
-    return k, h, n_out * per_out, per_out
-
-
-def _rot(a: float) -> np.ndarray:
-    return np.array([math.cos(a), math.sin(a)])
-
-
-def _rigid_velocity(p, joints, rates) -> np.ndarray:
-    """Velocity of point p moving rigidly with joints (positions) turning at the given rates."""
-    v = np.zeros(2)
-    for r, w in zip(joints, rates):
-        d = np.asarray(p) - r
-        v += w * np.array([-d[1], d[0]])
-    return v
-
-
-class _Layout:
-    """Reference geometry and rigid initial velocities of the chain."""
-
-    def __init__(self, case: Case):
-        self.root, self.theta, self.omega, self.joint_pos, self.alpha0 = [], [], [], [], []
-        th, om, pos = 0.0, 0.0, np.zeros(2)
-        rates = []
-        for link, drive in zip(case.model.links, case.scenario.drives):
-            th += drive.initial_angle
-            om += drive.initial_rate
-            self.joint_pos.append(pos.copy())
-            rates.append(drive.initial_rate)
-            self.root.append(pos.copy())
-            self.theta.append(th)
-            self.omega.append(om)
-            self.alpha0.append(drive.initial_angle)
-            pos = pos + link.beam.length * _rot(th)
-        self._rates = rates
-
-    def point(self, i: int, s: float) -> np.ndarray:
-        """Reference position of arc length s along link i."""
-        return self.root[i] + s * _rot(self.theta[i])
-
-    def velocity(self, i: int, s: float) -> np.ndarray:
-        """Rigid initial velocity of arc length s along link i."""
-        return _rigid_velocity(self.point(i, s), self.joint_pos[: i + 1], self._rates[: i + 1])
-
-
-def _default_abs_tol(case, k, axial) -> float:
-    """Newton absolute tolerance on the residual (force units), scaled to its round-off floor.
-
-    The residual cannot fall below ~eps·K·|q| with K ≈ EA·k/L the stiffest element stiffness and
-    |q| ≈ the extent of the chain; the tolerance sits 10³ above that floor (for the aluminium
-    strip, L = 1 m, k = 64: 1e-4; k = 4: 6e-6), and never below 1e-8.
-    """
-    kmax = max(ea * k / link.beam.length for ea, link in zip(axial, case.model.links))
-    extent = sum(link.beam.length for link in case.model.links)
-    return max(1e3 * _EPS * kmax * max(extent, 1.0), 1e-8)
-
-
-def simulate_exudyn(
-    case,
-    *,
-    element,
-    elements_per_link,
-    h,
-    rho_inf=0.8,
-    newton_rel_tol=1e-8,
-    newton_abs_tol=None,
-    newton_max_iterations=25,
-    modified_newton=True,
-    jacobian_per_step=True,
-    drive_input="pre-step",
-    inextensible_axial_ratio=INEXTENSIBLE_AXIAL_RATIO,
-    element_options=None,
-    shape_points=0,
-):
-    """Build the Exudyn model of ``case`` with ``element`` meshing each link, solve, return a Result.
-
-    ``element`` is an object with ``method`` (name), ``meta(case, k, axial)`` (dict) and
-    ``add_link(mbs, exu, ii, link, layout, i, k, axial_stiffness, **element_options)`` returning
-    ``(hub_node, tip_node, elements, clamps)``: ``hub_node``/``tip_node`` are NodeRigidBody2D
-    numbers at the link root and tip on which the hub and tip bodies are placed; ``elements`` are
-    the beam objects (for gravity); ``clamps`` is None when those nodes are beam nodes, or the
-    (root, tip) beam nodes to which the hub and tip bodies are clamped by an ObjectJointGeneric
-    locking x, y and the rotation about z (MarkerNodeRigid on the beam node).
-
-    ``shape_points`` p ≥ 2 records ``Result.link_shapes`` from the beam nodes (see
-    :func:`link_shapes`); 0 (default) records none.
-    """
-    k, h, n_steps, per_out = check_discretisation(case, elements_per_link, h)
-    shape_points = _shape_points(shape_points)
-    try:
-        rho_inf = float(rho_inf)
-    except (TypeError, ValueError):
-        raise InputError("rho_inf", rho_inf, "must be a number in [0, 1]") from None
-    if not 0.0 <= rho_inf <= 1.0:
-        raise InputError("rho_inf", rho_inf, "must be in [0, 1]")
-    for name, val in (("newton_rel_tol", newton_rel_tol),) + (
-        (("newton_abs_tol", newton_abs_tol),) if newton_abs_tol is not None else ()
-    ):
-        if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
-            raise InputError(name, val, "must be a positive number")
-    if (
-        isinstance(newton_max_iterations, bool)
-        or not isinstance(newton_max_iterations, int)
-        or newton_max_iterations < 1
-    ):
-        raise InputError("newton_max_iterations", newton_max_iterations, "must be an integer >= 1")
-    if drive_input not in DRIVE_INPUTS:
-        raise InputError("drive_input", drive_input, f"must be one of {', '.join(DRIVE_INPUTS)}")
-    if not isinstance(jacobian_per_step, bool):
-        raise InputError("jacobian_per_step", jacobian_per_step, "must be True or False")
-    if not (isinstance(inextensible_axial_ratio, (int, float)) and inextensible_axial_ratio > 0):
-        raise InputError("inextensible_axial_ratio", inextensible_axial_ratio, "must be positive")
-
+def import_exudyn(who: str):
+    """(exudyn, exudyn.itemInterface); ``who`` ("exudyn-ancf needs") opens the ImportError."""
     try:
         import exudyn as exu
         import exudyn.itemInterface as ii
     except ImportError as exc:
-        raise ImportError(
-            f"{element.method} needs the exudyn package (pip install 'dttmm[exudyn]'): {exc}"
-        ) from exc
+        raise ImportError(f"{who} the exudyn package (pip install 'dttmm[exudyn]'): {exc}") from exc
+    return exu, ii
 
-    model, sc = case.model, case.scenario
-    n = model.n_links
-    t_out = sc.output_times
-    t_end = float(n_steps * h)
-    g = [float(model.gravity[0]), float(model.gravity[1]), 0.0]
-    has_gravity = g[0] != 0.0 or g[1] != 0.0
-    axial = [stiff_axial_stiffness(l.beam, inextensible_axial_ratio) for l in model.links]
-    abs_tol = float(newton_abs_tol) if newton_abs_tol is not None else _default_abs_tol(case, k, axial)
 
-    layout = _Layout(case)
-    SC = exu.SystemContainer()
-    mbs = SC.AddSystem()
-    ground = mbs.AddObject(ii.ObjectGround())
-    ground_node = mbs.AddNode(ii.NodePointGround())
-    m_ground_pos = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=ground, localPosition=[0, 0, 0]))
-    m_ground_coord = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=ground_node, coordinate=0))
+def output_grid(sc, h: float, why: str = "") -> tuple[int, int]:
+    """(steps per output step, steps in the run): h must divide the output step (``why`` ends
+    the InputError's message); the run ends at the last output time."""
+    ratio = sc.output_step / h
+    per_out = int(round(ratio))
+    if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
+        raise InputError("h", h, f"must divide the output step {sc.output_step}{why}")
+    return per_out, (len(sc.output_times) - 1) * per_out
 
-    def add_body(node, mass, inertia):
-        body = mbs.AddObject(ii.ObjectRigidBody2D(nodeNumber=node, mass=float(mass), inertia=float(inertia)))
-        if has_gravity and mass > 0:
-            mbs.AddLoad(
-                ii.LoadMassProportional(
-                    markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=g
-                )
-            )
-        return body
 
-    hub_nodes, tip_nodes, hub_bodies, tip_bodies = [], [], [], []
-    link_elements = []
-    for i, link in enumerate(model.links):
-        hub_node, tip_node, elements, clamps = element.add_link(
-            mbs, exu, ii, link, layout, i, k, axial[i], **(element_options or {})
-        )
-        link_elements.append(elements)
-        hub_nodes.append(hub_node)
-        tip_nodes.append(tip_node)
-        hub_bodies.append(add_body(hub_node, link.hub_mass, link.hub_inertia))
-        tip_bodies.append(add_body(tip_node, link.payload_mass, link.payload_inertia))
-        if clamps is not None:
-            for body, beam_node in zip((hub_bodies[-1], tip_bodies[-1]), clamps):
-                m0 = mbs.AddMarker(ii.MarkerBodyRigid(bodyNumber=body))
-                m1 = mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=beam_node))
-                mbs.AddObject(
-                    ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 0, 0, 0, 1])
-                )
-        if has_gravity:
-            for e in elements:
-                mbs.AddLoad(
-                    ii.LoadMassProportional(
-                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=g
-                    )
-                )
-
-    # Integration segments: a drive breakpoint on the step grid ends a segment; the next segment
-    # restarts the integrator there (initial accelerations recomputed with the right limit).
-    t_bp_grid, t_bp_off = [], []
+def segments(sc, h: float, n_steps: int, per_out: int):
+    """Integration segments: a drive breakpoint on the step grid ends a segment and the next one
+    restarts the integrator there (initial accelerations recomputed with the right limit).
+    Returns (breakpoints on the grid, breakpoints off it, the step ranges, whether every range
+    starts on the output grid)."""
+    grid, off = [], []
     for b in sc.breakpoints:
-        if b >= t_end:
-            continue
-        (t_bp_grid if abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h) else t_bp_off).append(b)
-    seg_idx = [0] + [int(round(b / h)) for b in t_bp_grid] + [n_steps]
-    segments = [(a, b) for a, b in zip(seg_idx, seg_idx[1:]) if b > a]
-    seg_start = [0.0]  # start time of the running segment, read by the user functions
+        if b < n_steps * h:
+            (grid if abs(b / h - round(b / h)) <= 1e-9 * max(1.0, b / h) else off).append(b)
+    idx = [0] + [int(round(b / h)) for b in grid] + [n_steps]
+    segs = [(a, b) for a, b in zip(idx, idx[1:]) if b > a]
+    return grid, off, segs, all(a % per_out == 0 for a, _ in segs)
 
-    # Drive inputs. "pre-step" (default): plain loads / constant offsets whose values a
-    # PreStepUserFunction sets once per step at the step end time (Exudyn's recommended way to
-    # prescribe forces and actuator values); "user-function": load and offset user functions
-    # that Exudyn calls at every residual evaluation (~35 Python calls per step measured).
-    constraints = [None] * n
-    inputs = []  # (kind, item, law, sign, a0): what the pre-step function sets
-    # closed-loop laws: a coordinate spring-damper whose user function is the law (implicit at
-    # the step end; see reference_models._exudyn_control)
-    closed = (
-        ClosedLoop(case, layout.alpha0, hub_nodes, tip_nodes)
-        if any(d.closed_loop for d in sc.drives)
-        else None
-    )
-    for i, drive in enumerate(sc.drives):
-        m_in = (
-            m_ground_pos
-            if i == 0
-            else mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=tip_bodies[i - 1], localPosition=[0, 0, 0]))
-        )
-        m_out = mbs.AddMarker(ii.MarkerBodyPosition(bodyNumber=hub_bodies[i], localPosition=[0, 0, 0]))
-        mbs.AddObject(ii.ObjectJointRevolute2D(markerNumbers=[m_in, m_out]))
-        if drive.closed_loop:
-            c_in = (
-                m_ground_coord
-                if i == 0
-                else mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=tip_nodes[i - 1], coordinate=2))
-            )
-            c_out = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=hub_nodes[i], coordinate=2))
-            closed.add_joint(mbs, exu, ii, i, c_in, c_out)
-        elif drive.kind == "torque":
-            targets = [(hub_bodies[i], 1.0)] + ([(tip_bodies[i - 1], -1.0)] if i > 0 else [])
-            for body, sign in targets:
-                marker = mbs.AddMarker(ii.MarkerBodyRigid(bodyNumber=body))
-                if drive_input == "pre-step":
-                    load = mbs.AddLoad(ii.LoadTorqueVector(markerNumber=marker, loadVector=[0, 0, 0]))
-                    inputs.append(("load", load, drive.torque, sign, 0.0))
-                else:
-                    # right limit at the segment start, left limit everywhere after it (see module doc)
-                    def tau_user(mbs_, t, load, tau=drive.torque, sign=sign):
-                        return [0.0, 0.0, sign * tau(t, t > seg_start[0])]
 
-                    mbs.AddLoad(
-                        ii.LoadTorqueVector(
-                            markerNumber=marker, loadVector=[0, 0, 0], loadVectorUserFunction=tau_user
-                        )
-                    )
-        else:
-            c_in = (
-                m_ground_coord
-                if i == 0
-                else mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=tip_nodes[i - 1], coordinate=2))
-            )
-            c_out = mbs.AddMarker(ii.MarkerNodeCoordinate(nodeNumber=hub_nodes[i], coordinate=2))
-            if drive_input == "pre-step":
-                constraints[i] = mbs.AddObject(
-                    ii.ObjectConnectorCoordinate(markerNumbers=[c_in, c_out], offset=0.0)
-                )
-                inputs.append(("offset", constraints[i], drive.motion, 1.0, layout.alpha0[i]))
-            else:
-
-                def offset(mbs_, t, item, off, motion=drive.motion, a0=layout.alpha0[i]):
-                    return motion(t, t > seg_start[0])[0] - a0
-
-                constraints[i] = mbs.AddObject(
-                    ii.ObjectConnectorCoordinate(markerNumbers=[c_in, c_out], offsetUserFunction=offset)
-                )
-
-    def set_inputs(t, left):
-        """Set every drive input to its law's value at t (left or right limit)."""
-        for kind, item, law, sign, a0 in inputs:
-            if kind == "load":
-                mbs.SetLoadParameter(item, "loadVector", [0.0, 0.0, sign * law(t, left)])
-            else:
-                mbs.SetObjectParameter(item, "offset", law(t, left)[0] - a0)
-
-    if inputs:
-
-        def pre_step(mbs_, t):
-            # t is the end of the step about to be solved: the left limit of the law there
-            set_inputs(t, t > seg_start[0])
-            return True
-
-        mbs.SetPreStepUserFunction(pre_step)
-
-    if closed is not None:
-
-        def post_step(mbs_, t):
-            closed.post_step(mbs_, t)  # commit the integral states of the converged step
-            return True
-
-        mbs.SetPostStepUserFunction(post_step)
-
-    OV = exu.OutputVariableType
-    sens = lambda node, var: mbs.AddSensor(
-        ii.SensorNode(nodeNumber=node, outputVariableType=var, storeInternal=True, writeToFile=False)
-    )
-    s_hub = [(sens(nd, OV.Position), sens(nd, OV.Rotation), sens(nd, OV.AngularVelocity)) for nd in hub_nodes]
-    s_tip = [(sens(nd, OV.Position), sens(nd, OV.Rotation), sens(nd, OV.AngularVelocity)) for nd in tip_nodes]
-    s_force = [
-        None
-        if c is None
-        else mbs.AddSensor(
-            ii.SensorObject(
-                objectNumber=c, outputVariableType=OV.Force, storeInternal=True, writeToFile=False
-            )
-        )
-        for c in constraints
-    ]
-    all_sensors = [x for tr in s_hub + s_tip for x in tr] + [x for x in s_force if x is not None]
-    if closed is not None:
-        all_sensors += list(closed.sensors.values()) + list(closed.acc_sensors.values())
-    s_shape = shape_sensors(mbs, ii, OV, link_elements) if shape_points else None
-    if s_shape is not None:
-        all_sensors += [x for link in s_shape for x in link]
-
-    mbs.Assemble()
-    if closed is not None:
-        closed.assembled(mbs)
-
+def dynamic_settings(
+    exu, rho_inf, rel_tol, abs_tol, max_iterations, modified_newton, write_period, jacobian_per_step=True
+):
+    """Exudyn's generalized-α with a fixed step h (adaptive step off: a Newton failure is an
+    error, not a silent step halving), modified Newton with a fresh Jacobian at every step by
+    default (the reuse across steps thrashes at h >= 2e-3 on the suite's arms), EigenSparse, one
+    thread, nothing written to files; sensors stored every ``write_period``. Returns (settings,
+    its timeIntegration)."""
     s = exu.SimulationSettings()
     ti = s.timeIntegration
     ti.adaptiveStep = False
     ti.verboseMode = 0
-    ti.generalizedAlpha.spectralRadius = rho_inf
+    ti.generalizedAlpha.spectralRadius = float(rho_inf)
     ti.generalizedAlpha.computeInitialAccelerations = True
-    ti.newton.relativeTolerance = float(newton_rel_tol)
+    ti.newton.relativeTolerance = rel_tol
     ti.newton.absoluteTolerance = abs_tol
-    ti.newton.maxIterations = int(newton_max_iterations)
+    ti.newton.maxIterations = max_iterations
     ti.newton.useModifiedNewton = bool(modified_newton)
-    # modified Newton with a fresh Jacobian at every step: the default reuse across steps
-    # thrashes at h >= 2e-3 on the suite's arms (more iterations and Jacobians than per step)
     ti.newton.modifiedNewtonJacUpdatePerStep = bool(jacobian_per_step)
     s.linearSolver.solverType = exu.LinearSolverType.EigenSparse
     s.parallel.numberOfThreads = 1
     s.solution.file.write = False
-    # sensors are written from each segment start every writePeriod: the output step when all
-    # segments start on the output grid, else every step (rows off the grid are dropped)
-    on_out_grid = all(a % per_out == 0 for a, _ in segments)
-    s.solution.sensors.writePeriod = sc.output_step if on_out_grid else h
+    s.solution.sensors.writePeriod = write_period
     s.show.computationTime = False
     s.show.statistics = False
+    return s, ti
 
-    ode2 = int(mbs.systemData.ODE2Size())
-    ae = int(mbs.systemData.AEsize())
-    meta = dict(
-        method=element.method,
-        elements_per_link=k,
-        h=h,
-        integrator="generalized-alpha",
-        rho_inf=rho_inf,
-        adaptive_step=False,
-        linear_solver="EigenSparse",
-        newton_rel_tol=float(newton_rel_tol),
-        newton_abs_tol=abs_tol,
-        newton_max_iterations=int(newton_max_iterations),
-        modified_newton=bool(modified_newton),
-        jacobian_per_step=bool(jacobian_per_step),
-        drive_input=drive_input,
-        ode2_size=ode2,
-        ae_size=ae,
-        exudyn=exu.__version__,
-        restarts=[float(b) for b in t_bp_grid],
-        breakpoints_off_grid=[float(b) for b in t_bp_off],
-        axial_stiffness=axial,
-        inextensible_axial_ratio=float(inextensible_axial_ratio),
-    )
-    meta.update(element.meta(case, k, axial, **(element_options or {})))
+
+def set_pre_step(mbs, set_inputs, seg_start: list) -> None:
+    """The PreStepUserFunction that sets the drive inputs once per step: at the end time t of the
+    step about to be solved, the left limit of the laws there (the right limit at a segment
+    start, where ``seg_start[0]`` is)."""
+
+    def pre_step(mbs_, t):
+        set_inputs(t, t > seg_start[0])
+        return True
+
+    mbs.SetPreStepUserFunction(pre_step)
+
+
+def run_segments(mbs, exu, s, ti, segs, h, seg_start, set_inputs, rows, closed=None, quiet=False):
+    """``SolveDynamic`` over the segments, restarting at each with the state carried over; the
+    rows every sensor of ``rows`` stored go there (a segment's first row repeats the last one).
+    ``closed``: the planar closed-loop joints (:class:`reference_models._exudyn_control.
+    ClosedLoop`) or None; ``quiet``: Exudyn's allocation warning off (user functions that return
+    new arrays). Returns a record: wall, cpu (s), steps, newton, jacobians, t_reached, it,
+    start_solves, and where it stopped: ok (False: SolveDynamic failed), error (what it raised),
+    short (a segment that ended early), None for all three after a complete run."""
+    import exudyn.solver as exu_solver
+
+    run = SimpleNamespace(wall=0.0, cpu=0.0, steps=0, newton=0, jacobians=0, t_reached=0.0, it=None)
+    run.start_solves, run.ok, run.error, run.short = 0, True, None, None
+    check = exu_solver.solverCheckMemoryAllocations
+    if quiet:
+        exu_solver.solverCheckMemoryAllocations = False
     try:
-        from dttmm.plumbing import versions
-
-        meta["versions"] = {**versions(), "exudyn": exu.__version__}
-    except Exception:  # versions() is informational only
-        meta["versions"] = {"exudyn": exu.__version__}
-
-    # --- solve, segment by segment ------------------------------------------------------------
-    wall = cpu = 0.0
-    steps_done = newton_total = jac_total = 0
-    t_reached = 0.0
-    start_solves = 0
-    rows = {sn: [] for sn in all_sensors}
-    failure = None
-    for a, b in segments:
-        ta, tb = a * h, b * h
-        seg_start[0] = ta
-        set_inputs(ta, False)  # right limit: the initial accelerations of the segment use it
-        ti.startTime, ti.endTime, ti.numberOfSteps = ta, tb, b - a
-        err = None
-        t0, c0 = time.perf_counter(), time.process_time()
-        try:
-            if closed is not None:
-                closed.start_segment(mbs, ta)
-                if closed.needs_consistent_start:
-                    start_solves += closed.consistent_start(mbs, exu, s)
-            ok = mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha)
-        except InputError:
-            raise
-        except Exception as exc:  # Exudyn raises on some failures (e.g. singular Jacobian)
-            ok, err = False, exc
-        wall += time.perf_counter() - t0
-        cpu += time.process_time() - c0
-        if closed is not None and closed.error is not None:
-            raise closed.error  # a user law failed (InputError naming the time and the joint)
-        it = mbs.sys["dynamicSolver"].it
-        done = int(it.currentStepIndex) - 1  # 1-based: N + 1 after a complete run of N steps
-        steps_done += max(done, 0)
-        newton_total += int(it.newtonStepsCount)
-        jac_total += int(it.newtonJacobiCount)
-        t_reached = float(it.currentTime)
-        for sn in all_sensors:
-            d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
-            rows[sn].append(d if not rows[sn] else d[1:])  # a segment's first row repeats the last one
-        if err is not None or not ok:
-            failure = (
-                f"SolveDynamic raised {type(err).__name__}: {err}"
-                if err is not None
-                else "SolveDynamic returned False (Newton did not converge)",
-                "newton",
-            )
-            break
-        if done != b - a or not abs(t_reached - tb) <= 1e-9 * max(1.0, tb):
-            failure = (
-                f"segment [{ta}, {tb}] stopped after {done} of {b - a} steps at t = {t_reached}",
-                "time integration",
-            )
-            break
-        mbs.systemData.SetSystemState(
-            mbs.systemData.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial
-        )
-        if closed is not None:  # the start guess of the next segment's ω̇ loop (not in the state)
-            mbs.systemData.SetODE2Coordinates_tt(
-                mbs.systemData.GetODE2Coordinates_tt(), exu.ConfigurationType.Initial
-            )
-    meta.update(
-        steps=n_steps,
-        steps_taken=steps_done,
-        newton_iterations=newton_total,
-        newton_iterations_per_step=(newton_total / steps_done if steps_done > 0 else float("nan")),
-        jacobians=jac_total,
-        t_reached=t_reached,
-        wall_time_solve=wall,
-        cpu_time_solve=cpu,
-    )
-    if closed is not None:
-        meta.update(
-            closed_loop="implicit: coordinate spring-damper user function at every residual evaluation (t_{n+1})",
-            root_moment="tau - J_hub * hub angular acceleration (Newton iterate)",
-            integral_state="trapezoidal rule, committed after each step",
-            initial_acceleration_solves=start_solves,
-        )
-
-    # --- outputs ------------------------------------------------------------------------------
-    def stored(sensor):
-        d = np.concatenate(rows[sensor], axis=0)
-        x = d[:, 0] / sc.output_step
-        keep = np.abs(x - np.round(x)) <= 1e-6 * per_out
-        return d[keep]
-
-    def series():
-        ts = stored(s_hub[0][0])[:, 0]
-        m = min(len(ts), len(t_out))
-        root = np.empty((m, n, 2))
-        tip = np.empty((m, n, 2))
-        th_root = np.empty((m, n))
-        th_tip = np.empty((m, n))
-        w_root = np.empty((m, n))
-        w_tip = np.empty((m, n))
-        tq = np.empty((m, n))
-        for i in range(n):
-            root[:, i] = stored(s_hub[i][0])[:m, 1:3]
-            th_root[:, i] = stored(s_hub[i][1])[:m, -1]
-            w_root[:, i] = stored(s_hub[i][2])[:m, -1]
-            tip[:, i] = stored(s_tip[i][0])[:m, 1:3]
-            th_tip[:, i] = stored(s_tip[i][1])[:m, -1]
-            w_tip[:, i] = stored(s_tip[i][2])[:m, -1]
-            d = sc.drives[i]
-            if d.closed_loop:  # the law's τ at the converged step (the connector force is −τ)
-                acc = stored(closed.acc_sensors[i])[:m, -1] if i in closed.acc_sensors else None
-                tq[:, i] = closed.torque(i, stored(closed.sensors[i])[:m, -1], acc)
-            elif d.kind == "torque":
-                # the value that acted on the step ending at the output time (left limit; right at t = 0)
-                tq[:, i] = [d.torque(float(tt), tt > 0) for tt in t_out[:m]]
-            else:
-                tq[:, i] = -stored(s_force[i])[:m, -1]
-        ja = th_root.copy()
-        jr = w_root.copy()
-        ja[:, 1:] -= th_tip[:, :-1]
-        jr[:, 1:] -= w_tip[:, :-1]
-        return ts[:m], dict(
-            joint_angle=ja,
-            joint_rate=jr,
-            joint_torque=tq,
-            link_root=root,
-            link_root_angle=th_root,
-            link_tip=tip,
-        )
-
-    def build(ts, fields, success):
-        shapes = None
-        if s_shape is not None:
-            nodes = [[stored(x)[: len(ts), 1:] for x in link] for link in s_shape]
-            shapes = link_shapes(case, nodes, shape_points)
-        return make_result(
-            t=t_out[: len(ts)],
-            **fields,
-            wall_time=wall,
-            n_steps=steps_done,
-            meta={**meta, "success": success},
-            link_shapes=shapes,
-        )
-
-    def fail(reason, t_fail, component):
-        partial = None
-        try:
-            ts, fields = series()
-            finite = all(np.isfinite(v).all() for v in fields.values())
-            if len(ts) and finite and np.allclose(ts, t_out[: len(ts)], rtol=0, atol=1e-6 * sc.output_step):
-                partial = build(ts, fields, False)
-        except Exception:  # the partial result is a courtesy; the error below is what matters
-            partial = None
-        # Exudyn's currentTime is the end of the step it attempted last
-        step = max(int(round(t_fail / h)) - 1, 0) if math.isfinite(t_fail) else steps_done
-        raise SimulationError(
-            f"Exudyn {element.method}: {reason}", t=t_fail, step=step, component=component, partial=partial
-        )
-
-    if failure is not None:
-        fail(failure[0], t_reached, failure[1])
-
-    ts, fields = series()
-    if len(ts) != len(t_out) or np.max(np.abs(ts - t_out)) > 1e-6 * sc.output_step:
-        fail(
-            f"sensor rows ({len(ts)}) do not match the output grid ({len(t_out)} samples)",
-            float(ts[-1]) if len(ts) else 0.0,
-            "sensors",
-        )
-    for name, arr in fields.items():
-        bad = ~np.isfinite(arr)
-        if bad.any():
-            row, *rest = np.argwhere(bad)[0]
-            fail(f"non-finite {name}", float(t_out[row]), f"{name}[{', '.join(map(str, rest))}]")
-    return build(ts, fields, True)
-
-
-def shape_sensors(mbs, ii, OV, link_elements) -> list:
-    """Per link, one sensor of the total coordinates of every beam node, base to tip (the
-    nodes of the link's elements in order): (x, y, ∂x/∂s, ∂y/∂s) for an ANCF cable node,
-    (x, y, θ) for a rigid-body beam node."""
-    out = []
-    for elements in link_elements:
-        nodes = [int(mbs.GetObject(e)["nodeNumbers"][0]) for e in elements]
-        nodes.append(int(mbs.GetObject(elements[-1])["nodeNumbers"][1]))
-        out.append(
-            [
-                mbs.AddSensor(
-                    ii.SensorNode(
-                        nodeNumber=nd,
-                        outputVariableType=OV.CoordinatesTotal,
-                        storeInternal=True,
-                        writeToFile=False,
-                    )
+        for a, b in segs:
+            ta, tb = a * h, b * h
+            seg_start[0] = ta
+            set_inputs(ta, False)  # right limit: the initial accelerations of the segment use it
+            ti.startTime, ti.endTime, ti.numberOfSteps = ta, tb, b - a
+            t0, c0 = time.perf_counter(), time.process_time()
+            try:
+                if closed is not None:
+                    closed.start_segment(mbs, ta)
+                    if closed.needs_consistent_start:
+                        run.start_solves += closed.consistent_start(mbs, exu, s)
+                run.ok = bool(mbs.SolveDynamic(s, solverType=exu.DynamicSolverType.GeneralizedAlpha))
+            except InputError:
+                raise
+            except Exception as exc:  # Exudyn raises on some failures (e.g. singular Jacobian)
+                run.ok, run.error = False, exc
+            run.wall += time.perf_counter() - t0
+            run.cpu += time.process_time() - c0
+            if closed is not None and closed.error is not None:
+                raise closed.error  # a user law failed (InputError naming the time and the joint)
+            it = run.it = mbs.sys["dynamicSolver"].it
+            done = int(it.currentStepIndex) - 1  # 1-based: N + 1 after a complete run of N steps
+            run.steps += max(done, 0)
+            run.newton += int(it.newtonStepsCount)
+            run.jacobians += int(it.newtonJacobiCount)
+            run.t_reached = float(it.currentTime)
+            for sn, r in rows.items():
+                d = np.atleast_2d(np.asarray(mbs.GetSensorStoredData(sn), float))
+                r.append(d if not r else d[1:])
+            if not run.ok:
+                break
+            if done != b - a or not abs(run.t_reached - tb) <= 1e-9 * max(1.0, tb):
+                run.short = (
+                    f"segment [{ta}, {tb}] stopped after {done} of {b - a} steps at t = {run.t_reached}"
                 )
-                for nd in nodes
-            ]
+                break
+            sd = mbs.systemData
+            sd.SetSystemState(sd.GetSystemState(exu.ConfigurationType.Current), exu.ConfigurationType.Initial)
+            if closed is not None:  # the start guess of the next segment's ω̇ loop (not in the state)
+                sd.SetODE2Coordinates_tt(sd.GetODE2Coordinates_tt(), exu.ConfigurationType.Initial)
+    finally:
+        exu_solver.solverCheckMemoryAllocations = check
+    return run
+
+
+def stored_rows(rows, output_step: float, per_out: int):
+    """A function of a sensor giving its stored rows on the output grid (time column first)."""
+
+    def stored(sn):
+        d = np.concatenate(rows[sn], axis=0)
+        x = d[:, 0] / output_step
+        return d[np.abs(x - np.round(x)) <= 1e-6 * per_out]
+
+    return stored
+
+
+def solve(
+    mbs, exu, sc, h, sensors, set_inputs, seg_start, newton, jacobian_per_step=True, closed=None, quiet=False
+):
+    """The assembled system over the scenario's output grid: :func:`segments`, the settings of
+    :func:`dynamic_settings` (``newton``: rho_inf, relative and absolute tolerance, maximum
+    iterations, modified Newton), :func:`run_segments` with ``sensors`` stored. Returns (the run
+    with its ``restarts``, ``off_grid`` breakpoints and ``n_steps``, :func:`stored_rows`)."""
+    per_out, n_steps = output_grid(sc, h)
+    grid, off, segs, on_grid = segments(sc, h, n_steps, per_out)
+    # sensors are written from each segment start every writePeriod: the output step when all
+    # segments start on the output grid, else every step (rows off the grid are dropped)
+    s, ti = dynamic_settings(exu, *newton, sc.output_step if on_grid else h, jacobian_per_step)
+    rows = {sn: [] for sn in sensors}
+    run = run_segments(mbs, exu, s, ti, segs, h, seg_start, set_inputs, rows, closed, quiet)
+    run.restarts, run.off_grid, run.n_steps = grid, off, n_steps
+    return run, stored_rows(rows, sc.output_step, per_out)
+
+
+def node_sensors(mbs, ii, nodes, variables) -> list:
+    """Per node, a tuple of sensors (one per output variable), stored internally."""
+    return [
+        tuple(
+            mbs.AddSensor(
+                ii.SensorNode(nodeNumber=nd, outputVariableType=v, storeInternal=True, writeToFile=False)
+            )
+            for v in variables
         )
-    return out
+        for nd in nodes
+    ]
 
 
-def link_shapes(case, nodes, p: int) -> np.ndarray:
-    """Link shapes (nt, n, p, 2) m from the beam nodes' total coordinates.
+def body_sensor(mbs, ii, body, variable, local=None):
+    """A sensor of a body (at its local point ``local`` where given), stored internally."""
+    at = {} if local is None else {"localPosition": list(local)}
+    return mbs.AddSensor(
+        ii.SensorBody(
+            bodyNumber=body, outputVariableType=variable, storeInternal=True, writeToFile=False, **at
+        )
+    )
 
-    ``nodes[i][j]`` (nt, 4) or (nt, 3): node j of link i (at the reference arc length j·L/k).
-    The centre line between nodes is the cubic Hermite curve of the node positions and slopes
-    ∂r/∂s: an ANCF cable node carries its slope (the element's own interpolation); a beam
-    node's slope is taken as its cross-section direction (cos θ, sin θ) (shear and axial
-    strain neglected in the slope, both O(1e-6) on the suite's arms).
+
+def beam_nodes(mbs, elements) -> list:
+    """The nodes of a link's beam elements in order, base to tip."""
+    nodes = [int(mbs.GetObject(e)["nodeNumbers"][0]) for e in elements]
+    return nodes + [int(mbs.GetObject(elements[-1])["nodeNumbers"][1])]
+
+
+def shape_sensors(mbs, ii, link_elements, variables) -> list:
+    """Per link and beam node (base to tip), its sensors: total coordinates of an ANCF node
+    ((x, y, ∂r/∂s) in 2-D and 3-D) or a beam's rigid-body node ((x, y, θ) in 2-D; position and
+    rotation matrix in 3-D)."""
+    return [node_sensors(mbs, ii, beam_nodes(mbs, elements), variables) for elements in link_elements]
+
+
+def link_shapes(links, nodes, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, d) m from the beam nodes of the links (d = 2 or 3).
+
+    ``nodes[i][j]`` (nt, w): node j of link i (at the reference arc length j·L/k): an ANCF node's
+    position and slope ∂r/∂s (w = 4 or 6; the element's own interpolation), a 2-D beam node's
+    (x, y, θ) (w = 3) or a 3-D beam node's position and row-major rotation matrix (w = 12). The
+    centre line between nodes is the cubic Hermite curve of the node positions and slopes; a
+    beam node's slope is taken as its cross-section direction ((cos θ, sin θ), the matrix's first
+    column: shear and axial strain neglected in the slope, both O(1e-6) on the suite's arms).
     """
     out = []
-    for link, nd in zip(case.model.links, nodes):
-        c = np.stack(nd, axis=1)  # (nt, k + 1, 3 or 4)
-        pos = c[..., :2]
-        if c.shape[-1] == 4:
-            slope = c[..., 2:4]
+    for link, nd in zip(links, nodes):
+        c = np.stack(nd, axis=1)  # (nt, k + 1, w)
+        w = c.shape[-1]
+        if w == 3:
+            pos, slope = c[..., :2], np.stack([np.cos(c[..., 2]), np.sin(c[..., 2])], axis=-1)
+        elif w == 12:
+            pos, slope = c[..., :3], c[..., [3, 6, 9]]
         else:
-            slope = np.stack([np.cos(c[..., 2]), np.sin(c[..., 2])], axis=-1)
-        L = link.beam.length
-        x_nodes = np.linspace(0.0, L, c.shape[1])
-        out.append(hermite_shapes(x_nodes, pos, slope, stations(L, p)))
-    return np.stack(out, axis=1)
-
-
-def spatial_shape_sensors(mbs, ii, OV, link_elements, kind: str) -> list:
-    """Per link and beam node (base to tip), the sensors of a 3-D beam's node: ``kind`` "cable"
-    (ANCF ``NodePointSlope1``: its total coordinates (x, y, z, ∂r/∂s)) or "beam" (a rigid-body
-    node of the geometrically exact beam: its position and rotation matrix)."""
-    variables = (OV.CoordinatesTotal,) if kind == "cable" else (OV.Position, OV.RotationMatrix)
-    out = []
-    for elements in link_elements:
-        nodes = [int(mbs.GetObject(e)["nodeNumbers"][0]) for e in elements]
-        nodes.append(int(mbs.GetObject(elements[-1])["nodeNumbers"][1]))
-        out.append(
-            [
-                [
-                    mbs.AddSensor(
-                        ii.SensorNode(
-                            nodeNumber=nd, outputVariableType=v, storeInternal=True, writeToFile=False
-                        )
-                    )
-                    for v in variables
-                ]
-                for nd in nodes
-            ]
-        )
-    return out
-
-
-def spatial_link_shapes(case, nodes, p: int) -> np.ndarray:
-    """Link shapes (nt, n, p, 3) m of a spatial arm from its beam nodes, as :func:`link_shapes`
-    in the plane: cubic Hermite between the nodes from positions and slopes ∂r/∂s.
-
-    ``nodes[i][j]`` (nt, 6): (x, y, z, ∂r/∂s) of an ANCF cable node, or (nt, 12): position and
-    rotation matrix (row-major) of a beam node, whose slope is taken as its cross-section
-    direction (the matrix's first column; shear and axial strain neglected in the slope)."""
-    out = []
-    for link, nd in zip(case.model.links, nodes):
-        c = np.stack(nd, axis=1)  # (nt, k + 1, 6 or 12)
-        pos = c[..., :3]
-        slope = c[..., 3:6] if c.shape[-1] == 6 else c[..., [3, 6, 9]]
+            pos, slope = c[..., : w // 2], c[..., w // 2 :]
         L = link.beam.length
         out.append(hermite_shapes(np.linspace(0.0, L, c.shape[1]), pos, slope, stations(L, p)))
     return np.stack(out, axis=1)
+
+
+def beam_elements(mbs, item, nodes, **properties) -> list:
+    """A beam element ``item`` (an itemInterface class) with ``properties`` between every two
+    consecutive nodes, base to tip."""
+    return [mbs.AddObject(item(nodeNumbers=[a, b], **properties)) for a, b in zip(nodes, nodes[1:])]
+
+
+def cable_properties(beam, l, EI, EA) -> dict:
+    """The element properties a cable and a 2-D beam share: length l, ρA, EI, EA and their
+    Kelvin–Voigt damping μ·EI, μ·EA."""
+    return dict(
+        length=l,
+        massPerLength=beam.rhoA,
+        bendingStiffness=EI,
+        axialStiffness=EA,
+        bendingDamping=beam.damping * EI,
+        axialDamping=beam.damping * EA,
+    )
+
+
+def gravity_loads(mbs, ii, bodies, g) -> None:
+    """A mass-proportional load ``g`` on every body (or element) of ``bodies``."""
+    for e in bodies:
+        mbs.AddLoad(
+            ii.LoadMassProportional(markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=g)
+        )
+
+
+def modes_check(case, kind, name: str, elements_per_link, n) -> int:
+    """What the eigenvalues at rest need: a case of ``kind`` (``name`` in the message), k, n None
+    or ≥ 1, no gravity. Returns k."""
+    from dttmm import plumbing
+
+    if not isinstance(case, kind):
+        raise InputError("case", case, f"must be a {name}")
+    k = plumbing.elements_per_link(elements_per_link)
+    if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1):
+        raise InputError("n", n, "must be an integer >= 1 (number of modes)")
+    if any(case.model.gravity):
+        raise InputError(
+            "model.gravity",
+            list(case.model.gravity),
+            "the Exudyn eigenvalues are taken at rest, which is an equilibrium only without gravity",
+        )
+    return k
+
+
+def modes_rest(case) -> None:
+    """Torque-driven joints start at rest (modes at rest)."""
+    for i, d in enumerate(case.scenario.drives):
+        if d.kind == "torque" and d.initial_rate != 0.0:
+            raise InputError(
+                f"scenario.drives[{i}].initial_rate", d.initial_rate, "must be 0 (modes at rest)"
+            )
+
+
+def eigen_frequencies(mbs, case, n, method: str) -> np.ndarray:
+    """Natural frequencies (Hz) of an assembled Exudyn system: one rigid-body mode (ω² = 0 up to
+    Exudyn's round-off) per torque-driven joint, then the elastic ones; ArithmeticError when the
+    two are not separated. ``method`` names the peer in that message."""
+    from exudyn.solver import ComputeODE2Eigenvalues
+
+    lam, _ = ComputeODE2Eigenvalues(mbs, useAbsoluteValues=False, computeComplexEigenvalues=False)
+    lam = np.sort(np.asarray(lam, float).real)
+    n_rigid = sum(d.kind == "torque" for d in case.scenario.drives)
+    rigid, rest = lam[:n_rigid], lam[n_rigid:]
+    if rest.size and (np.any(np.abs(rigid) > 1e-3 * rest[0]) or rest[0] <= 0):
+        raise ArithmeticError(
+            f"{method} modes: rigid-body ω² {rigid} not separated from the elastic {rest[:1]}"
+        )
+    lam = np.concatenate([np.zeros(n_rigid), rest])
+    lam = lam if n is None else lam[:n]
+    return np.sqrt(lam) / (2 * np.pi)

@@ -4,7 +4,7 @@ Each link: k cable elements on k + 1 ``NodePoint2DSlope1`` nodes (reference coor
 [x, y, cos θ, sin θ]); a hub and a tip ``NodeRigidBody2D`` at the link ends, each clamped to the
 end node of the beam by an ``ObjectJointGeneric`` locking x, y and the rotation about z (the
 orientation of a slope node is the angle of its slope vector). Everything else (joints, drives incl. closed-loop laws,
-gravity, solver, outputs): :mod:`reference_models._exudyn_common`.
+gravity, solver, outputs): :mod:`reference_models._exudyn2d`.
 
 Options beyond the common ones: ``reduced_integration`` (bool, default False) switches the
 element's ``useReducedOrderIntegration``.
@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import math
 
-from ._exudyn_common import simulate_exudyn
+from ._exudyn2d import simulate_exudyn
+from ._exudyn_common import beam_elements, cable_properties
 
 __all__ = ["simulate", "METHOD"]
 
@@ -33,49 +34,31 @@ class _ANCF:
         b = link.beam
         L, th, om = b.length, layout.theta[i], layout.omega[i]
         c, s = math.cos(th), math.sin(th)
-        nodes = []
-        for j in range(k + 1):
-            p = layout.point(i, L * j / k)
-            v = layout.velocity(i, L * j / k)
-            nodes.append(
-                mbs.AddNode(
-                    ii.NodePoint2DSlope1(
-                        referenceCoordinates=[p[0], p[1], c, s],
-                        initialVelocities=[v[0], v[1], -om * s, om * c],
-                    )
+        nodes = [
+            mbs.AddNode(
+                ii.NodePoint2DSlope1(
+                    referenceCoordinates=[p[0], p[1], c, s],
+                    initialVelocities=[v[0], v[1], -om * s, om * c],
                 )
             )
-        elements = [
-            mbs.AddObject(
-                ii.ObjectANCFCable2D(
-                    nodeNumbers=[nodes[j], nodes[j + 1]],
-                    length=L / k,
-                    massPerLength=b.rhoA,
-                    bendingStiffness=b.EI,
-                    axialStiffness=EA,
-                    bendingDamping=b.damping * b.EI,
-                    axialDamping=b.damping * EA,
-                    useReducedOrderIntegration=int(bool(reduced_integration)),
-                )
-            )
-            for j in range(k)
+            for p, v in ((layout.point(i, L * j / k), layout.velocity(i, L * j / k)) for j in range(k + 1))
         ]
-        ends = []
-        for s_ in (0.0, L):
-            p = layout.point(i, s_)
-            v = layout.velocity(i, s_)
-            rn = mbs.AddNode(
-                ii.NodeRigidBody2D(referenceCoordinates=[p[0], p[1], th], initialVelocities=[v[0], v[1], om])
-            )
-            ends.append(rn)
-        return ends[0], ends[1], elements, (nodes[0], nodes[-1])
+        elements = beam_elements(
+            mbs,
+            ii.ObjectANCFCable2D,
+            nodes,
+            **cable_properties(b, L / k, b.EI, EA),
+            useReducedOrderIntegration=int(bool(reduced_integration)),
+        )
+        hub, tip = (layout.rigid_node(mbs, ii, i, s_) for s_ in (0.0, L))
+        return hub, tip, elements, (nodes[0], nodes[-1])
 
 
 def simulate(case, *, elements_per_link, h, rho_inf=0.8, reduced_integration=False, **options):
     """Simulate ``case`` with k = ``elements_per_link`` ANCF cable elements per link and step h.
 
     Options: ``rho_inf`` (generalized-α spectral radius, 0.8), ``reduced_integration`` (False),
-    and the common ones of :func:`reference_models._exudyn_common.simulate_exudyn`:
+    and the common ones of :func:`reference_models._exudyn2d.simulate_exudyn`:
     ``newton_rel_tol`` (1e-8), ``newton_abs_tol`` (None: scaled to the problem),
     ``newton_max_iterations`` (25), ``modified_newton`` (True), ``jacobian_per_step`` (True), ``drive_input``
     ("pre-step" or "user-function"), ``inextensible_axial_ratio`` (1e6).

@@ -54,30 +54,14 @@ import math
 import numpy as np
 
 from dttmm import plumbing
-from dttmm.errors import InputError, SimulationError
+from dttmm.errors import InputError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
 
-from ._exudyn3d import (
-    as_case,
-    axis_frame,
-    dynamic_settings,
-    frame_outputs,
-    frame_sensors,
-    initial_joint_states,
-    joint_outputs,
-    motion_sensors,
-    reference_frames,
-    run_segments,
-    segments,
-    solve_static,
-    static_frames,
-    stored_reader,
-)
-from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
+from ._exudyn3d import Arm, Run, as_case, check_tip_loads, reference_frames, solve_static, static_frames
+from ._exudyn_common import beam_elements, cable_properties, gravity_loads, output_grid
 from ._spatial_mechanics import rot_axis
-from .exudyn_beam3d import _check_tip_loads
 
 __all__ = ["METHOD", "TWIST_LOCKS", "check_case", "frequencies", "simulate", "statics"]
 
@@ -130,7 +114,7 @@ def check_case(case, tip_loads=None):
                 b.EIy,
                 f"must equal EIz = {b.EIz}: Exudyn's ObjectANCFCable has one bending stiffness ({METHOD})",
             )
-    loads = _check_tip_loads(case, tip_loads)
+    loads = check_tip_loads(case, tip_loads)
     frames, rest = _loads_at_rest(case, loads)
     # owner link of every load of ``rest`` (same order as _loads_at_rest), and its source
     owner, source = [], []
@@ -237,76 +221,37 @@ def _twist_lock_functions():
     return constraint, jacobian
 
 
-def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
-    """The Exudyn system of ``case`` (not assembled) and the handles the outputs need."""
-    import exudyn as exu
-    import exudyn.itemInterface as ii
-    from exudyn.rigidBodyUtilities import AngularVelocity2EulerParameters_t, RotationMatrix2EulerParameters
-
-    model, sc = case.model, case.scenario
-    frames = reference_frames(case)
-    _, rates = initial_joint_states(case)
-    g = np.array(model.gravity, float)
-    has_g = bool(np.any(g != 0.0))
-    SC = exu.SystemContainer()
-    mbs = SC.AddSystem()
-    ground = mbs.AddNode(ii.NodePointGround())
-    ground_body = mbs.AddObject(ii.ObjectGround())
+def _build(case, k, loads, reduced_integration=False, twist_lock="nodes") -> Arm:
+    """The Exudyn system of ``case`` (not assembled) with the handles the outputs need: per link
+    its root and tip frame nodes, cable elements and end slope nodes."""
+    arm = Arm(case, f"{METHOD} needs")
+    ii, mbs, frames, model = arm.ii, arm.mbs, arm.frames, case.model
     clamp_c, clamp_j = _slope_clamp_functions()
     twist_c, twist_j = _twist_lock_functions()
 
-    def velocity(i, p):
-        """Rigid velocity at t = 0 of the point p of link i (from the initial joint rates)."""
-        return sum(
-            (np.cross(frames[m]["a_w"], p - frames[m]["p_J"]) * rates[m] for m in range(i + 1)), np.zeros(3)
-        )
-
-    body_of = {}  # frame node -> its rigid body
-
     def frame_node(i, p, R, mass, com, J):
-        ep = np.array(RotationMatrix2EulerParameters(R))
-        ep_t = AngularVelocity2EulerParameters_t(frames[i]["omega"], ep)
-        nd = mbs.AddNode(
-            ii.NodeRigidBodyEP(
-                referenceCoordinates=list(p) + list(ep), initialVelocities=list(velocity(i, p)) + list(ep_t)
-            )
-        )
-        body = mbs.AddObject(
-            ii.ObjectRigidBody(
-                nodeNumber=nd,
-                mass=float(mass),
-                inertia=[J[0, 0], J[1, 1], J[2, 2], J[1, 2], J[0, 2], J[0, 1]],
-                centerOfMass=list(com),
-            )
-        )
-        body_of[nd] = body
-        if has_g and mass > 0:
-            mbs.AddLoad(
-                ii.LoadMassProportional(
-                    markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=list(g)
-                )
-            )
+        nd = arm.ep_node(i, p, R)
+        arm.add_body(nd, mass, com, J)
         return nd
 
-    def rigid_marker(nd, R=None, p=None):
-        R = np.eye(3) if R is None else R
-        p = np.zeros(3) if p is None else p
-        if not np.any(p):
-            return mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=nd, localHT=exu.HT(rotation=R)))
-        body = ground_body if nd == ground else body_of[nd]
-        return mbs.AddMarker(
-            ii.MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(rotation=R, translation=list(p)))
+    def connector(fa, fb, shape, constraint, jacobian):
+        """A user-function constraint between the coordinates of the nodes fa and fb."""
+        mbs.AddObject(
+            ii.ObjectConnectorCoordinateVector(
+                markerNumbers=[mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=nd)) for nd in (fa, fb)],
+                scalingMarker0=np.zeros(shape),
+                constraintUserFunction=constraint,
+                jacobianUserFunction=jacobian,
+            )
         )
 
-    root_nodes, tip_nodes, cables, slope_ends = [], [], [], []
-    kmax, eis = 0.0, []
+    arm.cables, arm.slope_ends = [], []
     for i, link in enumerate(model.links):
         b, fr = link.beam, frames[i]
         L, l = b.length, b.length / k
         EI = b.EIz
         EA = b.EA if b.EA is not None else INEXTENSIBLE_AXIAL_RATIO * EI / L**2
-        kmax = max(kmax, EA / l)
-        eis.append(EI)
+        arm.kmax = max(arm.kmax, EA / l)
         Rr = rot_axis((1.0, 0.0, 0.0), b.roll)
         per_length = Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
         # rotary inertia lumped into the twist-free frames (trapezoidal: l/2 at the ends, l inside)
@@ -327,32 +272,19 @@ def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
                 mbs.AddNode(
                     ii.NodePointSlope1(
                         referenceCoordinates=list(p) + list(x),
-                        initialVelocities=list(velocity(i, p)) + list(np.cross(om, x)),
+                        initialVelocities=list(arm.velocity(i, p)) + list(np.cross(om, x)),
                     )
                 )
             )
-        els = [
-            mbs.AddObject(
-                ii.ObjectANCFCable(
-                    nodeNumbers=[nodes[j], nodes[j + 1]],
-                    length=l,
-                    massPerLength=b.rhoA,
-                    bendingStiffness=EI,
-                    axialStiffness=EA,
-                    bendingDamping=b.damping * EI,
-                    axialDamping=b.damping * EA,
-                    useReducedOrderIntegration=int(bool(reduced_integration)),
-                )
-            )
-            for j in range(k)
-        ]
-        if has_g:
-            for e in els:
-                mbs.AddLoad(
-                    ii.LoadMassProportional(
-                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=list(g)
-                    )
-                )
+        els = beam_elements(
+            mbs,
+            ii.ObjectANCFCable,
+            nodes,
+            **cable_properties(b, l, EI, EA),
+            useReducedOrderIntegration=int(bool(reduced_integration)),
+        )
+        if arm.has_g:
+            gravity_loads(mbs, ii, els, list(arm.g))
         # the twist-free frames: root, (every interior node,) tip; each clamped to its cable node
         # (position: spherical joint; slope along the frame's x axis: user constraint), each
         # locked about x to the next (the relative rotation has no x component)
@@ -372,110 +304,29 @@ def _build(case, k, loads, reduced_integration=False, twist_lock="nodes"):
             mbs.AddObject(
                 ii.ObjectJointSpherical(
                     markerNumbers=[
-                        mbs.AddMarker(ii.MarkerNodePosition(nodeNumber=fnode)),
-                        mbs.AddMarker(ii.MarkerNodePosition(nodeNumber=snode)),
+                        mbs.AddMarker(ii.MarkerNodePosition(nodeNumber=nd)) for nd in (fnode, snode)
                     ]
                 )
             )
-            mbs.AddObject(
-                ii.ObjectConnectorCoordinateVector(
-                    markerNumbers=[
-                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fnode)),
-                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=snode)),
-                    ],
-                    scalingMarker0=np.zeros((2, 13)),
-                    constraintUserFunction=clamp_c,
-                    jacobianUserFunction=clamp_j,
-                )
-            )
+            connector(fnode, snode, (2, 13), clamp_c, clamp_j)
         for (fa, _), (fb, _) in zip(chain, chain[1:]):
-            mbs.AddObject(
-                ii.ObjectConnectorCoordinateVector(
-                    markerNumbers=[
-                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fa)),
-                        mbs.AddMarker(ii.MarkerNodeCoordinates(nodeNumber=fb)),
-                    ],
-                    scalingMarker0=np.zeros((1, 14)),
-                    constraintUserFunction=twist_c,
-                    jacobianUserFunction=twist_j,
-                )
-            )
-        root_nodes.append(root)
-        tip_nodes.append(tip)
-        cables.append(els)
-        slope_ends.append((nodes[0], nodes[-1]))
+            connector(fa, fb, (1, 14), twist_c, twist_j)
+        arm.root_nodes.append(root)
+        arm.tip_nodes.append(tip)
+        arm.cables.append(els)
+        arm.slope_ends.append((nodes[0], nodes[-1]))
 
-    inputs = []
-    motion_joints = {}
-    drives = iter(sc.drives)
-    for i, link in enumerate(model.links):
-        fr, j = frames[i], link.joint
-        if i == 0:
-            parent, R_pn, p_pn = ground, np.eye(3), np.zeros(3)
-        else:
-            parent, R_pn, p_pn = tip_nodes[i - 1], frames[i - 1]["R_tip"], frames[i - 1]["p_tip"]
-        A = np.eye(3) if j.locked else axis_frame(j.axis)
-        m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
-        m1 = rigid_marker(root_nodes[i], fr["R_link"].T @ fr["R_J"] @ A)
-        if j.locked:
-            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1] * 6))
-            continue
-        d = next(drives)
-        if d.kind == "motion":
-
-            def offset(mbs_, t, item, par, law=d.motion):
-                return [0.0, 0.0, 0.0, 0.0, 0.0, law(t, True)[0]]
-
-            motion_joints[i] = mbs.AddObject(
-                ii.ObjectJointGeneric(
-                    markerNumbers=[m0, m1], constrainedAxes=[1] * 6, offsetUserFunction=offset
-                )
-            )
-        else:
-            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 1, 1, 1, 0]))
-            a = np.array(j.axis, float)
-            targets = [(root_nodes[i], fr["R_link"].T @ fr["R_J"] @ a)]
-            if i > 0:
-                targets.append((parent, -(R_pn.T @ fr["R_J"] @ a)))
-            for nd, vec in targets:
-                ld = mbs.AddLoad(
-                    ii.LoadTorqueVector(
-                        markerNumber=rigid_marker(nd), loadVector=[0.0, 0.0, 0.0], bodyFixed=True
-                    )
-                )
-                inputs.append((ld, d.torque, vec))
-    for i, F, T, law in loads:
-        mk = rigid_marker(tip_nodes[i])
-        for vec, cls in ((F, ii.LoadForceVector), (T, ii.LoadTorqueVector)):
-            if np.any(vec):
-                ld = mbs.AddLoad(cls(markerNumber=mk, loadVector=[0.0] * 3))
-                inputs.append((ld, lambda t, left, f=law: f(t), vec))
-
-    def set_inputs(t, left):
-        for ld, law, vec in inputs:
-            mbs.SetLoadParameter(ld, "loadVector", list(law(t, left) * vec))
-
-    return dict(
-        mbs=mbs,
-        exu=exu,
-        ii=ii,
-        frames=frames,
-        root_nodes=root_nodes,
-        tip_nodes=tip_nodes,
-        cables=cables,
-        slope_ends=slope_ends,
-        motion_joints=motion_joints,
-        inputs=inputs,
-        set_inputs=set_inputs,
-        kmax=kmax,
-    )
+    arm.add_joints([fr["R_link"].T @ fr["R_J"] for fr in frames])
+    # world loads only (followers are refused); the law at t (its right limit at a switch)
+    arm.add_loads([(i, F, T, lambda t, left=False, f=law: f(t), False) for i, F, T, law in loads])
+    return arm
 
 
-def _abs_tol(case, B, value):
+def _abs_tol(case, arm, value):
     if value is not None:
         return plumbing.positive_number("newton_abs_tol", value)
     chain = sum(link.beam.length for link in case.model.links)
-    return max(1e3 * np.finfo(float).eps * B["kmax"] * chain, 1e-8)
+    return max(1e3 * np.finfo(float).eps * arm.kmax * chain, 1e-8)
 
 
 def simulate(
@@ -515,65 +366,27 @@ def simulate(
         raise InputError("rho_inf", rho_inf, "must be a number in [0, 1]")
     newton_rel_tol = plumbing.positive_number("newton_rel_tol", newton_rel_tol)
     newton_max_iterations = plumbing.positive_integer("newton_max_iterations", newton_max_iterations)
-    sc = case.scenario
-    ratio = sc.output_step / h
-    per_out = int(round(ratio))
-    if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
-        raise InputError("h", h, f"must divide the output step {sc.output_step}")
-    t_out = sc.output_times
-    n_steps = (len(t_out) - 1) * per_out
-
+    output_grid(case.scenario, h)
     plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
-    B = _build(case, k, loads, reduced_integration, twist_lock)
-    mbs, exu, ii = B["mbs"], B["exu"], B["ii"]
-    root_nodes, tip_nodes, motion_joints = B["root_nodes"], B["tip_nodes"], B["motion_joints"]
-    seg_start = [0.0]
-    if B["inputs"]:
-
-        def pre_step(mbs_, t):
-            B["set_inputs"](t, t > seg_start[0])
-            return True
-
-        mbs.SetPreStepUserFunction(pre_step)
-    OV = exu.OutputVariableType
-    s_root = frame_sensors(mbs, ii, OV, root_nodes)
-    s_tip = frame_sensors(mbs, ii, OV, tip_nodes)
-    s_mot = motion_sensors(mbs, ii, OV, motion_joints)
-    s_shape = spatial_shape_sensors(mbs, ii, OV, B["cables"], "cable") if shape_points else []
-    mbs.Assemble()
-
-    abs_tol = _abs_tol(case, B, newton_abs_tol)
-    s, ti = dynamic_settings(exu, rho_inf, newton_rel_tol, abs_tol, newton_max_iterations, modified_newton)
-    t_end = n_steps * h
-    bps, segs, on_grid = segments(sc, h, n_steps, per_out)
-    s.solution.sensors.writePeriod = sc.output_step if on_grid else h
-    all_sensors = [x for tr in s_root + s_tip for x in tr] + list(s_mot.values())
-    all_sensors += [x for link in s_shape for node_ in link for x in node_]
-    rows = {sn: [] for sn in all_sensors}
-    import exudyn.solver as exu_solver
-
+    arm = _build(case, k, loads, reduced_integration, twist_lock)
+    OV = arm.exu.OutputVariableType
+    run = Run(arm, range(case.model.n_links), arm.cables if shape_points else None, (OV.CoordinatesTotal,))
+    abs_tol = _abs_tol(case, arm, newton_abs_tol)
     # the clamp and twist user functions return new arrays at every call, which Exudyn's
     # allocation check reports as a warning after each solve: expected here, so not printed
-    check_allocations = exu_solver.solverCheckMemoryAllocations
-    exu_solver.solverCheckMemoryAllocations = False
-    try:
-        segments_run = run_segments(mbs, exu, s, ti, segs, h, seg_start, B["set_inputs"], all_sensors, rows)
-    finally:
-        exu_solver.solverCheckMemoryAllocations = check_allocations
-    wall, cpu, newton, steps, jacobians, failure, it = segments_run
+    failure = run.solve(
+        METHOD, h, rho_inf, newton_rel_tol, abs_tol, newton_max_iterations, modified_newton, quiet=True
+    )
     if failure is not None:
-        raise SimulationError(
-            f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
-        )
-
-    stored = stored_reader(rows, sc, t_out, per_out, t_end, steps, METHOD)
-    nt = len(t_out)
-    root, tip, Rl, Rt, w_root, w_tip, defl, twist = frame_outputs(stored, s_root, s_tip, nt)
-    ja, jr, jt = joint_outputs(case, Rl, Rt, w_root, w_tip, stored, s_mot, t_out)
-    meta = dict(
-        method=METHOD,
-        elements_per_link=k,
-        h=h,
+        run.fail(METHOD, failure)
+    meta = run.meta(
+        METHOD,
+        k,
+        h,
+        rho_inf,
+        newton_rel_tol,
+        abs_tol,
+        modified_newton,
         element="ObjectANCFCable",
         node="NodePointSlope1",
         torsion="rigid: twist not modelled (GJ ignored)",
@@ -582,44 +395,10 @@ def simulate(
         if twist_lock == "nodes"
         else "(rhoJ, rhoIy, rhoIz)·L lumped half at each end frame",
         reduced_integration=bool(reduced_integration),
-        integrator="generalized-alpha",
-        rho_inf=float(rho_inf),
-        newton_rel_tol=newton_rel_tol,
-        newton_abs_tol=abs_tol,
-        modified_newton=bool(modified_newton),
-        jacobian_per_step=True,
-        linear_solver="EigenSparse",
-        newton_iterations_per_step=newton / max(steps, 1),
-        jacobians_per_step=jacobians / max(steps, 1),
-        ode2_size=int(mbs.systemData.ODE2Size()),
-        ae_size=int(mbs.systemData.AEsize()),
-        restarts=[float(x) for x in bps],
-        wall_time_solve=wall,
-        cpu_time=cpu,
-        cpu_time_solve=cpu,
-        exudyn=exu.__version__,
     )
-    shapes = None
-    if shape_points:
-        nodes = [[np.hstack([stored(x) for x in node_]) for node_ in link] for link in s_shape]
-        shapes = spatial_link_shapes(case, nodes, shape_points)
-    return SpatialResult(
-        t=t_out,
-        link_shapes=shapes,
-        joint_angle=ja,
-        joint_rate=jr,
-        joint_torque=jt,
-        link_root=root,
-        link_tip=tip,
-        tip_deflection=defl,
-        end_effector=tip[:, -1].copy(),
-        wall_time=wall,
-        n_steps=steps,
-        meta=meta,
-        twist=twist,
-        link_rotation=Rl,
-        tip_rotation=Rt,
-    )
+    steps = max(run.run.steps, 1)
+    meta.update(jacobians_per_step=run.run.jacobians / steps, cpu_time_solve=run.run.cpu)
+    return run.result(run.fields(-1, shape_points=shape_points), meta)
 
 
 def statics(case, *, elements_per_link, tip_loads=None, load_steps=10, twist_lock="nodes"):
@@ -632,12 +411,11 @@ def statics(case, *, elements_per_link, tip_loads=None, load_steps=10, twist_loc
     k = plumbing.elements_per_link(elements_per_link)
     steps = plumbing.positive_integer("load_steps", load_steps)
     plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
-    B = _build(case, k, loads, twist_lock=twist_lock)
-    mbs, exu = B["mbs"], B["exu"]
-    B["set_inputs"](case.scenario.duration, True)
-    mbs.Assemble()
-    solve_static(mbs, exu, B["kmax"], steps, METHOD)
-    return static_frames(mbs, exu.OutputVariableType, B["root_nodes"], B["tip_nodes"])
+    arm = _build(case, k, loads, twist_lock=twist_lock)
+    arm.set_inputs(case.scenario.duration, True)
+    arm.mbs.Assemble()
+    solve_static(arm.mbs, arm.exu, arm.kmax, steps, METHOD)
+    return static_frames(arm.mbs, arm.exu.OutputVariableType, arm.root_nodes, arm.tip_nodes)
 
 
 def frequencies(case, *, elements_per_link, count=8, twist_lock="nodes"):
@@ -649,8 +427,8 @@ def frequencies(case, *, elements_per_link, count=8, twist_lock="nodes"):
     k = plumbing.elements_per_link(elements_per_link)
     count = plumbing.positive_integer("count", count)
     plumbing.choice("twist_lock", twist_lock, TWIST_LOCKS)
-    B = _build(case, k, [], twist_lock=twist_lock)
-    mbs, exu = B["mbs"], B["exu"]
+    arm = _build(case, k, [], twist_lock=twist_lock)
+    mbs, exu = arm.mbs, arm.exu
     mbs.Assemble()
     s = exu.SimulationSettings()
     s.linearSolver.solverType = exu.LinearSolverType.EigenSparse

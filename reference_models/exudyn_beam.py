@@ -12,9 +12,9 @@ value, because the physical one is not robust: it runs on the suite's ``single_l
 the first steps of a two-link arm with a step torque at h = 1e-3 (k = 2 and 4, also with 1e-6),
 which runs with 1e-5 and at h = 5e-4. The report's studies use ``"physical"`` on their cases.
 For inextensible links EA is the stiff value of
-:func:`reference_models._exudyn_common.stiff_axial_stiffness`, and κGA and ρI follow from it.
+:func:`reference_models._exudyn2d.stiff_axial_stiffness`, and κGA and ρI follow from it.
 Damping D = μK on all three strains: μ·EI, μ·EA, μ·κGA.
-Everything else (joints, drives incl. closed-loop laws, solver): :mod:`reference_models._exudyn_common`.
+Everything else (joints, drives incl. closed-loop laws, solver): :mod:`reference_models._exudyn2d`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ import math
 
 from dttmm import InputError
 
-from ._exudyn_common import simulate_exudyn
+from ._exudyn2d import simulate_exudyn
+from ._exudyn_common import beam_elements, cable_properties
 
 __all__ = ["simulate", "METHOD", "SHEAR_RATIO", "CROSS_SECTION_INERTIA", "rotary_inertia"]
 
@@ -70,36 +71,18 @@ class _GE:
         cross_section_inertia=CROSS_SECTION_INERTIA,
     ):
         b = link.beam
-        L, th, om = b.length, layout.theta[i], layout.omega[i]
+        L = b.length
         GA = shear_ratio * EA
-        nodes = []
-        for j in range(k + 1):
-            p = layout.point(i, L * j / k)
-            v = layout.velocity(i, L * j / k)
-            nodes.append(
-                mbs.AddNode(
-                    ii.NodeRigidBody2D(
-                        referenceCoordinates=[p[0], p[1], th], initialVelocities=[v[0], v[1], om]
-                    )
-                )
-            )
-        elements = [
-            mbs.AddObject(
-                ii.ObjectBeamGeometricallyExact2D(
-                    nodeNumbers=[nodes[j], nodes[j + 1]],
-                    length=L / k,
-                    massPerLength=b.rhoA,
-                    crossSectionInertia=rotary_inertia(link, EA, cross_section_inertia),
-                    bendingStiffness=b.EI,
-                    axialStiffness=EA,
-                    shearStiffness=GA,
-                    bendingDamping=b.damping * b.EI,
-                    axialDamping=b.damping * EA,
-                    shearDamping=b.damping * GA,
-                )
-            )
-            for j in range(k)
-        ]
+        nodes = [layout.rigid_node(mbs, ii, i, L * j / k) for j in range(k + 1)]
+        elements = beam_elements(
+            mbs,
+            ii.ObjectBeamGeometricallyExact2D,
+            nodes,
+            **cable_properties(b, L / k, b.EI, EA),
+            crossSectionInertia=rotary_inertia(link, EA, cross_section_inertia),
+            shearStiffness=GA,
+            shearDamping=b.damping * GA,
+        )
         return nodes[0], nodes[-1], elements, None
 
 
@@ -117,7 +100,7 @@ def simulate(
 
     Options: ``rho_inf`` (generalized-α spectral radius, 0.8), ``shear_ratio`` (κGA/EA, 0.32),
     ``cross_section_inertia`` (ρI in kg·m, or ``"physical"``: ρA·EI/EA per link), and the common
-    ones of :func:`reference_models._exudyn_common.simulate_exudyn`: ``newton_rel_tol`` (1e-8),
+    ones of :func:`reference_models._exudyn2d.simulate_exudyn`: ``newton_rel_tol`` (1e-8),
     ``newton_abs_tol`` (None: scaled to the problem), ``newton_max_iterations`` (25),
     ``modified_newton`` (True), ``jacobian_per_step`` (True), ``drive_input``
     ("pre-step" or "user-function"), ``inextensible_axial_ratio`` (1e6).

@@ -54,34 +54,17 @@ exerts on the inboard part, in the deformed section frame at x = l/2).
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 
 from dttmm import plumbing
-from dttmm.errors import InputError, SimulationError
+from dttmm.errors import InputError
 from dttmm.shapes import shape_points as check_shape_points
-from dttmm.shapes import straight_shapes
 from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
-from ._exudyn3d import (
-    as_case,
-    axis_frame,
-    dynamic_settings,
-    frame_outputs,
-    frame_sensors,
-    initial_joint_states,
-    joint_outputs,
-    motion_sensors,
-    reference_frames,
-    run_segments,
-    segments,
-    solve_static,
-    static_frames,
-    stored_reader,
-)
-from ._exudyn_common import spatial_link_shapes, spatial_shape_sensors
+from ._exudyn3d import Arm, Run, all_loads, as_case, axis_frame, reference_frames, solve_static, static_frames
+from ._exudyn_common import beam_elements, beam_nodes, body_sensor, gravity_loads, node_sensors, output_grid
 from ._spatial_mechanics import rot_axis
 
 __all__ = ["METHOD", "SHEAR_RATIO", "NODES", "check_case", "simulate", "reference_frames"]
@@ -92,75 +75,6 @@ SHEAR_RATIO = 1.0e3
 NODES = ("EP", "RotVecLG")
 #: EA of an inextensible link: ratio·max(EIy, EIz)/L²
 INEXTENSIBLE_AXIAL_RATIO = 1.0e6
-
-
-def _ancestors(model, i) -> list:
-    """Link i and the links it hangs from, base first."""
-    out = [i]
-    while model.parents[out[-1]] >= 0:
-        out.append(model.parents[out[-1]])
-    return out[::-1]
-
-
-def _piecewise(times, values):
-    times = np.asarray(times, float)
-    values = np.asarray(values, float)
-    return lambda t: float(np.interp(t, times, values))
-
-
-def _case_load(ld, n: int):
-    """(link, F, T, law(t, left=False)) of a SpatialLoad of the case's scenario."""
-    law = lambda t, left=False, f=ld.factor: float(f(t, left))  # noqa: E731
-    return ld.link_index(n), np.array(ld.force, float), np.array(ld.moment, float), law
-
-
-def _check_tip_loads(case, tip_loads, followers=False):
-    """The world loads at link tips: the case's ``scenario.loads`` in the world frame, then the
-    option ``tip_loads``, as (link, F, T, law(t, left=False)) per load. A follower load of the
-    case (frame "tip") is refused unless ``followers`` (then it is left to
-    :func:`_follower_loads`)."""
-    out = []
-    n = case.model.n_links
-    for j, ld in enumerate(getattr(case.scenario, "loads", ())):
-        if not ld.follower:
-            out.append(_case_load(ld, n))
-        elif not followers:
-            raise InputError(
-                f"scenario.loads[{j}].frame", ld.frame, "follower loads are not supported by this peer"
-            )
-    for n_, item in enumerate(tip_loads or ()):
-        where = f"tip_loads[{n_}]"
-        if not isinstance(item, dict) or set(item) - {"link", "force", "torque", "times", "factors"}:
-            raise InputError(where, item, "must be a dict with keys link, force, torque, times, factors")
-        i = item.get("link")
-        if isinstance(i, bool) or not isinstance(i, int) or not 0 <= i < case.model.n_links:
-            raise InputError(f"{where}.link", i, f"must be a link index in 0..{case.model.n_links - 1}")
-        vecs = []
-        for key in ("force", "torque"):
-            v = np.asarray(item.get(key, (0.0, 0.0, 0.0)), float)
-            if v.shape != (3,) or not np.isfinite(v).all():
-                raise InputError(f"{where}.{key}", item.get(key), "must be 3 finite numbers (world frame)")
-            vecs.append(v)
-        tt = np.asarray(item.get("times", (0.0, case.scenario.duration)), float)
-        ff = np.asarray(item.get("factors", (1.0, 1.0)), float)
-        if tt.ndim != 1 or tt.shape != ff.shape or tt.size < 1 or np.any(np.diff(tt) <= 0):
-            raise InputError(f"{where}.times", item.get("times"), "must increase and match factors in length")
-        pw = _piecewise(tt, ff)
-        out.append((i, vecs[0], vecs[1], lambda t, left=False, f=pw: f(t)))
-    return out
-
-
-def _follower_loads(case):
-    """The case's follower loads (frame "tip"), as (link, F, T, law(t, left=False)) with F, T in
-    the tip frame."""
-    n = case.model.n_links
-    return [_case_load(ld, n) for ld in getattr(case.scenario, "loads", ()) if ld.follower]
-
-
-def _all_loads(case, tip_loads):
-    """(link, F, T, law, follower) of every tip load of a run."""
-    world = [(*x, False) for x in _check_tip_loads(case, tip_loads, followers=True)]
-    return world + [(*x, True) for x in _follower_loads(case)]
 
 
 def _closure_frames(case, frames) -> list:
@@ -185,98 +99,39 @@ def _closure_frames(case, frames) -> list:
     return out
 
 
-def _build(case, k, shear_ratio, node, loads):
-    """The Exudyn system of ``case`` (not assembled) and the handles the outputs need."""
-    import exudyn as exu
-    import exudyn.itemInterface as ii
-    from exudyn.rigidBodyUtilities import (
-        AngularVelocity2EulerParameters_t,
-        RotationMatrix2EulerParameters,
-        RotationMatrix2RotationVector,
-    )
-
-    model, sc = case.model, case.scenario
-    frames = reference_frames(case)
-    g = np.array(model.gravity, float)
-    has_g = bool(np.any(g != 0.0))
-    SC = exu.SystemContainer()
-    mbs = SC.AddSystem()
-    ground = mbs.AddNode(ii.NodePointGround())
-
-    ground_body = mbs.AddObject(ii.ObjectGround())
-    carrier = {}  # node -> rigid body on it (for markers away from the node)
-
-    def rigid_marker(nd, R=None, p=None):
-        R = np.eye(3) if R is None else R
-        p = np.zeros(3) if p is None else p
-        if not np.any(p):
-            return mbs.AddMarker(ii.MarkerNodeRigid(nodeNumber=nd, localHT=exu.HT(rotation=R)))
-        if nd == ground:
-            body = ground_body
-        elif nd in carrier:
-            body = carrier[nd]
-        else:  # a massless body on the node carries the offset marker
-            body = carrier[nd] = mbs.AddObject(ii.ObjectRigidBody(nodeNumber=nd, mass=0.0))
-        return mbs.AddMarker(
-            ii.MarkerBodyRigid(bodyNumber=body, localHT=exu.HT(rotation=R, translation=list(p)))
-        )
-
-    root_nodes, tip_nodes, first_el, elements, bodies, rolls, reach = [], [], [], [], [], [], []
-    kmax = 0.0
-    alpha_rates = initial_joint_states(case)[1]
+def _build(case, k, shear_ratio, node, loads) -> Arm:
+    """The Exudyn system of ``case`` (not assembled) with the handles the outputs need: per link
+    its root and tip nodes, elements, first element (None for a rigid link), section roll and
+    tip reach (beyond its node, for a rigid link), the closing joints."""
+    arm = Arm(case, f"{METHOD} needs")
+    exu, ii, mbs, frames, model = arm.exu, arm.ii, arm.mbs, arm.frames, case.model
+    arm.first_el, arm.elements, rolls, reach = [], [], [], []
 
     def add_body(nd, mass, c, J):
         """A rigid body on node ``nd``: mass, centre c and inertia J about it (node frame)."""
-        Jn = J + mass * (c @ c * np.eye(3) - np.outer(c, c))
-        body = mbs.AddObject(
-            ii.ObjectRigidBody(
-                nodeNumber=nd,
-                mass=float(mass),
-                inertia=[Jn[0, 0], Jn[1, 1], Jn[2, 2], Jn[1, 2], Jn[0, 2], Jn[0, 1]],
-                centerOfMass=list(c),
-            )
-        )
-        bodies.append((body, nd, c, float(mass)))
-        carrier.setdefault(nd, body)
-        if has_g and mass > 0:
-            mbs.AddLoad(
-                ii.LoadMassProportional(
-                    markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=body)), loadVector=list(g)
-                )
-            )
+        arm.add_body(nd, mass, c, J + mass * (c @ c * np.eye(3) - np.outer(c, c)))
 
-    def rigid_node(p, R, v):
+    def rigid_node(i, p, R):
         if node == "EP":
-            ep = np.array(RotationMatrix2EulerParameters(R))
-            ep_t = AngularVelocity2EulerParameters_t(fr["omega"], ep)
-            return mbs.AddNode(
-                ii.NodeRigidBodyEP(
-                    referenceCoordinates=list(p) + list(ep), initialVelocities=list(v) + list(ep_t)
-                )
-            )
+            return arm.ep_node(i, p, R)
+        from exudyn.rigidBodyUtilities import RotationMatrix2RotationVector
+
+        v = list(arm.velocity(i, p)) + list(R.T @ frames[i]["omega"])
         rv = RotationMatrix2RotationVector(R)
         return mbs.AddNode(
-            ii.NodeRigidBodyRotVecLG(
-                referenceCoordinates=list(p) + list(rv), initialVelocities=list(v) + list(R.T @ fr["omega"])
-            )
+            ii.NodeRigidBodyRotVecLG(referenceCoordinates=list(p) + list(rv), initialVelocities=v)
         )
-
-    def velocity(i, p):
-        return sum(
-            (np.cross(frames[m_]["a_w"], p - frames[m_]["p_J"]) * alpha_rates[m_])
-            for m_ in _ancestors(model, i)
-        ) + np.zeros(3)
 
     for i, link in enumerate(model.links):
         b, fr = link.beam, frames[i]
         if link.rigid:  # one node at the link frame, the body on it; the tip at L·x
-            nd = rigid_node(fr["p_link"], fr["R_link"], velocity(i, fr["p_link"]))
+            nd = rigid_node(i, fr["p_link"], fr["R_link"])
             rolls.append(np.eye(3))
             reach.append(np.array([b.length, 0.0, 0.0]))
-            root_nodes.append(nd)
-            tip_nodes.append(nd)
-            first_el.append(None)
-            elements.append([])
+            arm.root_nodes.append(nd)
+            arm.tip_nodes.append(nd)
+            arm.first_el.append(None)
+            arm.elements.append([])
             add_body(nd, b.mass, b.com_vector, b.inertia_matrix)
             if link.hub is not None:
                 add_body(nd, link.hub.mass, np.zeros(3), link.hub_inertia)
@@ -288,7 +143,7 @@ def _build(case, k, shear_ratio, node, loads):
         EA = b.EA if b.EA is not None else INEXTENSIBLE_AXIAL_RATIO * max(b.EIy, b.EIz) / L**2
         GA = shear_ratio * EA
         C = np.diag([EA, GA, GA, b.GJ, b.EIy, b.EIz])
-        kmax = max(kmax, GA / l)
+        arm.kmax = max(arm.kmax, GA / l)
         sec = exu.BeamSection()
         sec.stiffnessMatrix = C
         sec.inertia = np.diag([b.rhoJ, b.rhoIy, b.rhoIz])
@@ -296,29 +151,23 @@ def _build(case, k, shear_ratio, node, loads):
         Rx = rot_axis((1.0, 0.0, 0.0), b.roll)
         rolls.append(Rx)
         Rn = fr["R_link"] @ Rx
-        nodes = []
-        for j in range(k + 1):
-            p = fr["p_link"] + fr["R_link"] @ np.array([j * l, 0.0, 0.0])
-            nodes.append(rigid_node(p, Rn, velocity(i, p)))
-        els = [
-            mbs.AddObject(
-                ii.ObjectBeamGeometricallyExact(
-                    nodeNumbers=[nodes[j], nodes[j + 1]], length=l, sectionData=sec
-                )
-            )
-            for j in range(k)
+        nodes = [
+            rigid_node(i, p, Rn)
+            for p in (fr["p_link"] + fr["R_link"] @ np.array([j * l, 0.0, 0.0]) for j in range(k + 1))
         ]
-        if has_g:
-            for e in els:
-                mbs.AddLoad(
-                    ii.LoadMassProportional(
-                        markerNumber=mbs.AddMarker(ii.MarkerBodyMass(bodyNumber=e)), loadVector=list(g)
-                    )
-                )
-        root_nodes.append(nodes[0])
-        tip_nodes.append(nodes[-1])
-        first_el.append(els[0])
-        elements.append(els)
+        els = beam_elements(
+            mbs,
+            ii.ObjectBeamGeometricallyExact,
+            nodes,
+            length=l,
+            sectionData=sec,
+        )
+        if arm.has_g:
+            gravity_loads(mbs, ii, els, list(arm.g))
+        arm.root_nodes.append(nodes[0])
+        arm.tip_nodes.append(nodes[-1])
+        arm.first_el.append(els[0])
+        arm.elements.append(els)
         # hub: inertia about the root point in the link frame -> node frame
         for rb in (link.hub, link.payload):
             if rb is None or (rb.mass == 0.0 and not np.any(rb.inertia_matrix)):
@@ -328,95 +177,22 @@ def _build(case, k, shear_ratio, node, loads):
             else:
                 add_body(nodes[-1], rb.mass, Rx.T @ np.array(rb.offset, float), Rx.T @ rb.inertia_matrix @ Rx)
 
-    # joints and drives
-    inputs = []  # (load, law, sign-vector) set by the pre-step function
-    motion_joints = {}
-    drives = iter(sc.drives)
-    for i, link in enumerate(model.links):
-        fr, j = frames[i], link.joint
-        par = model.parents[i]
-        if par < 0:
-            parent, R_pn, p_pn = ground, np.eye(3), np.zeros(3)
-        else:
-            parent = tip_nodes[par]
-            R_pn = frames[par]["R_tip"] @ rolls[par]
-            p_pn = frames[par]["p_tip"] - frames[par]["R_tip"] @ reach[par]  # the node's position
-        A = np.eye(3) if j.locked else axis_frame(j.axis)
-        # marker 0: the joint frame R_J·A at p_J in the parent's node frame
-        m0 = rigid_marker(parent, R_pn.T @ fr["R_J"] @ A, R_pn.T @ (fr["p_J"] - p_pn))
-        m1 = rigid_marker(root_nodes[i], rolls[i].T @ A)
-        if j.locked:
-            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1] * 6))
-            continue
-        d = next(drives)
-        if d.kind == "motion":
-
-            def offset(mbs_, t, item, par, law=d.motion, seg=None):
-                return [0.0, 0.0, 0.0, 0.0, 0.0, law(t, True)[0]]
-
-            motion_joints[i] = mbs.AddObject(
-                ii.ObjectJointGeneric(
-                    markerNumbers=[m0, m1], constrainedAxes=[1] * 6, offsetUserFunction=offset
-                )
-            )
-        else:
-            mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[m0, m1], constrainedAxes=[1, 1, 1, 1, 1, 0]))
-            a = np.array(j.axis, float)
-            targets = [(root_nodes[i], rolls[i].T @ a)]
-            if par >= 0:
-                targets.append((parent, -(R_pn.T @ fr["R_J"] @ a)))
-            for nd, vec in targets:
-                ld = mbs.AddLoad(
-                    ii.LoadTorqueVector(
-                        markerNumber=rigid_marker(nd), loadVector=[0.0, 0.0, 0.0], bodyFixed=True
-                    )
-                )
-                inputs.append((ld, d.torque, vec))
-    closures = []
+    arm.add_joints([r.T for r in rolls], rolls, reach)
+    arm.closures = []
     for cl in _closure_frames(case, frames):  # the loops, each closed by a joint
         a, b = cl["a"], cl["b"]
         # (on a rigid link the tip is at L·x from its node: ``reach``)
-        ma = rigid_marker(tip_nodes[a], rolls[a].T @ cl["Ra"], rolls[a].T @ cl["pa"] + reach[a])
+        ma = arm.rigid_marker(arm.tip_nodes[a], rolls[a].T @ cl["Ra"], rolls[a].T @ cl["pa"] + reach[a])
         if b < 0:
-            mb = rigid_marker(ground, cl["Rb"], cl["pb"])
+            mb = arm.rigid_marker(arm.ground, cl["Rb"], cl["pb"])
         else:
-            mb = rigid_marker(tip_nodes[b], rolls[b].T @ cl["Rb"], rolls[b].T @ cl["pb"] + reach[b])
-        closures.append(
+            mb = arm.rigid_marker(arm.tip_nodes[b], rolls[b].T @ cl["Rb"], rolls[b].T @ cl["pb"] + reach[b])
+        arm.closures.append(
             mbs.AddObject(ii.ObjectJointGeneric(markerNumbers=[mb, ma], constrainedAxes=cl["axes"]))
         )
-    for i, F, T, law, follower in loads:
-        mk = rigid_marker(tip_nodes[i], None, reach[i])
-        if follower:  # tip-frame components -> the node frame R_tip Rx(roll)
-            F, T = rolls[i].T @ F, rolls[i].T @ T
-        for vec, Load in ((F, ii.LoadForceVector), (T, ii.LoadTorqueVector)):
-            if np.any(vec):
-                ld = mbs.AddLoad(Load(markerNumber=mk, loadVector=[0.0] * 3, bodyFixed=bool(follower)))
-                inputs.append((ld, law, vec))
-
-    def set_inputs(t, left):
-        for ld, law, vec in inputs:
-            mbs.SetLoadParameter(ld, "loadVector", list(law(t, left) * vec))
-
-    return dict(
-        mbs=mbs,
-        exu=exu,
-        ii=ii,
-        frames=frames,
-        g=g,
-        has_g=has_g,
-        root_nodes=root_nodes,
-        tip_nodes=tip_nodes,
-        first_el=first_el,
-        elements=elements,
-        bodies=bodies,
-        rolls=rolls,
-        reach=reach,
-        motion_joints=motion_joints,
-        closures=closures,
-        inputs=inputs,
-        set_inputs=set_inputs,
-        kmax=kmax,
-    )
+    arm.add_loads(loads, rolls, reach)
+    arm.rolls, arm.reach = rolls, reach
+    return arm
 
 
 def check_case(case):
@@ -458,7 +234,7 @@ def simulate(
     """Simulate a spatial case (a :class:`dttmm.spatial.SpatialCase` or a path to its TOML file)
     with k = ``elements_per_link`` Exudyn 3-D geometrically exact beam elements per link, step h.
     ``shape_points`` p ≥ 2 records ``link_shapes`` (nt, n, p, 3) from a sensor per beam node
-    (:func:`reference_models._exudyn_common.spatial_link_shapes`); 0 (default): none.
+    (:func:`reference_models._exudyn_common.link_shapes`); 0 (default): none.
 
     Options: ``rho_inf`` (generalized-α spectral radius, 1), ``shear_ratio`` (GA/EA, 1e3),
     ``node`` ("EP" only here; see the module notes), ``tip_loads`` (list of dicts ``link``,
@@ -494,55 +270,21 @@ def simulate(
             raise InputError(name, val, "must be a positive number")
     if rho_inf > 1:
         raise InputError("rho_inf", rho_inf, "must lie in [0, 1]")
-    loads = _all_loads(case, tip_loads)
+    loads = all_loads(case, tip_loads)
     shape_points = check_shape_points(shape_points)
     if section_loads and case.model.rigid_links:
         i = case.model.rigid_links[0]
         raise InputError(
             "section_loads", True, f"model.links[{i}] is rigid: it has no beam element to take them from"
         )
-    sc = case.scenario
-    ratio = sc.output_step / h
-    per_out = int(round(ratio))
-    if per_out < 1 or abs(ratio - per_out) > 1e-9 * ratio:
-        raise InputError("h", h, f"must divide the output step {sc.output_step}")
-    t_out = sc.output_times
-    n_steps = (len(t_out) - 1) * per_out
+    output_grid(case.scenario, h)
 
-    B = _build(case, k, shear_ratio, node, loads)
-    mbs, exu, ii, g, has_g = B["mbs"], B["exu"], B["ii"], B["g"], B["has_g"]
-    root_nodes, tip_nodes, first_el, elements = B["root_nodes"], B["tip_nodes"], B["first_el"], B["elements"]
-    bodies, rolls, motion_joints, inputs, set_inputs = (
-        B["bodies"],
-        B["rolls"],
-        B["motion_joints"],
-        B["inputs"],
-        B["set_inputs"],
-    )
-    kmax, model = B["kmax"], case.model
-    seg_start = [0.0]
-    if inputs:
-
-        def pre_step(mbs_, t):
-            set_inputs(t, t > seg_start[0])
-            return True
-
-        mbs.SetPreStepUserFunction(pre_step)
-
-    OV = exu.OutputVariableType
-
-    def sens(nd, var):
-        return mbs.AddSensor(
-            ii.SensorNode(nodeNumber=nd, outputVariableType=var, storeInternal=True, writeToFile=False)
-        )
-
-    s_root = frame_sensors(mbs, ii, OV, root_nodes)
-    s_tip = frame_sensors(mbs, ii, OV, tip_nodes)
-    s_mot = motion_sensors(mbs, ii, OV, motion_joints)
+    arm = _build(case, k, shear_ratio, node, loads)
+    mbs, ii, elements, bodies, model, g = arm.mbs, arm.ii, arm.elements, arm.bodies, case.model, arm.g
+    OV = arm.exu.OutputVariableType
     flexible = [i for i, els in enumerate(elements) if els]
-    s_shape = (
-        spatial_shape_sensors(mbs, ii, OV, [elements[i] for i in flexible], "beam") if shape_points else []
-    )
+    beams = [elements[i] for i in flexible] if shape_points else None
+    run = Run(arm, flexible, beams, (OV.Position, OV.RotationMatrix))
     s_sec = []
     if section_loads:
         sel = (
@@ -551,95 +293,30 @@ def simulate(
             else plumbing.choice("section_loads", section_loads, ("first", "middle"))
         )
         # "middle": the element at the middle of each link, whose centre is the mid-span for odd k
-        chosen = first_el if sel == "first" else [els[k // 2] for els in elements]
+        chosen = arm.first_el if sel == "first" else [els[k // 2] for els in elements]
         for e in chosen:
             s_sec.append(
-                [
-                    mbs.AddSensor(
-                        ii.SensorBody(
-                            bodyNumber=e,
-                            localPosition=[0.0, 0.0, 0.0],
-                            outputVariableType=v,
-                            storeInternal=True,
-                            writeToFile=False,
-                        )
-                    )
-                    for v in (OV.ForceLocal, OV.TorqueLocal)
-                ]
+                [body_sensor(mbs, ii, e, v, (0.0, 0.0, 0.0)) for v in (OV.ForceLocal, OV.TorqueLocal)]
             )
-    s_en = []
+    s_en, s_pos_all, s_body_pos = [], [], []
     if energy:
         for els in elements:
             for e in els:
-                for v in (OV.KineticEnergy, OV.PotentialEnergy):
-                    s_en.append(
-                        mbs.AddSensor(
-                            ii.SensorBody(
-                                bodyNumber=e,
-                                localPosition=[0.0, 0.0, 0.0],
-                                outputVariableType=v,
-                                storeInternal=True,
-                                writeToFile=False,
-                            )
-                        )
-                    )
-        for body, *_ in bodies:
-            s_en.append(
-                mbs.AddSensor(
-                    ii.SensorBody(
-                        bodyNumber=body,
-                        outputVariableType=OV.KineticEnergy,
-                        storeInternal=True,
-                        writeToFile=False,
-                    )
-                )
-            )
-        s_pos_all = (
-            [
-                sens(nd, OV.Position)
-                for els in elements
-                if els
-                for nd in [mbs.GetObject(e)["nodeNumbers"][0] for e in els]
-                + [mbs.GetObject(els[-1])["nodeNumbers"][1]]
-            ]
-            if has_g
-            else []
-        )
-        s_body_pos = (
-            [
-                mbs.AddSensor(
-                    ii.SensorBody(
-                        bodyNumber=b_,
-                        localPosition=list(c),
-                        outputVariableType=OV.Position,
-                        storeInternal=True,
-                        writeToFile=False,
-                    )
-                )
-                for b_, _, c, _ in bodies
-            ]
-            if has_g
-            else []
-        )
-    mbs.Assemble()
+                s_en += [
+                    body_sensor(mbs, ii, e, v, (0.0, 0.0, 0.0))
+                    for v in (OV.KineticEnergy, OV.PotentialEnergy)
+                ]
+        s_en += [body_sensor(mbs, ii, body, OV.KineticEnergy) for body, *_ in bodies]
+        if arm.has_g:
+            for els in elements:
+                if els:
+                    s_pos_all += [x for (x,) in node_sensors(mbs, ii, beam_nodes(mbs, els), (OV.Position,))]
+            s_body_pos = [body_sensor(mbs, ii, b_, OV.Position, c) for b_, _, c, _ in bodies]
+    run.sensors += [x for p in s_sec for x in p] + s_en + s_pos_all + s_body_pos
 
-    abs_tol = float(newton_abs_tol) if newton_abs_tol is not None else max(1e-10 * kmax * 1e-6, 1e-10)
-    s, ti = dynamic_settings(
-        exu, rho_inf, float(newton_rel_tol), abs_tol, int(newton_max_iterations), modified_newton
-    )
-    t_end = n_steps * h
-    bps, segs, on_grid = segments(sc, h, n_steps, per_out)
-    s.solution.sensors.writePeriod = sc.output_step if on_grid else h
-    all_sensors = (
-        [x for tr in s_root + s_tip for x in tr] + list(s_mot.values()) + [x for p in s_sec for x in p] + s_en
-    )
-    if energy and has_g:
-        all_sensors += s_pos_all + s_body_pos
-    all_sensors += [x for link in s_shape for node_ in link for x in node_]
-    rows = {sn: [] for sn in all_sensors}
-    wall, cpu, newton, steps, _, failure, it = run_segments(
-        mbs, exu, s, ti, segs, h, seg_start, set_inputs, all_sensors, rows
-    )
+    abs_tol = float(newton_abs_tol) if newton_abs_tol is not None else max(1e-10 * arm.kmax * 1e-6, 1e-10)
+    rel_tol = float(newton_rel_tol)
+    failure = run.solve(METHOD, h, rho_inf, rel_tol, abs_tol, int(newton_max_iterations), modified_newton)
     if failure is not None and newton_abs_tol is None:
         # the default absolute tolerance, 1e-16·kmax, is at the round-off floor of the residual
         # (ε·kmax·|x|): at fine k, or on a loop, Newton can stall just above it (module notes);
@@ -655,7 +332,7 @@ def simulate(
             section_loads=section_loads,
             energy=energy,
             newton_rel_tol=newton_rel_tol,
-            newton_abs_tol=max(1e-10 * kmax * 1e-5, 1e-10),
+            newton_abs_tol=max(1e-10 * arm.kmax * 1e-5, 1e-10),
             newton_max_iterations=newton_max_iterations,
             modified_newton=modified_newton,
             shape_points=shape_points,
@@ -663,22 +340,16 @@ def simulate(
         res.meta["newton_abs_tol_raised"] = f"the default {abs_tol:.3g} failed: {failure}"
         return res
     if failure is not None:
-        raise SimulationError(
-            f"Exudyn {METHOD}: {failure}", t=float(it.currentTime), step=steps, component="newton"
-        )
+        run.fail(METHOD, failure)
 
-    stored = stored_reader(rows, sc, t_out, per_out, t_end, steps, METHOD)
-    nt = len(t_out)
-    root, tip, Rl, Rt, w_root, w_tip, defl, twist = frame_outputs(
-        stored, s_root, s_tip, nt, rolls, B["reach"]
-    )
-    ja, jr, jt = joint_outputs(case, Rl, Rt, w_root, w_tip, stored, s_mot, t_out)
+    stored = run.stored
+    fields = run.fields(model.end_effector_index, arm.rolls, arm.reach, shape_points)
     en = None
     if energy:
-        en = np.zeros(nt)
+        en = np.zeros(len(fields["t"]))
         for sn in s_en:
             en += stored(sn)[:, 0]
-        if has_g:
+        if arm.has_g:
             ptr = 0
             for i in flexible:
                 b = model.links[i].beam
@@ -692,27 +363,19 @@ def simulate(
     cut = None
     if section_loads:
         cut = np.stack([np.concatenate([stored(f), stored(m_)], axis=1) for f, m_ in s_sec], axis=1)
-    meta = dict(
-        method=METHOD,
-        elements_per_link=k,
-        h=h,
+    meta = run.meta(
+        METHOD,
+        k,
+        h,
+        rho_inf,
+        rel_tol,
+        abs_tol,
+        modified_newton,
         element="ObjectBeamGeometricallyExact",
         node=f"NodeRigidBody{node}",
         shear_ratio=float(shear_ratio),
-        integrator="generalized-alpha",
-        rho_inf=float(rho_inf),
-        newton_rel_tol=float(newton_rel_tol),
-        newton_abs_tol=abs_tol,
-        modified_newton=bool(modified_newton),
-        jacobian_per_step=True,
-        linear_solver="EigenSparse",
-        newton_iterations_per_step=newton / max(steps, 1),
-        ode2_size=int(mbs.systemData.ODE2Size()),
-        ae_size=int(mbs.systemData.AEsize()),
-        restarts=[float(x) for x in bps],
-        wall_time_solve=wall,
-        cpu_time=cpu,
-        exudyn=exu.__version__,
+    )
+    meta.update(
         section_loads=(
             "ForceLocal/TorqueLocal of the "
             + ("first element" if section_loads in (True, "first") else f"element {k // 2 + 1} of {k}")
@@ -724,37 +387,14 @@ def simulate(
         if energy
         else None,
     )
-    shapes = None
-    if shape_points:
-        nodes = [[np.hstack([stored(x) for x in node_]) for node_ in link] for link in s_shape]
-        shapes = straight_shapes(root, tip, shape_points)  # the rigid links'
-        if flexible:
-            beams = SimpleNamespace(model=SimpleNamespace(links=[model.links[i] for i in flexible]))
-            shapes[:, flexible] = spatial_link_shapes(beams, nodes, shape_points)
     if model.closures:  # the loops' gaps at the tip frames (what the closing joints hold)
         rc = resolve_closures(model, *rigid_tip_frames(model, initial_angles(case)))
-        gaps = [closure_gaps(rc, Rt[t_], tip[t_]) for t_ in range(nt)]
+        Rt, tip = fields["tip_rotation"], fields["link_tip"]
+        gaps = [closure_gaps(rc, Rt[t_], tip[t_]) for t_ in range(len(tip))]
         meta["closure_residual"] = np.array([g_[0] for g_ in gaps])
         meta["closure_angle_residual"] = np.array([g_[1] for g_ in gaps])
-    return SpatialResult(
-        t=t_out,
-        link_shapes=shapes,
-        joint_angle=ja,
-        joint_rate=jr,
-        joint_torque=jt,
-        link_root=root,
-        link_tip=tip,
-        tip_deflection=defl,
-        end_effector=tip[:, model.end_effector_index].copy(),
-        wall_time=wall,
-        n_steps=steps,
-        meta=meta,
-        cut_loads=cut,
-        cut_load_t=t_out if section_loads else None,
-        energy=en,
-        twist=twist,
-        link_rotation=Rl,
-        tip_rotation=Rt,
+    return run.result(
+        fields, meta, cut_loads=cut, cut_load_t=fields["t"] if section_loads else None, energy=en
     )
 
 
@@ -768,13 +408,13 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
     k = plumbing.elements_per_link(elements_per_link)
     plumbing.choice("node", node, NODES)
     steps = plumbing.positive_integer("load_steps", load_steps)
-    B = _build(case, k, shear_ratio, node, _all_loads(case, tip_loads))
-    mbs, exu = B["mbs"], B["exu"]
-    B["set_inputs"](case.scenario.duration, True)
+    arm = _build(case, k, shear_ratio, node, all_loads(case, tip_loads))
+    mbs, exu = arm.mbs, arm.exu
+    arm.set_inputs(case.scenario.duration, True)
     mbs.Assemble()
-    solve_static(mbs, exu, B["kmax"], steps, METHOD)
+    solve_static(mbs, exu, arm.kmax, steps, METHOD)
     OV = exu.OutputVariableType
-    out = static_frames(mbs, OV, B["root_nodes"], B["tip_nodes"], B["rolls"], B["reach"])
+    out = static_frames(mbs, OV, arm.root_nodes, arm.tip_nodes, arm.rolls, arm.reach)
     nan = np.full(3, np.nan)
     sec = np.array(
         [
@@ -784,7 +424,7 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
                     for v in (OV.ForceLocal, OV.TorqueLocal)
                 ]
             )
-            for e in B["first_el"]
+            for e in arm.first_el
         ]
     )
     return dict(
@@ -798,7 +438,7 @@ def statics(case, *, elements_per_link, shear_ratio=SHEAR_RATIO, node="EP", tip_
                     else np.full(9, np.nan),
                     (3, 3),
                 )
-                for e in B["first_el"]
+                for e in arm.first_el
             ]
         ),
     )

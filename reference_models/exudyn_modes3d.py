@@ -19,15 +19,12 @@ eigenvalues are taken at the undeformed rest state, an equilibrium only without 
 
 from __future__ import annotations
 
-import numpy as np
-
-from dttmm import plumbing
 from dttmm.errors import InputError
 from dttmm.spatial import SpatialCase
 from dttmm.spatial.model import require_flexible, require_serial
 
+from ._exudyn_common import eigen_frequencies, modes_check, modes_rest
 from .exudyn_beam3d import SHEAR_RATIO, _build
-from .exudyn_modes import eigen_frequencies
 
 __all__ = ["METHOD", "frequencies"]
 
@@ -35,17 +32,7 @@ METHOD = "exudyn-beam3d"
 
 
 def _check(case, elements_per_link, n) -> int:
-    if not isinstance(case, SpatialCase):
-        raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
-    k = plumbing.elements_per_link(elements_per_link)
-    if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1):
-        raise InputError("n", n, "must be an integer >= 1 (number of modes)")
-    if any(case.model.gravity):
-        raise InputError(
-            "model.gravity",
-            list(case.model.gravity),
-            "the Exudyn eigenvalues are taken at rest, which is an equilibrium only without gravity",
-        )
+    k = modes_check(case, SpatialCase, "dttmm.spatial.SpatialCase", elements_per_link, n)
     if getattr(case.scenario, "loads", ()):
         raise InputError("scenario.loads", "...", "the Exudyn eigenvalues are taken without external loads")
     require_flexible(case.model, METHOD)
@@ -57,11 +44,7 @@ def _check(case, elements_per_link, n) -> int:
                 (lk.beam.rhoIy, lk.beam.rhoIz),
                 "must be > 0 (the beam element's nodes have no other rotary inertia about y, z)",
             )
-    for i, d in enumerate(case.scenario.drives):
-        if d.kind == "torque" and d.initial_rate != 0.0:
-            raise InputError(
-                f"scenario.drives[{i}].initial_rate", d.initial_rate, "must be 0 (modes at rest)"
-            )
+    modes_rest(case)
     return k
 
 
@@ -72,13 +55,7 @@ def frequencies(case, elements_per_link: int, n: int | None = None, *, shear_rat
     reported as 0 (Exudyn returns it as a round-off-sized ω² of either sign).
     """
     k = _check(case, elements_per_link, n)
-    try:
-        import exudyn.solver  # noqa: F401 - the engine is there (the eigen-analysis imports it)
-    except ImportError as exc:
-        raise ImportError(
-            f"{METHOD} modes need the exudyn package (pip install 'dttmm[exudyn]'): {exc}"
-        ) from exc
-    B = _build(case, k, shear_ratio, "EP", [])
-    B["set_inputs"](0.0, False)
-    B["mbs"].Assemble()
-    return eigen_frequencies(B["mbs"], case, n, METHOD)
+    arm = _build(case, k, shear_ratio, "EP", [])
+    arm.set_inputs(0.0, False)
+    arm.mbs.Assemble()
+    return eigen_frequencies(arm.mbs, case, n, METHOD)
