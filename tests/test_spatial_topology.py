@@ -333,10 +333,12 @@ def test_four_bar_closure_holds_over_two_seconds():
 
 def test_four_bar_closure_costs_few_sweeps():
     """The loop closure's quasi-Newton iteration on the closure loads (W measured anew every
-    W_EVERY steps, extrapolated between; the gaps' round-off floor in the stop rule): the
-    four-bar (k = 2, h = 1e-3, 0.05 s) takes at most 4.5 sweeps per step (measured 3.94; 4.9
-    with W every 8th step, kept; 46 with W measured at every iteration), within 1.4× its
-    cut-open tree's (the same links with closures=(): 2.96), and a step at most m + 6."""
+    W_EVERY steps, extrapolated between; the gaps' round-off floor in the stop rule, against the
+    change still to come from the iterates' contraction): the four-bar (k = 2, h = 1e-3,
+    0.05 s) takes at most 3.8 sweeps per step (measured 3.48; 3.94 stopping on the change
+    itself; 4.9 with W every 8th step, kept; 46 with W measured at every iteration), within
+    1.25× its cut-open tree's (the same links with closures=(): 2.96), and a step at most
+    m + 6."""
     case = _short(load_case(FOUR_BAR), 0.05, 0.01)
     loop = sp.simulate(case, elements_per_link=2, h=1e-3, energy=False)
     tree = sp.simulate(
@@ -346,8 +348,8 @@ def test_four_bar_closure_costs_few_sweeps():
         energy=False,
     )
     assert loop.status == "ok" and loop.meta["unconverged_steps"] == 0
-    assert loop.meta["sweeps_per_step"] <= 4.5, loop.meta["sweeps_per_step"]
-    assert loop.meta["sweeps_per_step"] <= 1.4 * tree.meta["sweeps_per_step"]
+    assert loop.meta["sweeps_per_step"] <= 3.8, loop.meta["sweeps_per_step"]
+    assert loop.meta["sweeps_per_step"] <= 1.25 * tree.meta["sweeps_per_step"]
     assert loop.meta["max_sweeps"] <= 5 + 6, loop.meta["max_sweeps"]
 
 
