@@ -54,7 +54,11 @@ def stations(length: float, p: int) -> np.ndarray:
 
 def _locate(x: np.ndarray, length: float, k: int):
     """Element index (p,) and local coordinate ξ ∈ [0, 1] (p,) of the arc lengths x on a link
-    of k equal elements (the tip belongs to the last element, at ξ = 1)."""
+    of k equal elements (the tip belongs to the last element, at ξ = 1). A link of zero length
+    (a robot's body on its joint, from a URDF) has every point at its root."""
+    if length <= 0.0:
+        n = np.asarray(x).shape[0]
+        return np.zeros(n, dtype=int), np.zeros(n)
     s = np.asarray(x, float) / (length / k)
     j = np.minimum(np.floor(s).astype(int), k - 1)
     return j, s - j

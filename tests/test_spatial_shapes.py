@@ -123,3 +123,22 @@ def test_cantilever_uniform_load_fourth_order():
     order = np.log2(err[0] / err[1])
     assert 3.7 <= order <= 4.3, (err, order)
     assert err[1] <= 1e-3
+
+
+@pytest.mark.parametrize("robot", ["ur5", "panda"])
+def test_robot_shapes_with_links_of_zero_length(robot):
+    """A URDF robot has bodies that sit on their joint (links of zero length): their shape
+    points are all at the root, and every link's shape runs from its root to its tip (found
+    when ``shape_points`` on a robot divided 0 by 0)."""
+    import dttmm
+
+    c = dttmm.load_case(CASES / "robots" / f"{robot}.toml")
+    c = dataclasses.replace(c, scenario=dataclasses.replace(c.scenario, duration=0.004, output_step=0.002))
+    r = simulate(c, elements_per_link=2, h=1e-3, shape_points=3, progress=False)
+    assert np.all(np.isfinite(r.link_shapes))
+    np.testing.assert_allclose(r.link_shapes[:, :, 0], r.link_root, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r.link_shapes[:, :, -1], r.link_tip, rtol=0, atol=1e-12)
+    lengths = np.array([link.beam.length for link in c.model.links])
+    assert np.any(lengths == 0.0)
+    flat = r.link_shapes[:, lengths == 0.0]
+    np.testing.assert_array_equal(flat, np.repeat(flat[:, :, :1], 3, axis=2))

@@ -333,10 +333,12 @@ def test_four_bar_closure_holds_over_two_seconds():
 
 def test_four_bar_closure_costs_few_sweeps():
     """The loop closure's quasi-Newton iteration on the closure loads (W measured anew every
-    W_EVERY steps, extrapolated between; the gaps' round-off floor in the stop rule): the
-    four-bar (k = 2, h = 1e-3, 0.05 s) takes at most 4.5 sweeps per step (measured 3.94; 4.9
-    with W every 8th step, kept; 46 with W measured at every iteration), within 1.4× its
-    cut-open tree's (the same links with closures=(): 2.96), and a step at most m + 6."""
+    W_EVERY steps, extrapolated between; the gaps' round-off floor in the stop rule, against the
+    change still to come from the iterates' contraction): the four-bar (k = 2, h = 1e-3,
+    0.05 s) takes at most 3.8 sweeps per step (measured 3.48; 3.94 stopping on the change
+    itself; 4.9 with W every 8th step, kept; 46 with W measured at every iteration), within
+    1.25× its cut-open tree's (the same links with closures=(): 2.96), and a step at most
+    m + 6."""
     case = _short(load_case(FOUR_BAR), 0.05, 0.01)
     loop = sp.simulate(case, elements_per_link=2, h=1e-3, energy=False)
     tree = sp.simulate(
@@ -346,8 +348,8 @@ def test_four_bar_closure_costs_few_sweeps():
         energy=False,
     )
     assert loop.status == "ok" and loop.meta["unconverged_steps"] == 0
-    assert loop.meta["sweeps_per_step"] <= 4.5, loop.meta["sweeps_per_step"]
-    assert loop.meta["sweeps_per_step"] <= 1.4 * tree.meta["sweeps_per_step"]
+    assert loop.meta["sweeps_per_step"] <= 3.8, loop.meta["sweeps_per_step"]
+    assert loop.meta["sweeps_per_step"] <= 1.25 * tree.meta["sweeps_per_step"]
     assert loop.meta["max_sweeps"] <= 5 + 6, loop.meta["max_sweeps"]
 
 
@@ -606,3 +608,30 @@ def test_four_bar_mid_span_histories_against_exudyn_over_the_paper_s_duration():
     ref_moment = np.linalg.norm(ref.cut_loads[:, 1, 3:], axis=1)
     assert np.max(np.abs(deflection - ref_deflection)) <= 0.02 * np.max(np.abs(ref_deflection))
     assert np.max(np.abs(moment - ref_moment)) <= 0.02 * np.max(ref_moment)
+
+
+def test_a_failed_loop_run_under_the_undamped_trapezoidal_rule_names_the_remedy():
+    """A loop run that stops under Newmark β = ¼, γ = ½ (the four-bar's 12 s at k = 8 stops at
+    6.42 s: its index-3 closure loads grow without numerical damping) says so and names
+    generalized-α; other integrators and chains get no such hint."""
+    from dttmm.integrators import newmark_family
+    from dttmm.spatial import solver
+
+    trapezoidal = newmark_family("newmark")
+    assert "generalized-alpha" in solver._undamped_loop_hint(object(), trapezoidal)
+    assert solver._undamped_loop_hint(object(), newmark_family("generalized-alpha", rho_inf=0.8)) == ""
+    assert solver._undamped_loop_hint(object(), newmark_family("newmark", gamma=0.6)) == ""
+    assert solver._undamped_loop_hint(None, trapezoidal) == ""
+
+
+@pytest.mark.slow
+def test_the_four_bar_under_the_undamped_trapezoidal_rule_stops_with_the_remedy():
+    """The documented failure, run (k = 8, h = 1 ms, Newmark β = ¼, γ = ½): the run stops at
+    6.42 s with the hint and the partial result up to there (generalized-α runs the 12 s,
+    docs/spatial.md "Long loop runs"). If this run ever goes through, update those docs."""
+    from dttmm.errors import SimulationError
+
+    case = _short(load_case(FOUR_BAR), 7.0, 0.01)
+    with pytest.raises(SimulationError, match="generalized-alpha") as err:
+        sp.simulate(case, elements_per_link=8, h=1e-3, progress=False)
+    assert 6.0 < err.value.t < 7.0 and err.value.partial.t[-1] > 6.0

@@ -63,6 +63,11 @@ W_EVERY = 16
 #: contracting by this factor (max|Δq̈| above W_STALE × the previous one's, above the round-off
 #: floor of the stop rule)
 W_STALE = 0.5
+#: with loop closures, iterates contracting by this factor or more (max|Δq̈| of the iteration
+#: against the previous one's, from the third sweep on) stop once the change still to come is
+#: within the round-off floor (:func:`closure_left`). Sweeps per step on the four-bar, k = 2,
+#: 200 steps: 4.22 without, 3.40 with; five-bar 100 steps: 5.15, 3.94
+CONTRACTED = 0.1
 #: a closure gap within this many units of round-off (of the coordinates of its points; of 1
 #: for the angle rows) counts as closed: the position-level condition amplifies a gap by 1/c_q
 #: in q̈, and chasing the round-off holds the iteration above the stop rule's floor. 0: off (1
@@ -509,6 +514,21 @@ def correct(md, drv, cw):
     for i in range(n):
         if drv.code[i] == CODE_PD:
             cw.taul[i] = cw.tb[i] + g[i, n]
+
+
+@njit(inline="always")
+def closure_left(it, dx, prev, prev2):
+    """What an iteration with loop closures has still to change q̈ by: from the third sweep on,
+    with the iterates contracting at ρ ≤ CONTRACTED, the larger of the last two ratios of
+    changes (dx/prev, prev/prev2), the sum of the changes to come, dx·ρ/(1 − ρ); else the
+    change dx itself. The closures converge linearly (ρ 1e-4 to 1e-2 on the four-bar and the
+    five-bar: the closure loads turn with the kinematics, which the W of fixed kinematics
+    misses), so the change that would show the round-off floor is one sweep late; ρ is not
+    constant (five-bar: 3e-4, then 6e-3), hence the larger of two."""
+    if it >= 2 and dx <= CONTRACTED * prev and prev <= CONTRACTED * prev2:
+        r = max(dx / prev, prev / prev2)
+        return dx * r / (1.0 - r)
+    return dx
 
 
 @njit(inline="always")
@@ -1255,6 +1275,7 @@ def run(
                     x[md.ia[i]] = mot[i, 2]
             tv = cw.taul if opts.closed else tau
             prev = np.inf
+            prev2 = np.inf  # that of the iteration before
             used = 0
             nclose = cw.cl.a.shape[0]
             ok = True
@@ -1331,11 +1352,12 @@ def run(
                     not stop
                     and nclose > 0
                     and it >= 1
-                    and dx <= min(cw.cl.nb[0], 1e3 * opts.tol * max(1.0, xmax))
+                    and closure_left(it, dx, prev, prev2) <= min(cw.cl.nb[0], 1e3 * opts.tol * max(1.0, xmax))
                 ):
-                    # the change is within the round-off floor of the closures' gaps (which
-                    # the position condition divides by c_q): what is left is round-off (the
-                    # stop rule's stagnation, without the iterations that show it)
+                    # the change, or the change still to come, is within the round-off floor
+                    # of the closures' gaps (which the position condition divides by c_q): what
+                    # is left is round-off (the stop rule's stagnation, without the iterations
+                    # that show it)
                     stop = True
                     converged = True
                 if stop:
@@ -1359,6 +1381,7 @@ def run(
                     if dx * rr / (1.0 - rr) <= opts.auto_fraction * opts.lte * dq:
                         converged = True
                         break
+                prev2 = prev
                 prev = dx
             stats[S_SWEEPS] += used
             stats[S_MAX] = max(stats[S_MAX], used)
