@@ -940,75 +940,25 @@ def gauss_bodies(md, i, el, g0, g1, g2, ws, M, r):
             px,
             d3,
             d4,
+            (E00, E01, E02, E10, E11, E12, E20, E21, E22),
+            (J00, J01, J02, J10, J11, J12, J20, J21, J22),
             j0,
             j1,
             j2,
             za0,
             za1,
             za2,
-            E00,
-            E01,
-            E02,
-            E10,
-            E11,
-            E12,
-            E20,
-            E21,
-            E22,
-            J00,
-            J01,
-            J02,
-            J10,
-            J11,
-            J12,
-            J20,
-            J21,
-            J22,
         )
     return ms0, ms1, ms2, au0, au1, au2, a30, a31, a32, a40, a41, a42
 
 
 @njit(inline="always", nrt=False)
-def gauss_rotation(
-    md,
-    i,
-    gp,
-    M,
-    r,
-    w0,
-    w1,
-    w2,
-    px,
-    d3,
-    d4,
-    j0,
-    j1,
-    j2,
-    za0,
-    za1,
-    za2,
-    E00,
-    E01,
-    E02,
-    E10,
-    E11,
-    E12,
-    E20,
-    E21,
-    E22,
-    J00,
-    J01,
-    J02,
-    J10,
-    J11,
-    J12,
-    J20,
-    J21,
-    J22,
-):
+def gauss_rotation(md, i, gp, M, r, w0, w1, w2, px, d3, d4, Et, Jt, j0, j1, j2, za0, za1, za2):
     """The rotational part of Gauss body ``gp``: its inertia Iw = E diag(I) Eᵀ in the element
     frame, the load fa = Iw ζ_a + ω_g × Iw ω_g into r, and Iw, Iw J Ψ, Ψᵀ Jᵀ Iw J Ψ into M
     (E, J: the body's rotation and its rate map at ψ = Ψ e; j = J ψ̇, za: ζ_a)."""
+    E00, E01, E02, E10, E11, E12, E20, E21, E22 = Et
+    J00, J01, J02, J10, J11, J12, J20, J21, J22 = Jt
     # rotational: Iw = E diag(I) Eᵀ, its load fa = Iw ζ_a + ω_g × Iw ω_g, H = [0, I, J Ψ]
     Ig = md.Ig[i, gp]
     I0 = Ig[0]
