@@ -788,7 +788,37 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     structure of the shape tables (build_model checks it): each column of Σ_g and Ψ_g has one
     entry, so a Gauss body's maps cost a scalar per column; the outboard node's rigid transfer is
     the closed form of :func:`shift_pc`; then M_ee = L Lᵀ (Cholesky), Y = L⁻¹ [M_eA | r_e] and
-    P_root = M_AA − YᵀY, c_root = r_A − Yᵀ y."""
+    P_root = M_AA − YᵀY, c_root = r_A − Yᵀ y.
+
+    The passes: :func:`gauss_bodies` (the four Gauss bodies), :func:`constant_blocks`,
+    :func:`outboard_node` (the outboard node's P, c through the element), :func:`elastic_forces`,
+    then the dummy axial coordinate and :func:`schur_into`."""
+    M = ws.M12
+    r = ws.r12
+    for a in range(12):
+        r[a] = 0.0
+        for b in range(a, 12):
+            M[a, b] = 0.0
+    sums = gauss_bodies(md, i, el, g0, g1, g2, ws, M, r)
+    constant_blocks(md, i, M, sums)
+    outboard_node(md, i, el, ws, M, r)
+    elastic_forces(md, i, el, cq, cv, ehat, edhat, fext, ws, M, r)
+    if md.ext[i] == 0:  # the dummy u: unit mass, no coupling, no load
+        for a in range(6):
+            M[a, 6] = 0.0
+        for b in range(7, 12):
+            M[6, b] = 0.0
+        M[6, 6] = 1.0
+        r[6] = 0.0
+    return schur_into(M, r, ws.Lc[el], ws.Y[el], ws.P, ws.c)
+
+
+@njit(inline="always", nrt=False)
+def gauss_bodies(md, i, el, g0, g1, g2, ws, M, r):
+    """The four Gauss bodies of element ``el`` of link i into M (upper triangle) and r: their
+    loads (gravity (g0, g1, g2) in the element frame, velocity products) and the blocks of M that
+    depend on e (the rotational ones by :func:`gauss_rotation`). Returns the sums
+    (Σ m x, Σ m x su, Σ m x n3, Σ m x n4) that :func:`constant_blocks` places."""
     e = ws.e[el]
     ed = ws.ed[el]
     e0 = e[0]
@@ -806,14 +836,6 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     w0 = ws.wl[el, 0]
     w1 = ws.wl[el, 1]
     w2 = ws.wl[el, 2]
-    M = ws.M12
-    r = ws.r12
-    Iw = ws.Iw
-    IJ = ws.IJ
-    for a in range(12):
-        r[a] = 0.0
-        for b in range(a, 12):
-            M[a, b] = 0.0
     ms0 = 0.0
     ms1 = 0.0
     ms2 = 0.0
@@ -906,106 +928,144 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
         r[8] += n3 * fl2
         r[10] -= n4 * fl2
         r[11] += n4 * fl1
-        # rotational: Iw = E diag(I) Eᵀ, its load fa = Iw ζ_a + ω_g × Iw ω_g, H = [0, I, J Ψ]
-        Ig = md.Ig[i, gp]
-        I0 = Ig[0]
-        I1 = Ig[1]
-        I2 = Ig[2]
-        # Iw = E diag(I) Eᵀ (symmetric)
-        e00 = E00 * I0
-        e01 = E01 * I1
-        e02 = E02 * I2
-        e10 = E10 * I0
-        e11 = E11 * I1
-        e12 = E12 * I2
-        e20 = E20 * I0
-        e21 = E21 * I1
-        e22 = E22 * I2
-        i00 = e00 * E00 + e01 * E01 + e02 * E02
-        i01 = e00 * E10 + e01 * E11 + e02 * E12
-        i02 = e00 * E20 + e01 * E21 + e02 * E22
-        i11 = e10 * E10 + e11 * E11 + e12 * E12
-        i12 = e10 * E20 + e11 * E21 + e12 * E22
-        i22 = e20 * E20 + e21 * E21 + e22 * E22
-        wg0 = w0 + j0
-        wg1 = w1 + j1
-        wg2 = w2 + j2
-        h0 = i00 * wg0 + i01 * wg1 + i02 * wg2
-        h1 = i01 * wg0 + i11 * wg1 + i12 * wg2
-        h2 = i02 * wg0 + i12 * wg1 + i22 * wg2
-        fa0 = i00 * za0 + i01 * za1 + i02 * za2 + wg1 * h2 - wg2 * h1
-        fa1 = i01 * za0 + i11 * za1 + i12 * za2 + wg2 * h0 - wg0 * h2
-        fa2 = i02 * za0 + i12 * za1 + i22 * za2 + wg0 * h1 - wg1 * h0
-        r[3] += fa0
-        r[4] += fa1
-        r[5] += fa2
-        M[3, 3] += i00
-        M[3, 4] += i01
-        M[3, 5] += i02
-        M[4, 4] += i11
-        M[4, 5] += i12
-        M[5, 5] += i22
-        # IJ = Iw J; Jᵀ fa; U = Jᵀ Iw J
-        k00 = i00 * J00 + i01 * J10 + i02 * J20
-        k01 = i00 * J01 + i01 * J11 + i02 * J21
-        k02 = i00 * J02 + i01 * J12 + i02 * J22
-        k10 = i01 * J00 + i11 * J10 + i12 * J20
-        k11 = i01 * J01 + i11 * J11 + i12 * J21
-        k12 = i01 * J02 + i11 * J12 + i12 * J22
-        k20 = i02 * J00 + i12 * J10 + i22 * J20
-        k21 = i02 * J01 + i12 * J11 + i22 * J21
-        k22 = i02 * J02 + i12 * J12 + i22 * J22
-        jf0 = J00 * fa0 + J10 * fa1 + J20 * fa2
-        jf1 = J01 * fa0 + J11 * fa1 + J21 * fa2
-        jf2 = J02 * fa0 + J12 * fa1 + J22 * fa2
-        u00 = J00 * k00 + J10 * k10 + J20 * k20
-        u01 = J00 * k01 + J10 * k11 + J20 * k21
-        u02 = J00 * k02 + J10 * k12 + J20 * k22
-        u11 = J01 * k01 + J11 * k11 + J21 * k21
-        u12 = J01 * k02 + J11 * k12 + J21 * k22
-        u22 = J02 * k02 + J12 * k12 + J22 * k22
-        # Ψ: columns v (d3, row 2), w (−d3, row 1), φx (px, row 0), φy (d4, row 1), φz (d4, row 2)
-        r[7] += d3 * jf2
-        r[8] -= d3 * jf1
-        r[9] += px * jf0
-        r[10] += d4 * jf1
-        r[11] += d4 * jf2
-        M[3, 7] += d3 * k02
-        M[3, 8] -= d3 * k01
-        M[3, 9] += px * k00
-        M[3, 10] += d4 * k01
-        M[3, 11] += d4 * k02
-        M[4, 7] += d3 * k12
-        M[4, 8] -= d3 * k11
-        M[4, 9] += px * k10
-        M[4, 10] += d4 * k11
-        M[4, 11] += d4 * k12
-        M[5, 7] += d3 * k22
-        M[5, 8] -= d3 * k21
-        M[5, 9] += px * k20
-        M[5, 10] += d4 * k21
-        M[5, 11] += d4 * k22
-        # Ψᵀ U Ψ
-        t33 = d3 * d3
-        t34 = d3 * d4
-        t44 = d4 * d4
-        tp3 = px * d3
-        tp4 = px * d4
-        M[7, 7] += t33 * u22
-        M[7, 8] -= t33 * u12
-        M[7, 9] += tp3 * u02
-        M[7, 10] += t34 * u12
-        M[7, 11] += t34 * u22
-        M[8, 8] += t33 * u11
-        M[8, 9] -= tp3 * u01
-        M[8, 10] -= t34 * u11
-        M[8, 11] -= t34 * u12
-        M[9, 9] += px * px * u00
-        M[9, 10] += tp4 * u01
-        M[9, 11] += tp4 * u02
-        M[10, 10] += t44 * u11
-        M[10, 11] += t44 * u12
-        M[11, 11] += t44 * u22
+        gauss_rotation(
+            md,
+            i,
+            gp,
+            M,
+            r,
+            w0,
+            w1,
+            w2,
+            px,
+            d3,
+            d4,
+            (E00, E01, E02, E10, E11, E12, E20, E21, E22),
+            (J00, J01, J02, J10, J11, J12, J20, J21, J22),
+            j0,
+            j1,
+            j2,
+            za0,
+            za1,
+            za2,
+        )
+    return ms0, ms1, ms2, au0, au1, au2, a30, a31, a32, a40, a41, a42
+
+
+@njit(inline="always", nrt=False)
+def gauss_rotation(md, i, gp, M, r, w0, w1, w2, px, d3, d4, Et, Jt, j0, j1, j2, za0, za1, za2):
+    """The rotational part of Gauss body ``gp``: its inertia Iw = E diag(I) Eᵀ in the element
+    frame, the load fa = Iw ζ_a + ω_g × Iw ω_g into r, and Iw, Iw J Ψ, Ψᵀ Jᵀ Iw J Ψ into M
+    (E, J: the body's rotation and its rate map at ψ = Ψ e; j = J ψ̇, za: ζ_a)."""
+    E00, E01, E02, E10, E11, E12, E20, E21, E22 = Et
+    J00, J01, J02, J10, J11, J12, J20, J21, J22 = Jt
+    # rotational: Iw = E diag(I) Eᵀ, its load fa = Iw ζ_a + ω_g × Iw ω_g, H = [0, I, J Ψ]
+    Ig = md.Ig[i, gp]
+    I0 = Ig[0]
+    I1 = Ig[1]
+    I2 = Ig[2]
+    # Iw = E diag(I) Eᵀ (symmetric)
+    e00 = E00 * I0
+    e01 = E01 * I1
+    e02 = E02 * I2
+    e10 = E10 * I0
+    e11 = E11 * I1
+    e12 = E12 * I2
+    e20 = E20 * I0
+    e21 = E21 * I1
+    e22 = E22 * I2
+    i00 = e00 * E00 + e01 * E01 + e02 * E02
+    i01 = e00 * E10 + e01 * E11 + e02 * E12
+    i02 = e00 * E20 + e01 * E21 + e02 * E22
+    i11 = e10 * E10 + e11 * E11 + e12 * E12
+    i12 = e10 * E20 + e11 * E21 + e12 * E22
+    i22 = e20 * E20 + e21 * E21 + e22 * E22
+    wg0 = w0 + j0
+    wg1 = w1 + j1
+    wg2 = w2 + j2
+    h0 = i00 * wg0 + i01 * wg1 + i02 * wg2
+    h1 = i01 * wg0 + i11 * wg1 + i12 * wg2
+    h2 = i02 * wg0 + i12 * wg1 + i22 * wg2
+    fa0 = i00 * za0 + i01 * za1 + i02 * za2 + wg1 * h2 - wg2 * h1
+    fa1 = i01 * za0 + i11 * za1 + i12 * za2 + wg2 * h0 - wg0 * h2
+    fa2 = i02 * za0 + i12 * za1 + i22 * za2 + wg0 * h1 - wg1 * h0
+    r[3] += fa0
+    r[4] += fa1
+    r[5] += fa2
+    M[3, 3] += i00
+    M[3, 4] += i01
+    M[3, 5] += i02
+    M[4, 4] += i11
+    M[4, 5] += i12
+    M[5, 5] += i22
+    # IJ = Iw J; Jᵀ fa; U = Jᵀ Iw J
+    k00 = i00 * J00 + i01 * J10 + i02 * J20
+    k01 = i00 * J01 + i01 * J11 + i02 * J21
+    k02 = i00 * J02 + i01 * J12 + i02 * J22
+    k10 = i01 * J00 + i11 * J10 + i12 * J20
+    k11 = i01 * J01 + i11 * J11 + i12 * J21
+    k12 = i01 * J02 + i11 * J12 + i12 * J22
+    k20 = i02 * J00 + i12 * J10 + i22 * J20
+    k21 = i02 * J01 + i12 * J11 + i22 * J21
+    k22 = i02 * J02 + i12 * J12 + i22 * J22
+    jf0 = J00 * fa0 + J10 * fa1 + J20 * fa2
+    jf1 = J01 * fa0 + J11 * fa1 + J21 * fa2
+    jf2 = J02 * fa0 + J12 * fa1 + J22 * fa2
+    u00 = J00 * k00 + J10 * k10 + J20 * k20
+    u01 = J00 * k01 + J10 * k11 + J20 * k21
+    u02 = J00 * k02 + J10 * k12 + J20 * k22
+    u11 = J01 * k01 + J11 * k11 + J21 * k21
+    u12 = J01 * k02 + J11 * k12 + J21 * k22
+    u22 = J02 * k02 + J12 * k12 + J22 * k22
+    # Ψ: columns v (d3, row 2), w (−d3, row 1), φx (px, row 0), φy (d4, row 1), φz (d4, row 2)
+    r[7] += d3 * jf2
+    r[8] -= d3 * jf1
+    r[9] += px * jf0
+    r[10] += d4 * jf1
+    r[11] += d4 * jf2
+    M[3, 7] += d3 * k02
+    M[3, 8] -= d3 * k01
+    M[3, 9] += px * k00
+    M[3, 10] += d4 * k01
+    M[3, 11] += d4 * k02
+    M[4, 7] += d3 * k12
+    M[4, 8] -= d3 * k11
+    M[4, 9] += px * k10
+    M[4, 10] += d4 * k11
+    M[4, 11] += d4 * k12
+    M[5, 7] += d3 * k22
+    M[5, 8] -= d3 * k21
+    M[5, 9] += px * k20
+    M[5, 10] += d4 * k21
+    M[5, 11] += d4 * k22
+    # Ψᵀ U Ψ
+    t33 = d3 * d3
+    t34 = d3 * d4
+    t44 = d4 * d4
+    tp3 = px * d3
+    tp4 = px * d4
+    M[7, 7] += t33 * u22
+    M[7, 8] -= t33 * u12
+    M[7, 9] += tp3 * u02
+    M[7, 10] += t34 * u12
+    M[7, 11] += t34 * u22
+    M[8, 8] += t33 * u11
+    M[8, 9] -= tp3 * u01
+    M[8, 10] -= t34 * u11
+    M[8, 11] -= t34 * u12
+    M[9, 9] += px * px * u00
+    M[9, 10] += tp4 * u01
+    M[9, 11] += tp4 * u02
+    M[10, 10] += t44 * u11
+    M[10, 11] += t44 * u12
+    M[11, 11] += t44 * u22
+
+
+@njit(inline="always", nrt=False)
+def constant_blocks(md, i, M, sums):
+    """The translational blocks of M from the sums of :func:`gauss_bodies` and the constant
+    ones of the element (Σm I, Σ mΣ, Σ mΣᵀΣ)."""
+    ms0, ms1, ms2, au0, au1, au2, a30, a31, a32, a40, a41, a42 = sums
     # the e-dependent translational block of M_Ae, rows 3-5: Σ m [x]× Σ
     M[4, 6] += au2
     M[5, 6] -= au1
@@ -1036,7 +1096,24 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
         M[2, 6 + a] += CS[2, a]
         for b in range(a, 6):
             M[6 + a, 6 + b] += CSS[a, b]
-    # the outboard node: frame exp(φ), maps X = [[I, −[s]×], [0, I]], S = [[D, 0], [0, J]]
+
+
+@njit(inline="always", nrt=False)
+def outboard_node(md, i, el, ws, M, r):
+    """The outboard node of element ``el`` (frame exp(φ), its velocity-product acceleration into
+    ws.zO): the outboard P, c (ws.P, ws.c) turned into the element frame in place and their
+    transfer Xᵀ P X, Xᵀ P S, Sᵀ P S, Xᵀ ρ, Sᵀ ρ (ρ = P ζ + c) into M and r."""
+    f0_ = ws.ed[el, 0]
+    f1_ = ws.ed[el, 1]
+    f2_ = ws.ed[el, 2]
+    f3_ = ws.ed[el, 3]
+    f4_ = ws.ed[el, 4]
+    f5_ = ws.ed[el, 5]
+    w0 = ws.wl[el, 0]
+    w1 = ws.wl[el, 1]
+    w2 = ws.wl[el, 2]
+    Iw = ws.Iw
+    IJ = ws.IJ
     # (D = diag(1 or 0 for the dummy u, 1, 1); the dummy's row and column are reset below)
     EO = ws.E[el]
     JO = ws.JO[el]
@@ -1142,7 +1219,13 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
     r[8] += y2
     for a in range(3):
         r[9 + a] += JO[0, a] * rho[3] + JO[1, a] * rho[4] + JO[2, a] * rho[5]
-    # elastic and damping forces, implicit in a Newmark step
+
+
+@njit(inline="always", nrt=False)
+def elastic_forces(md, i, el, cq, cv, ehat, edhat, fext, ws, M, r):
+    """The elastic and damping forces of element ``el`` into r and their stiffness into M,
+    implicit in a Newmark step (ê, ê' the predictors; c_q, c_v its coefficients)."""
+    e = ws.e[el]
     f = ws.f6
     if md.so[i] == 0:
         # f = K e, K_T = K, D = μK: f + K_T(ê − e) + D ê' = K (ê + μ ê'); K has the pattern of
@@ -1177,14 +1260,6 @@ def element_step(md, i, el, g0, g1, g2, cq, cv, ehat, edhat, fext, ws):
                 if b >= a:
                     M[6 + a, 6 + b] += cq * KT[a, b] + cv * D[a, b]
             r[6 + a] += t
-    if md.ext[i] == 0:  # the dummy u: unit mass, no coupling, no load
-        for a in range(6):
-            M[a, 6] = 0.0
-        for b in range(7, 12):
-            M[6, b] = 0.0
-        M[6, 6] = 1.0
-        r[6] = 0.0
-    return schur_into(M, r, ws.Lc[el], ws.Y[el], P, c)
 
 
 #: per-link input rows (``mot`` of :func:`sweep`): columns 0–2 the motion law (α, α̇, α̈), then
@@ -1411,6 +1486,216 @@ def sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads)
     return riccati_sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, bool(want_loads), loads)
 
 
+@njit(inline="always", nrt=False)
+def add_payload(md, ws, i, Qi, el_last, P, c):
+    """Link i's payload (at its tip, outboard element frame; gravity and the velocity
+    products of the tip's ω) into P, c."""
+    gv = md.grav
+    if nonzero_body(md.pay_m[i], md.pay_J[i]):
+        wT = ws.wT[i + 1]
+        o0 = Qi[0, 0] * wT[0] + Qi[1, 0] * wT[1] + Qi[2, 0] * wT[2]
+        o1 = Qi[0, 1] * wT[0] + Qi[1, 1] * wT[1] + Qi[2, 1] * wT[2]
+        o2 = Qi[0, 2] * wT[0] + Qi[1, 2] * wT[1] + Qi[2, 2] * wT[2]
+        # gravity in the outboard frame R_O = R_w E
+        Rw = ws.Rw[el_last]
+        E = ws.E[el_last]
+        h0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
+        h1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
+        h2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
+        gO0 = E[0, 0] * h0 + E[1, 0] * h1 + E[2, 0] * h2
+        gO1 = E[0, 1] * h0 + E[1, 1] * h1 + E[2, 1] * h2
+        gO2 = E[0, 2] * h0 + E[1, 2] * h1 + E[2, 2] * h2
+        d = md.pay_d[i]
+        m = md.pay_m[i]
+        Jp = md.pay_J[i]
+        # ζ = ω×(ω×d); bias (m(ζ − g), ω × Jω)
+        u0 = o1 * d[2] - o2 * d[1]
+        u1 = o2 * d[0] - o0 * d[2]
+        u2 = o0 * d[1] - o1 * d[0]
+        z0 = o1 * u2 - o2 * u1
+        z1 = o2 * u0 - o0 * u2
+        z2 = o0 * u1 - o1 * u0
+        k0 = Jp[0, 0] * o0 + Jp[0, 1] * o1 + Jp[0, 2] * o2
+        k1 = Jp[1, 0] * o0 + Jp[1, 1] * o1 + Jp[1, 2] * o2
+        k2 = Jp[2, 0] * o0 + Jp[2, 1] * o1 + Jp[2, 2] * o2
+        add_rigid(
+            P,
+            c,
+            m,
+            Jp,
+            d[0],
+            d[1],
+            d[2],
+            m * z0 - m * gO0,
+            m * z1 - m * gO1,
+            m * z2 - m * gO2,
+            o1 * k2 - o2 * k1,
+            o2 * k0 - o0 * k2,
+            o0 * k1 - o1 * k0,
+        )
+
+
+@njit(inline="always", nrt=False)
+def add_hub(md, ws, i, P, c):
+    """Link i's hub (at its root point, the first element's frame) into P, c."""
+    gv = md.grav
+    # hub at the root point
+    el0 = md.el0[i]
+    wF = ws.wl[el0]
+    if nonzero_body(md.hub_m[i], md.hub_J[i]):
+        Rw = ws.Rw[el0]
+        h0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
+        h1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
+        h2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
+        m = md.hub_m[i]
+        Jh = md.hub_J[i]
+        k0 = Jh[0, 0] * wF[0] + Jh[0, 1] * wF[1] + Jh[0, 2] * wF[2]
+        k1 = Jh[1, 0] * wF[0] + Jh[1, 1] * wF[1] + Jh[1, 2] * wF[2]
+        k2 = Jh[2, 0] * wF[0] + Jh[2, 1] * wF[1] + Jh[2, 2] * wF[2]
+        add_rigid(
+            P,
+            c,
+            m,
+            Jh,
+            0.0,
+            0.0,
+            0.0,
+            -m * h0,
+            -m * h1,
+            -m * h2,
+            wF[1] * k2 - wF[2] * k1,
+            wF[2] * k0 - wF[0] * k2,
+            wF[0] * k1 - wF[1] * k0,
+        )
+
+
+@njit(inline="always", nrt=False)
+def joint_to_parent(md, ws, i, tau, mot, forces, P, c, T):
+    """Link i's joint in the backward sweep: its velocity-product term (ws.zJ), the projection
+    of P, c on the joint's motion (motion joints: α̈ known; torque joints: τ, a closed-loop
+    law's slope as a stiffness), then P, c to the parent's tip frame and into its sum (ws.Pacc).
+    Returns ok (the projection's pivot sᵀPs − slope positive)."""
+    good = True
+    # joint: velocity-product term in root-frame components, then the projection
+    C = ws.C[i]
+    wTp = ws.wT[md.par[i] + 1]
+    o = md.org[i]
+    u0 = wTp[1] * o[2] - wTp[2] * o[1]
+    u1 = wTp[2] * o[0] - wTp[0] * o[2]
+    u2 = wTp[0] * o[1] - wTp[1] * o[0]
+    z0 = wTp[1] * u2 - wTp[2] * u1
+    z1 = wTp[2] * u0 - wTp[0] * u2
+    z2 = wTp[0] * u1 - wTp[1] * u0
+    zJ = ws.zJ[i]
+    for a in range(3):
+        zJ[a] = C[0, a] * z0 + C[1, a] * z1 + C[2, a] * z2
+        zJ[3 + a] = 0.0
+    if md.locked[i] == 0:
+        ald = ws.acc[i, 2]
+        aF = md.aF[i]
+        t0 = C[0, 0] * wTp[0] + C[1, 0] * wTp[1] + C[2, 0] * wTp[2]
+        t1 = C[0, 1] * wTp[0] + C[1, 1] * wTp[1] + C[2, 1] * wTp[2]
+        t2 = C[0, 2] * wTp[0] + C[1, 2] * wTp[1] + C[2, 2] * wTp[2]
+        zJ[3] += (t1 * aF[2] - t2 * aF[1]) * ald
+        zJ[4] += (t2 * aF[0] - t0 * aF[2]) * ald
+        zJ[5] += (t0 * aF[1] - t1 * aF[0]) * ald
+        Ps = ws.Ps
+        for r in range(6):
+            Ps[r] = P[r, 3] * aF[0] + P[r, 4] * aF[1] + P[r, 5] * aF[2]
+        if md.motion[i] == 1:
+            add = mot[i, 2]
+            for r in range(6):
+                c[r] += Ps[r] * add
+        else:
+            # a closed-loop torque τ = tau + slope·α̈ (its law linearised in α̈) acts as a
+            # joint stiffness: sᵀP s − slope in the projection (0 for an open-loop torque)
+            Dj = aF[0] * Ps[3] + aF[1] * Ps[4] + aF[2] * Ps[5] - ws.slope[i]
+            if not Dj > 0.0:
+                good = False
+                Dj = 1.0
+            g0 = (tau[i] + forces[md.ia[i]] - (aF[0] * c[3] + aF[1] * c[4] + aF[2] * c[5])) / Dj
+            for r in range(6):
+                c[r] += Ps[r] * g0
+                for s in range(6):
+                    P[r, s] -= Ps[r] * Ps[s] / Dj
+    # to the parent frame at its origin: f_T = X_oᵀ Cb (P̂ (A'_F) + ĉ), A'_F = Cbᵀ X_o A_T + zJ
+    for r in range(6):
+        t = c[r]
+        for s in range(6):
+            t += P[r, s] * zJ[s]
+        c[r] = t
+    rotate_pc(C, False, P, c, T)
+    shift_pc(P, c, o[0], o[1], o[2], T)
+    # into the parent's tip frame: the first child's load is copied, further ones added
+    ip = md.par[i] + 1
+    Pa = ws.Pacc[ip]
+    if ws.nacc[ip] == 0:
+        for a in range(6):
+            Pa[a, 6] = c[a]
+            for b in range(6):
+                Pa[a, b] = P[a, b]
+    else:
+        for a in range(6):
+            Pa[a, 6] += c[a]
+            for b in range(6):
+                Pa[a, b] += P[a, b]
+    ws.nacc[ip] += 1
+    return good
+
+
+@njit(inline="always", nrt=False)
+def joint_forward(md, ws, i, tau, mot, forces, A, qdd):
+    """Link i's joint in the forward sweep: from A (the root acceleration without the joint's
+    own) the joint's α̈ (motion joints: their law; torque joints: from the articulated inertia
+    ws.PF) into A, qdd, ws.acc[i, 0] and its torque into ws.acc[i, 1]."""
+    PF = ws.PF[i]
+    if md.locked[i] == 0:
+        aF = md.aF[i]
+        if md.motion[i] == 1:
+            add = mot[i, 2]
+        else:
+            Dj = 0.0
+            fa = 0.0
+            for r in range(3):
+                t = PF[3 + r, 6]
+                ps = 0.0
+                for s in range(6):
+                    t += PF[3 + r, s] * A[s]
+                for s in range(3):
+                    ps += PF[3 + r, 3 + s] * aF[s]
+                Dj += aF[r] * ps
+                fa += aF[r] * t
+            Dj -= ws.slope[i]  # a closed-loop law's joint stiffness (0 for an open-loop torque)
+            add = (tau[i] + forces[md.ia[i]] - fa) / Dj
+        for r in range(3):
+            A[3 + r] += aF[r] * add
+        qdd[md.ia[i]] = add
+        ws.acc[i, 0] = add
+        tq = 0.0
+        for r in range(3):
+            t = PF[3 + r, 6]
+            for s in range(6):
+                t += PF[3 + r, s] * A[s]
+            tq += aF[r] * t
+        ws.acc[i, 1] = tq
+
+
+@njit(inline="always", nrt=False)
+def tip_cut_load(md, ws, i, A, loads, ic, T):
+    """The cut load at link i's tip (world components) into loads[ic], from A (the tip's
+    acceleration, outboard element frame) and the tip's (P, c) kept in ws.Ptip."""
+    el_last = md.el0[i] + md.k[i] - 1
+    Pt = ws.Ptip[i]
+    f = ws.A6b
+    for a in range(6):
+        t = Pt[a, 6]
+        for b in range(6):
+            t += Pt[a, b] * A[b]
+        f[a] = t
+    matmul33(ws.Rw[el_last], ws.E[el_last], T)
+    load_world(T, f, loads, ic)
+
+
 @njit(nrt=False)
 def riccati_sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads, loads):
     """One Riccati sweep at the kinematics in ``ws`` (from :func:`kinematics`): q̈ into ``qdd``,
@@ -1425,7 +1710,6 @@ def riccati_sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads
     P = ws.P
     c = ws.c
     T = ws.Tk
-    gv = md.grav
     for i in range(md.n + 1):
         ws.nacc[i] = 0
     ok = True
@@ -1446,150 +1730,19 @@ def riccati_sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads
         Qi = md.Q[i]
         rotate_pc(Qi, True, P, c, T)
         el_last = md.el0[i] + md.k[i] - 1
-        if nonzero_body(md.pay_m[i], md.pay_J[i]):
-            wT = ws.wT[i + 1]
-            o0 = Qi[0, 0] * wT[0] + Qi[1, 0] * wT[1] + Qi[2, 0] * wT[2]
-            o1 = Qi[0, 1] * wT[0] + Qi[1, 1] * wT[1] + Qi[2, 1] * wT[2]
-            o2 = Qi[0, 2] * wT[0] + Qi[1, 2] * wT[1] + Qi[2, 2] * wT[2]
-            # gravity in the outboard frame R_O = R_w E
-            Rw = ws.Rw[el_last]
-            E = ws.E[el_last]
-            h0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
-            h1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
-            h2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
-            gO0 = E[0, 0] * h0 + E[1, 0] * h1 + E[2, 0] * h2
-            gO1 = E[0, 1] * h0 + E[1, 1] * h1 + E[2, 1] * h2
-            gO2 = E[0, 2] * h0 + E[1, 2] * h1 + E[2, 2] * h2
-            d = md.pay_d[i]
-            m = md.pay_m[i]
-            Jp = md.pay_J[i]
-            # ζ = ω×(ω×d); bias (m(ζ − g), ω × Jω)
-            u0 = o1 * d[2] - o2 * d[1]
-            u1 = o2 * d[0] - o0 * d[2]
-            u2 = o0 * d[1] - o1 * d[0]
-            z0 = o1 * u2 - o2 * u1
-            z1 = o2 * u0 - o0 * u2
-            z2 = o0 * u1 - o1 * u0
-            k0 = Jp[0, 0] * o0 + Jp[0, 1] * o1 + Jp[0, 2] * o2
-            k1 = Jp[1, 0] * o0 + Jp[1, 1] * o1 + Jp[1, 2] * o2
-            k2 = Jp[2, 0] * o0 + Jp[2, 1] * o1 + Jp[2, 2] * o2
-            add_rigid(
-                P,
-                c,
-                m,
-                Jp,
-                d[0],
-                d[1],
-                d[2],
-                m * z0 - m * gO0,
-                m * z1 - m * gO1,
-                m * z2 - m * gO2,
-                o1 * k2 - o2 * k1,
-                o2 * k0 - o0 * k2,
-                o0 * k1 - o1 * k0,
-            )
+        add_payload(md, ws, i, Qi, el_last, P, c)
         tip_load(mot, i, ws.Rw[el_last], ws.E[el_last], Qi, c)
         for r in range(6):
             for s in range(6):
                 ws.Ptip[i, r, s] = P[r, s]
             ws.Ptip[i, r, 6] = c[r]
         ok = backward_link(md, ws, i, cq, cv, qhat, qdhat, forces, want_loads) and ok
-        # hub at the root point
-        el0 = md.el0[i]
-        wF = ws.wl[el0]
-        if nonzero_body(md.hub_m[i], md.hub_J[i]):
-            Rw = ws.Rw[el0]
-            h0 = Rw[0, 0] * gv[0] + Rw[1, 0] * gv[1] + Rw[2, 0] * gv[2]
-            h1 = Rw[0, 1] * gv[0] + Rw[1, 1] * gv[1] + Rw[2, 1] * gv[2]
-            h2 = Rw[0, 2] * gv[0] + Rw[1, 2] * gv[1] + Rw[2, 2] * gv[2]
-            m = md.hub_m[i]
-            Jh = md.hub_J[i]
-            k0 = Jh[0, 0] * wF[0] + Jh[0, 1] * wF[1] + Jh[0, 2] * wF[2]
-            k1 = Jh[1, 0] * wF[0] + Jh[1, 1] * wF[1] + Jh[1, 2] * wF[2]
-            k2 = Jh[2, 0] * wF[0] + Jh[2, 1] * wF[1] + Jh[2, 2] * wF[2]
-            add_rigid(
-                P,
-                c,
-                m,
-                Jh,
-                0.0,
-                0.0,
-                0.0,
-                -m * h0,
-                -m * h1,
-                -m * h2,
-                wF[1] * k2 - wF[2] * k1,
-                wF[2] * k0 - wF[0] * k2,
-                wF[0] * k1 - wF[1] * k0,
-            )
+        add_hub(md, ws, i, P, c)
         for r in range(6):
             for s in range(6):
                 ws.PF[i, r, s] = P[r, s]
             ws.PF[i, r, 6] = c[r]
-        # joint: velocity-product term in root-frame components, then the projection
-        C = ws.C[i]
-        wTp = ws.wT[md.par[i] + 1]
-        o = md.org[i]
-        u0 = wTp[1] * o[2] - wTp[2] * o[1]
-        u1 = wTp[2] * o[0] - wTp[0] * o[2]
-        u2 = wTp[0] * o[1] - wTp[1] * o[0]
-        z0 = wTp[1] * u2 - wTp[2] * u1
-        z1 = wTp[2] * u0 - wTp[0] * u2
-        z2 = wTp[0] * u1 - wTp[1] * u0
-        zJ = ws.zJ[i]
-        for a in range(3):
-            zJ[a] = C[0, a] * z0 + C[1, a] * z1 + C[2, a] * z2
-            zJ[3 + a] = 0.0
-        if md.locked[i] == 0:
-            ald = ws.acc[i, 2]
-            aF = md.aF[i]
-            t0 = C[0, 0] * wTp[0] + C[1, 0] * wTp[1] + C[2, 0] * wTp[2]
-            t1 = C[0, 1] * wTp[0] + C[1, 1] * wTp[1] + C[2, 1] * wTp[2]
-            t2 = C[0, 2] * wTp[0] + C[1, 2] * wTp[1] + C[2, 2] * wTp[2]
-            zJ[3] += (t1 * aF[2] - t2 * aF[1]) * ald
-            zJ[4] += (t2 * aF[0] - t0 * aF[2]) * ald
-            zJ[5] += (t0 * aF[1] - t1 * aF[0]) * ald
-            Ps = ws.Ps
-            for r in range(6):
-                Ps[r] = P[r, 3] * aF[0] + P[r, 4] * aF[1] + P[r, 5] * aF[2]
-            if md.motion[i] == 1:
-                add = mot[i, 2]
-                for r in range(6):
-                    c[r] += Ps[r] * add
-            else:
-                # a closed-loop torque τ = tau + slope·α̈ (its law linearised in α̈) acts as a
-                # joint stiffness: sᵀP s − slope in the projection (0 for an open-loop torque)
-                Dj = aF[0] * Ps[3] + aF[1] * Ps[4] + aF[2] * Ps[5] - ws.slope[i]
-                if not Dj > 0.0:
-                    ok = False
-                    Dj = 1.0
-                g0 = (tau[i] + forces[md.ia[i]] - (aF[0] * c[3] + aF[1] * c[4] + aF[2] * c[5])) / Dj
-                for r in range(6):
-                    c[r] += Ps[r] * g0
-                    for s in range(6):
-                        P[r, s] -= Ps[r] * Ps[s] / Dj
-        # to the parent frame at its origin: f_T = X_oᵀ Cb (P̂ (A'_F) + ĉ), A'_F = Cbᵀ X_o A_T + zJ
-        for r in range(6):
-            t = c[r]
-            for s in range(6):
-                t += P[r, s] * zJ[s]
-            c[r] = t
-        rotate_pc(C, False, P, c, T)
-        shift_pc(P, c, o[0], o[1], o[2], T)
-        # into the parent's tip frame: the first child's load is copied, further ones added
-        ip = md.par[i] + 1
-        Pa = ws.Pacc[ip]
-        if ws.nacc[ip] == 0:
-            for a in range(6):
-                Pa[a, 6] = c[a]
-                for b in range(6):
-                    Pa[a, b] = P[a, b]
-        else:
-            for a in range(6):
-                Pa[a, 6] += c[a]
-                for b in range(6):
-                    Pa[a, b] += P[a, b]
-        ws.nacc[ip] += 1
+        ok = joint_to_parent(md, ws, i, tau, mot, forces, P, c, T) and ok
     # forward sweep: the base does not move
     A = ws.A6
     for a in range(6):
@@ -1614,50 +1767,12 @@ def riccati_sweep(md, ws, cq, cv, qhat, qdhat, tau, mot, forces, qdd, want_loads
         for a in range(3):
             A[a] = C[0, a] * l0 + C[1, a] * l1 + C[2, a] * l2 + zJ[a]
             A[3 + a] = C[0, a] * b0 + C[1, a] * b1 + C[2, a] * b2 + zJ[3 + a]
-        PF = ws.PF[i]
-        if md.locked[i] == 0:
-            aF = md.aF[i]
-            if md.motion[i] == 1:
-                add = mot[i, 2]
-            else:
-                Dj = 0.0
-                fa = 0.0
-                for r in range(3):
-                    t = PF[3 + r, 6]
-                    ps = 0.0
-                    for s in range(6):
-                        t += PF[3 + r, s] * A[s]
-                    for s in range(3):
-                        ps += PF[3 + r, 3 + s] * aF[s]
-                    Dj += aF[r] * ps
-                    fa += aF[r] * t
-                Dj -= ws.slope[i]  # a closed-loop law's joint stiffness (0 for an open-loop torque)
-                add = (tau[i] + forces[md.ia[i]] - fa) / Dj
-            for r in range(3):
-                A[3 + r] += aF[r] * add
-            qdd[md.ia[i]] = add
-            ws.acc[i, 0] = add
-            tq = 0.0
-            for r in range(3):
-                t = PF[3 + r, 6]
-                for s in range(6):
-                    t += PF[3 + r, s] * A[s]
-                tq += aF[r] * t
-            ws.acc[i, 1] = tq
+        joint_forward(md, ws, i, tau, mot, forces, A, qdd)
         for r in range(3):  # the link root's angular acceleration (closed-loop moment feedback)
             ws.wdF[i, r] = A[3 + r]
         ic = forward_link(md, ws, i, A, qdd, want_loads, loads, ic)
         if want_loads:
-            el_last = md.el0[i] + md.k[i] - 1
-            Pt = ws.Ptip[i]
-            f = ws.A6b
-            for a in range(6):
-                t = Pt[a, 6]
-                for b in range(6):
-                    t += Pt[a, b] * A[b]
-                f[a] = t
-            matmul33(ws.Rw[el_last], ws.E[el_last], T)
-            load_world(T, f, loads, ic)
+            tip_cut_load(md, ws, i, A, loads, ic, T)
         ic += 1
         Qi = md.Q[i]
         for bl in range(2):

@@ -1195,6 +1195,341 @@ def residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dq, d2q, s, st
 
 
 @njit()
+def accept_newmark(
+    md,
+    ws,
+    opts,
+    drv,
+    cw,
+    s,
+    h,
+    last,
+    ok,
+    cq,
+    cv,
+    i1m,
+    tau,
+    tv,
+    mot,
+    q,
+    qd,
+    qdd,
+    aux,
+    torque,
+    z,
+    zerr,
+    qddm,
+    qt,
+    qdt,
+    x,
+    k2,
+    stats,
+    fstats,
+):
+    """The end of Newmark step s with the iterate x (q̈ at the step end; ``ok``: the iteration's
+    outcome): the joint torques and closure loads kept, the state (q, q̇, q̈, aux) updated,
+    the laws' final evaluation at it (closed loops) and the residual check every
+    opts.check_every steps (and at the ``last``)."""
+    n = md.n
+    nd = q.shape[0]
+    check = ok and opts.check_every > 0 and (s % opts.check_every == 0 or s == last)
+    dqc = 0.0
+    d2q = 0.0
+    if check:
+        for r in range(nd):
+            dqc = max(dqc, abs(x[r] - qdd[r]))
+            d2q = max(d2q, abs(x[r] - 2.0 * qdd[r] + qddm[r]))
+    joint_torques(md, ws, tau, torque)
+    for r in range(cw.cl.lam.shape[0]):
+        cw.cl.lamh[s, r] = cw.cl.lam[r]
+    for r in range(nd):
+        qddm[r] = qdd[r]
+        anew = ((1.0 - opts.alpha_f) * x[r] + opts.alpha_f * qdd[r] - opts.alpha_m * aux[r]) * i1m
+        q[r] = qt[r] + cq * x[r]
+        qd[r] = qdt[r] + cv * x[r]
+        aux[r] = anew
+        qdd[r] = x[r]
+    for i in range(n):
+        if md.motion[i] == 1:
+            q[md.ia[i]] = mot[i, 0]
+            qd[md.ia[i]] = mot[i, 1]
+            qdd[md.ia[i]] = mot[i, 2]
+    if ok and (opts.closed or check):
+        # the accepted iterate's kinematics (the laws' final evaluation, the check)
+        kinematics(md, ws, q, qd)
+        set_rates(md, ws, qd)
+    if ok and opts.closed:
+        step_laws(md, ws, drv, cw, s, z, zerr, h, cq, cv, q, qd, x, _flag(True))
+        for i in range(n):
+            if drv.code[i] != CODE_OPEN:
+                torque[i] = cw.torque[i]
+    if check:
+        residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dqc, d2q, s, stats, fstats)
+    if ok and opts.closed:
+        for i in range(n):
+            if drv.code[i] == CODE_PD:
+                z[i] = cw.zs[i]
+                zerr[i] = cw.zsum[i]
+
+
+@njit()
+def newmark_step(
+    md,
+    ws,
+    opts,
+    drv,
+    cw,
+    s,
+    h,
+    last,
+    q,
+    qd,
+    qdd,
+    aux,
+    torque,
+    z,
+    zerr,
+    qddm,
+    qt,
+    qdt,
+    x,
+    xn,
+    qi,
+    qdi,
+    k2,
+    zero_f,
+    noload,
+    stats,
+    fstats,
+):
+    """Newmark step s (length h) from the state (q, q̇, q̈, aux) in place: the predictors, the
+    iteration to the stop rule (sweeps, closed-loop laws and their correction, loop closures),
+    the accepted state, the laws' final evaluation and the residual check (``last``: the last
+    step index). Counts into stats, fstats (see N_STATS). Returns ok."""
+    n = md.n
+    nd = q.shape[0]
+    tau = drv.tau_l[s]
+    mot = drv.mot_l[s]
+    hh = h * h
+    sc = (1.0 - opts.alpha_f) / (1.0 - opts.alpha_m)
+    cq = opts.beta * hh * sc
+    cv = opts.gamma * h * sc
+    i1m = 1.0 / (1.0 - opts.alpha_m)
+    for r in range(nd):
+        corr = (opts.alpha_f * qdd[r] - opts.alpha_m * aux[r]) * i1m
+        qt[r] = q[r] + h * qd[r] + hh * (0.5 - opts.beta) * aux[r] + opts.beta * hh * corr
+        qdt[r] = qd[r] + h * (1.0 - opts.gamma) * aux[r] + opts.gamma * h * corr
+        x[r] = qdd[r]
+    for i in range(n):
+        ws.slope[i] = 0.0
+        cw.taul[i] = tau[i]
+        if md.motion[i] == 1:
+            x[md.ia[i]] = mot[i, 2]
+    tv = cw.taul if opts.closed else tau
+    prev = np.inf
+    prev2 = np.inf  # that of the iteration before
+    used = 0
+    nclose = cw.cl.a.shape[0]
+    ok = True
+    stale = False
+    measured = False  # W was measured in this step
+    bro = False  # secant updates of W in this step
+    converged = False
+    fixed = opts.iteration == IT_FIXED
+    nmax = opts.n_fixed + 1 if fixed else opts.max_it
+    for it in range(nmax):
+        for r in range(nd):
+            qi[r] = qt[r] + cq * x[r]
+            qdi[r] = qdt[r] + cv * x[r]
+        for i in range(n):
+            if md.motion[i] == 1:
+                qi[md.ia[i]] = mot[i, 0]
+                qdi[md.ia[i]] = mot[i, 1]
+        kinematics(md, ws, qi, qdi)
+        set_rates(md, ws, qdi)
+        if opts.closed:
+            for i in range(n):
+                cw.tb[i] = cw.taul[i]  # the last sweep's torques (it ≥ 1)
+            step_laws(md, ws, drv, cw, s, z, zerr, h, cq, cv, qi, qdi, x, _flag(False))
+            if opts.coupled:
+                if it == 0:
+                    # a base sweep about this very iterate, with the sensitivity anew
+                    # every A_EVERY steps and after a restart
+                    fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                    ok = sensitivity(md, ws, drv, cw, cq, cv, qt, qdt, mot, zero_f, fresh)
+                    used += n_sensitivity(md, drv) if fresh else 1
+                    if not ok:
+                        break
+                else:
+                    for i in range(n):
+                        cw.yb[i] = cw.yk[i]
+                correct(md, drv, cw)
+        if cw.cl.a.shape[0] > 0:
+            if it == 0 and s >= 2 and not drv.restart[s - 1] and not drv.restart[s - 2]:
+                # λ extrapolated from the last two step ends (the iteration's start)
+                for r in range(cw.cl.lam.shape[0]):
+                    cw.cl.lam[r] = 2.0 * cw.cl.lamh[s - 1, r] - cw.cl.lamh[s - 2, r]
+            # W anew every W_EVERY steps, after a restart, and once the iterates stop
+            # contracting (else the W of an earlier iterate: one sweep per iteration)
+            wnew = stale
+            if it == 0:
+                wnew = s % W_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+                cw.cl.state[2] = 0
+                cw.cl.state[3] = 0
+            elif bro:
+                cw.cl.state[2] = 1
+            ok = closure_sweep(md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, wnew, s, it == 0)
+            used += cw.cl.state[1]
+            measured = measured or cw.cl.state[1] > 1
+        else:
+            ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, zero_f, xn, False, noload)
+            used += 1
+        dx = 0.0
+        xmax = 0.0
+        dq = 0.0
+        for r in range(nd):
+            dx = max(dx, abs(xn[r] - x[r]))
+            xmax = max(xmax, abs(xn[r]))
+            dq = max(dq, abs(xn[r] - qdd[r]))
+            x[r] = xn[r]
+        if not ok:
+            break
+        if fixed:
+            converged = it == nmax - 1
+            continue
+        stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
+        if (
+            not stop
+            and nclose > 0
+            and it >= 1
+            and closure_left(it, dx, prev, prev2) <= min(cw.cl.nb[0], 1e3 * opts.tol * max(1.0, xmax))
+        ):
+            # the change, or the change still to come, is within the round-off floor
+            # of the closures' gaps (which the position condition divides by c_q): what
+            # is left is round-off (the stop rule's stagnation, without the iterations
+            # that show it)
+            stop = True
+            converged = True
+        if stop:
+            break
+        # iterates that stop contracting above the round-off floor: W anew
+        stalled = it >= 1 and dx > W_STALE * prev and dx > 1e3 * opts.tol * max(1.0, xmax)
+        stale = stalled and not measured
+        # iterates that stop contracting with a W of this step: secant updates of W for
+        # the rest of the step (the loads' change with the kinematics, which a measured
+        # W misses, holds the fixed point back)
+        bro = bro or (stalled and measured)
+        if opts.iteration == IT_AUTO and it >= 1 + opts.closed and dx < prev:
+            # the contraction ρ = dx/prev predicts the iteration error left, dx·ρ/(1 − ρ);
+            # stop once it is below auto_fraction × the local truncation error estimate
+            # |β − 1/6|/β · max|q̈_{n+1} − q̈_n| (the planar kernel's rule). Closed-loop
+            # laws are linearised at the previous iterate, so their torques lag a sweep:
+            # the contraction is judged from the third sweep on (measured on the
+            # closed-loop arm: two sweeps left 10× the discretisation error with moment
+            # feedback, 2.7 % of it without)
+            rr = dx / prev
+            if dx * rr / (1.0 - rr) <= opts.auto_fraction * opts.lte * dq:
+                converged = True
+                break
+        prev2 = prev
+        prev = dx
+    stats[S_SWEEPS] += used
+    stats[S_MAX] = max(stats[S_MAX], used)
+    if not converged and not fixed:
+        stats[S_UNCONV] += 1
+    accept_newmark(
+        md,
+        ws,
+        opts,
+        drv,
+        cw,
+        s,
+        h,
+        last,
+        ok,
+        cq,
+        cv,
+        i1m,
+        tau,
+        tv,
+        mot,
+        q,
+        qd,
+        qdd,
+        aux,
+        torque,
+        z,
+        zerr,
+        qddm,
+        qt,
+        qdt,
+        x,
+        k2,
+        stats,
+        fstats,
+    )
+    return ok
+
+
+@njit()
+def rk4_step(md, ws, opts, drv, cw, s, h, q, qd, qdd, torque, z, zerr, qi, qdi, k2, k3, ka, kb, kc, stats):
+    """RK4 step s (length h) from the state (q, q̇, q̈) in place, closed-loop laws' integral
+    states included (stage states in qi, qdi; stage accelerations in k2, k3, ka, kb, kc).
+    Counts the forward-dynamics solves into stats. Returns ok."""
+    n = md.n
+    nd = q.shape[0]
+    ok = True
+    hf = 0.5 * h
+    if opts.closed:  # stage 1: ż = e_n
+        for i in range(n):
+            cw.zsum[i] = zerr[i]
+            cw.zs[i] = z[i] + hf * zerr[i]
+    fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
+    fd0 = cw.fd[1]
+    for r in range(nd):
+        qi[r] = q[r] + hf * qd[r]
+        qdi[r] = qd[r] + hf * qdd[r]
+    ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, ka, torque, fresh)
+    for r in range(nd):
+        k2[r] = qdi[r]
+    if ok:
+        if opts.closed:
+            rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, hf)
+        for r in range(nd):
+            qi[r] = q[r] + hf * k2[r]
+            qdi[r] = qd[r] + hf * ka[r]
+        ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, kb, torque, _flag(False))
+        for r in range(nd):
+            k3[r] = qdi[r]
+    if ok:
+        if opts.closed:
+            rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, h)
+        for r in range(nd):
+            qi[r] = q[r] + h * k3[r]
+            qdi[r] = qd[r] + h * kb[r]
+        ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, qi, qdi, kc, torque, _flag(False))
+    if ok:
+        if opts.closed:
+            rk4_z(md, drv, cw, z, drv.ref_l[s], qi, 1.0, 0.0)
+            for i in range(n):
+                if drv.code[i] == CODE_PD:
+                    z[i] += h / 6.0 * cw.zsum[i]
+                    cw.zs[i] = z[i]
+        for r in range(nd):
+            q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2[r] + 2.0 * k3[r] + qdi[r])
+            qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * kb[r] + kc[r])
+        ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, q, qd, qdd, torque, _flag(False))
+        if opts.closed:
+            for i in range(n):
+                if drv.code[i] == CODE_PD:
+                    zerr[i] = drv.ref_l[s, i, 0] - q[md.ia[i]]
+    used = cw.fd[1] - fd0 if opts.closed else 4
+    stats[S_SWEEPS] += used
+    stats[S_MAX] = max(stats[S_MAX], used)
+    return ok
+
+
+@njit()
 def run(
     md, ws, opts, drv, cw, q, qd, qdd, aux, torque, z, zerr, ts, oq, oqd, otau, stats, fstats, first, until
 ):
@@ -1255,224 +1590,40 @@ def run(
             qdd0[r] = qdd[r]
         for i in range(n):
             tq0[i] = torque[i]
-        tau = drv.tau_l[s]
-        mot = drv.mot_l[s]
         if opts.integrator == INT_NEWMARK:
-            hh = h * h
-            sc = (1.0 - opts.alpha_f) / (1.0 - opts.alpha_m)
-            cq = opts.beta * hh * sc
-            cv = opts.gamma * h * sc
-            i1m = 1.0 / (1.0 - opts.alpha_m)
-            for r in range(nd):
-                corr = (opts.alpha_f * qdd[r] - opts.alpha_m * aux[r]) * i1m
-                qt[r] = q[r] + h * qd[r] + hh * (0.5 - opts.beta) * aux[r] + opts.beta * hh * corr
-                qdt[r] = qd[r] + h * (1.0 - opts.gamma) * aux[r] + opts.gamma * h * corr
-                x[r] = qdd[r]
-            for i in range(n):
-                ws.slope[i] = 0.0
-                cw.taul[i] = tau[i]
-                if md.motion[i] == 1:
-                    x[md.ia[i]] = mot[i, 2]
-            tv = cw.taul if opts.closed else tau
-            prev = np.inf
-            prev2 = np.inf  # that of the iteration before
-            used = 0
-            nclose = cw.cl.a.shape[0]
-            ok = True
-            stale = False
-            measured = False  # W was measured in this step
-            bro = False  # secant updates of W in this step
-            converged = False
-            fixed = opts.iteration == IT_FIXED
-            nmax = opts.n_fixed + 1 if fixed else opts.max_it
-            for it in range(nmax):
-                for r in range(nd):
-                    qi[r] = qt[r] + cq * x[r]
-                    qdi[r] = qdt[r] + cv * x[r]
-                for i in range(n):
-                    if md.motion[i] == 1:
-                        qi[md.ia[i]] = mot[i, 0]
-                        qdi[md.ia[i]] = mot[i, 1]
-                kinematics(md, ws, qi, qdi)
-                set_rates(md, ws, qdi)
-                if opts.closed:
-                    for i in range(n):
-                        cw.tb[i] = cw.taul[i]  # the last sweep's torques (it ≥ 1)
-                    step_laws(md, ws, drv, cw, s, z, zerr, h, cq, cv, qi, qdi, x, _flag(False))
-                    if opts.coupled:
-                        if it == 0:
-                            # a base sweep about this very iterate, with the sensitivity anew
-                            # every A_EVERY steps and after a restart
-                            fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
-                            ok = sensitivity(md, ws, drv, cw, cq, cv, qt, qdt, mot, zero_f, fresh)
-                            used += n_sensitivity(md, drv) if fresh else 1
-                            if not ok:
-                                break
-                        else:
-                            for i in range(n):
-                                cw.yb[i] = cw.yk[i]
-                        correct(md, drv, cw)
-                if cw.cl.a.shape[0] > 0:
-                    if it == 0 and s >= 2 and not drv.restart[s - 1] and not drv.restart[s - 2]:
-                        # λ extrapolated from the last two step ends (the iteration's start)
-                        for r in range(cw.cl.lam.shape[0]):
-                            cw.cl.lam[r] = 2.0 * cw.cl.lamh[s - 1, r] - cw.cl.lamh[s - 2, r]
-                    # W anew every W_EVERY steps, after a restart, and once the iterates stop
-                    # contracting (else the W of an earlier iterate: one sweep per iteration)
-                    wnew = stale
-                    if it == 0:
-                        wnew = s % W_EVERY == 0 or (s > 0 and drv.restart[s - 1])
-                        cw.cl.state[2] = 0
-                        cw.cl.state[3] = 0
-                    elif bro:
-                        cw.cl.state[2] = 1
-                    ok = closure_sweep(
-                        md, ws, cw.cl, cq, cv, qt, qdt, tv, mot, zero_f, xn, noload, wnew, s, it == 0
-                    )
-                    used += cw.cl.state[1]
-                    measured = measured or cw.cl.state[1] > 1
-                else:
-                    ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, zero_f, xn, False, noload)
-                    used += 1
-                dx = 0.0
-                xmax = 0.0
-                dq = 0.0
-                for r in range(nd):
-                    dx = max(dx, abs(xn[r] - x[r]))
-                    xmax = max(xmax, abs(xn[r]))
-                    dq = max(dq, abs(xn[r] - qdd[r]))
-                    x[r] = xn[r]
-                if not ok:
-                    break
-                if fixed:
-                    converged = it == nmax - 1
-                    continue
-                stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
-                if (
-                    not stop
-                    and nclose > 0
-                    and it >= 1
-                    and closure_left(it, dx, prev, prev2) <= min(cw.cl.nb[0], 1e3 * opts.tol * max(1.0, xmax))
-                ):
-                    # the change, or the change still to come, is within the round-off floor
-                    # of the closures' gaps (which the position condition divides by c_q): what
-                    # is left is round-off (the stop rule's stagnation, without the iterations
-                    # that show it)
-                    stop = True
-                    converged = True
-                if stop:
-                    break
-                # iterates that stop contracting above the round-off floor: W anew
-                stalled = it >= 1 and dx > W_STALE * prev and dx > 1e3 * opts.tol * max(1.0, xmax)
-                stale = stalled and not measured
-                # iterates that stop contracting with a W of this step: secant updates of W for
-                # the rest of the step (the loads' change with the kinematics, which a measured
-                # W misses, holds the fixed point back)
-                bro = bro or (stalled and measured)
-                if opts.iteration == IT_AUTO and it >= 1 + opts.closed and dx < prev:
-                    # the contraction ρ = dx/prev predicts the iteration error left, dx·ρ/(1 − ρ);
-                    # stop once it is below auto_fraction × the local truncation error estimate
-                    # |β − 1/6|/β · max|q̈_{n+1} − q̈_n| (the planar kernel's rule). Closed-loop
-                    # laws are linearised at the previous iterate, so their torques lag a sweep:
-                    # the contraction is judged from the third sweep on (measured on the
-                    # closed-loop arm: two sweeps left 10× the discretisation error with moment
-                    # feedback, 2.7 % of it without)
-                    rr = dx / prev
-                    if dx * rr / (1.0 - rr) <= opts.auto_fraction * opts.lte * dq:
-                        converged = True
-                        break
-                prev2 = prev
-                prev = dx
-            stats[S_SWEEPS] += used
-            stats[S_MAX] = max(stats[S_MAX], used)
-            if not converged and not fixed:
-                stats[S_UNCONV] += 1
-            check = ok and opts.check_every > 0 and (s % opts.check_every == 0 or s == last)
-            dqc = 0.0
-            d2q = 0.0
-            if check:
-                for r in range(nd):
-                    dqc = max(dqc, abs(x[r] - qdd[r]))
-                    d2q = max(d2q, abs(x[r] - 2.0 * qdd[r] + qddm[r]))
-            joint_torques(md, ws, tau, torque)
-            for r in range(cw.cl.lam.shape[0]):
-                cw.cl.lamh[s, r] = cw.cl.lam[r]
-            for r in range(nd):
-                qddm[r] = qdd[r]
-                anew = ((1.0 - opts.alpha_f) * x[r] + opts.alpha_f * qdd[r] - opts.alpha_m * aux[r]) * i1m
-                q[r] = qt[r] + cq * x[r]
-                qd[r] = qdt[r] + cv * x[r]
-                aux[r] = anew
-                qdd[r] = x[r]
-            for i in range(n):
-                if md.motion[i] == 1:
-                    q[md.ia[i]] = mot[i, 0]
-                    qd[md.ia[i]] = mot[i, 1]
-                    qdd[md.ia[i]] = mot[i, 2]
-            if ok and (opts.closed or check):
-                # the accepted iterate's kinematics (the laws' final evaluation, the check)
-                kinematics(md, ws, q, qd)
-                set_rates(md, ws, qd)
-            if ok and opts.closed:
-                step_laws(md, ws, drv, cw, s, z, zerr, h, cq, cv, q, qd, x, _flag(True))
-                for i in range(n):
-                    if drv.code[i] != CODE_OPEN:
-                        torque[i] = cw.torque[i]
-            if check:
-                residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dqc, d2q, s, stats, fstats)
-            if ok and opts.closed:
-                for i in range(n):
-                    if drv.code[i] == CODE_PD:
-                        z[i] = cw.zs[i]
-                        zerr[i] = cw.zsum[i]
+            ok = newmark_step(
+                md,
+                ws,
+                opts,
+                drv,
+                cw,
+                s,
+                h,
+                last,
+                q,
+                qd,
+                qdd,
+                aux,
+                torque,
+                z,
+                zerr,
+                qddm,
+                qt,
+                qdt,
+                x,
+                xn,
+                qi,
+                qdi,
+                k2,
+                zero_f,
+                noload,
+                stats,
+                fstats,
+            )
         else:
-            hf = 0.5 * h
-            if opts.closed:  # stage 1: ż = e_n
-                for i in range(n):
-                    cw.zsum[i] = zerr[i]
-                    cw.zs[i] = z[i] + hf * zerr[i]
-            fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])
-            fd0 = cw.fd[1]
-            for r in range(nd):
-                qi[r] = q[r] + hf * qd[r]
-                qdi[r] = qd[r] + hf * qdd[r]
-            ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, ka, torque, fresh)
-            for r in range(nd):
-                k2[r] = qdi[r]
-            if ok:
-                if opts.closed:
-                    rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, hf)
-                for r in range(nd):
-                    qi[r] = q[r] + hf * k2[r]
-                    qdi[r] = qd[r] + hf * ka[r]
-                ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, kb, torque, _flag(False))
-                for r in range(nd):
-                    k3[r] = qdi[r]
-            if ok:
-                if opts.closed:
-                    rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, h)
-                for r in range(nd):
-                    qi[r] = q[r] + h * k3[r]
-                    qdi[r] = qd[r] + h * kb[r]
-                ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, qi, qdi, kc, torque, _flag(False))
-            if ok:
-                if opts.closed:
-                    rk4_z(md, drv, cw, z, drv.ref_l[s], qi, 1.0, 0.0)
-                    for i in range(n):
-                        if drv.code[i] == CODE_PD:
-                            z[i] += h / 6.0 * cw.zsum[i]
-                            cw.zs[i] = z[i]
-                for r in range(nd):
-                    q[r] = q[r] + h / 6.0 * (qd[r] + 2.0 * k2[r] + 2.0 * k3[r] + qdi[r])
-                    qd[r] = qd[r] + h / 6.0 * (qdd[r] + 2.0 * ka[r] + 2.0 * kb[r] + kc[r])
-                ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, q, qd, qdd, torque, _flag(False))
-                if opts.closed:
-                    for i in range(n):
-                        if drv.code[i] == CODE_PD:
-                            zerr[i] = drv.ref_l[s, i, 0] - q[md.ia[i]]
-            used = cw.fd[1] - fd0 if opts.closed else 4
-            stats[S_SWEEPS] += used
-            stats[S_MAX] = max(stats[S_MAX], used)
+            ok = rk4_step(
+                md, ws, opts, drv, cw, s, h, q, qd, qdd, torque, z, zerr, qi, qdi, k2, k3, ka, kb, kc, stats
+            )
         status = check_state(md, q) if ok else ST_SINGULAR
         if status == ST_OK:
             for r in range(nd):
