@@ -58,6 +58,7 @@ from dttmm.result import make_result
 from dttmm.shapes import polyline_shapes, shape_points, stations
 from dttmm.timegrid import step_schedule
 
+from . import _checks
 from ._mujoco_model import INTEGRATORS, chain_xml, layout
 
 __all__ = ["INTEGRATORS", "build", "natural_frequencies", "simulate", "stability_limit"]
@@ -70,13 +71,8 @@ def _check(case, k, h, integrator, options):
     """Validated (k, h, opts); raises InputError naming the field."""
     k, h = plumbing.discretisation(case, k, h)
     require_flexible(case.model, "the MuJoCo chain (flexible links, bodies on the beam axis)")
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
-    for key in options:
-        if key not in _OPTIONS:
-            raise InputError(
-                key, options[key], f"is not an option of mujoco-chain (options: {', '.join(_OPTIONS)})"
-            )
+    _checks.integrator(integrator, INTEGRATORS)
+    _checks.option_names(options, _OPTIONS, "mujoco-chain")
     opts = {**_OPTIONS, **options}
     if not (isinstance(opts["motion_tol"], (int, float)) and opts["motion_tol"] > 0):
         raise InputError("motion_tol", opts["motion_tol"], "must be a positive number")

@@ -90,6 +90,7 @@ from dttmm.spatial.scenario import require_no_loads
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 from dttmm.timegrid import step_schedule
 
+from . import _checks
 from ._mujoco_model import _MJCF_NAME, INTEGRATORS
 from .mujoco_chain import _free_controls, _run_motion, _run_torque
 from .mujoco_chain import _Stepper as _PlanarStepper
@@ -705,13 +706,8 @@ def _check(case, k, h, integrator, options):
         raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase")
     k = plumbing.elements_per_link(k)
     h = plumbing.step_size(h, case.scenario.duration)
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
-    for key in options:
-        if key not in _OPTIONS:
-            raise InputError(
-                key, options[key], f"is not an option of {METHOD} (options: {', '.join(_OPTIONS)})"
-            )
+    _checks.integrator(integrator, INTEGRATORS)
+    _checks.option_names(options, _OPTIONS, METHOD)
     opts = {**_OPTIONS, **options}
     opts["motion_tol"] = plumbing.positive_number("motion_tol", opts["motion_tol"])
     opts["motion_max_iter"] = plumbing.positive_integer("motion_max_iter", opts["motion_max_iter"])
