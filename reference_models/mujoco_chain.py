@@ -540,7 +540,13 @@ def piece_shapes(st, case, X, p: int) -> np.ndarray:
         pts[s, :, 0] = d.xpos[lay.hub_body, :2]
         pts[s, :, 1:-1] = d.xpos[bodies, :2]
         pts[s, :, -1] = d.site_xpos[lay.tip_site, :2]
-    out = np.empty((nt, n, p, 2))
+    return polylines(case, k, pts, p)
+
+
+def polylines(case, k, pts, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, dim) from the points ``pts`` (nt, n, k + 2, dim) of each link's
+    root, its k hinges (at (j − ½)·L/k) and its tip, sampled at the p shape points."""
+    out = np.empty((*pts.shape[:2], p, pts.shape[-1]))
     for i, link in enumerate(case.model.links):
         L = link.beam.length
         x_nodes = np.concatenate(([0.0], (np.arange(1, k + 1) - 0.5) * L / k, [L]))

@@ -80,7 +80,6 @@ import numpy as np
 from dttmm import plumbing
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
-from dttmm.shapes import polyline_shapes, stations
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
@@ -90,7 +89,7 @@ from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closure
 
 from . import _checks
 from ._mujoco_model import _MJCF_NAME, INTEGRATORS
-from .mujoco_chain import _free_controls, _meta, _rollout, _step_warning, step_nodes
+from .mujoco_chain import _free_controls, _meta, _rollout, _step_warning, polylines, step_nodes
 from .mujoco_chain import _Stepper as _PlanarStepper
 
 __all__ = [
@@ -736,12 +735,7 @@ def piece_shapes(st, case, X, p: int) -> np.ndarray:
         pts[s, :, 0] = d.xpos[lay.hub_body]
         pts[s, :, 1:-1] = d.xpos[bodies]
         pts[s, :, -1] = d.site_xpos[lay.tip_site]
-    out = np.empty((nt, n, p, 3))
-    for i, link in enumerate(case.model.links):
-        L = link.beam.length
-        x_nodes = np.concatenate(([0.0], (np.arange(1, k + 1) - 0.5) * L / k, [L]))
-        out[:, i] = polyline_shapes(x_nodes, pts[:, i], stations(L, p))
-    return out
+    return polylines(case, k, pts, p)
 
 
 def simulate(
