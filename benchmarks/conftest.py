@@ -64,6 +64,22 @@ def tip_error(res: dttmm.Result, ref: dttmm.Result) -> float:
     return float(np.sqrt(np.mean((res.tip_deflection[:n] - ref.tip_deflection[:n]) ** 2)))
 
 
+def least_of_rounds(benchmark, run, rounds: int, **measures):
+    """``run()`` once untimed (numba compiles or loads the kernel), then timed by
+    ``benchmark.pedantic`` over ``rounds`` rounds of one call each: (the last round's Result,
+    {name: the least over the rounds of ``measure(Result)``} for each of ``measures``)."""
+    run()
+    holder = {name: [] for name in measures}
+
+    def target():
+        holder["res"] = res = run()
+        for name, measure in measures.items():
+            holder[name].append(measure(res))
+
+    benchmark.pedantic(target, rounds=rounds, iterations=1, warmup_rounds=0)
+    return holder["res"], {name: min(holder[name]) for name in measures}
+
+
 def run_benchmark(benchmark, method: str, c: dttmm.Case, k, h: float, ref_name: str | None, **options):
     """Time ``method`` on ``c`` (one warm-up round: numba compiles, caches fill) and fill extra_info.
 

@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import QUICK, case
+from conftest import QUICK, case, least_of_rounds
 
 import dttmm
 
@@ -69,19 +69,11 @@ def test_element_step(benchmark, kind, k):
     benchmark.group = "spatial-vs-planar:three_link"
     planar, spatial = _cases()
     c = spatial if kind == "spatial" else planar
-    _run(kind, c, k)  # compile or load the kernel outside the timed part
-    holder = {}
-
-    def target():
-        holder["res"] = _run(kind, c, k)
-        holder.setdefault("walls", []).append(holder["res"].wall_time)
-        holder.setdefault("cpus", []).append(_cpu(holder["res"]))
-
-    benchmark.pedantic(target, rounds=ROUNDS, iterations=1, warmup_rounds=0)
-    res = holder["res"]
+    res, least = least_of_rounds(
+        benchmark, lambda: _run(kind, c, k), ROUNDS, wall=lambda r: r.wall_time, cpu=_cpu
+    )
     n_el = 3 * k
-    wall = min(holder["walls"])
-    cpu = min(holder["cpus"])
+    wall, cpu = least["wall"], least["cpu"]
     benchmark.extra_info.update(
         kernel=kind,
         elements_per_link=k,

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import QUICK
+from conftest import QUICK, least_of_rounds
 
 pytest.importorskip("numba")
 
@@ -61,18 +61,10 @@ def _per_step(res):
 def test_topology_step(benchmark, name, k):
     benchmark.group = f"topology:{name}"
     c = _case(name)
-    _run(c, k)  # compile or load the kernel outside the timed part
-    holder = {}
-
-    def target():
-        holder["res"] = _run(c, k)
-        holder.setdefault("cpus", []).append(_per_step(holder["res"]))
-
     with one_blas_thread():
-        benchmark.pedantic(target, rounds=ROUNDS, iterations=1, warmup_rounds=0)
-    res = holder["res"]
+        res, least = least_of_rounds(benchmark, lambda: _run(c, k), ROUNDS, cpu=_per_step)
     n_el = k * len(c.model.links)
-    cpu = min(holder["cpus"])
+    cpu = least["cpu"]
     benchmark.extra_info.update(
         case=name,
         elements_per_link=k,

@@ -746,25 +746,22 @@ _BUILTIN = (
 # Shown in figures and text but not run by the studies (the reference curve, benchmark variants).
 _SHOWN = (
     Method("reference", None, label="reference", style=Style("0.3", "", "-", 0)),
-    Method(
-        "dttmm-converged",
-        None,
-        alias_of="dttmm",
-        scans=("elements",),
-        role="subject",
-        physics=Physics("hermite-fe", "linear"),
-        label="DT-TMM (Newmark), converged",
-        style=Style("C0", "o"),
-    ),
-    Method(
-        "dttmm-one-shot",
-        None,
-        alias_of="dttmm",
-        scans=("elements",),
-        role="subject",
-        physics=Physics("hermite-fe", "linear"),
-        label="DT-TMM (Newmark), one sweep per step",
-        style=Style("C9", "v"),
+    # the element scans' variants of DT-TMM (Newmark): converged, and one sweep per step
+    *(
+        Method(
+            name,
+            None,
+            alias_of="dttmm",
+            scans=("elements",),
+            role="subject",
+            physics=Physics("hermite-fe", "linear"),
+            label=label,
+            style=style,
+        )
+        for name, label, style in (
+            ("dttmm-converged", "DT-TMM (Newmark), converged", Style("C0", "o")),
+            ("dttmm-one-shot", "DT-TMM (Newmark), one sweep per step", Style("C9", "v")),
+        )
     ),
 )
 

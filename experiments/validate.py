@@ -396,6 +396,11 @@ class Runner:
             self._memo[key] = (None if why else res, cpu, why)
         return self._memo[key]
 
+    def run_at_step(self, case, k, h):
+        """:meth:`run` at :meth:`step`'s h: (that h, Result or None, CPU time (s), reason '')."""
+        h = self.step(k, h, case)
+        return (h, *self.run(case, k, h))
+
     def call(self, fn, *args):
         return self.worker.call(fn, *args)
 
@@ -416,6 +421,41 @@ def _row(method, check, problem, quantity, **kw) -> dict:
 
 def _not_run(method, check, problem, quantity, reason, **kw) -> list:
     return [_row(method, check, problem, quantity, passed=None, reason=reason, **kw)]
+
+
+@dataclass(frozen=True)
+class _Quantity:
+    """One compared quantity of a check: the fields each of its rows carries (``fields``: source,
+    tolerance, tolerance_kind and reference)."""
+
+    method: str
+    check: str
+    problem: str
+    quantity: str
+    fields: dict
+
+    def not_run(self, reason) -> list:
+        return _not_run(self.method, self.check, self.problem, self.quantity, reason, **self.fields)
+
+    def measured(self, value, reason, relative=False, **kw) -> dict:
+        """The row of a measured ``value`` (None: no value, ``reason`` says why), passed when its
+        deviation is within the tolerance: with ``relative`` |value − reference| / |reference|,
+        else the value itself (a deviation from the reference 0)."""
+        f, err = self.fields, value
+        if value is not None and relative:
+            err = abs(value - f["reference"]) / abs(f["reference"])
+        passed = err is not None and err <= f["tolerance"]
+        return _row(
+            self.method,
+            self.check,
+            self.problem,
+            self.quantity,
+            value=value,
+            passed=passed,
+            reason=reason,
+            **f,
+            **kw,
+        )
 
 
 def _needs(case) -> list:
@@ -455,6 +495,11 @@ def _fit(xs, errs) -> float:
 def order_in_k(ks, errs) -> float:
     """Observed order p of err ∝ k^-p."""
     return -_fit(ks, errs)
+
+
+def _error_order(ks, values, target):
+    """The observed order in k of |value − target| over the ladder ``ks`` (None: not found)."""
+    return _nan_none(order_in_k(ks, [abs(v - target) if v is not None else None for v in values]))
 
 
 # ----------------------------------------------------------------------------- benchmark problems
@@ -536,25 +581,20 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
     kind = prov["quantity"]
     if methods.is_spatial(case):
         return _spatial_problem(run, problem, case, prov)
+
+    def not_run(why):
+        return [_not_run(rec.name, check, problem, q, why, reference=v, **kw)[0] for q, v in quantities]
+
     if rec.physics.strain == "rigid":
-        return [_not_run(rec.name, check, problem, q, _RIGID, reference=v, **kw)[0] for q, v in quantities]
+        return not_run(_RIGID)
     if kind == "frequencies":
         if not rec.has("modes"):
-            return [
-                _not_run(rec.name, check, problem, q, _missing(rec, ["modes"]), reference=v, **kw)[0]
-                for q, v in quantities
-            ]
+            return not_run(_missing(rec, ["modes"]))
         if linearisation(rec.name) is None:
-            return [
-                _not_run(rec.name, check, problem, q, _NO_LIN.format(rec.name), reference=v, **kw)[0]
-                for q, v in quantities
-            ]
+            return not_run(_NO_LIN.format(rec.name))
         got = [run.call(_frequencies, rec.name, case, k, len(targets)) for k in ks]
         if _no_lin(got):
-            return [
-                _not_run(rec.name, check, problem, q, _NO_LIN.format(rec.name), reference=v, **kw)[0]
-                for q, v in quantities
-            ]
+            return not_run(_NO_LIN.format(rec.name))
         rows = []
         for i, (q, target) in enumerate(targets):
             vals = [None if why else float(f[i]) for f, _, why in got]
@@ -570,6 +610,25 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
     if why:
         return _not_run(rec.name, check, problem, kind, why, reference=targets[0][1], **kw)
     h = problems_study.step_of(prov)
+
+    def value(res):
+        try:
+            return _bench_value(prov, case, res)
+        except Exception as exc:  # noqa: BLE001 - an extractor failing on odd output is a failed row
+            return None, f"{type(exc).__name__}: {exc}"
+
+    vals, cpu, reason = _ladder(run, case, ks, h, value)
+    target = targets[0][1]
+    row = _judge(rec.name, check, problem, kind, target, vals[-1], prov, reason, ks, cpu, **kw)
+    row["h"] = run.step(ks[-1], h)
+    row["order"] = _error_order(ks, vals, target)
+    return [row]  # the study's rule decides: a run not quite at rest is noted in the reason only
+
+
+def _ladder(run, case, ks, h, value) -> tuple:
+    """Runs of ``case`` at every k of ``ks`` (step h, lowered for an explicit method) and the
+    (value, note) ``value(res)`` of each: (values, None where a run failed; CPU time (s); the
+    reason: the last failed run's, else the largest k's note)."""
     vals, cpu, reason = [], 0.0, ""
     for k in ks:
         res, c, why = run.run(case, k, run.step(k, h))
@@ -578,19 +637,11 @@ def benchmark_problem(run: Runner, problem: str, case, prov) -> list:
             vals.append(None)
             reason = f"k = {k}: {why}"
             continue
-        try:
-            v, note = _bench_value(prov, case, res)
-        except Exception as exc:  # noqa: BLE001 - an extractor failing on odd output is a failed row
-            v, note = None, f"{type(exc).__name__}: {exc}"
+        v, note = value(res)
         vals.append(v)
         if k == ks[-1] and note:
             reason = note
-    target = targets[0][1]
-    row = _judge(rec.name, check, problem, kind, target, vals[-1], prov, reason, ks, cpu, **kw)
-    row["h"] = run.step(ks[-1], h)
-    errs = [abs(v - target) if v is not None else None for v in vals]
-    row["order"] = _nan_none(order_in_k(ks, errs))
-    return [row]  # the study's rule decides: a run not quite at rest is noted in the reason only
+    return vals, cpu, reason
 
 
 _RIGID = "rigid links: the problem's quantity is a deformation, which a rigid model does not have"
@@ -646,6 +697,15 @@ def _no_spatial(rec, case) -> str:
     if why:
         return f"{rec.label or rec.name}: {why}"
     return ""
+
+
+def _statics_unknown(rec, case) -> str:
+    """Why a check of the method's own spatial statics on ``case`` does not run ('' when it does):
+    rigid links, the case refused, no spatial statics."""
+    why = (_RIGID if rec.physics.strain == "rigid" else "") or _no_spatial(rec, case)
+    if not why and problems_study.statics_of(rec.name) is None:
+        why = _NO_STATICS.format(rec.label or rec.name).replace("this problem", "this check")
+    return why
 
 
 _NO_STATICS = (
@@ -729,8 +789,7 @@ def _spatial_problem(run: Runner, problem: str, case, prov) -> list:
             **kw,
         )
         row["h"] = _nan_none(h)
-        errs = [abs(x - t["target"]) if x is not None else None for x in v]
-        row["order"] = _nan_none(order_in_k(ks, errs))
+        row["order"] = _error_order(ks, v, t["target"])
         rows.append(row)
     return rows
 
@@ -750,6 +809,16 @@ def _case(d: dict):
     return dttmm.case_from_dict(d)
 
 
+def _restiffened(case, links, duration: float, name: str):
+    """``case`` with ``links`` (its stiffened links), run for ``duration`` s, named ``name``."""
+    return replace(
+        case,
+        model=replace(case.model, links=links),
+        scenario=replace(case.scenario, duration=float(duration)),
+        name=name,
+    )
+
+
 def rigid_case(duration: float):
     """The shipped three-link arm (gravity, hubs, payload, torques) with EI × 1e6 and EA × 1e3.
 
@@ -764,12 +833,7 @@ def rigid_case(duration: float):
         replace(ln, beam=replace(ln.beam, EI=ln.beam.EI * RIGID_STIFFEN, EA=ln.beam.EA * RIGID_STIFFEN_EA))
         for ln in case.model.links
     )
-    return replace(
-        case,
-        model=replace(case.model, links=links),
-        scenario=replace(case.scenario, duration=float(duration)),
-        name="three_link_stiff",
-    )
+    return _restiffened(case, links, duration, "three_link_stiff")
 
 
 def _pinocchio(case):
@@ -789,42 +853,28 @@ def rigid_limit(run: Runner) -> list:
         "rigid-body dynamics of the same arm by Pinocchio (RNEA/ABA), DOP853 at rtol = atol = 1e-12; "
         f"links {RIGID_STIFFEN:g}× stiffer than experiments/cases/three_link.toml"
     )
-    kw = dict(source=src, tolerance=RIGID_TOL, tolerance_kind="absolute", reference=0.0)
-    q = "max |joint angle − rigid| (rad)"
-    if rec.explicit:
-        return _not_run(
-            rec.name,
-            "rigid limit",
-            "three_link_stiff",
-            q,
-            "explicit in time: its stable step falls as 1/√EI, so the stiff-link limit is out of its reach",
-            **kw,
-        )
-    why = _missing(rec, _needs(case))
+    why = (_STIFF_EXPLICIT if rec.explicit else "") or _missing(rec, _needs(case))
+    return _rigid_angles(run, "rigid limit", case, _pinocchio, src, RIGID_TOL, RIGID_K, RIGID_H, why)
+
+
+_STIFF_EXPLICIT = (
+    "explicit in time: its stable step falls as 1/√EI, so the stiff-link limit is out of its reach"
+)
+
+
+def _rigid_angles(run, check, case, rigid, src, tol, k, h, why) -> list:
+    """The row of a stiffened arm's joint angles at k, h against the rigid arm's (``rigid(case)``,
+    run in the worker): max |joint angle − rigid| ≤ ``tol`` rad; not run with ``why``."""
+    kw = dict(source=src, tolerance=tol, tolerance_kind="absolute", reference=0.0)
+    row = _Quantity(run.rec.name, check, case.name, "max |joint angle − rigid| (rad)", kw)
     if why:
-        return _not_run(rec.name, "rigid limit", "three_link_stiff", q, why, **kw)
-    ref, _, rwhy = run.call(_pinocchio, case)
+        return row.not_run(why)
+    ref, _, rwhy = run.call(rigid, case)
     if rwhy:
-        return _not_run(
-            rec.name, "rigid limit", "three_link_stiff", q, f"the Pinocchio reference: {rwhy}", **kw
-        )
-    res, cpu, why = run.run(case, RIGID_K, RIGID_H)
+        return row.not_run(f"the Pinocchio reference: {rwhy}")
+    res, cpu, why = run.run(case, k, h)
     value = None if why else float(np.max(np.abs(res.joint_angle - ref.joint_angle)))
-    return [
-        _row(
-            rec.name,
-            "rigid limit",
-            "three_link_stiff",
-            q,
-            value=value,
-            passed=value is not None and value <= RIGID_TOL,
-            reason=why,
-            k=RIGID_K if rec.uses_k else None,
-            h=RIGID_H,
-            cpu_time=cpu,
-            **kw,
-        )
-    ]
+    return [row.measured(value, why, k=k if run.rec.uses_k else None, h=h, cpu_time=cpu)]
 
 
 STATIC_G = 0.1  # m/s², small: deflection/L ≈ 2e-3, geometric nonlinearity ≈ 4e-6 relative
@@ -894,18 +944,7 @@ def _static_like(run, check, case, prov):
     why = (_RIGID if rec.physics.strain == "rigid" else "") or _missing(rec, _needs(case)) or run.step_unknown
     if why:
         return _not_run(rec.name, check, case.name, "tip deflection at rest (m)", why, reference=target, **kw)
-    vals, cpu, reason = [], 0.0, ""
-    for k in ks:
-        res, c, why = run.run(case, k, run.step(k, STATIC_H))
-        cpu += c if np.isfinite(c) else 0.0
-        if why:
-            vals.append(None)
-            reason = f"k = {k}: {why}"
-            continue
-        v, note = _bench_value(prov, case, res)
-        vals.append(v)
-        if k == ks[-1] and note:
-            reason = note
+    vals, cpu, reason = _ladder(run, case, ks, STATIC_H, lambda res: _bench_value(prov, case, res))
     row = _judge(
         rec.name,
         check,
@@ -920,7 +959,7 @@ def _static_like(run, check, case, prov):
         **kw,
     )
     row["h"] = run.step(ks[-1], STATIC_H)
-    row["order"] = _nan_none(order_in_k(ks, [abs(v - target) if v is not None else None for v in vals]))
+    row["order"] = _error_order(ks, vals, target)
     if "not at rest" in reason:
         row["passed"] = False
     if not rec.uses_k:
@@ -951,12 +990,7 @@ def spatial_rigid_case(duration: float):
         )
         for ln in case.model.links
     )
-    return replace(
-        case,
-        model=replace(case.model, links=links),
-        scenario=replace(case.scenario, duration=float(duration)),
-        name="three_joint_arm_stiff",
-    )
+    return _restiffened(case, links, duration, "three_joint_arm_stiff")
 
 
 def _pinocchio_spatial(case):
@@ -977,33 +1011,18 @@ def spatial_rigid_limit(run: Runner) -> list:
         f"RK4 at h = 1e-5 s; links {RIGID_STIFFEN:g}× stiffer in bending and torsion than "
         "experiments/cases/spatial/three_joint_arm.toml"
     )
-    kw = dict(source=src, tolerance=SPATIAL_RIGID_TOL, tolerance_kind="absolute", reference=0.0)
-    q, check, name = "max |joint angle − rigid| (rad)", "spatial rigid limit", case.name
-    why = _no_spatial(rec, case)
-    if not why and rec.explicit:
-        why = "explicit in time: its stable step falls as 1/√EI, so the stiff-link limit is out of its reach"
-    if why:
-        return _not_run(rec.name, check, name, q, why, **kw)
-    ref, _, rwhy = run.call(_pinocchio_spatial, case)
-    if rwhy:
-        return _not_run(rec.name, check, name, q, f"the Pinocchio reference: {rwhy}", **kw)
-    res, cpu, why = run.run(case, SPATIAL_RIGID_K, SPATIAL_RIGID_H)
-    value = None if why else float(np.max(np.abs(res.joint_angle - ref.joint_angle)))
-    return [
-        _row(
-            rec.name,
-            check,
-            name,
-            q,
-            value=value,
-            passed=value is not None and value <= SPATIAL_RIGID_TOL,
-            reason=why,
-            k=SPATIAL_RIGID_K if rec.uses_k else None,
-            h=SPATIAL_RIGID_H,
-            cpu_time=cpu,
-            **kw,
-        )
-    ]
+    why = _no_spatial(rec, case) or (_STIFF_EXPLICIT if rec.explicit else "")
+    return _rigid_angles(
+        run,
+        "spatial rigid limit",
+        case,
+        _pinocchio_spatial,
+        src,
+        SPATIAL_RIGID_TOL,
+        SPATIAL_RIGID_K,
+        SPATIAL_RIGID_H,
+        why,
+    )
 
 
 SPATIAL_STATIC_SCALE = 1e-3  # gravity factor: deflection/L ≤ 3.3e-4; the offset payload's lever arm turns with the tip (~3e-5 relative)
@@ -1057,14 +1076,20 @@ def spatial_static_deflection(run: Runner) -> list:
         "Euler-Bernoulli cantilever q L⁴/(8EI) + P L³/(3EI) in each bending plane and Saint-Venant "
         "torsion φ = T L/GJ (e.g. Gere & Timoshenko, Mechanics of Materials, Appendix G)"
     )
-    kw = dict(source=src, tolerance=SPATIAL_STATIC_TOL, tolerance_kind="relative")
-    check, name = "spatial static deflection", "cantilever_3d"
     qs = {"u_y": "tip u_y at rest (m)", "u_z": "tip u_z at rest (m)", "twist": "tip twist at rest (rad)"}
-    why = (_RIGID if rec.physics.strain == "rigid" else "") or _no_spatial(rec, cases["y"])
-    if not why and problems_study.statics_of(rec.name) is None:
-        why = _NO_STATICS.format(rec.label or rec.name).replace("this problem", "this check")
+    rows = {
+        key: _Quantity(
+            rec.name,
+            "spatial static deflection",
+            "cantilever_3d",
+            qs[key],
+            dict(source=src, tolerance=SPATIAL_STATIC_TOL, tolerance_kind="relative", reference=r),
+        )
+        for key, r in ref.items()
+    }
+    why = _statics_unknown(rec, cases["y"])
     if why:
-        return [_not_run(rec.name, check, name, qs[key], why, reference=r, **kw)[0] for key, r in ref.items()]
+        return [row.not_run(why)[0] for row in rows.values()]
     ks, cpu, reason = run.ks, 0.0, ""
     vals = {key: [] for key in ref}
     L = cases["y"].model.links[0].beam.length
@@ -1082,27 +1107,12 @@ def spatial_static_deflection(run: Runner) -> list:
                     reason = "its statics gives no twist"
             if not w and abs(tip[0] - L) > 1e-3 * L:
                 reason = f"k = {k}: the tip moved {tip[0] - L:.3g} m along the axis (not the clamped beam's length)"
-    rows = []
-    for key, r in ref.items():
-        v = vals[key]
-        rel = abs(v[-1] - r) / abs(r) if v[-1] is not None else None
-        rows.append(
-            _row(
-                rec.name,
-                check,
-                name,
-                qs[key],
-                value=v[-1],
-                reference=r,
-                passed=rel is not None and rel <= SPATIAL_STATIC_TOL,
-                reason=reason,
-                order=_nan_none(order_in_k(ks, [abs(x - r) if x is not None else None for x in v])),
-                k=ks[-1],
-                cpu_time=cpu,
-                **kw,
-            )
+    return [
+        row.measured(
+            vals[key][-1], reason, True, order=_error_order(ks, vals[key], ref[key]), k=ks[-1], cpu_time=cpu
         )
-    return rows
+        for key, row in rows.items()
+    ]
 
 
 # ----------------------------------------------------------------------------- robots
@@ -1145,22 +1155,22 @@ def robot_rigid_limit(run: Runner) -> list:
     for name in ROBOTS:
         T = run.size.robot_duration
         case = handchecks.rigid_robot_case(name, T)
-        qt, qp = "max |joint torque − RNEA| / max |RNEA|", "max |tool point − rigid| (m)"
         kw_t = dict(source=_ROBOT_SRC, tolerance=ROBOT_TORQUE_TOL, tolerance_kind="relative", reference=0.0)
         kw_p = dict(source=_ROBOT_SRC, tolerance=ROBOT_TOOL_TOL, tolerance_kind="absolute", reference=0.0)
-        check, problem = "robot rigid limit", case.name
+        pair = (
+            _Quantity(
+                rec.name, "robot rigid limit", case.name, "max |joint torque − RNEA| / max |RNEA|", kw_t
+            ),
+            _Quantity(rec.name, "robot rigid limit", case.name, "max |tool point − rigid| (m)", kw_p),
+        )
         why = _no_spatial(rec, case) or run.step_unknown
+        if not why:
+            ref, _, rwhy = run.call(_robot_reference, name, T)
+            why = rwhy and f"the Pinocchio reference: {rwhy}"
         if why:
-            rows += _not_run(rec.name, check, problem, qt, why, **kw_t)
-            rows += _not_run(rec.name, check, problem, qp, why, **kw_p)
+            rows += [row for q in pair for row in q.not_run(why)]
             continue
-        ref, _, rwhy = run.call(_robot_reference, name, T)
-        if rwhy:
-            rows += _not_run(rec.name, check, problem, qt, f"the Pinocchio reference: {rwhy}", **kw_t)
-            rows += _not_run(rec.name, check, problem, qp, f"the Pinocchio reference: {rwhy}", **kw_p)
-            continue
-        h = run.step(ROBOT_K, ROBOT_H, case)
-        res, cpu, why = run.run(case, ROBOT_K, h)
+        h, res, cpu, why = run.run_at_step(case, ROBOT_K, ROBOT_H)
         vt = vp = None
         wt = wp = why
         if not why:
@@ -1175,26 +1185,9 @@ def robot_rigid_limit(run: Runner) -> list:
             vp, i = float(np.max(dp)), int(np.argmax(dp))
             wp = f"largest at t = {ref['t'][i]:.4g} s"
         k = ROBOT_K if rec.uses_k else None
-        for q, v, tol, kw, w in (
-            (qt, vt, ROBOT_TORQUE_TOL, kw_t, wt),
-            (qp, vp, ROBOT_TOOL_TOL, kw_p, wp),
-        ):
-            ok = v is not None and v <= tol
-            rows.append(
-                _row(
-                    rec.name,
-                    check,
-                    problem,
-                    q,
-                    value=v,
-                    passed=ok,
-                    reason="" if ok else w,
-                    k=k,
-                    h=h,
-                    cpu_time=cpu,
-                    **kw,
-                )
-            )
+        for q, v, w in zip(pair, (vt, vp), (wt, wp)):
+            row = q.measured(v, w, k=k, h=h, cpu_time=cpu)
+            rows.append({**row, "reason": "" if row["passed"] else w})
     return rows
 
 
@@ -1214,20 +1207,16 @@ def robot_statics(run: Runner) -> list:
     )
     for name in ROBOTS:
         case = handchecks.sag_case(name)
-        check, problem, q = "robot statics", case.name, "tool sag at rest (m)"
-        kw = dict(source=src, tolerance=ROBOT_SAG_TOL, tolerance_kind="relative")
-        why = (_RIGID if rec.physics.strain == "rigid" else "") or _no_spatial(rec, case)
-        if not why and problems_study.statics_of(rec.name) is None:
-            why = _NO_STATICS.format(rec.label or rec.name).replace("this problem", "this check")
+        why = _statics_unknown(rec, case)
         try:  # the hand check runs no method: here, not in the method's worker
             ref, rwhy = _sag_reference(name), ""
         except Exception as exc:  # noqa: BLE001 - e.g. Pinocchio or the URDFs missing: the rows say so
             ref, rwhy = None, _one_line(exc)
         target = None if rwhy else ref["sag"]
+        kw = dict(source=src, tolerance=ROBOT_SAG_TOL, tolerance_kind="relative", reference=target)
+        row = _Quantity(rec.name, "robot statics", case.name, "tool sag at rest (m)", kw)
         if why or rwhy:
-            rows += _not_run(
-                rec.name, check, problem, q, why or f"the hand check: {rwhy}", reference=target, **kw
-            )
+            rows += row.not_run(why or f"the hand check: {rwhy}")
             continue
         vals, cpu, reason = [], 0.0, ""
         for k in run.ks:
@@ -1236,26 +1225,8 @@ def robot_statics(run: Runner) -> list:
             if w:
                 reason = f"k = {k}: {w}"
             vals.append(None if w else float(ref["rigid"][2] - got[0][2]))
-        v = vals[-1]
-        rel = abs(v - target) / abs(target) if v is not None else None
-        rows.append(
-            _row(
-                rec.name,
-                check,
-                problem,
-                q,
-                value=v,
-                reference=target,
-                passed=rel is not None and rel <= ROBOT_SAG_TOL,
-                reason=reason,
-                order=_nan_none(
-                    order_in_k(run.ks, [abs(x - target) if x is not None else None for x in vals])
-                ),
-                k=run.ks[-1],
-                cpu_time=cpu,
-                **kw,
-            )
-        )
+        order = _error_order(run.ks, vals, target)
+        rows.append(row.measured(vals[-1], reason, True, order=order, k=run.ks[-1], cpu_time=cpu))
     return rows
 
 
@@ -1290,7 +1261,6 @@ def robot_energy(run: Runner) -> list:
     rec, rows = run.rec, []
     for name in ROBOTS:
         case = robot_energy_case(name, run.size.robot_energy_duration)
-        q = "max |E(t) − E(0)| / (M g R)"
         kw = dict(
             source="conservation of energy: no damping, zero-torque joints do no work (M the arm's mass, "
             "R its size)",
@@ -1298,14 +1268,13 @@ def robot_energy(run: Runner) -> list:
             tolerance_kind="absolute",
             reference=0.0,
         )
-        check, problem = "robot energy balance", case.name
+        row = _Quantity(rec.name, "robot energy balance", case.name, "max |E(t) − E(0)| / (M g R)", kw)
         # the cheap reasons first: a spatial check may linearise the arm (the explicit DT-TMM's)
         why = _missing(rec, ["energy"]) or run.step_unknown or _no_spatial(rec, case)
         if why:
-            rows += _not_run(rec.name, check, problem, q, why, **kw)
+            rows += row.not_run(why)
             continue
-        h = run.step(ROBOT_ENERGY_K, ENERGY_H, case)
-        res, cpu, why = run.run(case, ROBOT_ENERGY_K, h)
+        h, res, cpu, why = run.run_at_step(case, ROBOT_ENERGY_K, ENERGY_H)
         value = None
         if not why:
             e = None if res.energy is None else np.asarray(res.energy, float)
@@ -1313,21 +1282,7 @@ def robot_energy(run: Runner) -> list:
                 why = "no finite energy in its Result (energy is None or NaN)"
             else:
                 value = float(np.max(np.abs(e - e[0])) / energy_scale(case))
-        rows.append(
-            _row(
-                rec.name,
-                check,
-                problem,
-                q,
-                value=value,
-                passed=value is not None and value <= ROBOT_ENERGY_TOL,
-                reason=why,
-                k=ROBOT_ENERGY_K if rec.uses_k else None,
-                h=h,
-                cpu_time=cpu,
-                **kw,
-            )
-        )
+        rows.append(row.measured(value, why, k=ROBOT_ENERGY_K if rec.uses_k else None, h=h, cpu_time=cpu))
     return rows
 
 
@@ -1378,9 +1333,9 @@ def topology_global(run: Runner) -> list:
         "Lagrange multipliers for the closures) at the same k, h, integrator and strain"
     )
     kw = dict(source=src, tolerance=TOPOLOGY_TOL, tolerance_kind="absolute", reference=0.0)
-    q, check = "max |link tip − global solver| (m)", "topology vs global solver"
     for name in TOPOLOGY:
         case = topology_case(name, run.size.topology_duration)
+        row = _Quantity(rec.name, "topology vs global solver", name, "max |link tip − global solver| (m)", kw)
         why = _no_spatial(rec, case)
         if not why and rec.spatial == _GLOBAL:
             why = "it is the global solver, this check's reference"
@@ -1392,32 +1347,15 @@ def topology_global(run: Runner) -> list:
                 "the global solver's discrete equations (its peers converge to them in k, the report's studies)"
             )
         why = why or run.step_unknown
+        if not why:
+            ref, _, rwhy = run.call(_global_run, case, TOPOLOGY_K, TOPOLOGY_H, _global_options(rec))
+            why = rwhy and f"the global solver: {rwhy}"
         if why:
-            rows += _not_run(rec.name, check, name, q, why, **kw)
+            rows += row.not_run(why)
             continue
-        opts = _global_options(rec)
-        ref, _, rwhy = run.call(_global_run, case, TOPOLOGY_K, TOPOLOGY_H, opts)
-        if rwhy:
-            rows += _not_run(rec.name, check, name, q, f"the global solver: {rwhy}", **kw)
-            continue
-        h = run.step(TOPOLOGY_K, TOPOLOGY_H, case)
-        res, cpu, why = run.run(case, TOPOLOGY_K, h)
+        h, res, cpu, why = run.run_at_step(case, TOPOLOGY_K, TOPOLOGY_H)
         v = None if why else float(np.max(np.abs(np.asarray(res.link_tip) - np.asarray(ref.link_tip))))
-        rows.append(
-            _row(
-                rec.name,
-                check,
-                name,
-                q,
-                value=v,
-                passed=v is not None and v <= TOPOLOGY_TOL,
-                reason=why,
-                k=TOPOLOGY_K,
-                h=h,
-                cpu_time=cpu,
-                **kw,
-            )
-        )
+        rows.append(row.measured(v, why, k=TOPOLOGY_K, h=h, cpu_time=cpu))
     return rows
 
 
@@ -1447,7 +1385,6 @@ def topology_closure(run: Runner) -> list:
     """The loops (four-bar, five-bar) at k = 2, h = 1 ms: the cut joint's position gap at every
     output time (step ends), from the Result's link tips, ≤ 1e-10 × the mechanism's size."""
     rec, rows = run.rec, []
-    q, check = "max closure gap / mechanism size", "topology closure"
     kw = dict(
         source="the closure: the cut joint holds its two points together (docs/spatial.md §11)",
         tolerance=CLOSURE_TOL,
@@ -1458,32 +1395,18 @@ def topology_closure(run: Runner) -> list:
         case = topology_case(name, run.size.topology_duration)
         if not case.model.closures:
             continue
+        row = _Quantity(rec.name, "topology closure", name, "max closure gap / mechanism size", kw)
         why = _no_spatial(rec, case) or run.step_unknown
         if why:
-            rows += _not_run(rec.name, check, name, q, why, **kw)
+            rows += row.not_run(why)
             continue
-        h = run.step(TOPOLOGY_K, TOPOLOGY_H, case)
-        res, cpu, why = run.run(case, TOPOLOGY_K, h)
+        h, res, cpu, why = run.run_at_step(case, TOPOLOGY_K, TOPOLOGY_H)
         v = None
         if not why:
             gap, how = closure_gap(res, case)
             v = gap / case.model.size if np.isfinite(gap) else None
             why = "" if v is not None else how
-        rows.append(
-            _row(
-                rec.name,
-                check,
-                name,
-                q,
-                value=v,
-                passed=v is not None and v <= CLOSURE_TOL,
-                reason=why,
-                k=TOPOLOGY_K,
-                h=h,
-                cpu_time=cpu,
-                **kw,
-            )
-        )
+        rows.append(row.measured(v, why, k=TOPOLOGY_K, h=h, cpu_time=cpu))
     return rows
 
 
@@ -1503,7 +1426,6 @@ def five_bar_rigid(run: Runner) -> list:
 
     rec = run.rec
     case = five_bar_case()
-    q, check = "max |distal tip − rigid loop geometry| (m)", "five-bar rigid limit"
     kw = dict(
         source="the rigid five-bar's loop-closure geometry: the distal tip where the circles about the "
         "driven proximal tips meet",
@@ -1511,31 +1433,18 @@ def five_bar_rigid(run: Runner) -> list:
         tolerance_kind="absolute",
         reference=0.0,
     )
-    why = _no_spatial(rec, case)
-    if not why and rec.explicit:
-        why = "explicit in time: its stable step falls as 1/√EI, so the stiff-link limit is out of its reach"
+    row = _Quantity(
+        rec.name, "five-bar rigid limit", case.name, "max |distal tip − rigid loop geometry| (m)", kw
+    )
+    why = _no_spatial(rec, case) or (_STIFF_EXPLICIT if rec.explicit else "")
     if why:
-        return _not_run(rec.name, check, case.name, q, why, **kw)
+        return row.not_run(why)
     res, cpu, why = run.run(case, TOPOLOGY_K, FIVE_BAR_H)
     v = None
     if not why:
         ref = handchecks.five_bar_tip(case, np.asarray(res.t))
         v = float(np.max(np.linalg.norm(np.asarray(res.end_effector) - ref, axis=1)))
-    return [
-        _row(
-            rec.name,
-            check,
-            case.name,
-            q,
-            value=v,
-            passed=v is not None and v <= FIVE_BAR_TOL,
-            reason=why,
-            k=TOPOLOGY_K if rec.uses_k else None,
-            h=FIVE_BAR_H,
-            cpu_time=cpu,
-            **kw,
-        )
-    ]
+    return [row.measured(v, why, k=TOPOLOGY_K if rec.uses_k else None, h=FIVE_BAR_H, cpu_time=cpu)]
 
 
 #: β_n L of the clamped-free Euler-Bernoulli beam (roots of cos βL cosh βL = −1).
@@ -1575,42 +1484,20 @@ def clamped_frequencies(run: Runner) -> list:
         "(Blevins, Formulas for Natural Frequency and Mode Shape, 1979, Table 8-1)"
     )
     kw = dict(source=src, tolerance=FREQ_TOL, tolerance_kind="relative")
-    qs = [f"f{i + 1} (Hz)" for i in range(len(ref))]
+    qs = [
+        _Quantity(rec.name, "frequencies", case.name, f"f{i + 1} (Hz)", {**kw, "reference": r})
+        for i, r in enumerate(ref)
+    ]
     why = _missing(rec, ["modes"]) or ("" if linearisation(rec.name) else _NO_LIN.format(rec.name))
-    if why:
-        return [
-            _not_run(rec.name, "frequencies", case.name, q, why, reference=r, **kw)[0]
-            for q, r in zip(qs, ref)
-        ]
-    got = [run.call(_frequencies, rec.name, case, k, len(ref)) for k in ks]
-    if _no_lin(got):
-        return [
-            _not_run(rec.name, "frequencies", case.name, q, _NO_LIN.format(rec.name), reference=r, **kw)[0]
-            for q, r in zip(qs, ref)
-        ]
+    got = [] if why else [run.call(_frequencies, rec.name, case, k, len(ref)) for k in ks]
+    if why or _no_lin(got):
+        return [q.not_run(why or _NO_LIN.format(rec.name))[0] for q in qs]
     cpu = sum(c for _, c, _ in got if np.isfinite(c))
     rows = []
     for i, (q, r) in enumerate(zip(qs, ref)):
         vals = [None if why else float(f[i]) for f, _, why in got]
-        v = vals[-1]
-        rel = abs(v - r) / r if v is not None else None
-        order = order_in_k(ks, [abs(x - r) if x is not None else None for x in vals])
-        rows.append(
-            _row(
-                rec.name,
-                "frequencies",
-                case.name,
-                q,
-                value=v,
-                reference=r,
-                passed=rel is not None and rel <= FREQ_TOL,
-                reason=got[-1][2],
-                order=_nan_none(order),
-                k=ks[-1],
-                cpu_time=cpu,
-                **kw,
-            )
-        )
+        order = _error_order(ks, vals, r)
+        rows.append(q.measured(vals[-1], got[-1][2], True, order=order, k=ks[-1], cpu_time=cpu))
     return rows
 
 
@@ -1633,32 +1520,17 @@ def energy_balance(run: Runner) -> list:
         tolerance_kind="absolute",
         reference=0.0,
     )
-    q = "max |E(t) − E(0)| / (m g L/2)"
+    row = _Quantity(rec.name, "energy balance", ENERGY_PROBLEM, "max |E(t) − E(0)| / (m g L/2)", kw)
     why = _missing(rec, ["energy", *_needs(case)]) or run.step_unknown
     if why:
-        return _not_run(rec.name, "energy balance", ENERGY_PROBLEM, q, why, **kw)
-    h = run.step(ENERGY_K, ENERGY_H)
-    res, cpu, why = run.run(case, ENERGY_K, h)
+        return row.not_run(why)
+    h, res, cpu, why = run.run_at_step(case, ENERGY_K, ENERGY_H)
     value = None
     if not why:
         value = problems_study.energy_drift(res, case)
         if not np.isfinite(value):
             value, why = None, "no finite energy in its Result (energy is None or NaN)"
-    return [
-        _row(
-            rec.name,
-            "energy balance",
-            ENERGY_PROBLEM,
-            q,
-            value=value,
-            passed=value is not None and value <= tol,
-            reason=why,
-            k=ENERGY_K if rec.uses_k else None,
-            h=h,
-            cpu_time=cpu,
-            **kw,
-        )
-    ]
+    return [row.measured(value, why, k=ENERGY_K if rec.uses_k else None, h=h, cpu_time=cpu)]
 
 
 #: Minimum observed orders: every built-in discretisation converges at least at order 2 in k

@@ -22,6 +22,7 @@ from dttmm.errors import InputError, SimulationError
 from dttmm.plumbing import versions
 from dttmm.timegrid import step_schedule
 
+from . import _checks
 from . import _global_numpy as gn
 
 INTEGRATORS = ("newmark", "generalized-alpha")
@@ -53,16 +54,9 @@ def _positive_option(name, value) -> float:
 
 def check_options(integrator, options: dict) -> dict:
     """Validate the integrator name and its options; return options with defaults filled."""
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
+    _checks.integrator(integrator, INTEGRATORS)
     allowed = _OPTIONS[integrator]
-    for key in options:
-        if key not in allowed:
-            raise InputError(
-                key,
-                options[key],
-                f"unknown option for integrator {integrator!r} (allowed: {', '.join(allowed)})",
-            )
+    _checks.integrator_options(integrator, options, allowed)
     opt = {**allowed, **options}
     for key in ("beta", "gamma", "tol"):
         if key in opt:

@@ -18,11 +18,12 @@ from dttmm.model import Link, Manipulator, Section
 from dttmm.result import tip_deflection
 from dttmm.scenario import Scenario
 
+from . import _checks
 from . import _global_control as gc
 
 # The public names are re-exported by reference_models.global_newmark (the facade).
 
-STRAINS = ("linear", "second-order")
+STRAINS = _checks.STRAINS
 _N_GAUSS = 4  # exact for the degree-6 polynomials of the mass matrix and velocity terms
 
 _XG, _WG = np.polynomial.legendre.leggauss(_N_GAUSS)
@@ -188,17 +189,11 @@ def _stiffness(links, k, e_idx, n_dof) -> tuple[np.ndarray, np.ndarray]:
     return K, D
 
 
-def _check_strain(strain) -> str:
-    if not isinstance(strain, str) or strain not in STRAINS:
-        raise InputError("strain", strain, f"unknown strain measure (one of: {', '.join(STRAINS)})")
-    return strain
-
-
 def _layout(case, k, strain="linear") -> _Layout:
     """Build the coordinate and element tables of ``case`` with k elements per link."""
     case = _check_case(case)
     k = _check_k(k)
-    strain = _check_strain(strain)
+    strain = _checks.strain(strain)
     links = case.model.links
     n = len(links)
     nel = n * k

@@ -64,23 +64,25 @@ def _even_functions(t: np.ndarray):
     return np.where(small, a_s, a), np.where(small, b_s, b), np.where(small, c_s, c)
 
 
-def exp_so3(psi: np.ndarray) -> np.ndarray:
-    """exp([ψ]×) (..., 3, 3) by Rodrigues' formula: I + (sin θ/θ)[ψ]× + ((1 − cos θ)/θ²)[ψ]×²."""
+def _quadratic(psi: np.ndarray, first: int) -> np.ndarray:
+    """I + x[ψ]× + y[ψ]×² (..., 3, 3), with (x, y) two consecutive of :func:`_even_functions`'
+    (a, b, c) at θ² = |ψ|², from index ``first``."""
     psi = np.asarray(psi)
     t = np.sum(psi * psi, axis=-1)
-    a, b, _ = _even_functions(t)
+    x, y = _even_functions(t)[first : first + 2]
     K = skew(psi)
-    return np.eye(3) + a[..., None, None] * K + b[..., None, None] * (K @ K)
+    return np.eye(3) + x[..., None, None] * K + y[..., None, None] * (K @ K)
+
+
+def exp_so3(psi: np.ndarray) -> np.ndarray:
+    """exp([ψ]×) (..., 3, 3) by Rodrigues' formula: I + (sin θ/θ)[ψ]× + ((1 − cos θ)/θ²)[ψ]×²."""
+    return _quadratic(psi, 0)
 
 
 def left_jacobian(psi: np.ndarray) -> np.ndarray:
     """J_L(ψ) = I + ((1 − cos θ)/θ²)[ψ]× + ((θ − sin θ)/θ³)[ψ]×² (..., 3, 3): the spatial
     angular velocity of exp([ψ]×) is J_L(ψ) ψ̇."""
-    psi = np.asarray(psi)
-    t = np.sum(psi * psi, axis=-1)
-    _, b, c = _even_functions(t)
-    K = skew(psi)
-    return np.eye(3) + b[..., None, None] * K + c[..., None, None] * (K @ K)
+    return _quadratic(psi, 1)
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:

@@ -58,6 +58,7 @@ from dttmm.result import make_result
 from dttmm.shapes import polyline_shapes, shape_points, stations
 from dttmm.timegrid import step_schedule
 
+from . import _checks
 from ._mujoco_model import INTEGRATORS, chain_xml, layout
 
 __all__ = ["INTEGRATORS", "build", "natural_frequencies", "simulate", "stability_limit"]
@@ -70,13 +71,8 @@ def _check(case, k, h, integrator, options):
     """Validated (k, h, opts); raises InputError naming the field."""
     k, h = plumbing.discretisation(case, k, h)
     require_flexible(case.model, "the MuJoCo chain (flexible links, bodies on the beam axis)")
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
-    for key in options:
-        if key not in _OPTIONS:
-            raise InputError(
-                key, options[key], f"is not an option of mujoco-chain (options: {', '.join(_OPTIONS)})"
-            )
+    _checks.integrator(integrator, INTEGRATORS)
+    _checks.option_names(options, _OPTIONS, "mujoco-chain")
     opts = {**_OPTIONS, **options}
     if not (isinstance(opts["motion_tol"], (int, float)) and opts["motion_tol"] > 0):
         raise InputError("motion_tol", opts["motion_tol"], "must be a positive number")
@@ -434,54 +430,15 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     options = dict(options)
     p = shape_points(options.pop("shape_points", 0))
     k, h, opts = _check(case, elements_per_link, h, integrator, options)
-    scen = case.scenario
-    T_end, _ = step_schedule(scen.duration, h, scen.breakpoints)
-    T = np.concatenate([[0.0], T_end])
-    t_out = scen.output_times
-    node = np.searchsorted(T, t_out - 1e-9 * h)
-    node = np.clip(node, 0, T.size - 1)
-    if np.any(np.abs(T[node] - t_out) > 1e-9 * h):
-        raise InputError("h", h, f"must divide the output step {scen.output_step} (outputs are step nodes)")
-    keep = np.zeros(T.size, bool)
-    keep[node] = True
-
+    T, t_out, keep = step_nodes(case.scenario, h)
     st = _Stepper(case, k, h, integrator)
-    mj = st.mj
     x0 = st.initial_state()
     wmax, h_stable = stability_limit(st.m, st.d, integrator)
-    warnings = []
-    if h > h_stable:
-        warnings.append(
-            f"h = {h:g} s exceeds the explicit stability limit {h_stable:.3g} s of the "
-            f"joint springs (ω_max = {wmax:.4g} rad/s)"
-        )
+    warnings = _step_warning(h, wmax, h_stable)
     ctrl = _free_controls(st, T)
     stats = {}
-    old = mj.get_mju_user_warning()
-    mj.set_mju_user_warning(st.messages.append)  # MuJoCo would write a log file otherwise
-    try:
-        t0, c0 = time.perf_counter(), time.process_time()
-        if st.pres.size or st.closed.size:
-            X, n_steps, ctrl = _run_motion(st, x0, T, keep, ctrl, opts, stats)
-        else:
-            X, n_steps = _run_torque(st, x0, T, keep, ctrl, stats)
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    finally:
-        mj.set_mju_user_warning(old)
-    meta = {
-        "method": "mujoco-chain",
-        "h": h,
-        "integrator": integrator,
-        "elements_per_link": k,
-        "versions": {**versions(), "mujoco": mj.__version__},
-        "n_dof": int(st.m.nv),
-        "omega_max": wmax,
-        "h_stable": h_stable,
-        "n_steps": int(n_steps),
-        "cpu_time_solve": cpu,
-        "success": "fail" not in stats,
-        **opts,
-    }
+    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size or st.closed.size)
+    meta = _meta("mujoco-chain", st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
     if st.closed.size:
         meta["feedback"] = "zero-order hold: law evaluated at the step start"
     if "motion_iterations_mean" in stats and st.pres.size:
@@ -507,6 +464,66 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     return res
 
 
+def step_nodes(scen, h):
+    """(T, t_out, keep): the step nodes T (0 and the step ends), the output times and which nodes
+    they are; InputError unless h divides the output step."""
+    T_end, _ = step_schedule(scen.duration, h, scen.breakpoints)
+    T = np.concatenate([[0.0], T_end])
+    t_out = scen.output_times
+    node = np.clip(np.searchsorted(T, t_out - 1e-9 * h), 0, T.size - 1)
+    if np.any(np.abs(T[node] - t_out) > 1e-9 * h):
+        raise InputError("h", h, f"must divide the output step {scen.output_step} (outputs are step nodes)")
+    keep = np.zeros(T.size, bool)
+    keep[node] = True
+    return T, t_out, keep
+
+
+def _step_warning(h, wmax, h_stable) -> list:
+    """The warning of a step above the joint springs' explicit stability limit (none without one)."""
+    if h_stable is not None and h > h_stable:
+        return [
+            f"h = {h:g} s exceeds the explicit stability limit {h_stable:.3g} s of the "
+            f"joint springs (ω_max = {wmax:.4g} rad/s)"
+        ]
+    return []
+
+
+def _rollout(st, x0, T, keep, ctrl, opts, stats, motion):
+    """Step the chain from x0 over the nodes T, with motion drives (``motion``:
+    :func:`_run_motion`) or torques only (:func:`_run_torque`), MuJoCo's warnings collected in
+    ``st.messages``: (kept states X, steps taken, controls, wall time, CPU time (s))."""
+    old = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(st.messages.append)  # MuJoCo would write a log file otherwise
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        if motion:
+            X, n_steps, ctrl = _run_motion(st, x0, T, keep, ctrl, opts, stats)
+        else:
+            X, n_steps = _run_torque(st, x0, T, keep, ctrl, stats)
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    finally:
+        mujoco.set_mju_user_warning(old)
+    return X, n_steps, ctrl, wall, cpu
+
+
+def _meta(method, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts) -> dict:
+    """The Result's meta of a chain's run."""
+    return {
+        "method": method,
+        "h": h,
+        "integrator": integrator,
+        "elements_per_link": k,
+        "versions": {**versions(), "mujoco": mujoco.__version__},
+        "n_dof": int(st.m.nv),
+        "omega_max": wmax,
+        "h_stable": h_stable,
+        "n_steps": int(n_steps),
+        "cpu_time_solve": cpu,
+        "success": "fail" not in stats,
+        **opts,
+    }
+
+
 def piece_shapes(st, case, X, p: int) -> np.ndarray:
     """Link shapes (nt, n, p, 2) m from the kept states X (rows): per link the polyline
     through its root, its k elastic hinges (at the reference arc lengths (j − ½)·L/k) and its
@@ -523,7 +540,13 @@ def piece_shapes(st, case, X, p: int) -> np.ndarray:
         pts[s, :, 0] = d.xpos[lay.hub_body, :2]
         pts[s, :, 1:-1] = d.xpos[bodies, :2]
         pts[s, :, -1] = d.site_xpos[lay.tip_site, :2]
-    out = np.empty((nt, n, p, 2))
+    return polylines(case, k, pts, p)
+
+
+def polylines(case, k, pts, p: int) -> np.ndarray:
+    """Link shapes (nt, n, p, dim) from the points ``pts`` (nt, n, k + 2, dim) of each link's
+    root, its k hinges (at (j − ½)·L/k) and its tip, sampled at the p shape points."""
+    out = np.empty((*pts.shape[:2], p, pts.shape[-1]))
     for i, link in enumerate(case.model.links):
         L = link.beam.length
         x_nodes = np.concatenate(([0.0], (np.arange(1, k + 1) - 0.5) * L / k, [L]))

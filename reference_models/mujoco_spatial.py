@@ -72,7 +72,6 @@ MuJoCo is imported here only.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 
 import mujoco
@@ -81,17 +80,16 @@ import numpy as np
 from dttmm import plumbing
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError, SimulationError
-from dttmm.shapes import polyline_shapes, stations
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
 from dttmm.spatial.rotation import log_so3, rpy_matrix
 from dttmm.spatial.scenario import require_no_loads
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
-from dttmm.timegrid import step_schedule
 
+from . import _checks
 from ._mujoco_model import _MJCF_NAME, INTEGRATORS
-from .mujoco_chain import _free_controls, _run_motion, _run_torque
+from .mujoco_chain import _free_controls, _meta, _rollout, _step_warning, polylines, step_nodes
 from .mujoco_chain import _Stepper as _PlanarStepper
 
 __all__ = [
@@ -705,13 +703,8 @@ def _check(case, k, h, integrator, options):
         raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase")
     k = plumbing.elements_per_link(k)
     h = plumbing.step_size(h, case.scenario.duration)
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
-    for key in options:
-        if key not in _OPTIONS:
-            raise InputError(
-                key, options[key], f"is not an option of {METHOD} (options: {', '.join(_OPTIONS)})"
-            )
+    _checks.integrator(integrator, INTEGRATORS)
+    _checks.option_names(options, _OPTIONS, METHOD)
     opts = {**_OPTIONS, **options}
     opts["motion_tol"] = plumbing.positive_number("motion_tol", opts["motion_tol"])
     opts["motion_max_iter"] = plumbing.positive_integer("motion_max_iter", opts["motion_max_iter"])
@@ -742,12 +735,7 @@ def piece_shapes(st, case, X, p: int) -> np.ndarray:
         pts[s, :, 0] = d.xpos[lay.hub_body]
         pts[s, :, 1:-1] = d.xpos[bodies]
         pts[s, :, -1] = d.site_xpos[lay.tip_site]
-    out = np.empty((nt, n, p, 3))
-    for i, link in enumerate(case.model.links):
-        L = link.beam.length
-        x_nodes = np.concatenate(([0.0], (np.arange(1, k + 1) - 0.5) * L / k, [L]))
-        out[:, i] = polyline_shapes(x_nodes, pts[:, i], stations(L, p))
-    return out
+    return polylines(case, k, pts, p)
 
 
 def simulate(
@@ -789,54 +777,17 @@ def simulate(
     """
     k, h, opts = _check(case, elements_per_link, h, integrator, dict(options))
     shape_points = check_shape_points(shape_points)
-    scen = case.scenario
-    T_end, _ = step_schedule(scen.duration, h, scen.breakpoints)
-    T = np.concatenate([[0.0], T_end])
-    t_out = scen.output_times
-    node = np.clip(np.searchsorted(T, t_out - 1e-9 * h), 0, T.size - 1)
-    if np.any(np.abs(T[node] - t_out) > 1e-9 * h):
-        raise InputError("h", h, f"must divide the output step {scen.output_step} (outputs are step nodes)")
-    keep = np.zeros(T.size, bool)
-    keep[node] = True
-
+    T, t_out, keep = step_nodes(case.scenario, h)
     st = _Stepper(case, k, h, integrator, opts["station"])
     x0 = st.initial_state()
     wmax, h_stable = stability_limit(st.m, st.d, integrator) if st.m.nq == st.m.nv else (None, None)
-    warnings = []
-    if h_stable is not None and h > h_stable:
-        warnings.append(
-            f"h = {h:g} s exceeds the explicit stability limit {h_stable:.3g} s of the "
-            f"joint springs (ω_max = {wmax:.4g} rad/s)"
-        )
+    warnings = _step_warning(h, wmax, h_stable)
     ctrl = _free_controls(st, T)
     if st.m.nu > st.n:
         ctrl = np.hstack([ctrl, np.zeros((ctrl.shape[0], st.m.nu - st.n))])
     stats = {}
-    old = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(st.messages.append)
-    try:
-        t0, c0 = time.perf_counter(), time.process_time()
-        if st.pres.size:
-            X, n_steps, ctrl = _run_motion(st, x0, T, keep, ctrl, opts, stats)
-        else:
-            X, n_steps = _run_torque(st, x0, T, keep, ctrl, stats)
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    finally:
-        mujoco.set_mju_user_warning(old)
-    meta = {
-        "method": METHOD,
-        "h": h,
-        "integrator": integrator,
-        "elements_per_link": k,
-        "versions": {**plumbing.versions(), "mujoco": mujoco.__version__},
-        "n_dof": int(st.m.nv),
-        "omega_max": wmax,
-        "h_stable": h_stable,
-        "n_steps": int(n_steps),
-        "cpu_time_solve": cpu,
-        "success": "fail" not in stats,
-        **opts,
-    }
+    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size)
+    meta = _meta(METHOD, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
     if st.pres.size and "motion_iterations_mean" in stats:
         meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
     tg = t_out[: X.shape[0]]

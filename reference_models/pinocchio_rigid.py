@@ -45,6 +45,8 @@ from dttmm.result import make_result
 from dttmm.shapes import shape_points, straight_shapes
 from dttmm.timegrid import step_schedule
 
+from . import _checks
+
 __all__ = ["INTEGRATORS", "build_model", "simulate"]
 
 #: integrator name -> its options and their defaults
@@ -215,16 +217,9 @@ class _Arm:
 
 
 def _check_options(integrator, options, integrators=INTEGRATORS):
-    if integrator not in integrators:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(integrators)})")
+    _checks.integrator(integrator, integrators)
     known = integrators[integrator]
-    for key in options:
-        if key not in known:
-            raise InputError(
-                key,
-                options[key],
-                f"is not an option of integrator {integrator!r} (options: {', '.join(known) or 'none'})",
-            )
+    _checks.option_names(options, known, f"integrator {integrator!r}")
     opts = {**known, **options}
     for key, val in opts.items():
         try:

@@ -58,6 +58,7 @@ from dttmm.spatial.topology import (
 )
 from dttmm.timegrid import step_schedule
 
+from . import _checks
 from ._spatial_mechanics import rot_axis, rpy_matrix
 
 __all__ = [
@@ -510,16 +511,9 @@ def simulate(
         raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase")
     h = plumbing.step_size(h, case.scenario.duration)
     shape_points = check_shape_points(shape_points)
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
+    _checks.integrator(integrator, INTEGRATORS)
     known = INTEGRATORS[integrator]
-    for key, val in options.items():
-        if key not in known:
-            raise InputError(
-                key,
-                val,
-                f"unknown option for integrator {integrator!r} (allowed: {', '.join(known) or 'none'})",
-            )
+    _checks.integrator_options(integrator, options, known)
     opts = {**known, **options}
     if "tol" in opts:
         opts["tol"] = plumbing.positive_number("tol", opts["tol"])

@@ -97,6 +97,7 @@ from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.timegrid import step_schedule
 
+from . import _checks
 from ._spatial_mechanics import (
     GAUSS_WEIGHTS,
     element_stiffness,
@@ -127,7 +128,7 @@ __all__ = [
 ]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
-STRAINS = ("linear", "second-order")
+STRAINS = _checks.STRAINS
 _STEPPED = ("newmark", "generalized-alpha")
 _EPS = 1e-30  # complex step
 _SLOTS = ("u", "v", "w", "phix", "phiy", "phiz")
@@ -199,16 +200,10 @@ def _check_case(case) -> SpatialCase:
     return case
 
 
-def _check_strain(strain) -> str:
-    if not isinstance(strain, str) or strain not in STRAINS:
-        raise InputError("strain", strain, f"unknown strain measure (one of: {', '.join(STRAINS)})")
-    return strain
-
-
 def _layout(case, k, strain="linear") -> _Layout:
     case = _check_case(case)
     k = plumbing.elements_per_link(k)
-    strain = _check_strain(strain)
+    strain = _checks.strain(strain)
     model = case.model
     links = model.links
     n = len(links)
@@ -1554,16 +1549,9 @@ def _result_closure_fields(closure: dict, meta: dict) -> dict:
 
 def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
     """The integrator's options with their defaults (None: the Newmark family's defaults)."""
-    if integrator not in INTEGRATORS:
-        raise InputError("integrator", integrator, f"unknown integrator (one of: {', '.join(INTEGRATORS)})")
+    _checks.integrator(integrator, INTEGRATORS)
     allowed = {"newmark": ("beta", "gamma"), "generalized-alpha": ("rho_inf",), "rk4": ()}[integrator]
-    for key, val in options.items():
-        if key not in allowed:
-            raise InputError(
-                key,
-                val,
-                f"unknown option for integrator {integrator!r} (allowed: {', '.join(allowed) or 'none'})",
-            )
+    _checks.integrator_options(integrator, options, allowed)
     opt = {"beta": None, "gamma": None, "rho_inf": None, **options}
     opt["tol"] = plumbing.positive_number("tol", tol)
     opt["max_iterations"] = plumbing.positive_integer("max_iterations", max_iterations)

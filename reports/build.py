@@ -134,8 +134,10 @@ def omissions(tables: dict) -> pd.DataFrame:
     return df[~key.duplicated()].reset_index(drop=True)
 
 
-def _per_case(inp, table, stem, title, anchor, plot, caption, interp, tabs=(), summary=None):
-    """A section of one figure (with its sentences) per case of ``table``."""
+def _per_case(inp, table, stem, title, plot, caption, interp, tabs=(), summary=None):
+    """A section of one figure (with its sentences) per case of ``table``; its anchor is ``stem``
+    with hyphens."""
+    anchor = stem.replace("_", "-")
     if table is None or not len(table):
         return None
     figs, text = [], []
@@ -160,7 +162,6 @@ def _convergence_k(inp):
         t,
         "convergence_k",
         "Convergence in elements per link",
-        "convergence-k",
         lambda c: figures.convergence_k(t, c, floor=_floor(inp.meta, c)),
         lambda c: (
             f"end-effector position error (RMS over time, against the reference) against the number "
@@ -180,7 +181,6 @@ def _convergence_h(inp):
         t,
         "convergence_h",
         "Convergence in the time step",
-        "convergence-h",
         lambda c: figures.convergence_h(t, c),
         lambda c: (
             "end-effector position error against the step h at fixed k; solid: against the reference, "
@@ -200,7 +200,6 @@ def _work_precision(inp):
         t,
         "work_precision",
         "Work-precision",
-        "work-precision",
         lambda c: peers.work_precision_figure(t, c),
         lambda c: (
             "end-effector error against the CPU time of the solve (minimum of repeats), each method "
@@ -220,7 +219,6 @@ def _scheme(inp):
         t,
         "scheme",
         "The paper's scheme under test",
-        "scheme",
         lambda c: figures.scheme(t, c),
         lambda c: (
             "DT-TMM with the paper's plain transfer sweep or the Riccati sweep, and 0, 1 or converged "
@@ -239,7 +237,6 @@ def _paper(inp):
         t,
         "paper",
         "Paper figures: time histories",
-        "paper",
         lambda c: figures.time_histories(t, c),
         lambda c: (
             "joint angles and tip deflections of every method with the reference (wide grey), and "
@@ -265,7 +262,6 @@ def _loads(inp):
         t,
         "loads",
         "Loads and energy",
-        "loads",
         lambda c: figures.loads(t, c),
         lambda c: (
             (
