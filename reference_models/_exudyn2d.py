@@ -94,9 +94,9 @@ from ._exudyn_common import (
 from ._exudyn_control import ClosedLoop
 
 __all__ = [
+    "simulate_exudyn",
     "Arm",
     "Run",
-    "simulate_exudyn",
     "check_discretisation",
     "stiff_axial_stiffness",
     "INEXTENSIBLE_AXIAL_RATIO",
