@@ -128,6 +128,47 @@ def pd_torque(kp, kd, ki, gm, limit, j_hub, ff, a_ref, r_ref, z, alpha, rate, om
     return u, -kp * inv, -kd * inv, ki * inv, gj * inv
 
 
+def correct_torques(md, drv, w):
+    """The sweep torques of the closed-loop (pd/pid) joints that satisfy their laws linearised
+    about a base sweep: w.taul ← B + δ with (I − D A) δ = T − B + D (H_B − H_k), from
+    τ' = T + D (H(τ') − H_k) and H(τ') = H_B + A (τ' − B) (T in w.taul, B in w.tb, H_B in w.yb,
+    H_k in w.yk, D = ∂τ/∂H in w.dw, A = ∂H/∂τ in w.amat; H the law's sweep input, the root
+    moment for moment feedback). Gaussian elimination with partial pivoting in w.gmat
+    (n, n + 1). ``md.n``: the joints; ``drv.code``: CODE_PD marks the joints it acts on. Plain
+    loops over arrays: both kernels compile it as it is (docs/control.md)."""
+    n = md.n
+    g = w.gmat
+    for i in range(n):
+        cl = drv.code[i] == CODE_PD
+        for j in range(n):
+            g[i, j] = 1.0 if i == j else 0.0
+            if cl and drv.code[j] == CODE_PD:
+                g[i, j] -= w.dw[i] * w.amat[i, j]
+        g[i, n] = w.taul[i] - w.tb[i] + w.dw[i] * (w.yb[i] - w.yk[i]) if cl else 0.0
+    for c in range(n):
+        p = c
+        for r in range(c + 1, n):
+            if abs(g[r, c]) > abs(g[p, c]):
+                p = r
+        if p != c:
+            for j in range(n + 1):
+                g[c, j], g[p, j] = g[p, j], g[c, j]
+        piv = g[c, c]
+        for r in range(c + 1, n):
+            f = g[r, c] / piv
+            if f != 0.0:
+                for j in range(c, n + 1):
+                    g[r, j] -= f * g[c, j]
+    for r in range(n - 1, -1, -1):
+        v = g[r, n]
+        for j in range(r + 1, n):
+            v -= g[r, j] * g[j, n]
+        g[r, n] = v / g[r, r]
+    for i in range(n):
+        if drv.code[i] == CODE_PD:
+            w.taul[i] = w.tb[i] + g[i, n]
+
+
 # --- the rigid model -------------------------------------------------------------------------
 def _rigid_links(case):
     """Per link: length L, mass m, first moment about the joint along the link s and across it

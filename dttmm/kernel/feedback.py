@@ -162,42 +162,8 @@ def n_sensitivity(md, drv):
     return m
 
 
-@njit(nrt=False, inline="always")
-def correct(md, drv, ws):
-    """ws.taul ← B + δ with (I − D A) δ = T − B + D (y_B − y_k) over the closed-loop joints
-    (T in ws.taul, B in ws.tb, y_B in ws.yb, y_k in ws.yk, D in ws.dw, A in ws.amat);
-    Gaussian elimination with partial pivoting in ws.gmat (n, n + 1)."""
-    n = md.n
-    g = ws.gmat
-    for i in range(n):
-        cl = drv.code[i] == CODE_PD
-        for j in range(n):
-            g[i, j] = 1.0 if i == j else 0.0
-            if cl and drv.code[j] == CODE_PD:
-                g[i, j] -= ws.dw[i] * ws.amat[i, j]
-        g[i, n] = ws.taul[i] - ws.tb[i] + ws.dw[i] * (ws.yb[i] - ws.yk[i]) if cl else 0.0
-    for c in range(n):
-        p = c
-        for r in range(c + 1, n):
-            if abs(g[r, c]) > abs(g[p, c]):
-                p = r
-        if p != c:
-            for j in range(n + 1):
-                g[c, j], g[p, j] = g[p, j], g[c, j]
-        piv = g[c, c]
-        for r in range(c + 1, n):
-            f = g[r, c] / piv
-            if f != 0.0:
-                for j in range(c, n + 1):
-                    g[r, j] -= f * g[c, j]
-    for r in range(n - 1, -1, -1):
-        v = g[r, n]
-        for j in range(r + 1, n):
-            v -= g[r, j] * g[j, n]
-        g[r, n] = v / g[r, r]
-    for i in range(n):
-        if drv.code[i] == CODE_PD:
-            ws.taul[i] = ws.tb[i] + g[i, n]
+#: the closed-loop correction of the sweep torques (:func:`dttmm.control.correct_torques`, on ws)
+correct = njit(nrt=False, inline="always")(control.correct_torques)
 
 
 # --- user laws: Python callables (engine "python"), numba-jitted laws (both engines) ----------------------------------------------------

@@ -476,44 +476,9 @@ def sensitivity(md, ws, drv, cw, cq, cv, qhat, qdhat, mot, zero_f, columns):
     return ok
 
 
-@njit()
-def correct(md, drv, cw):
-    """cw.taul ← B + δ with (I − D A) δ = T − B + D (H_B − H_k) over the pd/pid joints: the
-    sweep's torques τ' that satisfy the linearised laws τ' = T + D (H(τ') − H_k) with
-    H(τ') = H_B + A (τ' − B) (T in cw.taul, B in cw.tb, H_B in cw.yb, H_k in cw.yk, D = ∂τ/∂H in
-    cw.dw, A in cw.amat): the planar kernel's correction (:func:`dttmm.kernel.feedback.correct`);
-    Gaussian elimination with partial pivoting in cw.gmat (n, n + 1)."""
-    n = md.n
-    g = cw.gmat
-    for i in range(n):
-        cl = drv.code[i] == CODE_PD
-        for j in range(n):
-            g[i, j] = 1.0 if i == j else 0.0
-            if cl and drv.code[j] == CODE_PD:
-                g[i, j] -= cw.dw[i] * cw.amat[i, j]
-        g[i, n] = cw.taul[i] - cw.tb[i] + cw.dw[i] * (cw.yb[i] - cw.yk[i]) if cl else 0.0
-    for c in range(n):
-        p = c
-        for r in range(c + 1, n):
-            if abs(g[r, c]) > abs(g[p, c]):
-                p = r
-        if p != c:
-            for j in range(n + 1):
-                g[c, j], g[p, j] = g[p, j], g[c, j]
-        piv = g[c, c]
-        for r in range(c + 1, n):
-            f = g[r, c] / piv
-            if f != 0.0:
-                for j in range(c, n + 1):
-                    g[r, j] -= f * g[c, j]
-    for r in range(n - 1, -1, -1):
-        v = g[r, n]
-        for j in range(r + 1, n):
-            v -= g[r, j] * g[j, n]
-        g[r, n] = v / g[r, r]
-    for i in range(n):
-        if drv.code[i] == CODE_PD:
-            cw.taul[i] = cw.tb[i] + g[i, n]
+#: the closed-loop correction of the sweep torques, the planar kernel's
+#: (:func:`dttmm.control.correct_torques`, on cw)
+correct = njit()(control.correct_torques)
 
 
 @njit(inline="always")
@@ -1194,42 +1159,43 @@ def residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dq, d2q, s, st
         fstats[1] = d / max(1.0, xmax)
 
 
+class Step(NamedTuple):
+    """The arrays a time step works on (:func:`newmark_step`, :func:`accept_newmark`,
+    :func:`rk4_step`): the state (q, q̇, q̈, aux (n_dof,); joint torques, integral states z and
+    their errors (n,)), q̈ of the step before (the residual check) and the step's scratch."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    aux: np.ndarray
+    torque: np.ndarray
+    z: np.ndarray
+    zerr: np.ndarray
+    qddm: np.ndarray
+    qt: np.ndarray  # the Newmark predictors
+    qdt: np.ndarray
+    x: np.ndarray  # the iterate q̈ and the sweep's
+    xn: np.ndarray
+    qi: np.ndarray  # the iterate's (stage's) q, q̇
+    qdi: np.ndarray
+    k2: np.ndarray  # RK4 stages (k2: the residual check's scratch too)
+    k3: np.ndarray
+    ka: np.ndarray
+    kb: np.ndarray
+    kc: np.ndarray
+    zero_f: np.ndarray  # no generalized forces
+    noload: np.ndarray  # (0, 6): no cut loads
+
+
 @njit()
-def accept_newmark(
-    md,
-    ws,
-    opts,
-    drv,
-    cw,
-    s,
-    h,
-    last,
-    ok,
-    cq,
-    cv,
-    i1m,
-    tau,
-    tv,
-    mot,
-    q,
-    qd,
-    qdd,
-    aux,
-    torque,
-    z,
-    zerr,
-    qddm,
-    qt,
-    qdt,
-    x,
-    k2,
-    stats,
-    fstats,
-):
+def accept_newmark(md, ws, opts, drv, cw, st, s, h, last, ok, cq, cv, i1m, tv, stats, fstats):
     """The end of Newmark step s with the iterate x (q̈ at the step end; ``ok``: the iteration's
     outcome): the joint torques and closure loads kept, the state (q, q̇, q̈, aux) updated,
     the laws' final evaluation at it (closed loops) and the residual check every
     opts.check_every steps (and at the ``last``)."""
+    q, qd, qdd, aux, torque, z, zerr = st.q, st.qd, st.qdd, st.aux, st.torque, st.z, st.zerr
+    qddm, qt, qdt, x, k2 = st.qddm, st.qt, st.qdt, st.x, st.k2
+    tau, mot = drv.tau_l[s], drv.mot_l[s]
     n = md.n
     nd = q.shape[0]
     check = ok and opts.check_every > 0 and (s % opts.check_every == 0 or s == last)
@@ -1273,39 +1239,14 @@ def accept_newmark(
 
 
 @njit()
-def newmark_step(
-    md,
-    ws,
-    opts,
-    drv,
-    cw,
-    s,
-    h,
-    last,
-    q,
-    qd,
-    qdd,
-    aux,
-    torque,
-    z,
-    zerr,
-    qddm,
-    qt,
-    qdt,
-    x,
-    xn,
-    qi,
-    qdi,
-    k2,
-    zero_f,
-    noload,
-    stats,
-    fstats,
-):
+def newmark_step(md, ws, opts, drv, cw, st, s, h, last, stats, fstats):
     """Newmark step s (length h) from the state (q, q̇, q̈, aux) in place: the predictors, the
     iteration to the stop rule (sweeps, closed-loop laws and their correction, loop closures),
     the accepted state, the laws' final evaluation and the residual check (``last``: the last
     step index). Counts into stats, fstats (see N_STATS). Returns ok."""
+    q, qd, qdd, aux, z, zerr = st.q, st.qd, st.qdd, st.aux, st.z, st.zerr
+    qt, qdt, x, xn, qi, qdi = st.qt, st.qdt, st.x, st.xn, st.qi, st.qdi
+    zero_f, noload = st.zero_f, st.noload
     n = md.n
     nd = q.shape[0]
     tau = drv.tau_l[s]
@@ -1437,45 +1378,17 @@ def newmark_step(
     stats[S_MAX] = max(stats[S_MAX], used)
     if not converged and not fixed:
         stats[S_UNCONV] += 1
-    accept_newmark(
-        md,
-        ws,
-        opts,
-        drv,
-        cw,
-        s,
-        h,
-        last,
-        ok,
-        cq,
-        cv,
-        i1m,
-        tau,
-        tv,
-        mot,
-        q,
-        qd,
-        qdd,
-        aux,
-        torque,
-        z,
-        zerr,
-        qddm,
-        qt,
-        qdt,
-        x,
-        k2,
-        stats,
-        fstats,
-    )
+    accept_newmark(md, ws, opts, drv, cw, st, s, h, last, ok, cq, cv, i1m, tv, stats, fstats)
     return ok
 
 
 @njit()
-def rk4_step(md, ws, opts, drv, cw, s, h, q, qd, qdd, torque, z, zerr, qi, qdi, k2, k3, ka, kb, kc, stats):
+def rk4_step(md, ws, opts, drv, cw, st, s, h, stats):
     """RK4 step s (length h) from the state (q, q̇, q̈) in place, closed-loop laws' integral
     states included (stage states in qi, qdi; stage accelerations in k2, k3, ka, kb, kc).
     Counts the forward-dynamics solves into stats. Returns ok."""
+    q, qd, qdd, torque, z, zerr = st.q, st.qd, st.qdd, st.torque, st.z, st.zerr
+    qi, qdi, k2, k3, ka, kb, kc = st.qi, st.qdi, st.k2, st.k3, st.ka, st.kb, st.kc
     n = md.n
     nd = q.shape[0]
     ok = True
@@ -1562,6 +1475,9 @@ def run(
     kb = np.zeros(nd)
     kc = np.zeros(nd)
     noload = np.zeros((0, 6))
+    st = Step(
+        q, qd, qdd, aux, torque, z, zerr, qddm, qt, qdt, x, xn, qi, qdi, k2, k3, ka, kb, kc, zero_f, noload
+    )
     nt = ts.shape[0]
     if first == 0:
         js = 0
@@ -1591,39 +1507,9 @@ def run(
         for i in range(n):
             tq0[i] = torque[i]
         if opts.integrator == INT_NEWMARK:
-            ok = newmark_step(
-                md,
-                ws,
-                opts,
-                drv,
-                cw,
-                s,
-                h,
-                last,
-                q,
-                qd,
-                qdd,
-                aux,
-                torque,
-                z,
-                zerr,
-                qddm,
-                qt,
-                qdt,
-                x,
-                xn,
-                qi,
-                qdi,
-                k2,
-                zero_f,
-                noload,
-                stats,
-                fstats,
-            )
+            ok = newmark_step(md, ws, opts, drv, cw, st, s, h, last, stats, fstats)
         else:
-            ok = rk4_step(
-                md, ws, opts, drv, cw, s, h, q, qd, qdd, torque, z, zerr, qi, qdi, k2, k3, ka, kb, kc, stats
-            )
+            ok = rk4_step(md, ws, opts, drv, cw, st, s, h, stats)
         status = check_state(md, q) if ok else ST_SINGULAR
         if status == ST_OK:
             for r in range(nd):
