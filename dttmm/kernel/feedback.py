@@ -177,13 +177,8 @@ if PURE:
         deflection in its clamped-root frame) and is linearised with s = ∂τ/∂α c_q + ∂τ/∂α̇ c_v
         into ws.acc, ws.taul = τ − s α̈_k; its τ goes to ``torque``. Returns whether there is
         one (its moment dependence is resolved by repeating the sweeps)."""
-        import math
-
         import numpy as np
 
-        from dttmm.kernel.userlaw import JitState, is_jitted  # the class of the compiled kernel
-
-        from ..drives import ControlState
         from ..result import tip_deflection
         from .recorder import sample
 
@@ -196,27 +191,12 @@ if PURE:
         tips = tuple(float(v) for v in tip_deflection(scratch.root[0], scratch.root_angle[0], scratch.tip[0]))
         angles = tuple(float(q[j]) for j in ia)
         rates = tuple(float(qd[j]) for j in ia)
-        arrays = tuple(np.array(v, np.float64) for v in (angles, rates, tips))
         for i in range(n):
             if drv.code[i] != CODE_USER:
                 continue
             wd = 0.0 if first else root_omega_dot(md, data, i)
             moment = 0.0 if first else tsweep[i] - drv.gain[i, JHUB] * wd
-            if is_jitted(drv.user[i].fn):  # a numba-jitted law takes the compiled kernel's state
-                state = JitState(i, angles[i], rates[i], float(moment), 0.0, *arrays, math.nan)
-            else:
-                state = ControlState(
-                    joint=i,
-                    angle=angles[i],
-                    rate=rates[i],
-                    moment=float(moment),
-                    integral=0.0,
-                    angles=angles,
-                    rates=rates,
-                    tip_deflections=tips,
-                )
-            tau, d_a, d_r, _ = drv.user[i].evaluate(float(t), state)
-            slope = d_a * cq + d_r * cv
+            tau, slope = control.user_law_torque(drv.user[i], t, i, angles, rates, tips, moment, cq, cv)
             ws.acc[i] = slope
             ws.taul[i] = tau - slope * (0.0 if first else x[ia[i]])
             ws.dw[i] = 0.0

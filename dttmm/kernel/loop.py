@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import iteration
+from .. import control, iteration
 from ._jit import njit
 
 # The loop's functions allocate nothing and are compiled without reference counting
@@ -624,15 +624,24 @@ def _accel_at(md, data, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fre
     )
 
 
+#: the closed-loop integral states at an RK4 stage (:func:`dttmm.control.rk4_integral`)
+_rk4_z = njit(nrt=False, inline="always")(control.rk4_integral)
+
+
 @njit(nrt=False, inline="always")
-def _rk4_z(md, drv, state, ws, ref, q, w, c):
-    """Closed-loop integral states at an RK4 stage: ż = α_ref − α of the stage state q (its
-    reference ``ref`` (n, 2)) enters the sum with weight w and the next stage's z = z_n + c ż."""
-    for i in range(md.n):
-        if drv.code[i] == CODE_PD:
-            zd = ref[i, 0] - q[md.i_alpha[i]]
-            ws.zsum[i] += w * zd
-            ws.zs[i] = state.z[i] + c * zd
+def _rk4_stage(md, data, opts, state, ws, drv, s, h, c, stage, kq, kqd, keep, kout, xout):
+    """An inner RK4 stage of step s: the integral states advanced by c ż (ż at the last stage,
+    :func:`_rk4_z`), the stage state (q + c kq, q̇ + c kqd) into ws.qi, ws.qdi (its rates into
+    ``kout`` where ``keep``), its acceleration into ``xout``. Returns (ok, cond)."""
+    qi, qdi = ws.qi, ws.qdi
+    if opts.closed:
+        _rk4_z(md.n, drv.code, md.i_alpha, state.z, drv.ref_mid[s], qi, 2.0, c, ws.zsum, ws.zs)
+    for r in range(qi.shape[0]):
+        qi[r] = state.q[r] + c * kq[r]
+        qdi[r] = state.qd[r] + c * kqd[r]
+        if keep:
+            kout[r] = qdi[r]
+    return _accel_at(md, data, opts, qi, qdi, drv, s, h, stage, ws, xout, _flag(False), _flag(False))
 
 
 @njit(nrt=False, inline="always")
@@ -654,23 +663,12 @@ def rk4_step(md, data, opts, state, ws, h, drv, s, stats):
     fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])  # else the A of an earlier stage
     ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 1, ws, ka, _flag(False), fresh)
     if ok:
-        if opts.closed:
-            _rk4_z(md, drv, state, ws, drv.ref_mid[s], qi, 2.0, hf)
-        for r in range(q.shape[0]):
-            qi[r] = q[r] + hf * k2v[r]
-            qdi[r] = qd[r] + hf * ka[r]
-            k3v[r] = qdi[r]
-        ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 1, ws, x, _flag(False), _flag(False))
+        ok, cond = _rk4_stage(md, data, opts, state, ws, drv, s, h, hf, 1, k2v, ka, True, k3v, x)
+    if ok:
+        ok, cond = _rk4_stage(md, data, opts, state, ws, drv, s, h, h, 2, k3v, x, False, k3v, xn)
     if ok:
         if opts.closed:
-            _rk4_z(md, drv, state, ws, drv.ref_mid[s], qi, 2.0, h)
-        for r in range(q.shape[0]):
-            qi[r] = q[r] + h * k3v[r]
-            qdi[r] = qd[r] + h * x[r]
-        ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 2, ws, xn, _flag(False), _flag(False))
-    if ok:
-        if opts.closed:
-            _rk4_z(md, drv, state, ws, drv.ref_left[s], qi, 1.0, 0.0)
+            _rk4_z(md.n, drv.code, md.i_alpha, state.z, drv.ref_left[s], qi, 1.0, 0.0, ws.zsum, ws.zs)
             for i in range(md.n):
                 if drv.code[i] == CODE_PD:
                     state.z[i] += h / 6.0 * ws.zsum[i]

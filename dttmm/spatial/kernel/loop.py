@@ -304,35 +304,19 @@ if PURE:
         there is one (its moment dependence is resolved by repeating the sweeps)."""
         if not any(drv.code[i] == CODE_USER for i in range(md.n)):
             return False
-        from ...control_state import ControlState, JitState, is_jitted
-
         tips_a = np.zeros(md.n)
         link_tips(md, ws, tips_a)
         unl = [i for i in range(md.n) if md.locked[i] == 0]
         angles = tuple(float(q[md.ia[i]]) for i in unl)
         rates = tuple(float(qd[md.ia[i]]) for i in unl)
         tips = tuple(float(v) for v in tips_a)
-        arrays = tuple(np.array(v, np.float64) for v in (angles, rates, tips))
         for i in range(md.n):
             if drv.code[i] != CODE_USER:
                 continue
-            j = drive_index(md, i)
             moment = 0.0 if first else ws.acc[i, 1] - hub_moment(md, ws, i)
-            if is_jitted(drv.user[i].fn):
-                state = JitState(j, angles[j], rates[j], float(moment), 0.0, *arrays, math.nan)
-            else:
-                state = ControlState(
-                    joint=j,
-                    angle=angles[j],
-                    rate=rates[j],
-                    moment=float(moment),
-                    integral=0.0,
-                    angles=angles,
-                    rates=rates,
-                    tip_deflections=tips,
-                )
-            tau, d_a, d_r, _ = drv.user[i].evaluate(float(t), state)
-            slope = d_a * cq + d_r * cv
+            tau, slope = control.user_law_torque(
+                drv.user[i], t, drive_index(md, i), angles, rates, tips, moment, cq, cv
+            )
             ws.slope[i] = slope
             cw.taul[i] = tau - slope * (0.0 if first else x[md.ia[i]])
             cw.dw[i] = 0.0
@@ -1406,24 +1390,14 @@ def rk4_step(md, ws, opts, drv, cw, st, s, h, stats):
     for r in range(nd):
         k2[r] = qdi[r]
     if ok:
-        if opts.closed:
-            rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, hf)
-        for r in range(nd):
-            qi[r] = q[r] + hf * k2[r]
-            qdi[r] = qd[r] + hf * ka[r]
-        ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, kb, torque, _flag(False))
+        ok = rk4_stage(md, ws, opts, drv, cw, st, s, h, hf, 1, k2, ka, kb)
         for r in range(nd):
             k3[r] = qdi[r]
     if ok:
-        if opts.closed:
-            rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, h)
-        for r in range(nd):
-            qi[r] = q[r] + h * k3[r]
-            qdi[r] = qd[r] + h * kb[r]
-        ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, qi, qdi, kc, torque, _flag(False))
+        ok = rk4_stage(md, ws, opts, drv, cw, st, s, h, h, 2, k3, kb, kc)
     if ok:
         if opts.closed:
-            rk4_z(md, drv, cw, z, drv.ref_l[s], qi, 1.0, 0.0)
+            rk4_z(n, drv.code, md.ia, z, drv.ref_l[s], qi, 1.0, 0.0, cw.zsum, cw.zs)
             for i in range(n):
                 if drv.code[i] == CODE_PD:
                     z[i] += h / 6.0 * cw.zsum[i]
@@ -1580,12 +1554,19 @@ def rk4_accel(md, ws, opts, drv, cw, s, h, stage, q, qd, out, torque, fresh):
     return accel_closed(md, ws, opts, drv, cw, t, q, qd, tau, mot, ff, ref, cw.zs, out, torque, fresh)
 
 
-@njit()
-def rk4_z(md, drv, cw, z, ref, q, w, c):
-    """Closed-loop integral states at an RK4 stage: ż = α_ref − α of the stage state q (its
-    reference ``ref`` (n, 2)) enters the sum with weight w and the next stage's z = z_n + c ż."""
-    for i in range(md.n):
-        if drv.code[i] == CODE_PD:
-            zd = ref[i, 0] - q[md.ia[i]]
-            cw.zsum[i] += w * zd
-            cw.zs[i] = z[i] + c * zd
+#: the closed-loop integral states at an RK4 stage (:func:`dttmm.control.rk4_integral`)
+rk4_z = njit()(control.rk4_integral)
+
+
+@njit(inline="always")
+def rk4_stage(md, ws, opts, drv, cw, st, s, h, c, stage, kq, kqd, out):
+    """An inner RK4 stage of step s: the integral states advanced by c ż (ż at the last stage,
+    :func:`rk4_z`), the stage state (q + c kq, q̇ + c kqd) into st.qi, st.qdi, its acceleration
+    into ``out`` (:func:`rk4_accel`). Returns ok."""
+    qi, qdi = st.qi, st.qdi
+    if opts.closed:
+        rk4_z(md.n, drv.code, md.ia, st.z, drv.ref_m[s], qi, 2.0, c, cw.zsum, cw.zs)
+    for r in range(qi.shape[0]):
+        qi[r] = st.q[r] + c * kq[r]
+        qdi[r] = st.qd[r] + c * kqd[r]
+    return rk4_accel(md, ws, opts, drv, cw, s, h, stage, qi, qdi, out, st.torque, _flag(False))
