@@ -222,24 +222,14 @@ class Loop(NamedTuple):
 
 
 def new_loop(n: int, ndof: int, closures: Closures | None = None, cols: int = 15) -> Loop:
-    z = np.zeros
+    per_link = ("taul", "torque", "scratch", "zs", "zsum", "dw", "yk", "yb", "tb")
     return Loop(
         cl=no_closures(n, ndof, cols) if closures is None else closures,
-        taul=z(n),
-        torque=z(n),
-        scratch=z(n),
-        zs=z(n),
-        zsum=z(n),
-        dw=z(n),
-        yk=z(n),
-        yb=z(n),
-        tb=z(n),
-        amat=z((n, n)),
-        gmat=z((n, n + 1)),
-        xs=z(ndof),
-        xc=z(ndof),
+        amat=np.zeros((n, n)),
+        gmat=np.zeros((n, n + 1)),
         fd=np.zeros(2, np.int64),
-        qddm=z(ndof),
+        **{name: np.zeros(n) for name in per_link},
+        **{name: np.zeros(ndof) for name in ("xs", "xc", "qddm")},
     )
 
 
