@@ -109,6 +109,11 @@ class Settings:
         )
 
 
+#: the open-loop fields of :class:`loop.Drives`: torques and motions at the step ends (left
+#: limits), at restarts (right limits), at mid-step (RK4)
+_OPEN_LOOP = ("tau_left", "mot_left", "tau_right", "mot_right", "tau_mid", "mot_mid")
+
+
 def drive_tables(structure: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
     """Drive values the kernel needs, per step: torques and motion (α, α̇, α̈) at the step end
     (left limits), at restart steps also the right limits, and for RK4 at the mid-step."""
@@ -133,12 +138,7 @@ def drive_tables(structure: Structure, t_end, restart, need_loads, rk4: bool) ->
         t_end=t_end,
         restart=np.asarray(restart, np.bool_),
         need_loads=need_loads,
-        tau_left=taul,
-        mot_left=motl,
-        tau_right=taur,
-        mot_right=motr,
-        tau_mid=taum,
-        mot_mid=motm,
+        **dict(zip(_OPEN_LOOP, (taul, motl, taur, motr, taum, motm))),
         **control_tables(structure, t_end, restart, rk4),
     )
 
