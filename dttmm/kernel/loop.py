@@ -41,6 +41,8 @@ from .riccati import riccati, riccati_loads
 
 # the suite's one stop rule of a tolerance-driven iteration, inlined
 _stop_rule = njit(nrt=False, inline="always")(iteration.stop_rule)
+_change_and_size = njit(nrt=False, inline="always")(iteration.change_and_size)
+_residual_ratio = njit(nrt=False, inline="always")(iteration.residual_ratio)
 
 
 class Options(NamedTuple):
@@ -345,11 +347,7 @@ def accel_closed(
             converged = True
             break
         if it > 0:
-            dx = 0.0
-            xmax = 0.0
-            for r in range(xout.shape[0]):
-                dx = max(dx, abs(xout[r] - ws.xc[r]))
-                xmax = max(xmax, abs(xout[r]))
+            dx, xmax = _change_and_size(xout, ws.xc, xout)
             stop, converged = _stop_rule(it, dx, prev_dx, xmax, opts.tol)
             if stop:
                 break
@@ -487,18 +485,10 @@ def _residual_check(md, data, opts, ws, tau, mot, dq, d2q, s, stats):
     term admits what a converged step leaves). Updates the counters of ``stats``."""
     apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
     ok, _cond = sweep(md, data, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.k2, ws.torque_r, ws.loads_r)
-    d = 0.0
-    xmax = 0.0
-    for r in range(ws.x.shape[0]):
-        d = max(d, abs(ws.k2[r] - ws.x[r]))
-        xmax = max(xmax, abs(ws.x[r]))
+    d, xmax = _change_and_size(ws.k2, ws.x, ws.x)
     if not ok:
         d = np.inf
-    floor = opts.tol * max(1.0, xmax)
-    ratio = max(
-        d / (opts.lte * dq + floor),
-        opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor),
-    )
+    ratio = _residual_ratio(d, xmax, dq, d2q, opts.tol, opts.lte, opts.gamma)
     scale = max(1.0, xmax)
     stats.checks[0] += 1
     if not ratio <= 1.0:  # NaN counts as flagged

@@ -24,6 +24,7 @@ from .element import (
     link_constants,
     second_order_damping,
     second_order_terms,
+    strain_constants,
 )
 
 
@@ -119,20 +120,7 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
     if so:
         # second-order strain at the iterate e (sweeps._elastic_rhs):
         # h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)
-        sc = (
-            md.EA[i],
-            md.EAl[i],
-            md.inv_l[i],
-            md.G[i, 0, 0],
-            md.G[i, 0, 1],
-            md.G[i, 1, 0],
-            md.G[i, 1, 1],
-            md.K[i, 1, 1],
-            md.K[i, 1, 2],
-            md.K[i, 2, 1],
-            md.K[i, 2, 2],
-            md.K[i, 0, 0],
-        )
+        sc = strain_constants(md, i)
         fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(sc, e0, e1, e2)
         Kb00, Kb01, Kb10, Kb11, Kuu = sc[7], sc[8], sc[9], sc[10], sc[11]
         de0 = eh0 - e0
@@ -180,6 +168,20 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
 
 
 @njit(fastmath=CONTRACT, inline="always")
+def _gain_update(p00, p01, p02, p11, p12, p22, c0, c1, c2, ga0, ga1, gg):
+    """P + outer(P[:, 2], ga) (symmetric; its entries 00, 01, 11) and c + P[:, 2] gg across a
+    joint whose rotation is eliminated by the gains ga, gg."""
+    return (
+        p00 + p02 * ga0,
+        p01 + p02 * ga1,
+        p11 + p12 * ga1,
+        c0 + p02 * gg,
+        c1 + p12 * gg,
+        c2 + p22 * gg,
+    )
+
+
+@njit(fastmath=CONTRACT, inline="always")
 def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
     """Across the hub and joint i: returns ((P, c) on the outboard side of the joint (9),
     (P, c) on its inboard side (9), (ga (3), g0)) with α̈_i = ga·a + g0 (torque-driven) or
@@ -208,14 +210,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
         ga1 = -p12 / p22
         ga2 = -1.0
         gg = (tau_i - c2) / p22
-        # P + outer(P[:, 2], ga), symmetric
-        n00 = p00 + p02 * ga0
-        n01 = p01 + p02 * ga1
-        n11 = p11 + p12 * ga1
-        c0 += p02 * gg
-        c1 += p12 * gg
-        c2 += p22 * gg
-        p00, p01, p11 = n00, n01, n11
+        p00, p01, p11, c0, c1, c2 = _gain_update(p00, p01, p02, p11, p12, p22, c0, c1, c2, ga0, ga1, gg)
         p02 = p12 = p22 = 0.0
     else:  # closed loop: the slope s = acc_i acts as a joint stiffness (see above)
         den = p22 - acc_i
@@ -224,13 +219,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
         ga2 = -p22 / den
         gg = (tau_i - c2) / den
         r = -acc_i / den  # 1 + ga2
-        n00 = p00 + p02 * ga0
-        n01 = p01 + p02 * ga1
-        n11 = p11 + p12 * ga1
-        c0 += p02 * gg
-        c1 += p12 * gg
-        c2 += p22 * gg
-        p00, p01, p11 = n00, n01, n11
+        p00, p01, p11, c0, c1, c2 = _gain_update(p00, p01, p02, p11, p12, p22, c0, c1, c2, ga0, ga1, gg)
         p02, p12, p22 = p02 * r, p12 * r, p22 * r
     return hub, (p00, p01, p02, p11, p12, p22, c0, c1, c2), (ga0, ga1, ga2, gg)
 
@@ -238,7 +227,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
 @njit(fastmath=CONTRACT, inline="always")
 def backward(md, data, tau, acc):
     """Tip → base: (P, c) at every cut, the element gains and the joint gains. The link
-    constants are read here, not by a helper: an inlined helper would copy ``md`` each call."""
+    constants are read once per link (:func:`link_constants`), outside the element loop."""
     k = md.k
     g0 = md.grav[0]
     g1 = md.grav[1]

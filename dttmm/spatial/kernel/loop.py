@@ -34,11 +34,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ... import control
-from ...iteration import stop_rule
+from ...iteration import change_and_size, residual_ratio, stop_rule
 from ._jit import PURE, njit
 from .core import LOAD_COL, cross, kinematics, mv, set_rates, sweep, tip_frames
 
 _stop_rule = njit(inline="always")(stop_rule)
+_change_and_size = njit(inline="always")(change_and_size)
+_residual_ratio = njit(inline="always")(residual_ratio)
 #: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
 _pd_torque = njit(inline="always")(control.pd_torque)
 
@@ -541,11 +543,7 @@ def accel_closed(md, ws, opts, drv, cw, t, q, qd, tau, mot, ff, ref, z, out, tor
             converged = True
             break
         if it > 0:
-            dx = 0.0
-            xmax = 0.0
-            for r in range(nd):
-                dx = max(dx, abs(out[r] - cw.xc[r]))
-                xmax = max(xmax, abs(out[r]))
+            dx, xmax = _change_and_size(out, cw.xc, out)
             stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
             if stop:
                 break
@@ -1110,18 +1108,10 @@ def residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dq, d2q, s, st
     Newmark truncation error in q or q̇, ratio = max(d / (lte·Δq̈ + tol_q̈), γ d / (|γ − ½| Δq̈ +
     Δ²q̈/12 + γ tol_q̈)) > 1 (Δq̈ = ``dq``, Δ²q̈ = ``d2q``)."""
     ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, np.zeros(x.shape[0]), k2, False, np.zeros((0, 6)))
-    d = 0.0
-    xmax = 0.0
-    for r in range(x.shape[0]):
-        d = max(d, abs(k2[r] - x[r]))
-        xmax = max(xmax, abs(x[r]))
+    d, xmax = _change_and_size(k2, x, x)
     if not ok:
         d = np.inf
-    floor = opts.tol * max(1.0, xmax)
-    ratio = max(
-        d / (opts.lte * dq + floor),
-        opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor),
-    )
+    ratio = _residual_ratio(d, xmax, dq, d2q, opts.tol, opts.lte, opts.gamma)
     stats[S_CHECKS] += 1
     if not ratio <= 1.0:  # NaN counts as flagged
         stats[S_FLAGGED] += 1
