@@ -192,13 +192,8 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
     joint equation P[2, :]·a + p22 α̈_i + c2 = τ, so α̈_i = −(P[2, :]·a + c2 − tau_i)/(p22 − s)
     and the inboard side f = P a + c + P[:, 2] α̈_i: P_in = P − P[:, 2] P[2, :]/(p22 − s) stays
     symmetric; its row 2 (the joint moment τ as a function of a) vanishes only for s = 0."""
-    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
-    p00 += m_hub
-    p11 += m_hub
-    p22 += J_hub
-    c0 -= m_hub * g0
-    c1 -= m_hub * g1
-    hub = (p00, p01, p02, p11, p12, p22, c0, c1, c2)
+    hub = _rigid_body(Pc, m_hub, J_hub, g0, g1)
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = hub
     if motion:
         gg = acc_i
         ga0 = ga1 = ga2 = 0.0
