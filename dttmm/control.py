@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .control_state import ControlState
+from .control_state import ControlState, JitState
 from .drives import PD, ComputedTorque, UserLaw, reference_of
 from .errors import InputError
 
@@ -180,6 +180,17 @@ def rk4_integral(n, code, ia, z, ref, q, w, c, zsum, zs):
             zd = ref[i, 0] - q[ia[i]]
             zsum[i] += w * zd
             zs[i] = z[i] + c * zd
+
+
+def jit_user_torque(fn, t, joint, moment, angles, rates, tips, cq, cv):
+    """(τ, s) of the numba-jitted user law ``fn`` at time t as the compiled kernels evaluate
+    it: it sees the :class:`JitState` of ``joint`` (root moment ``moment``, integral 0, the
+    arrays of every joint's angle and rate and every link's tip deflection); s = ∂τ/∂α c_q +
+    ∂τ/∂α̇ c_v is its slope along the step's α̈. Plain code: both kernels compile it as it is."""
+    tau, d_a, d_r = fn(
+        t, JitState(joint, angles[joint], rates[joint], moment, 0.0, angles, rates, tips, np.nan)
+    )
+    return tau, d_a * cq + d_r * cv
 
 
 # --- the rigid model -------------------------------------------------------------------------

@@ -212,12 +212,13 @@ if PURE:
 else:
     import math
 
-    import numpy as np
     from numba import types
     from numba.extending import overload
 
     from .recorder import sample
-    from .userlaw import JitState
+
+    #: a jitted law's torque and slope (:func:`dttmm.control.jit_user_torque`)
+    _jit_user = njit(nrt=False, inline="always")(control.jit_user_torque)
 
     def user_laws(md, data, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
         """The user laws of the compiled kernel (numba-jitted laws in ``drv.user``, a
@@ -254,9 +255,7 @@ else:
                 if not first:
                     moment = tsweep[i] - drv.gain[i, JHUB] * root_omega_dot(md, data, i)
                     ak = x[ia[i]]
-                state = JitState(i, u.angles[i], u.rates[i], moment, 0.0, u.angles, u.rates, u.tips, np.nan)
-                tau, d_a, d_r = u.fns[u.slot[i]](t, state)
-                slope = d_a * cq + d_r * cv
+                tau, slope = _jit_user(u.fns[u.slot[i]], t, i, moment, u.angles, u.rates, u.tips, cq, cv)
                 ws.acc[i] = slope
                 ws.taul[i] = tau - slope * ak
                 ws.dw[i] = 0.0

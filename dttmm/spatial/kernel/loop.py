@@ -319,7 +319,8 @@ else:
     from numba import types
     from numba.extending import overload
 
-    from ...control_state import JitState
+    #: a jitted law's torque and slope (:func:`dttmm.control.jit_user_torque`)
+    _jit_user = njit(inline="always")(control.jit_user_torque)
 
     def user_laws(md, ws, drv, cw, t, q, qd, x, cq, cv, torque, first):
         """The user laws of the compiled kernel (numba-jitted laws in ``drv.user``, a
@@ -354,11 +355,7 @@ else:
                     moment = ws.acc[i, 1] - hub_moment(md, ws, i)
                     ak = x[md.ia[i]]
                 jd = drive_index(md, i)
-                state = JitState(
-                    jd, u.angles[jd], u.rates[jd], moment, 0.0, u.angles, u.rates, u.tips, np.nan
-                )
-                tau, d_a, d_r = u.fns[u.slot[i]](t, state)
-                slope = d_a * cq + d_r * cv
+                tau, slope = _jit_user(u.fns[u.slot[i]], t, jd, moment, u.angles, u.rates, u.tips, cq, cv)
                 ws.slope[i] = slope
                 cw.taul[i] = tau - slope * ak
                 cw.dw[i] = 0.0
