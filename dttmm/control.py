@@ -24,6 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .control_state import ControlState, JitState
 from .drives import PD, ComputedTorque, UserLaw, reference_of
 from .errors import InputError
 
@@ -169,7 +170,50 @@ def correct_torques(md, drv, w):
             w.taul[i] = w.tb[i] + g[i, n]
 
 
+def rk4_integral(n, code, ia, z, ref, q, w, c, zsum, zs):
+    """The integral states of the pd/pid joints (``code`` CODE_PD; α of joint i at q[ia[i]]) at
+    an RK4 stage: ż = α_ref − α of the stage state q (its reference ``ref`` (n, 2)) enters the
+    sum ``zsum`` with weight w, and the next stage's zs = z_n + c ż. Plain loops over arrays:
+    both kernels compile it as it is."""
+    for i in range(n):
+        if code[i] == CODE_PD:
+            zd = ref[i, 0] - q[ia[i]]
+            zsum[i] += w * zd
+            zs[i] = z[i] + c * zd
+
+
+def jit_user_torque(fn, t, joint, moment, angles, rates, tips, cq, cv):
+    """(τ, s) of the numba-jitted user law ``fn`` at time t as the compiled kernels evaluate
+    it: it sees the :class:`JitState` of ``joint`` (root moment ``moment``, integral 0, the
+    arrays of every joint's angle and rate and every link's tip deflection); s = ∂τ/∂α c_q +
+    ∂τ/∂α̇ c_v is its slope along the step's α̈. Plain code: both kernels compile it as it is."""
+    tau, d_a, d_r = fn(
+        t, JitState(joint, angles[joint], rates[joint], moment, 0.0, angles, rates, tips, np.nan)
+    )
+    return tau, d_a * cq + d_r * cv
+
+
 # --- the rigid model -------------------------------------------------------------------------
+def user_law_torque(law, t, joint, angles, rates, tips, moment, cq, cv):
+    """(τ, s) of the user law ``law`` at time t as the uncompiled kernels evaluate it: it sees a
+    :class:`dttmm.control_state.ControlState` of ``joint`` (a numba-jitted law its
+    :class:`JitState`) with the root moment ``moment``, integral 0, every joint's angle and rate
+    and every link's tip deflection ``tips``; s = ∂τ/∂α c_q + ∂τ/∂α̇ c_v is its slope along the
+    step's α̈ (c_q, c_v: the integrator's dα/dα̈, dα̇/dα̈)."""
+    state = ControlState(
+        joint=joint,
+        angle=angles[joint],
+        rate=rates[joint],
+        moment=float(moment),
+        integral=0.0,
+        angles=angles,
+        rates=rates,
+        tip_deflections=tips,
+    )
+    tau, d_a, d_r, _ = law.evaluate(float(t), state)
+    return tau, d_a * cq + d_r * cv
+
+
 def _rigid_links(case):
     """Per link: length L, mass m, first moment about the joint along the link s and across it
     s_y, and inertia I about the joint of the rigid link (hub + uniform rod or the rigid link's

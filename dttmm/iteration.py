@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["STAGNATION_FROM", "stop_rule"]
+__all__ = ["STAGNATION_FROM", "change_and_size", "residual_ratio", "stop_rule"]
 
 #: the stagnation test applies from this iteration index on (the 4th solve or sweep)
 STAGNATION_FROM = 3
@@ -32,3 +32,26 @@ def stop_rule(it, dx, prev_dx, xmax, tol):
     if not math.isfinite(dx):
         return True, False
     return False, False
+
+
+def change_and_size(a, b, c):
+    """(max|a − b|, max|c|) over equal-length arrays: an iteration's change (a, b: the new
+    and the old iterate) and the size it is measured against."""
+    d = 0.0
+    size = 0.0
+    for r in range(a.shape[0]):
+        d = max(d, abs(a[r] - b[r]))
+        size = max(size, abs(c[r]))
+    return d, size
+
+
+def residual_ratio(d, xmax, dq, d2q, tol, lte, gamma):
+    """The residual check's ratio (docs/kernel.md, "Residual check"): the correction d =
+    max|Δq̈| one more sweep would make over the Newmark truncation error in q and in q̇,
+    max(d / (lte·Δq̈ + tol_q̈), γ d / (|γ − ½| Δq̈ + Δ²q̈/12 + γ tol_q̈)), tol_q̈ = tol·max(1,
+    xmax), Δq̈ = ``dq``, Δ²q̈ = ``d2q``; it passes at ≤ 1."""
+    floor = tol * max(1.0, xmax)
+    return max(
+        d / (lte * dq + floor),
+        gamma * d / (abs(gamma - 0.5) * dq + d2q / 12.0 + gamma * floor),
+    )

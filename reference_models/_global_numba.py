@@ -35,7 +35,6 @@ makes the iteration matrix unsymmetric. Open-loop runs keep the Cholesky solve. 
 
 from __future__ import annotations
 
-import hashlib
 from collections import namedtuple
 from pathlib import Path
 
@@ -44,17 +43,10 @@ import numpy as np
 from dttmm import control, iteration
 from dttmm.control import gains, pd_torque
 from dttmm.iteration import stop_rule
+from dttmm.jit import HAVE_NUMBA, cache_dir, cached_njit
 from dttmm.kernel import recorder
 
 from ._global_control import omega_rows
-
-try:  # numba is an optional dependency (extra "fast")
-    import numba
-
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover - exercised without numba only
-    numba = None
-    HAVE_NUMBA = False
 
 #: True in the uncompiled copy (:mod:`reference_models._global_python`) or without numba
 PURE = not HAVE_NUMBA or __name__.endswith("._global_python")
@@ -65,34 +57,15 @@ else:
     from dttmm.kernel.recorder import hermite_weights
 
 # numba's cache notices edits to this file only, not to the compiled functions it takes from
-# elsewhere: the cache lives in a folder named by a hash of all of them
+# elsewhere: the cache lives in a folder named by a hash of all of them (see dttmm.jit)
 _SOURCES = (Path(__file__), Path(control.__file__), Path(iteration.__file__), Path(recorder.__file__))
-_CACHE_DIR = (
-    None
-    if PURE
-    else str(
-        Path(__file__).resolve().parent
-        / "__pycache__"
-        / ("global-numba-" + hashlib.sha256(b"".join(p.read_bytes() for p in _SOURCES)).hexdigest()[:16])
-    )
-)
+_CACHE_DIR = None if PURE else cache_dir("global-numba", Path(__file__).resolve().parent, _SOURCES)
 
 
 def njit(**options):
     """``numba.njit(**options)`` with its cache (``cache=True``) in the per-hash folder; the
     identity in the uncompiled copy."""
-
-    def deco(f):
-        if PURE:
-            return f
-        old = numba.config.CACHE_DIR
-        numba.config.CACHE_DIR = _CACHE_DIR
-        try:
-            return numba.njit(**options)(f)
-        finally:
-            numba.config.CACHE_DIR = old
-
-    return deco
+    return cached_njit(_CACHE_DIR, **options)
 
 
 # the pd/pid law τ = clip((L0 + g_M J_hub ω̇)/(1 + g_M), ±limit) and its slopes, inlined

@@ -1,7 +1,7 @@
-"""The Riccati sweep reads the 26 link constants of an element inline (a helper would copy the
-whole ``Model`` in each call, measured 7× slower); the tuple must be the one of
-``dttmm.kernel.element.link_constants``, entry for entry, or the physics silently breaks.
-Both are read from the sources with ``ast`` and compared."""
+"""The Riccati sweep takes the 26 link constants of a link from
+``dttmm.kernel.element.link_constants`` (once per link, outside the element loop); were they
+written out inline again, the tuple must be that one's, entry for entry, or the physics silently
+breaks. Both are read from the sources with ``ast`` and compared."""
 
 from __future__ import annotations
 
@@ -27,16 +27,16 @@ def reference_tuple() -> list[str]:
     return _entries(ret.value)
 
 
-def inline_tuple() -> list[str]:
-    """The entries of ``lc = (...)`` in ``riccati.backward``."""
+def riccati_link_constants() -> list[str]:
+    """The entries of ``lc = ...`` in ``riccati.backward``: those of ``link_constants`` where it
+    calls it with the link's index and gravity, else those of the tuple written out."""
     fn = _function(KERNEL / "riccati.py", "backward")
     assign = next(
-        n
-        for n in ast.walk(fn)
-        if isinstance(n, ast.Assign)
-        and isinstance(n.value, ast.Tuple)
-        and [ast.unparse(t) for t in n.targets] == ["lc"]
+        n for n in ast.walk(fn) if isinstance(n, ast.Assign) and [ast.unparse(t) for t in n.targets] == ["lc"]
     )
+    if isinstance(assign.value, ast.Call):
+        assert ast.unparse(assign.value) == "link_constants(md, i, g0, g1)"
+        return reference_tuple()
     return _entries(assign.value)
 
 
@@ -46,5 +46,5 @@ def test_link_constants_has_26_entries_and_reads_link_i():
     assert all("[i" in e or e.startswith("m") for e in ref)
 
 
-def test_riccati_inline_link_constants_equal_link_constants():
-    assert inline_tuple() == reference_tuple()
+def test_riccati_reads_the_link_constants_of_link_constants():
+    assert riccati_link_constants() == reference_tuple()

@@ -21,6 +21,7 @@ from ..result import make_result
 from ..scenario import Scenario
 from ..structure import Structure, build_structure
 from ..timegrid import step_schedule
+from ..timeloop import PROGRESS_AFTER, residual_meta, run_chunked, step_options
 from ..verdict import energy_growth, verdict
 from . import _jit, loop, userlaw
 from .layout import (
@@ -73,11 +74,6 @@ def _modules(engine: str):
     return ploop, precorder
 
 
-#: fixed sweep counts and "auto": the residual check (one extra sweep, not applied) runs at
-#: the first step, every CHECK_EVERY-th step and the last step — ≤ 1/64 more sweeps
-CHECK_EVERY = 64
-
-
 @dataclass(frozen=True)
 class Settings:
     """Validated settings of one run (see :func:`dttmm.simulate`)."""
@@ -100,36 +96,22 @@ class Settings:
     def options(self, closed: bool = False, coupled: bool = False) -> loop.Options:
         """The kernel's run options (``closed``: the case has closed-loop joints; ``coupled``:
         one past the first has moment feedback)."""
-        fam = self.family
-        if fam is None:  # RK4
-            beta = gamma = am = af = lte = 0.0
-            mode, nfix = IT_FIXED, 3
-        else:
-            beta, gamma, am, af = fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f
-            lte = abs(beta - 1.0 / 6.0) / beta  # the Newmark truncation error (β − 1/6)h²Δq̈ over βh²
-            if self.iterations is None:
-                mode, nfix = IT_TOL, 0  # the tolerance is the check: no residual check
-            elif self.iterations == "auto":
-                mode, nfix = IT_AUTO, 0
-            else:
-                mode, nfix = IT_FIXED, int(self.iterations)
+        rk4 = dict(beta=0.0, gamma=0.0, alpha_m=0.0, alpha_f=0.0, lte=0.0, iteration=IT_FIXED, n_fixed=3)
         return loop.Options(
-            integrator=INT_RK4 if fam is None else INT_NEWMARK,
+            integrator=INT_RK4 if self.family is None else INT_NEWMARK,
             sweep=SWEEP_CODES[self.sweep],
-            iteration=mode,
-            n_fixed=nfix,
             tol=float(self.tol),
             max_iterations=int(self.max_iterations),
             auto_fraction=float(self.auto_fraction),
-            beta=float(beta),
-            gamma=float(gamma),
-            alpha_m=float(am),
-            alpha_f=float(af),
-            lte=float(lte),
-            check_every=CHECK_EVERY if mode in (IT_FIXED, IT_AUTO) and fam else 0,
             closed=bool(closed),
             coupled=bool(coupled),
+            **step_options(self.family, self.iterations, (IT_TOL, IT_AUTO, IT_FIXED), rk4),
         )
+
+
+#: the open-loop fields of :class:`loop.Drives`: torques and motions at the step ends (left
+#: limits), at restarts (right limits), at mid-step (RK4)
+_OPEN_LOOP = ("tau_left", "mot_left", "tau_right", "mot_right", "tau_mid", "mot_mid")
 
 
 def drive_tables(structure: Structure, t_end, restart, need_loads, rk4: bool) -> loop.Drives:
@@ -156,12 +138,7 @@ def drive_tables(structure: Structure, t_end, restart, need_loads, rk4: bool) ->
         t_end=t_end,
         restart=np.asarray(restart, np.bool_),
         need_loads=need_loads,
-        tau_left=taul,
-        mot_left=motl,
-        tau_right=taur,
-        mot_right=motr,
-        tau_mid=taum,
-        mot_mid=motm,
+        **dict(zip(_OPEN_LOOP, (taul, motl, taur, motr, taum, motm))),
         **control_tables(structure, t_end, restart, rk4),
     )
 
@@ -194,16 +171,12 @@ def control_tables(structure: Structure, t_end, restart, rk4: bool) -> dict:
         if np.any(code == control.CODE_USER)
         else np.zeros(0)
     )
+    names = ("ff_left", "ref_left", "ff_right", "ref_right", "ff_mid", "ref_mid")
     return {
         "user": user,
         "code": code,
         "gain": gain,
-        "ff_left": c(ffl),
-        "ref_left": c(refl),
-        "ff_right": c(ffr),
-        "ref_right": c(refr),
-        "ff_mid": c(ffm),
-        "ref_mid": c(refm),
+        **dict(zip(names, map(c, (ffl, refl, ffr, refr, ffm, refm)))),
     }
 
 
@@ -315,51 +288,9 @@ def base_meta(structure: Structure, s: Settings) -> dict:
     return meta
 
 
-#: a run whose time, estimated after its first chunk, exceeds this many seconds shows a
-#: progress bar (unless ``progress=False``)
-PROGRESS_AFTER = 2.0
-#: a run with a progress bar is split into this many calls of the kernel
-PROGRESS_CHUNKS = 200
 #: compiled runs of at most this many element-steps take < 1 s (≤ 50 sweeps of ≤ 0.1 µs per
 #: element): one kernel call, no estimate (the second call costs ~5 % of a 200-step run at k = 8)
 SHORT_RUN = 2e5
-
-
-def _run_chunked(lp, args: tuple, n_steps: int, progress: bool | None):
-    """Run the time loop: in one call if ``progress`` is False; else a first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a
-    progress bar (``progress`` True, or None and the estimated run time above
-    :data:`PROGRESS_AFTER`) in chunks between bar updates, else the rest in one call.
-    ``args``: (md, data, opts, drv, state, rec, stats, ws). Returns (status, bar or None)."""
-    if progress is False:
-        return lp.run(*args, 0, n_steps), None
-    stats = args[6]
-    chunk = max(1, n_steps // PROGRESS_CHUNKS)
-    t0 = time.perf_counter()
-    status = lp.run(*args, 0, min(chunk, n_steps))
-    done = int(stats.steps_done[0])
-    if status or done >= n_steps:
-        return status, None
-    estimate = (time.perf_counter() - t0) * n_steps / max(done, 1)
-    bar = _progress_bar(n_steps, progress if progress is not None else estimate > PROGRESS_AFTER)
-    if bar is None:
-        return lp.run(*args, done, n_steps), None
-    bar.update(done)
-    for a in range(done, n_steps, chunk):
-        status = lp.run(*args, a, min(n_steps, a + chunk))
-        bar.update(int(stats.steps_done[0]) - a)
-        if status:
-            break
-    return status, bar
-
-
-def _progress_bar(total: int, enabled: bool):
-    if not enabled:
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover - tqdm is a dependency, but the bar is optional
-        return None
-    return tqdm(total=total, unit="step", desc="dttmm", leave=False)
 
 
 def simulate_structure(structure: Structure, s: Settings):
@@ -452,14 +383,17 @@ def simulate_structure(structure: Structure, s: Settings):
 
     short = s.engine == "numba" and n_steps * max(structure.n_elements, 1) <= SHORT_RUN and not s.progress
     cpu0 = time.process_time()
-    status, bar = _run_chunked(
-        lp, (md, data, opts, drv, state, rec, stats, ws), n_steps, False if short else s.progress
+    status = run_chunked(
+        lambda first, stop: lp.run(md, data, opts, drv, state, rec, stats, ws, first, stop),
+        n_steps,
+        False if short else s.progress,
+        lambda _: int(stats.steps_done[0]),
+        bool,
+        PROGRESS_AFTER,
     )
     cpu_loop = time.process_time() - cpu0
     wall = time.perf_counter() - wall0
     meta["loop_cpu_time"] = cpu_loop  # CPU time of the time loop alone (s)
-    if bar is not None:
-        bar.close()
     upto = int(stats.ptr[0])
     if status:
         _raise_failure(
@@ -572,18 +506,16 @@ def _add_stats(meta, stats, s: Settings, n_steps: int, wall: float, t_end) -> No
         )
     if s.sweep == "plain":
         meta["final_system_cond"] = float(stats.cond_max[0])
-    if stats.checks[0]:
-        t_of = lambda j: float(t_end[j]) if j >= 0 else None
-        meta.update(
-            {
-                "residual_checks": int(stats.checks[0]),
-                "residual_flagged": int(stats.flagged[0]),
-                "residual_first_t": t_of(int(stats.first_flag[0])),
-                "residual_worst_t": t_of(int(stats.worst_step[0])),
-                "residual_worst_ratio": float(stats.worst_ratio[0]),
-                "residual_worst": float(stats.worst_resid[0]),
-            }
-        )
+    residual_meta(
+        meta,
+        t_end,
+        stats.checks[0],
+        stats.flagged[0],
+        stats.first_flag[0],
+        stats.worst_step[0],
+        stats.worst_ratio[0],
+        stats.worst_resid[0],
+    )
     meta["time_per_step"] = wall / n_steps
 
 

@@ -217,6 +217,14 @@ def second_order_damping(mu, EA, EAl, G00, G01, G10, G11, e1, e2, d0, d1, d2):
 
 
 @njit(inline="always")
+def element_state(data, g):
+    """(cos θ, sin θ, θ̇, e (3), ė (3)) of element g: the arguments of :func:`element_terms`
+    between ``lc`` and gravity."""
+    e, ed = data.e, data.ed
+    return (data.c[g], data.s[g], data.td[g], e[g, 0], e[g, 1], e[g, 2], ed[g, 0], ed[g, 1], ed[g, 2])
+
+
+@njit(inline="always")
 def link_constants(md, i, g0, g1):
     """The nonzero element moments of link i and its element weight, read once per link (a
     tuple of scalars that :func:`element_terms` unpacks)."""

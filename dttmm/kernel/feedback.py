@@ -177,13 +177,8 @@ if PURE:
         deflection in its clamped-root frame) and is linearised with s = ∂τ/∂α c_q + ∂τ/∂α̇ c_v
         into ws.acc, ws.taul = τ − s α̈_k; its τ goes to ``torque``. Returns whether there is
         one (its moment dependence is resolved by repeating the sweeps)."""
-        import math
-
         import numpy as np
 
-        from dttmm.kernel.userlaw import JitState, is_jitted  # the class of the compiled kernel
-
-        from ..drives import ControlState
         from ..result import tip_deflection
         from .recorder import sample
 
@@ -196,27 +191,12 @@ if PURE:
         tips = tuple(float(v) for v in tip_deflection(scratch.root[0], scratch.root_angle[0], scratch.tip[0]))
         angles = tuple(float(q[j]) for j in ia)
         rates = tuple(float(qd[j]) for j in ia)
-        arrays = tuple(np.array(v, np.float64) for v in (angles, rates, tips))
         for i in range(n):
             if drv.code[i] != CODE_USER:
                 continue
             wd = 0.0 if first else root_omega_dot(md, data, i)
             moment = 0.0 if first else tsweep[i] - drv.gain[i, JHUB] * wd
-            if is_jitted(drv.user[i].fn):  # a numba-jitted law takes the compiled kernel's state
-                state = JitState(i, angles[i], rates[i], float(moment), 0.0, *arrays, math.nan)
-            else:
-                state = ControlState(
-                    joint=i,
-                    angle=angles[i],
-                    rate=rates[i],
-                    moment=float(moment),
-                    integral=0.0,
-                    angles=angles,
-                    rates=rates,
-                    tip_deflections=tips,
-                )
-            tau, d_a, d_r, _ = drv.user[i].evaluate(float(t), state)
-            slope = d_a * cq + d_r * cv
+            tau, slope = control.user_law_torque(drv.user[i], t, i, angles, rates, tips, moment, cq, cv)
             ws.acc[i] = slope
             ws.taul[i] = tau - slope * (0.0 if first else x[ia[i]])
             ws.dw[i] = 0.0
@@ -232,12 +212,13 @@ if PURE:
 else:
     import math
 
-    import numpy as np
     from numba import types
     from numba.extending import overload
 
     from .recorder import sample
-    from .userlaw import JitState
+
+    #: a jitted law's torque and slope (:func:`dttmm.control.jit_user_torque`)
+    _jit_user = njit(nrt=False, inline="always")(control.jit_user_torque)
 
     def user_laws(md, data, drv, t, q, qd, x, cq, cv, ws, tsweep, torque, first):
         """The user laws of the compiled kernel (numba-jitted laws in ``drv.user``, a
@@ -274,9 +255,7 @@ else:
                 if not first:
                     moment = tsweep[i] - drv.gain[i, JHUB] * root_omega_dot(md, data, i)
                     ak = x[ia[i]]
-                state = JitState(i, u.angles[i], u.rates[i], moment, 0.0, u.angles, u.rates, u.tips, np.nan)
-                tau, d_a, d_r = u.fns[u.slot[i]](t, state)
-                slope = d_a * cq + d_r * cv
+                tau, slope = _jit_user(u.fns[u.slot[i]], t, i, moment, u.angles, u.rates, u.tips, cq, cv)
                 ws.acc[i] = slope
                 ws.taul[i] = tau - slope * ak
                 ws.dw[i] = 0.0

@@ -15,7 +15,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .. import iteration
+from .. import control, iteration
 from ._jit import njit
 
 # The loop's functions allocate nothing and are compiled without reference counting
@@ -41,6 +41,8 @@ from .riccati import riccati, riccati_loads
 
 # the suite's one stop rule of a tolerance-driven iteration, inlined
 _stop_rule = njit(nrt=False, inline="always")(iteration.stop_rule)
+_change_and_size = njit(nrt=False, inline="always")(iteration.change_and_size)
+_residual_ratio = njit(nrt=False, inline="always")(iteration.residual_ratio)
 
 
 class Options(NamedTuple):
@@ -345,11 +347,7 @@ def accel_closed(
             converged = True
             break
         if it > 0:
-            dx = 0.0
-            xmax = 0.0
-            for r in range(xout.shape[0]):
-                dx = max(dx, abs(xout[r] - ws.xc[r]))
-                xmax = max(xmax, abs(xout[r]))
+            dx, xmax = _change_and_size(xout, ws.xc, xout)
             stop, converged = _stop_rule(it, dx, prev_dx, xmax, opts.tol)
             if stop:
                 break
@@ -487,18 +485,10 @@ def _residual_check(md, data, opts, ws, tau, mot, dq, d2q, s, stats):
     term admits what a converged step leaves). Updates the counters of ``stats``."""
     apply_motion(md.motion, md.im, mot, ws.qi, ws.qdi)
     ok, _cond = sweep(md, data, opts.sweep, ws.qi, ws.qdi, tau, ws.acc, ws.k2, ws.torque_r, ws.loads_r)
-    d = 0.0
-    xmax = 0.0
-    for r in range(ws.x.shape[0]):
-        d = max(d, abs(ws.k2[r] - ws.x[r]))
-        xmax = max(xmax, abs(ws.x[r]))
+    d, xmax = _change_and_size(ws.k2, ws.x, ws.x)
     if not ok:
         d = np.inf
-    floor = opts.tol * max(1.0, xmax)
-    ratio = max(
-        d / (opts.lte * dq + floor),
-        opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor),
-    )
+    ratio = _residual_ratio(d, xmax, dq, d2q, opts.tol, opts.lte, opts.gamma)
     scale = max(1.0, xmax)
     stats.checks[0] += 1
     if not ratio <= 1.0:  # NaN counts as flagged
@@ -624,15 +614,24 @@ def _accel_at(md, data, opts, q, qd, drv, s, h, stage, ws, xout, want_loads, fre
     )
 
 
+#: the closed-loop integral states at an RK4 stage (:func:`dttmm.control.rk4_integral`)
+_rk4_z = njit(nrt=False, inline="always")(control.rk4_integral)
+
+
 @njit(nrt=False, inline="always")
-def _rk4_z(md, drv, state, ws, ref, q, w, c):
-    """Closed-loop integral states at an RK4 stage: ż = α_ref − α of the stage state q (its
-    reference ``ref`` (n, 2)) enters the sum with weight w and the next stage's z = z_n + c ż."""
-    for i in range(md.n):
-        if drv.code[i] == CODE_PD:
-            zd = ref[i, 0] - q[md.i_alpha[i]]
-            ws.zsum[i] += w * zd
-            ws.zs[i] = state.z[i] + c * zd
+def _rk4_stage(md, data, opts, state, ws, drv, s, h, c, stage, kq, kqd, keep, kout, xout):
+    """An inner RK4 stage of step s: the integral states advanced by c ż (ż at the last stage,
+    :func:`_rk4_z`), the stage state (q + c kq, q̇ + c kqd) into ws.qi, ws.qdi (its rates into
+    ``kout`` where ``keep``), its acceleration into ``xout``. Returns (ok, cond)."""
+    qi, qdi = ws.qi, ws.qdi
+    if opts.closed:
+        _rk4_z(md.n, drv.code, md.i_alpha, state.z, drv.ref_mid[s], qi, 2.0, c, ws.zsum, ws.zs)
+    for r in range(qi.shape[0]):
+        qi[r] = state.q[r] + c * kq[r]
+        qdi[r] = state.qd[r] + c * kqd[r]
+        if keep:
+            kout[r] = qdi[r]
+    return _accel_at(md, data, opts, qi, qdi, drv, s, h, stage, ws, xout, _flag(False), _flag(False))
 
 
 @njit(nrt=False, inline="always")
@@ -654,23 +653,12 @@ def rk4_step(md, data, opts, state, ws, h, drv, s, stats):
     fresh = s % A_EVERY == 0 or (s > 0 and drv.restart[s - 1])  # else the A of an earlier stage
     ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 1, ws, ka, _flag(False), fresh)
     if ok:
-        if opts.closed:
-            _rk4_z(md, drv, state, ws, drv.ref_mid[s], qi, 2.0, hf)
-        for r in range(q.shape[0]):
-            qi[r] = q[r] + hf * k2v[r]
-            qdi[r] = qd[r] + hf * ka[r]
-            k3v[r] = qdi[r]
-        ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 1, ws, x, _flag(False), _flag(False))
+        ok, cond = _rk4_stage(md, data, opts, state, ws, drv, s, h, hf, 1, k2v, ka, True, k3v, x)
+    if ok:
+        ok, cond = _rk4_stage(md, data, opts, state, ws, drv, s, h, h, 2, k3v, x, False, k3v, xn)
     if ok:
         if opts.closed:
-            _rk4_z(md, drv, state, ws, drv.ref_mid[s], qi, 2.0, h)
-        for r in range(q.shape[0]):
-            qi[r] = q[r] + h * k3v[r]
-            qdi[r] = qd[r] + h * x[r]
-        ok, cond = _accel_at(md, data, opts, qi, qdi, drv, s, h, 2, ws, xn, _flag(False), _flag(False))
-    if ok:
-        if opts.closed:
-            _rk4_z(md, drv, state, ws, drv.ref_left[s], qi, 1.0, 0.0)
+            _rk4_z(md.n, drv.code, md.i_alpha, state.z, drv.ref_left[s], qi, 1.0, 0.0, ws.zsum, ws.zs)
             for i in range(md.n):
                 if drv.code[i] == CODE_PD:
                     state.z[i] += h / 6.0 * ws.zsum[i]

@@ -14,7 +14,14 @@ import math
 import numpy as np
 
 from ._jit import njit
-from .element import element_terms, link_constants, second_order_damping, second_order_terms, strain_constants
+from .element import (
+    element_state,
+    element_terms,
+    link_constants,
+    second_order_damping,
+    second_order_terms,
+    strain_constants,
+)
 from .layout import NO_SLOT
 
 
@@ -22,20 +29,9 @@ from .layout import NO_SLOT
 def dense_terms(md, data, i, g, lc, Maa, Mae, ha, he, Ba, Be, gb):  # outputs: the seven arrays after lc
     """Element g's terms as dense 3×3 matrices (padded): M_aa, M_ae, h̄_a, h̃_e (with the known
     elastic force), B_a, B_e, γ̄_O (from :func:`element_terms`)."""
-    c, s = data.c[g], data.s[g]
+    c, s, td, e0, e1, e2, f0, f1, f2 = element_state(data, g)
     (_ms0, _ms1, rem0, rem1, Jt, A, ha0, ha1, ha2, he0, he1, he2, rx, ry, gb0, gb1) = element_terms(
-        lc,
-        c,
-        s,
-        data.td[g],
-        data.e[g, 0],
-        data.e[g, 1],
-        data.e[g, 2],
-        data.ed[g, 0],
-        data.ed[g, 1],
-        data.ed[g, 2],
-        md.grav[0],
-        md.grav[1],
+        lc, c, s, td, e0, e1, e2, f0, f1, f2, md.grav[0], md.grav[1]
     )
     m, su = lc[0], lc[-1]
     Maa[:, :] = 0.0
@@ -69,7 +65,8 @@ def _second_order_dense(md, data, i, g, Mt, he):
     """Second-order strain of element g: h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K);
     with damping also h̃_e += ΔD(e) ê', M̃_ee += c_v ΔD(e) (:func:`second_order_damping`)."""
     e0, e1, e2 = data.e[g, 0], data.e[g, 1], data.e[g, 2]
-    fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(strain_constants(md, i), e0, e1, e2)
+    sc = strain_constants(md, i)
+    fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(sc, e0, e1, e2)
     K = md.K[i]
     de0 = data.e_hat[g, 0] - e0
     de1 = data.e_hat[g, 1] - e1
@@ -77,43 +74,31 @@ def _second_order_dense(md, data, i, g, Mt, he):
     he[0] += fu0 + (K[0, 0] * de0 + T01 * de1 + T02 * de2)
     he[1] += fu1 + (T01 * de0 + (dT11 + K[1, 1]) * de1 + (dT12 + K[1, 2]) * de2)
     he[2] += fu2 + (T02 * de0 + (dT21 + K[2, 1]) * de1 + (dT22 + K[2, 2]) * de2)
-    cq = data.cq[i, 0]
-    Mt[0, 1] += cq * T01
-    Mt[0, 2] += cq * T02
-    Mt[1, 0] += cq * T01
-    Mt[2, 0] += cq * T02
-    Mt[1, 1] += cq * dT11
-    Mt[1, 2] += cq * dT12
-    Mt[2, 1] += cq * dT21
-    Mt[2, 2] += cq * dT22
+    _add_coupling(Mt, data.cq[i, 0], T01, T02, dT11, dT12, dT21, dT22)
     mu = md.mu[i]
     if mu != 0.0:
+        ea, eal, _inv_l, g00, g01, g10, g11 = sc[:7]
         g0d, g1d, g2d, D01, D02, D11, D12, D22 = second_order_damping(
-            mu,
-            md.EA[i],
-            md.EAl[i],
-            md.G[i, 0, 0],
-            md.G[i, 0, 1],
-            md.G[i, 1, 0],
-            md.G[i, 1, 1],
-            e1,
-            e2,
-            data.e_hat[g, 3],
-            data.e_hat[g, 4],
-            data.e_hat[g, 5],
+            mu, ea, eal, g00, g01, g10, g11, e1, e2, data.e_hat[g, 3], data.e_hat[g, 4], data.e_hat[g, 5]
         )
         he[0] += g0d
         he[1] += g1d
         he[2] += g2d
-        cv = data.cq[i, 1]
-        Mt[0, 1] += cv * D01
-        Mt[0, 2] += cv * D02
-        Mt[1, 0] += cv * D01
-        Mt[2, 0] += cv * D02
-        Mt[1, 1] += cv * D11
-        Mt[1, 2] += cv * D12
-        Mt[2, 1] += cv * D12
-        Mt[2, 2] += cv * D22
+        _add_coupling(Mt, data.cq[i, 1], D01, D02, D11, D12, D12, D22)
+
+
+@njit(inline="always")
+def _add_coupling(Mt, c, a01, a02, a11, a12, a21, a22):
+    """M̃_ee += c A for the A of the second-order strain (its stiffness or damping) with
+    A[0, 1] = A[1, 0] = a01, A[0, 2] = A[2, 0] = a02 and the bending block a11 … a22."""
+    Mt[0, 1] += c * a01
+    Mt[0, 2] += c * a02
+    Mt[1, 0] += c * a01
+    Mt[2, 0] += c * a02
+    Mt[1, 1] += c * a11
+    Mt[1, 2] += c * a12
+    Mt[2, 1] += c * a21
+    Mt[2, 2] += c * a22
 
 
 @njit()

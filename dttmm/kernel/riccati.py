@@ -17,7 +17,15 @@ from __future__ import annotations
 import math
 
 from ._jit import CONTRACT, njit
-from .element import coord_base, element_terms, second_order_damping, second_order_terms
+from .element import (
+    coord_base,
+    element_state,
+    element_terms,
+    link_constants,
+    second_order_damping,
+    second_order_terms,
+    strain_constants,
+)
 
 
 @njit(fastmath=CONTRACT, nrt=False)
@@ -27,6 +35,18 @@ def riccati(md, data, tau, acc, xout, torque):
     into torque, and leaves in ``data`` what :func:`riccati_loads` needs."""
     backward(md, data, tau, acc)
     forward(md, data, xout, torque)
+
+
+@njit(fastmath=CONTRACT, inline="always")
+def _ldl_column(l10, l20, l21, i0, i1, i2, b0, b1, b2):
+    """x = H⁻¹ b for H = L D Lᵀ (L's entries l10, l20, l21; D⁻¹ = (i0, i1, i2)): the forward
+    and back substitutions of one column."""
+    y1 = b1 - l10 * b0
+    y2 = b2 - l20 * b0 - l21 * y1
+    x2 = y2 * i2
+    x1 = y1 * i1 - l21 * x2
+    x0 = b0 * i0 - l10 * x1 - l20 * x2
+    return x0, x1, x2
 
 
 @njit(fastmath=CONTRACT, inline="always")
@@ -41,29 +61,10 @@ def _ldl_solve(H00, H01, H02, H11, H12, H22, X, r0, r1, r2):
     l21 = (H12 - l20 * H01) * i1
     dd2 = H22 - l20 * H02 - l21 * l21 * dd1
     i2 = 1.0 / dd2
-    y0 = -X00
-    y1 = -X01 - l10 * y0
-    y2 = -X02 - l20 * y0 - l21 * y1
-    K20 = y2 * i2
-    K10 = y1 * i1 - l21 * K20
-    K00 = y0 * i0 - l10 * K10 - l20 * K20
-    y0 = -X10
-    y1 = -X11 - l10 * y0
-    y2 = -X12 - l20 * y0 - l21 * y1
-    K21 = y2 * i2
-    K11 = y1 * i1 - l21 * K21
-    K01 = y0 * i0 - l10 * K11 - l20 * K21
-    y0 = -X20
-    y1 = -X21 - l10 * y0
-    y2 = -X22 - l20 * y0 - l21 * y1
-    K22 = y2 * i2
-    K12 = y1 * i1 - l21 * K22
-    K02 = y0 * i0 - l10 * K12 - l20 * K22
-    y1 = r1 - l10 * r0
-    y2 = r2 - l20 * r0 - l21 * y1
-    k2 = y2 * i2
-    k1 = y1 * i1 - l21 * k2
-    k0 = r0 * i0 - l10 * k1 - l20 * k2
+    K00, K10, K20 = _ldl_column(l10, l20, l21, i0, i1, i2, -X00, -X01, -X02)
+    K01, K11, K21 = _ldl_column(l10, l20, l21, i0, i1, i2, -X10, -X11, -X12)
+    K02, K12, K22 = _ldl_column(l10, l20, l21, i0, i1, i2, -X20, -X21, -X22)
+    k0, k1, k2 = _ldl_column(l10, l20, l21, i0, i1, i2, r0, r1, r2)
     return (K00, K01, K02, K10, K11, K12, K20, K21, K22), k0, k1, k2
 
 
@@ -119,20 +120,7 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
     if so:
         # second-order strain at the iterate e (sweeps._elastic_rhs):
         # h̃_e += f(e) + K_T(e)(ê − e), M̃_ee += c_q (K_T(e) − K)
-        sc = (
-            md.EA[i],
-            md.EAl[i],
-            md.inv_l[i],
-            md.G[i, 0, 0],
-            md.G[i, 0, 1],
-            md.G[i, 1, 0],
-            md.G[i, 1, 1],
-            md.K[i, 1, 1],
-            md.K[i, 1, 2],
-            md.K[i, 2, 1],
-            md.K[i, 2, 2],
-            md.K[i, 0, 0],
-        )
+        sc = strain_constants(md, i)
         fu0, fu1, fu2, T01, T02, dT11, dT12, dT21, dT22 = second_order_terms(sc, e0, e1, e2)
         Kb00, Kb01, Kb10, Kb11, Kuu = sc[7], sc[8], sc[9], sc[10], sc[11]
         de0 = eh0 - e0
@@ -180,6 +168,20 @@ def _element_step(md, i, lc, Mt, so, kin, dh, fk, Pc, g0, g1):
 
 
 @njit(fastmath=CONTRACT, inline="always")
+def _gain_update(p00, p01, p02, p11, p12, p22, c0, c1, c2, ga0, ga1, gg):
+    """P + outer(P[:, 2], ga) (symmetric; its entries 00, 01, 11) and c + P[:, 2] gg across a
+    joint whose rotation is eliminated by the gains ga, gg."""
+    return (
+        p00 + p02 * ga0,
+        p01 + p02 * ga1,
+        p11 + p12 * ga1,
+        c0 + p02 * gg,
+        c1 + p12 * gg,
+        c2 + p22 * gg,
+    )
+
+
+@njit(fastmath=CONTRACT, inline="always")
 def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
     """Across the hub and joint i: returns ((P, c) on the outboard side of the joint (9),
     (P, c) on its inboard side (9), (ga (3), g0)) with α̈_i = ga·a + g0 (torque-driven) or
@@ -190,13 +192,8 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
     joint equation P[2, :]·a + p22 α̈_i + c2 = τ, so α̈_i = −(P[2, :]·a + c2 − tau_i)/(p22 − s)
     and the inboard side f = P a + c + P[:, 2] α̈_i: P_in = P − P[:, 2] P[2, :]/(p22 − s) stays
     symmetric; its row 2 (the joint moment τ as a function of a) vanishes only for s = 0."""
-    p00, p01, p02, p11, p12, p22, c0, c1, c2 = Pc
-    p00 += m_hub
-    p11 += m_hub
-    p22 += J_hub
-    c0 -= m_hub * g0
-    c1 -= m_hub * g1
-    hub = (p00, p01, p02, p11, p12, p22, c0, c1, c2)
+    hub = _rigid_body(Pc, m_hub, J_hub, g0, g1)
+    p00, p01, p02, p11, p12, p22, c0, c1, c2 = hub
     if motion:
         gg = acc_i
         ga0 = ga1 = ga2 = 0.0
@@ -208,14 +205,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
         ga1 = -p12 / p22
         ga2 = -1.0
         gg = (tau_i - c2) / p22
-        # P + outer(P[:, 2], ga), symmetric
-        n00 = p00 + p02 * ga0
-        n01 = p01 + p02 * ga1
-        n11 = p11 + p12 * ga1
-        c0 += p02 * gg
-        c1 += p12 * gg
-        c2 += p22 * gg
-        p00, p01, p11 = n00, n01, n11
+        p00, p01, p11, c0, c1, c2 = _gain_update(p00, p01, p02, p11, p12, p22, c0, c1, c2, ga0, ga1, gg)
         p02 = p12 = p22 = 0.0
     else:  # closed loop: the slope s = acc_i acts as a joint stiffness (see above)
         den = p22 - acc_i
@@ -224,13 +214,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
         ga2 = -p22 / den
         gg = (tau_i - c2) / den
         r = -acc_i / den  # 1 + ga2
-        n00 = p00 + p02 * ga0
-        n01 = p01 + p02 * ga1
-        n11 = p11 + p12 * ga1
-        c0 += p02 * gg
-        c1 += p12 * gg
-        c2 += p22 * gg
-        p00, p01, p11 = n00, n01, n11
+        p00, p01, p11, c0, c1, c2 = _gain_update(p00, p01, p02, p11, p12, p22, c0, c1, c2, ga0, ga1, gg)
         p02, p12, p22 = p02 * r, p12 * r, p22 * r
     return hub, (p00, p01, p02, p11, p12, p22, c0, c1, c2), (ga0, ga1, ga2, gg)
 
@@ -238,7 +222,7 @@ def _joint(m_hub, J_hub, motion, tau_i, acc_i, Pc, g0, g1):
 @njit(fastmath=CONTRACT, inline="always")
 def backward(md, data, tau, acc):
     """Tip → base: (P, c) at every cut, the element gains and the joint gains. The link
-    constants are read here, not by a helper: an inlined helper would copy ``md`` each call."""
+    constants are read once per link (:func:`link_constants`), outside the element loop."""
     k = md.k
     g0 = md.grav[0]
     g1 = md.grav[1]
@@ -263,35 +247,7 @@ def backward(md, data, tau, acc):
             _store_Pc(data.P_hub, data.c_hub, i, hub)
             data.ga[i, 0], data.ga[i, 1], data.ga[i, 2], data.g0[i] = gains
             continue
-        m = md.m[i]
-        lc = (
-            m,
-            m * g0,
-            m * g1,
-            md.cs0[i, 0],
-            md.CS[i, 0, 0],
-            md.CS[i, 1, 1],
-            md.CS[i, 1, 2],
-            md.cs0s0[i],
-            md.cs0S[i, 0],
-            md.d1[i, 1],
-            md.d1[i, 2],
-            md.D2[i, 0, 1],
-            md.D2[i, 0, 2],
-            md.D2[i, 1, 0],
-            md.D2[i, 2, 0],
-            md.CSS[i, 0, 0],
-            md.CSS[i, 1, 1],
-            md.CSS[i, 1, 2],
-            md.CSS[i, 2, 2],
-            md.CSES[i, 0, 1],
-            md.CSES[i, 0, 2],
-            md.CSES[i, 1, 0],
-            md.CSES[i, 2, 0],
-            md.sO0[i, 0],
-            md.sO0[i, 1],
-            md.su[i],
-        )
+        lc = link_constants(md, i, g0, g1)
         Mt = (
             data.Mt[i, 0, 0],
             data.Mt[i, 1, 1],
@@ -304,20 +260,7 @@ def backward(md, data, tau, acc):
         damped = so and md.mu[i] != 0.0
         for j in range(k - 1, -1, -1):
             g = i * k + j
-            kin = (
-                data.c[g],
-                data.s[g],
-                data.td[g],
-                data.e[g, 0],
-                data.e[g, 1],
-                data.e[g, 2],
-                data.ed[g, 0],
-                data.ed[g, 1],
-                data.ed[g, 2],
-                data.e_hat[g, 0],
-                data.e_hat[g, 1],
-                data.e_hat[g, 2],
-            )
+            kin = element_state(data, g) + (data.e_hat[g, 0], data.e_hat[g, 1], data.e_hat[g, 2])
             if damped:  # ê' of a damped second-order link (its strain-rate damping)
                 dh = (data.e_hat[g, 3], data.e_hat[g, 4], data.e_hat[g, 5])
             else:

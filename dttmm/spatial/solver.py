@@ -14,9 +14,9 @@ from ..case import Case
 from ..control_state import is_jitted
 from ..drives import UserLaw, require_open_loop
 from ..errors import InputError
-from ..kernel.driver import PROGRESS_AFTER, PROGRESS_CHUNKS, _progress_bar
 from ..resources import check_run_size
 from ..timegrid import step_schedule
+from ..timeloop import residual_meta, run_chunked, step_options
 from ..verdict import energy_growth, verdict
 from .build import STRAINS, build_model, make_work
 from .case import SpatialCase
@@ -200,6 +200,9 @@ def _tables(loop, case, md, t_end, restart, engine):
         ffr[rs], refr[rs] = _law_tables(case, n, t_end[rs], False)
         ffr[ns], refr[ns] = (a[0] for a in _law_tables(case, n, [0.0], False))
     c = lambda a: np.ascontiguousarray(a, float)
+    laws = dict(
+        zip(("ff_l", "ref_l", "ff_r", "ref_r", "ff_m", "ref_m"), map(c, (ffl, refl, ffr, refr, ffm, refm)))
+    )
     return loop.Drives(
         t_end=c(t_end),
         restart=np.asarray(restart, np.bool_),
@@ -211,13 +214,8 @@ def _tables(loop, case, md, t_end, restart, engine):
         mot_m=mm,
         code=code,
         gain=gain,
-        ff_l=c(ffl),
-        ref_l=c(refl),
-        ff_r=c(ffr),
-        ref_r=c(refr),
-        ff_m=c(ffm),
-        ref_m=c(refm),
         user=_user_tables(case, md, code, engine),
+        **laws,
     )
 
 
@@ -386,40 +384,6 @@ def _outputs(core, md, ws, case, oq, oqd, otau, nt, want_energy, want_loads, p=0
 SHORT_RUN = 2e4
 
 
-def _run_chunked(loop, args: tuple, n_steps: int, progress: bool | None):
-    """The time loop (``loop.run(*args, first, stop)``) as the planar kernel runs it
-    (:func:`dttmm.kernel.driver._run_chunked`): in one call if ``progress`` is False; else a
-    first chunk of n_steps/PROGRESS_CHUNKS steps, timed; then, with a progress bar (``progress``
-    True, or None and the estimated run time above PROGRESS_AFTER s) in chunks between bar
-    updates, else the rest in one call. The chunks give the one call's run bit for bit.
-    Returns (steps taken, bar or None)."""
-    stats = args[16]
-    failed = lambda: stats[loop.S_STATUS] != 0
-    if progress is False:
-        return loop.run(*args, 0, n_steps), None
-    chunk = max(1, n_steps // PROGRESS_CHUNKS)
-    t0 = time.perf_counter()
-    done = loop.run(*args, 0, min(chunk, n_steps))
-    if failed() or done >= n_steps:
-        return done, None
-    estimate = (time.perf_counter() - t0) * n_steps / max(done, 1)
-    bar = _progress_bar(n_steps, progress if progress is not None else estimate > PROGRESS_AFTER)
-    if bar is None:
-        return loop.run(*args, done, n_steps), None
-    bar.update(done)
-    for a in range(done, n_steps, chunk):
-        done = loop.run(*args, a, min(n_steps, a + chunk))
-        bar.update(done - a)
-        if failed():
-            break
-    return done, bar
-
-
-#: fixed sweep counts and "auto": the residual check (one extra sweep, not applied) runs at
-#: the first step, every CHECK_EVERY-th step and the last step (the planar kernel's rule)
-CHECK_EVERY = 64
-
-
 def _energy_growth(case: SpatialCase, t, energy, torque, rate):
     """The energy check (:func:`dttmm.verdict.energy_growth`) of a spatial run: (largest growth
     relative to the energy scale, its time or None)."""
@@ -525,27 +489,15 @@ def simulate(
     drv = _tables(loop, case, md, t_end, restart, engine)
     closed = bool(drv.code.any())
     coupled = bool(np.any((drv.code == control.CODE_PD) & (drv.gain[:, 3] != 0.0) & (drv.gain[:, 5] != 0.0)))
-    if fam is None:
-        b, g, am, af, lte = 0.25, 0.5, 0.0, 0.0, 0.0
-    else:
-        b, g, am, af = fam.beta, fam.gamma, fam.alpha_m, fam.alpha_f
-        lte = abs(b - 1.0 / 6.0) / b
-    mode = loop.IT_TOL if iters is None else loop.IT_AUTO if iters == "auto" else loop.IT_FIXED
+    rk4 = dict(beta=0.25, gamma=0.5, alpha_m=0.0, alpha_f=0.0, lte=0.0)
     opts = loop.Options(
         integrator=loop.INT_RK4 if fam is None else loop.INT_NEWMARK,
-        beta=float(b),
-        gamma=float(g),
-        alpha_m=float(am),
-        alpha_f=float(af),
         tol=float(tol),
         max_it=int(max_iterations),
-        iteration=mode,
-        n_fixed=int(iters) if mode == loop.IT_FIXED else 0,
         auto_fraction=float(auto_fraction),
-        lte=float(lte),
-        check_every=CHECK_EVERY if fam is not None and mode != loop.IT_TOL else 0,
         closed=closed,
         coupled=coupled,
+        **step_options(fam, iters, (loop.IT_TOL, loop.IT_AUTO, loop.IT_FIXED), rk4),
     )
     rc = None
     if case.model.closures:
@@ -586,9 +538,13 @@ def simulate(
         warnings.simplefilter("ignore")
         args = (md, ws, opts, drv, cw, q, qd, qdd, aux, torque0, z, zerr, ts, oq, oqd, otau, stats, fstats)
         short = engine == "numba" and t_end.size * md.nel <= SHORT_RUN and not progress
-        n_steps, bar = _run_chunked(loop, args, t_end.size, False if short else progress)
-    if bar is not None:
-        bar.close()
+        n_steps = run_chunked(
+            lambda first, stop: loop.run(*args, first, stop),
+            t_end.size,
+            False if short else progress,
+            int,
+            lambda _: stats[loop.S_STATUS] != 0,
+        )
     wall = time.perf_counter() - t_start
     cpu = time.process_time() - c0
     upto = int(stats[loop.S_SAMPLES])
@@ -614,16 +570,12 @@ def simulate(
         meta.update(beta=fam.beta, gamma=fam.gamma, alpha_m=fam.alpha_m, alpha_f=fam.alpha_f)
     if cw.fd[0]:
         meta["unconverged_solves"] = int(cw.fd[0])
-    if stats[loop.S_CHECKS]:
-        t_of = lambda j: float(t_end[j]) if j >= 0 else None
-        meta.update(
-            residual_checks=int(stats[loop.S_CHECKS]),
-            residual_flagged=int(stats[loop.S_FLAGGED]),
-            residual_first_t=t_of(int(stats[loop.S_FIRST_FLAG])),
-            residual_worst_t=t_of(int(stats[loop.S_WORST])),
-            residual_worst_ratio=float(fstats[0]),
-            residual_worst=float(fstats[1]),
-        )
+    residual_meta(
+        meta,
+        t_end,
+        *stats[[loop.S_CHECKS, loop.S_FLAGGED, loop.S_FIRST_FLAG, loop.S_WORST]],
+        *fstats,
+    )
 
     def result(upto_, meta_, status_, warns_):
         sel = slice(0, upto_)

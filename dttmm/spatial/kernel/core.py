@@ -684,6 +684,21 @@ def shift_pc(P, c, s0, s1, s2, N):
 
 
 @njit(inline="always")
+def add_translation(P, m, a0, a1, a2):
+    """The translational rows of a body's P: P[:3, :3] += m I and −[a]× in the upper right
+    (a = m d, d its centre)."""
+    P[0, 0] += m
+    P[1, 1] += m
+    P[2, 2] += m
+    P[0, 4] += a2
+    P[0, 5] -= a1
+    P[1, 3] -= a2
+    P[1, 5] += a0
+    P[2, 3] += a1
+    P[2, 4] -= a0
+
+
+@njit(inline="always")
 def add_rigid(P, c, m, J, d0, d1, d2, f0, f1, f2, n0, n1, n2):
     """A rigid body (mass m, inertia J about its centre d) added at the origin: P += Xᵀ M X =
     [[m I, −m[d]×], [m[d]×, J − m[d]×[d]×]] and c += Xᵀ (f, n) = (f, n + d × f), with (f, n) the
@@ -692,16 +707,8 @@ def add_rigid(P, c, m, J, d0, d1, d2, f0, f1, f2, n0, n1, n2):
     md1 = m * d1
     md2 = m * d2
     dd = d0 * d0 + d1 * d1 + d2 * d2
-    P[0, 0] += m
-    P[1, 1] += m
-    P[2, 2] += m
-    # −m[d]× in the upper right, m[d]× in the lower left
-    P[0, 4] += md2
-    P[0, 5] -= md1
-    P[1, 3] -= md2
-    P[1, 5] += md0
-    P[2, 3] += md1
-    P[2, 4] -= md0
+    add_translation(P, m, md0, md1, md2)
+    # m[d]× in the lower left
     P[4, 0] += md2
     P[5, 0] -= md1
     P[3, 1] -= md2
@@ -1078,16 +1085,7 @@ def constant_blocks(md, i, M, sums):
     M[3, 11] -= a42
     M[5, 11] += a40
     # the constant translational blocks and −[Σ m s]×
-    mel = md.mel[i]
-    M[0, 0] += mel
-    M[1, 1] += mel
-    M[2, 2] += mel
-    M[0, 4] += ms2
-    M[0, 5] -= ms1
-    M[1, 3] -= ms2
-    M[1, 5] += ms0
-    M[2, 3] += ms1
-    M[2, 4] -= ms0
+    add_translation(M, md.mel[i], ms0, ms1, ms2)
     CS = md.CS[i]
     CSS = md.CSS[i]
     for a in range(6):

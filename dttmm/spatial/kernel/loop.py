@@ -34,11 +34,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ... import control
-from ...iteration import stop_rule
+from ...iteration import change_and_size, residual_ratio, stop_rule
 from ._jit import PURE, njit
 from .core import LOAD_COL, cross, kinematics, mv, set_rates, sweep, tip_frames
 
 _stop_rule = njit(inline="always")(stop_rule)
+_change_and_size = njit(inline="always")(change_and_size)
+_residual_ratio = njit(inline="always")(residual_ratio)
 #: the law itself, compiled from dttmm.control (its source is part of the kernel's cache key)
 _pd_torque = njit(inline="always")(control.pd_torque)
 
@@ -222,24 +224,14 @@ class Loop(NamedTuple):
 
 
 def new_loop(n: int, ndof: int, closures: Closures | None = None, cols: int = 15) -> Loop:
-    z = np.zeros
+    per_link = ("taul", "torque", "scratch", "zs", "zsum", "dw", "yk", "yb", "tb")
     return Loop(
         cl=no_closures(n, ndof, cols) if closures is None else closures,
-        taul=z(n),
-        torque=z(n),
-        scratch=z(n),
-        zs=z(n),
-        zsum=z(n),
-        dw=z(n),
-        yk=z(n),
-        yb=z(n),
-        tb=z(n),
-        amat=z((n, n)),
-        gmat=z((n, n + 1)),
-        xs=z(ndof),
-        xc=z(ndof),
+        amat=np.zeros((n, n)),
+        gmat=np.zeros((n, n + 1)),
         fd=np.zeros(2, np.int64),
-        qddm=z(ndof),
+        **{name: np.zeros(n) for name in per_link},
+        **{name: np.zeros(ndof) for name in ("xs", "xc", "qddm")},
     )
 
 
@@ -304,35 +296,19 @@ if PURE:
         there is one (its moment dependence is resolved by repeating the sweeps)."""
         if not any(drv.code[i] == CODE_USER for i in range(md.n)):
             return False
-        from ...control_state import ControlState, JitState, is_jitted
-
         tips_a = np.zeros(md.n)
         link_tips(md, ws, tips_a)
         unl = [i for i in range(md.n) if md.locked[i] == 0]
         angles = tuple(float(q[md.ia[i]]) for i in unl)
         rates = tuple(float(qd[md.ia[i]]) for i in unl)
         tips = tuple(float(v) for v in tips_a)
-        arrays = tuple(np.array(v, np.float64) for v in (angles, rates, tips))
         for i in range(md.n):
             if drv.code[i] != CODE_USER:
                 continue
-            j = drive_index(md, i)
             moment = 0.0 if first else ws.acc[i, 1] - hub_moment(md, ws, i)
-            if is_jitted(drv.user[i].fn):
-                state = JitState(j, angles[j], rates[j], float(moment), 0.0, *arrays, math.nan)
-            else:
-                state = ControlState(
-                    joint=j,
-                    angle=angles[j],
-                    rate=rates[j],
-                    moment=float(moment),
-                    integral=0.0,
-                    angles=angles,
-                    rates=rates,
-                    tip_deflections=tips,
-                )
-            tau, d_a, d_r, _ = drv.user[i].evaluate(float(t), state)
-            slope = d_a * cq + d_r * cv
+            tau, slope = control.user_law_torque(
+                drv.user[i], t, drive_index(md, i), angles, rates, tips, moment, cq, cv
+            )
             ws.slope[i] = slope
             cw.taul[i] = tau - slope * (0.0 if first else x[md.ia[i]])
             cw.dw[i] = 0.0
@@ -343,7 +319,8 @@ else:
     from numba import types
     from numba.extending import overload
 
-    from ...control_state import JitState
+    #: a jitted law's torque and slope (:func:`dttmm.control.jit_user_torque`)
+    _jit_user = njit(inline="always")(control.jit_user_torque)
 
     def user_laws(md, ws, drv, cw, t, q, qd, x, cq, cv, torque, first):
         """The user laws of the compiled kernel (numba-jitted laws in ``drv.user``, a
@@ -378,11 +355,7 @@ else:
                     moment = ws.acc[i, 1] - hub_moment(md, ws, i)
                     ak = x[md.ia[i]]
                 jd = drive_index(md, i)
-                state = JitState(
-                    jd, u.angles[jd], u.rates[jd], moment, 0.0, u.angles, u.rates, u.tips, np.nan
-                )
-                tau, d_a, d_r = u.fns[u.slot[i]](t, state)
-                slope = d_a * cq + d_r * cv
+                tau, slope = _jit_user(u.fns[u.slot[i]], t, jd, moment, u.angles, u.rates, u.tips, cq, cv)
                 ws.slope[i] = slope
                 cw.taul[i] = tau - slope * ak
                 cw.dw[i] = 0.0
@@ -567,11 +540,7 @@ def accel_closed(md, ws, opts, drv, cw, t, q, qd, tau, mot, ff, ref, z, out, tor
             converged = True
             break
         if it > 0:
-            dx = 0.0
-            xmax = 0.0
-            for r in range(nd):
-                dx = max(dx, abs(out[r] - cw.xc[r]))
-                xmax = max(xmax, abs(out[r]))
+            dx, xmax = _change_and_size(out, cw.xc, out)
             stop, converged = _stop_rule(it, dx, prev, xmax, opts.tol)
             if stop:
                 break
@@ -1136,18 +1105,10 @@ def residual_check(md, ws, opts, cq, cv, qt, qdt, tv, mot, x, k2, dq, d2q, s, st
     Newmark truncation error in q or q̇, ratio = max(d / (lte·Δq̈ + tol_q̈), γ d / (|γ − ½| Δq̈ +
     Δ²q̈/12 + γ tol_q̈)) > 1 (Δq̈ = ``dq``, Δ²q̈ = ``d2q``)."""
     ok = sweep(md, ws, cq, cv, qt, qdt, tv, mot, np.zeros(x.shape[0]), k2, False, np.zeros((0, 6)))
-    d = 0.0
-    xmax = 0.0
-    for r in range(x.shape[0]):
-        d = max(d, abs(k2[r] - x[r]))
-        xmax = max(xmax, abs(x[r]))
+    d, xmax = _change_and_size(k2, x, x)
     if not ok:
         d = np.inf
-    floor = opts.tol * max(1.0, xmax)
-    ratio = max(
-        d / (opts.lte * dq + floor),
-        opts.gamma * d / (abs(opts.gamma - 0.5) * dq + d2q / 12.0 + opts.gamma * floor),
-    )
+    ratio = _residual_ratio(d, xmax, dq, d2q, opts.tol, opts.lte, opts.gamma)
     stats[S_CHECKS] += 1
     if not ratio <= 1.0:  # NaN counts as flagged
         stats[S_FLAGGED] += 1
@@ -1406,24 +1367,14 @@ def rk4_step(md, ws, opts, drv, cw, st, s, h, stats):
     for r in range(nd):
         k2[r] = qdi[r]
     if ok:
-        if opts.closed:
-            rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, hf)
-        for r in range(nd):
-            qi[r] = q[r] + hf * k2[r]
-            qdi[r] = qd[r] + hf * ka[r]
-        ok = rk4_accel(md, ws, opts, drv, cw, s, h, 1, qi, qdi, kb, torque, _flag(False))
+        ok = rk4_stage(md, ws, opts, drv, cw, st, s, h, hf, 1, k2, ka, kb)
         for r in range(nd):
             k3[r] = qdi[r]
     if ok:
-        if opts.closed:
-            rk4_z(md, drv, cw, z, drv.ref_m[s], qi, 2.0, h)
-        for r in range(nd):
-            qi[r] = q[r] + h * k3[r]
-            qdi[r] = qd[r] + h * kb[r]
-        ok = rk4_accel(md, ws, opts, drv, cw, s, h, 2, qi, qdi, kc, torque, _flag(False))
+        ok = rk4_stage(md, ws, opts, drv, cw, st, s, h, h, 2, k3, kb, kc)
     if ok:
         if opts.closed:
-            rk4_z(md, drv, cw, z, drv.ref_l[s], qi, 1.0, 0.0)
+            rk4_z(n, drv.code, md.ia, z, drv.ref_l[s], qi, 1.0, 0.0, cw.zsum, cw.zs)
             for i in range(n):
                 if drv.code[i] == CODE_PD:
                     z[i] += h / 6.0 * cw.zsum[i]
@@ -1580,12 +1531,19 @@ def rk4_accel(md, ws, opts, drv, cw, s, h, stage, q, qd, out, torque, fresh):
     return accel_closed(md, ws, opts, drv, cw, t, q, qd, tau, mot, ff, ref, cw.zs, out, torque, fresh)
 
 
-@njit()
-def rk4_z(md, drv, cw, z, ref, q, w, c):
-    """Closed-loop integral states at an RK4 stage: ż = α_ref − α of the stage state q (its
-    reference ``ref`` (n, 2)) enters the sum with weight w and the next stage's z = z_n + c ż."""
-    for i in range(md.n):
-        if drv.code[i] == CODE_PD:
-            zd = ref[i, 0] - q[md.ia[i]]
-            cw.zsum[i] += w * zd
-            cw.zs[i] = z[i] + c * zd
+#: the closed-loop integral states at an RK4 stage (:func:`dttmm.control.rk4_integral`)
+rk4_z = njit()(control.rk4_integral)
+
+
+@njit(inline="always")
+def rk4_stage(md, ws, opts, drv, cw, st, s, h, c, stage, kq, kqd, out):
+    """An inner RK4 stage of step s: the integral states advanced by c ż (ż at the last stage,
+    :func:`rk4_z`), the stage state (q + c kq, q̇ + c kqd) into st.qi, st.qdi, its acceleration
+    into ``out`` (:func:`rk4_accel`). Returns ok."""
+    qi, qdi = st.qi, st.qdi
+    if opts.closed:
+        rk4_z(md.n, drv.code, md.ia, st.z, drv.ref_m[s], qi, 2.0, c, cw.zsum, cw.zs)
+    for r in range(qi.shape[0]):
+        qi[r] = st.q[r] + c * kq[r]
+        qdi[r] = st.qd[r] + c * kqd[r]
+    return rk4_accel(md, ws, opts, drv, cw, s, h, stage, qi, qdi, out, st.torque, _flag(False))
