@@ -160,13 +160,7 @@ class ScenarioFile(fields_model(Scenario)):
     drives: Annotated[list[DriveFile], Strict()] = []
 
 
-CaseFile = case_file_model(
-    "CaseFile",
-    __name__,
-    ModelFile,
-    ScenarioFile,
-    "A whole case file. ``provenance`` is free-form metadata kept on the Case.",
-)
+CaseFile = case_file_model("CaseFile", __name__, ModelFile, ScenarioFile)
 
 
 def validate_case_file(data) -> CaseFile:

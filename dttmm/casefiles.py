@@ -86,11 +86,16 @@ def read_case_document(path) -> tuple[dict, str]:
     return data, document_kind(data)
 
 
-def case_file_model(name: str, module: str, model, scenario, doc: str, spatial: bool = False):
+def case_file_model(name: str, module: str, model, scenario, spatial: bool = False, doc: str = ""):
     """The schema of a whole case file: ``kind`` (spatial files: ``"spatial"``, optional),
     ``name``, the ``model`` and ``scenario`` tables, and ``provenance`` (free-form metadata kept
-    on the case); ``module`` is the module that defines it."""
+    on the case); ``module`` is the module that defines it, ``doc`` its docstring."""
     kind = {"kind": (Literal["spatial"], "spatial")} if spatial else {}
+    marked = ' (``kind = "spatial"`` marks it, optional)' if spatial else ""
+    doc = (
+        doc
+        or f"A whole {'spatial ' if spatial else ''}case file{marked}; ``provenance`` is free-form metadata."
+    )
     return create_model(
         name,
         __base__=_Strict,

@@ -16,6 +16,9 @@ from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK, pyplot, sav
 from .errors import InputError, SimulationError
 from .resources import check_run_size
 
+#: the options of ``dttmm simulate`` that are keywords of :func:`dttmm.simulate` by the same name
+SOLVER_OPTIONS = ("integrator", "sweep", "iterations", "tol", "rho_inf", "strain", "engine")
+
 
 def plot_result(res, path: Path, title: str = "") -> Path:
     """PNG with tip deflections (top) and joint angles (bottom) against time."""
@@ -96,21 +99,9 @@ def run_simulate(a) -> int:
         case = load_case(a.case)  # the input is accepted before anything is written
         check_run_size(case, a.elements, a.h, shape_points=getattr(a, "shape_points", 0))
         out = prepare_out(a.out)
-        res = simulate(
-            case,
-            elements_per_link=a.elements,
-            h=a.h,
-            integrator=a.integrator,
-            sweep=a.sweep,
-            iterations=a.iterations,
-            tol=a.tol,
-            rho_inf=a.rho_inf,
-            strain=a.strain,
-            engine=a.engine,
-            progress=True,
-            shape_points=getattr(a, "shape_points", 0),
-            kernel=getattr(a, "kernel", None),
-        )
+        options = {k: getattr(a, k) for k in SOLVER_OPTIONS}
+        options.update(shape_points=getattr(a, "shape_points", 0), kernel=getattr(a, "kernel", None))
+        res = simulate(case, elements_per_link=a.elements, h=a.h, progress=True, **options)
     except InputError as exc:
         _close_progress_bars()
         print(f"dttmm: bad input: {exc}", file=sys.stderr)

@@ -689,8 +689,8 @@ UrdfCaseFile = case_file_model(
     __name__,
     UrdfModelFile,
     SpatialScenarioFile,
-    'A whole case file whose arm comes from a URDF (``kind = "spatial"``, optional).',
     spatial=True,
+    doc='A whole case file whose arm comes from a URDF (``kind = "spatial"``, optional).',
 )
 
 

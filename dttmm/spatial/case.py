@@ -155,19 +155,11 @@ class SpatialScenarioFile(ScenarioFile):
     loads: Annotated[list[LoadFile], Strict()] = []
 
 
-SpatialCaseFile = case_file_model(
-    "SpatialCaseFile",
-    __name__,
-    SpatialModelFile,
-    SpatialScenarioFile,
-    'A whole spatial case file; ``kind = "spatial"`` marks it (optional).',
-    spatial=True,
-)
+SpatialCaseFile = case_file_model("SpatialCaseFile", __name__, SpatialModelFile, SpatialScenarioFile, True)
 
 
 def validate_spatial_file(data) -> SpatialCaseFile:
-    """Validate a parsed spatial case document; InputError naming the first bad key (an
-    unknown key with the nearest valid one)."""
+    """Validate a parsed spatial case document (:func:`dttmm.casefiles.validate_document`)."""
     return validate_document(SpatialCaseFile, data)
 
 

@@ -211,10 +211,6 @@ class SpatialPayload(_InertiaBody):
     inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     _where: str = field(default="payload", repr=False, compare=False)
 
-    @property
-    def offset_vector(self) -> np.ndarray:
-        return np.array(self.offset, dtype=float)
-
 
 @dataclass(frozen=True)
 class SpatialLink:
@@ -267,8 +263,11 @@ class SpatialLink:
     hub_mass = BodyValue("hub", "mass")
     hub_inertia = BodyValue("hub", "inertia_matrix", lambda: np.zeros((3, 3)))
     payload_mass = BodyValue("payload", "mass")
-    payload_offset = BodyValue("payload", "offset_vector", lambda: np.zeros(3))
     payload_inertia = BodyValue("payload", "inertia_matrix", lambda: np.zeros((3, 3)))
+
+    @property
+    def payload_offset(self) -> np.ndarray:
+        return np.array(self.payload.offset if self.payload else (0.0, 0.0, 0.0), dtype=float)
 
 
 @dataclass(frozen=True)
