@@ -10,7 +10,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import Field, Strict, create_model, model_validator
 
-from .casefiles import (
+from .casedoc import (
     MAX_FILE_BYTES,  # noqa: F401  (the file-size limit, kept importable here)
     case_file_model,
     read_case_document,

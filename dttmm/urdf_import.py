@@ -59,7 +59,7 @@ import numpy as np
 from pydantic import Strict, ValidationError
 
 from .case import _drive
-from .casefiles import case_file_model, validate_document
+from .casedoc import case_file_model, validate_document
 from .errors import InputError
 from .schema import BIG, Finite, NonNegative, _short, _Strict, input_error
 from .sections import IBeam, Material, Rectangle, Tube, section_properties

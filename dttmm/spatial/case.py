@@ -9,7 +9,7 @@ from typing import Annotated, Union
 from pydantic import Field, Strict, create_model
 
 from ..case import ScenarioFile, _drive, check_case
-from ..casefiles import case_file_model, read_case_document, validate_document
+from ..casedoc import case_file_model, read_case_document, validate_document
 from ..drives import OPEN_LAWS, _prefixed, _tagged, _union, law_from_table
 from ..errors import InputError
 from ..scenario import Scenario
