@@ -6,7 +6,7 @@ import datetime
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal, Union
+from typing import Annotated, Any, Literal, Union
 
 from pydantic import Field, Strict, create_model, model_validator
 
@@ -60,7 +60,28 @@ def check_case(case, model_type: type, model_name: str, count: str, joint: str) 
 
 
 @dataclass(frozen=True)
-class Case:
+class CaseBase:
+    """The fields and checks every case class shares (planar :class:`Case`, spatial
+    :class:`dttmm.spatial.SpatialCase`): ``model``, ``scenario``, ``name`` and ``provenance``.
+    ``MODEL`` says (model class, its name in errors, the model's attribute counting the joints,
+    what a joint is) for :func:`check_case`."""
+
+    model: Any
+    scenario: Scenario
+    name: str = ""
+    provenance: dict | None = field(default=None, compare=False)
+    MODEL = (Manipulator, "dttmm.Manipulator", "n_links", "joint")
+
+    def __post_init__(self):
+        check_case(self, *self.MODEL)
+
+    @property
+    def n_joints(self) -> int:
+        return getattr(self.model, self.MODEL[2])
+
+
+@dataclass(frozen=True)
+class Case(CaseBase):
     """The physical problem every method solves: a manipulator and a scenario.
 
     ``provenance`` is free-form metadata of the case (source, published values, tolerance, …),
@@ -68,16 +89,6 @@ class Case:
     """
 
     model: Manipulator
-    scenario: Scenario
-    name: str = ""
-    provenance: dict | None = field(default=None, compare=False)
-
-    def __post_init__(self):
-        check_case(self, Manipulator, "dttmm.Manipulator", "n_links", "joint")
-
-    @property
-    def n_joints(self) -> int:
-        return self.model.n_links
 
 
 # --- the file format: models composed from the fields the classes declare ---------------------

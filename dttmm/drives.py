@@ -34,6 +34,7 @@ from .schema import (
     NonNegative,
     Positive,
     Until,
+    _set,
     _short,
     build,
     field_types,
@@ -62,11 +63,6 @@ __all__ = [
     "require_no_computed_torque",
     "require_open_loop",
 ]
-
-
-def _set(obj, values: dict):
-    for k, v in values.items():
-        object.__setattr__(obj, k, v)
 
 
 def _check_kind(law, kind: str, where: str):

@@ -14,27 +14,22 @@ name = "my_arm"
 gravity = [0.0, -9.81]
 [[model.links]]
 length = 0.6
-{ALUMINIUM}
 thickness = 0.003
+{ALUMINIUM}
 hub = {{ mass = 0.0, inertia = 0.02 }}
 [[model.links]]
 length = 0.4
-{ALUMINIUM}
 thickness = 0.002
+{ALUMINIUM}
 hub = {{ mass = 0.3, inertia = 0.001 }}
 payload = {{ mass = 0.2, inertia = 0.0 }}
 [scenario]
 duration = 1.5
 output_step = 1e-3
-[[scenario.drives]]
-kind = "motion"
-law = "spin_up"
-rate = 1.5
-ramp_time = 0.8
-[[scenario.drives]]
-kind = "torque"
-law = "constant"
-value = 0.0
+drives = [
+    {{ kind = "motion", law = "spin_up", rate = 1.5, ramp_time = 0.8 }},  # joint 1 spins up
+    {{ kind = "torque", law = "constant", value = 0.0 }},  # joint 2 swings free
+]
 """
 
 path = figure_path("my_arm.toml")

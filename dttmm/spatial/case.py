@@ -3,16 +3,15 @@ unlocked joint, base first), or a :class:`SpatialScenario` that adds external lo
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Annotated, Union
 
 from pydantic import Field, Strict, create_model
 
-from ..case import ScenarioFile, _drive, check_case
+from ..case import CaseBase, ScenarioFile, _drive
 from ..casedoc import case_file_model, read_case_document, validate_document
 from ..drives import OPEN_LAWS, _prefixed, _tagged, _union, law_from_table
 from ..errors import InputError
-from ..scenario import Scenario
 from ..schema import Finite, NonNegative, _Strict, field_types, fields_model
 from . import model as _m
 from .model import BoundedVector3, InertiaValue, SpatialManipulator, SpatialSection, Vector3
@@ -29,27 +28,21 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class SpatialCase:
+class SpatialCase(CaseBase):
     """The physical problem of a spatial arm: ``model`` and ``scenario`` (a :class:`dttmm.Scenario`,
     or a :class:`SpatialScenario` with external loads); ``provenance`` is free-form metadata (no
     part in equality)."""
 
     model: SpatialManipulator
-    scenario: Scenario
-    name: str = ""
-    provenance: dict | None = field(default=None, compare=False)
+    MODEL = (SpatialManipulator, "dttmm.spatial.SpatialManipulator", "n_joints", "unlocked joint")
 
     def __post_init__(self):
-        check_case(self, SpatialManipulator, "dttmm.spatial.SpatialManipulator", "n_joints", "unlocked joint")
+        super().__post_init__()
         check_load_links(self)
         if self.model.closures:
             from .topology import check_initial_closures
 
             check_initial_closures(self)
-
-    @property
-    def n_joints(self) -> int:
-        return self.model.n_joints
 
 
 # --- the spatial case file (docs/cases.md "Spatial cases") ----------------------------------

@@ -21,6 +21,7 @@ from ..schema import (
     Finite,
     NonNegative,
     Positive,
+    _set,
     _short,
     _Strict,
     check_fields,
@@ -65,23 +66,12 @@ class InertiaFields(_Strict):
     inertia: InertiaValue
 
 
-class GravityFields(_Strict):
-    gravity: BoundedVector3 = [0.0, 0.0, 0.0]
-    base_xyz: BoundedVector3 = [0.0, 0.0, 0.0]
-    base_rpy: Vector3 = [0.0, 0.0, 0.0]
-
-
 #: the number of position-level constraint equations of each closure kind
 CLOSURE_EQUATIONS = {"revolute": 5, "spherical": 3, "weld": 6}
 
 
 #: names a link may not take: the base frame and the ground of a closure
 RESERVED_NAMES = ("base", "ground")
-
-
-def _set(obj, values: dict):
-    for k, v in values.items():
-        object.__setattr__(obj, k, v)
 
 
 def _unit(value, field_: str) -> tuple:
@@ -318,9 +308,9 @@ class SpatialManipulator:
     """
 
     links: tuple
-    gravity: tuple = (0.0, 0.0, 0.0)
-    base_xyz: tuple = (0.0, 0.0, 0.0)
-    base_rpy: tuple = (0.0, 0.0, 0.0)
+    gravity: BoundedVec3 = (0.0, 0.0, 0.0)
+    base_xyz: BoundedVec3 = (0.0, 0.0, 0.0)
+    base_rpy: Vec3 = (0.0, 0.0, 0.0)
     closures: tuple = ()
     end_effector: str | None = None
 
@@ -339,7 +329,11 @@ class SpatialManipulator:
         _set(
             self,
             check_fields(
-                GravityFields, "model", gravity=self.gravity, base_xyz=self.base_xyz, base_rpy=self.base_rpy
+                SpatialManipulator,
+                "model",
+                gravity=self.gravity,
+                base_xyz=self.base_xyz,
+                base_rpy=self.base_rpy,
             ),
         )
         names = tuple(link.name or f"link{i + 1}" for i, link in enumerate(links))
@@ -488,7 +482,7 @@ def embed_planar(manipulator: Manipulator, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0
     """
     if not isinstance(manipulator, Manipulator):
         raise InputError("manipulator", _short(manipulator), "must be a dttmm.Manipulator")
-    rot = rpy_matrix(check_fields(GravityFields, "base", base_rpy=base_rpy)["base_rpy"])
+    rot = rpy_matrix(check_fields(SpatialManipulator, "base", base_rpy=base_rpy)["base_rpy"])
     links = []
     for i, link in enumerate(manipulator.links):
         b, w = link.beam, f"model.links[{i}]"
