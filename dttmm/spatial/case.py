@@ -12,7 +12,7 @@ from ..case import CaseBase, ScenarioFile, _drive
 from ..casedoc import case_file_model, read_case_document, validate_document
 from ..drives import OPEN_LAWS, _prefixed, _tagged, _union, law_from_table
 from ..errors import InputError
-from ..schema import Finite, NonNegative, _Strict, field_types, fields_model
+from ..schema import Finite, NonNegative, _Strict, build, check_fields, field_types, fields_model
 from . import model as _m
 from .model import BoundedVector3, InertiaValue, SpatialManipulator, SpatialSection, Vector3
 from .scenario import LOAD_LAWS, SpatialLoad, SpatialLoadFields, SpatialScenario, check_load_links
@@ -79,6 +79,7 @@ _SECTION = field_types(SpatialSection)
 BEAM_REQUIRED = tuple(k for k, (_, d) in _SECTION.items() if d is ... and k != "length")
 BEAM_KEYS = tuple(k for k in _SECTION if k != "length")
 BEAM_DATA = tuple(k for k in BEAM_KEYS if k not in ("roll", "damping"))
+_LENGTH = fields_model(SpatialSection, ("length",))
 
 
 def _optional(keys, **types) -> dict:
@@ -157,19 +158,23 @@ def validate_spatial_file(data) -> SpatialCaseFile:
 
 
 def case_from_dict(data: dict) -> SpatialCase:
-    """Build a :class:`SpatialCase` from a parsed spatial case document."""
+    """Build a :class:`SpatialCase` from a parsed spatial case document: validated once by
+    :data:`SpatialCaseFile`, its parts built from the validated values (:func:`dttmm.schema.build`
+    runs only the rules that span fields: unit axes, inertia tensors, closures)."""
     spec = validate_spatial_file(data)
     links = []
     for i, d in enumerate(spec.model.links):
         w = f"model.links[{i}]"
         beam = _link_body(d, w)
-        joint = _m.SpatialJoint(**dict(d.joint), _where=f"{w}.joint")
-        hub = None if d.hub is None else _m.SpatialHub(**dict(d.hub), _where=f"{w}.hub")
-        pay = None if d.payload is None else _m.SpatialPayload(**dict(d.payload), _where=f"{w}.payload")
+        joint = build(_m.SpatialJoint, **dict(d.joint), _where=f"{w}.joint")
+        hub = None if d.hub is None else build(_m.SpatialHub, **dict(d.hub), _where=f"{w}.hub")
+        pay = (
+            None if d.payload is None else build(_m.SpatialPayload, **dict(d.payload), _where=f"{w}.payload")
+        )
         links.append(_m.SpatialLink(beam, joint, hub, pay, d.name, d.parent, _where=w))
     m = spec.model
     closures = tuple(
-        _m.SpatialClosure(**dict(c), _where=f"model.closures[{j}]") for j, c in enumerate(m.closures)
+        build(_m.SpatialClosure, **dict(c), _where=f"model.closures[{j}]") for j, c in enumerate(m.closures)
     )
     manip = SpatialManipulator(
         tuple(links), tuple(m.gravity), tuple(m.base.xyz), tuple(m.base.rpy), closures, m.end_effector
@@ -189,12 +194,13 @@ def _link_body(d, w: str):
                 raise InputError(
                     f"{w}.{key}", getattr(d, key), "is a beam key; a rigid link (`rigid`) takes none"
                 )
-        return _m.SpatialRigidBody(d.length or 0.0, **dict(d.rigid), _where=f"{w}.rigid")
+        return build(_m.SpatialRigidBody, length=d.length or 0.0, **dict(d.rigid), _where=f"{w}.rigid")
     for key in ("length", *BEAM_REQUIRED):
         if getattr(d, key) is None:
             raise InputError(f"{w}.{key}", None, "is required (a rigid link gives `rigid` instead)")
     given = {k: getattr(d, k) for k in _SECTION if getattr(d, k) is not None}
-    return SpatialSection(**given, _where=w)
+    check_fields(_LENGTH, w, length=d.length)  # a beam's length is positive, a rigid link's ≥ 0
+    return build(SpatialSection, **given, _where=w)
 
 
 def _load(spec, j: int) -> SpatialLoad:
