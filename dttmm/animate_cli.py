@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 from .casefiles import load_case
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_OK, OneLineParser, add_option, number
+from .cliparse import EXIT_FAILED, EXIT_OK, OneLineParser, add_option, bad_input, number
 from .errors import InputError, SimulationError
 
 __all__ = ["animate_parser", "run_animate"]
@@ -145,8 +145,7 @@ def run_animate(a) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
         written = animate.save(anim, out, progress=True)
     except InputError as exc:
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except SimulationError as exc:
         print(f"dttmm: simulation failed: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_FAILED

@@ -15,7 +15,16 @@ import re
 import socket
 import sys
 
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK, OneLineParser, add_option, number
+from .cliparse import (
+    EXIT_FAILED,
+    EXIT_INPUT,
+    EXIT_NOT_OK,
+    EXIT_OK,
+    OneLineParser,
+    add_option,
+    bad_input,
+    number,
+)
 
 __all__ = ["EXIT_FAILED", "EXIT_INPUT", "EXIT_NOT_OK", "EXIT_OK", "OneLineParser", "main", "simulate_parser"]
 
@@ -164,8 +173,7 @@ def main(argv=None) -> int:
     try:
         return _dispatch(argv)
     except InputError as exc:
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except SystemExit as exc:  # argparse: --help (0) or a bad option (2, message printed)
         return exc.code if isinstance(exc.code, int) else EXIT_INPUT
     except KeyboardInterrupt:

@@ -4,6 +4,7 @@ several take (:func:`add_option`), the number type of options and the PNG figure
 from __future__ import annotations
 
 import argparse
+import sys
 
 __all__ = [
     "EXIT_FAILED",
@@ -13,6 +14,7 @@ __all__ = [
     "OPTIONS",
     "OneLineParser",
     "add_option",
+    "bad_input",
     "number",
     "pyplot",
     "save_figure",
@@ -27,6 +29,12 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(EXIT_INPUT, f"{self.prog}: bad option: {message} (see {self.prog} --help)\n")
+
+
+def bad_input(exc) -> int:
+    """Report the :class:`dttmm.InputError` ``exc`` as one line on stderr; the exit code 2."""
+    print(f"dttmm: bad input: {exc}", file=sys.stderr)
+    return EXIT_INPUT
 
 
 def number(text: str) -> float:

@@ -19,7 +19,16 @@ from pathlib import Path
 import numpy as np
 
 from .casefiles import load_case
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_OK, OneLineParser, add_option, number, pyplot, save_figure
+from .cliparse import (
+    EXIT_FAILED,
+    EXIT_OK,
+    OneLineParser,
+    add_option,
+    bad_input,
+    number,
+    pyplot,
+    save_figure,
+)
 from .errors import InputError
 
 __all__ = ["modes_parser", "run_modes"]
@@ -139,8 +148,7 @@ def run_modes(a) -> int:
         out = prepare_out(a.out)
         m = modes(case, a.elements, a.t, "equilibrium" if a.equilibrium else None, n=a.n, strain=a.strain)
     except InputError as exc:
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except np.linalg.LinAlgError as exc:
         print(f"dttmm: modes failed: singular system at t = {a.t:g} s ({exc})", file=sys.stderr)
         return EXIT_FAILED
@@ -156,7 +164,6 @@ def run_modes(a) -> int:
         try:
             paths.append(save(mode_animation(m, case), out / f"{name}_modes.mp4"))
         except InputError as exc:
-            print(f"dttmm: bad input: {exc}", file=sys.stderr)
-            return EXIT_INPUT
+            return bad_input(exc)
     print(f"wrote {', '.join(str(p) for p in paths)}")
     return EXIT_OK

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from .api import simulate
 from .casefiles import load_case
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK, pyplot, save_figure  # noqa: F401
+from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK, bad_input, pyplot, save_figure  # noqa: F401
 from .errors import InputError, SimulationError
 from .resources import check_run_size
 
@@ -104,8 +104,7 @@ def run_simulate(a) -> int:
         res = simulate(case, elements_per_link=a.elements, h=a.h, progress=True, **options)
     except InputError as exc:
         _close_progress_bars()
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except SimulationError as exc:
         res = exc.partial
         msg = f"dttmm: simulation failed: {' '.join(str(exc).split())}"
