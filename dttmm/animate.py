@@ -228,50 +228,7 @@ def arm_animation(
     ax.set_ylabel("y [m]")
     ax.grid(alpha=0.25)
     ax.plot([0], [0], marker="^", color="0.3", ms=10, ls="none")  # the base
-    hubs, pays = _bodies(case)
-    artists = []
-    for j, (name, r) in enumerate(results.items()):
-        lab, color, ls = _style(name, j, styles)
-        n = r.link_shapes.shape[1]
-        links = [
-            ax.plot([], [], color=color, ls=ls, lw=2.2, label=lab if i == 0 else None)[0] for i in range(n)
-        ]
-        joints = ax.plot([], [], "o", color=color, mfc="white", ms=5, ls="none")[0]
-        hub = ax.plot([], [], "s", color=color, mfc="none", ms=9, ls="none")[0]
-        pay = ax.plot([], [], "o", color=color, ms=8, ls="none")[0]
-        trace = ax.plot([], [], color=color, lw=0.8, alpha=0.6)[0]
-        artists.append((drawn[name], r.end_effector, links, joints, hub, pay, trace))
-    clock = ax.text(0.02, 0.97, "", transform=ax.transAxes, va="top", family="monospace")
-    ax.text(
-        0.98,
-        0.97,
-        f"bending ×{exaggerate:g}" if exaggerate != 1 else "true scale",
-        transform=ax.transAxes,
-        va="top",
-        ha="right",
-    )
-    ax.legend(loc="lower left", fontsize=7, framealpha=0.8)
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-
-    def draw(f):
-        s = idx[f]
-        out = [clock]
-        clock.set_text(f"t = {t[s]:.3f} s")
-        for shp, ee, links, joints, hub, pay, trace in artists:
-            for i, ln in enumerate(links):
-                ln.set_data(shp[s, i, :, 0], shp[s, i, :, 1])
-            roots = shp[s, :, 0]
-            joints.set_data(roots[:, 0], roots[:, 1])
-            hub.set_data(roots[hubs, 0], roots[hubs, 1])
-            tips = shp[s, :, -1]
-            pay.set_data(tips[pays, 0], tips[pays, 1])
-            trace.set_data(ee[: s + 1, 0], ee[: s + 1, 1])
-            out += [*links, joints, hub, pay, trace]
-        return out
-
-    return Animation(fig, draw, t[idx], fps)
+    return _moving_arms(fig, ax, results, drawn, case, t, idx, exaggerate, fps, title, styles)
 
 
 def _bodies(case):
@@ -304,35 +261,42 @@ def _arm_animation_3d(results, drawn, case, t, idx, exaggerate, fps, title, figs
     ax.set_zlabel("z [m]")
     base = first[0, 0, 0]
     ax.plot([base[0]], [base[1]], [base[2]], marker="^", color="0.3", ms=10, ls="none")  # the base
+    return _moving_arms(fig, ax, results, drawn, case, t, idx, exaggerate, fps, title, styles, spatial=True)
+
+
+def _moving_arms(fig, ax, results, drawn, case, t, idx, exaggerate, fps, title, styles, spatial=False):
+    """The :class:`Animation` of the arms ``drawn`` (link shapes per method) in ``ax`` (planar,
+    or mplot3d axes for ``spatial`` shapes): per method its links, joints, hubs and payloads
+    and the end effector's trace, a clock, the scale of the bending, the legend and the title."""
+    nil = ([], [], []) if spatial else ([], [])
     hubs, pays = _bodies(case)
     artists = []
     for j, (name, r) in enumerate(results.items()):
         lab, color, ls = _style(name, j, styles)
         n = r.link_shapes.shape[1]
         links = [
-            ax.plot([], [], [], color=color, ls=ls, lw=2.2, label=lab if i == 0 else None)[0]
-            for i in range(n)
+            ax.plot(*nil, color=color, ls=ls, lw=2.2, label=lab if i == 0 else None)[0] for i in range(n)
         ]
-        joints = ax.plot([], [], [], "o", color=color, mfc="white", ms=5, ls="none")[0]
-        hub = ax.plot([], [], [], "s", color=color, mfc="none", ms=9, ls="none")[0]
-        pay = ax.plot([], [], [], "o", color=color, ms=8, ls="none")[0]
-        trace = ax.plot([], [], [], color=color, lw=0.8, alpha=0.6)[0]
+        joints = ax.plot(*nil, "o", color=color, mfc="white", ms=5, ls="none")[0]
+        hub = ax.plot(*nil, "s", color=color, mfc="none", ms=9, ls="none")[0]
+        pay = ax.plot(*nil, "o", color=color, ms=8, ls="none")[0]
+        trace = ax.plot(*nil, color=color, lw=0.8, alpha=0.6)[0]
         artists.append((drawn[name], r.end_effector, links, joints, hub, pay, trace))
-    clock = ax.text2D(0.02, 0.97, "", transform=ax.transAxes, va="top", family="monospace")
-    ax.text2D(
-        0.98,
-        0.97,
-        f"bending ×{exaggerate:g}" if exaggerate != 1 else "true scale",
-        transform=ax.transAxes,
-        va="top",
-        ha="right",
-    )
+    text = ax.text2D if spatial else ax.text
+    clock = text(0.02, 0.97, "", transform=ax.transAxes, va="top", family="monospace")
+    scale = f"bending ×{exaggerate:g}" if exaggerate != 1 else "true scale"
+    text(0.98, 0.97, scale, transform=ax.transAxes, va="top", ha="right")
     ax.legend(loc="lower left", fontsize=7, framealpha=0.8)
     if title:
         ax.set_title(title, fontsize=10)
+    if not spatial:
+        fig.tight_layout()
 
     def put(artist, pts):
-        artist.set_data_3d(pts[:, 0], pts[:, 1], pts[:, 2])
+        if spatial:
+            artist.set_data_3d(pts[:, 0], pts[:, 1], pts[:, 2])
+        else:
+            artist.set_data(pts[:, 0], pts[:, 1])
 
     def draw(f):
         s = idx[f]

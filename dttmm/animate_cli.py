@@ -17,19 +17,10 @@ import sys
 from pathlib import Path
 
 from .casefiles import load_case
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_OK, OneLineParser
+from .cliparse import EXIT_FAILED, EXIT_OK, OneLineParser, add_option, bad_input, number
 from .errors import InputError, SimulationError
 
 __all__ = ["animate_parser", "run_animate"]
-
-
-def _float(text: str) -> float:
-    import argparse
-
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
 def animate_parser() -> OneLineParser:
@@ -41,13 +32,13 @@ def animate_parser() -> OneLineParser:
     )
     p.add_argument("source", help="case TOML file, or a Result table (.parquet)")
     p.add_argument("--case", default=None, help="with a .parquet Result: its case (draws hubs, payloads)")
-    p.add_argument("--elements", "-k", type=int, default=8, help="elements per link (default 8)")
-    p.add_argument("--h", type=_float, default=1e-3, help="time step (s, default 1e-3)")
+    add_option(p, "elements", default=8, help="elements per link (default 8)")
+    add_option(p, "h", default=1e-3, help="time step (s, default 1e-3)")
     p.add_argument("--method", action="append", default=None, help="method to run (repeatable)")
-    p.add_argument("--exaggerate", type=_float, default=1.0, help="bending magnification (default 1)")
+    p.add_argument("--exaggerate", type=number, default=1.0, help="bending magnification (default 1)")
     p.add_argument("--points", type=int, default=17, help="shape points per link (default 17)")
-    p.add_argument("--fps", type=_float, default=20.0, help="frames per second (default 20)")
-    p.add_argument("--speed", type=_float, default=1.0, help="video time / real time (default 1)")
+    p.add_argument("--fps", type=number, default=20.0, help="frames per second (default 20)")
+    p.add_argument("--speed", type=number, default=1.0, help="video time / real time (default 1)")
     p.add_argument("--max-frames", type=int, default=400, help="most frames (default 400)")
     p.add_argument(
         "--out", default=None, help="output file .mp4 | .gif | .html (default out/animate/CASE.mp4)"
@@ -154,8 +145,7 @@ def run_animate(a) -> int:
         out.parent.mkdir(parents=True, exist_ok=True)
         written = animate.save(anim, out, progress=True)
     except InputError as exc:
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except SimulationError as exc:
         print(f"dttmm: simulation failed: {' '.join(str(exc).split())}", file=sys.stderr)
         return EXIT_FAILED

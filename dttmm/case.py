@@ -4,18 +4,24 @@ from __future__ import annotations
 
 import datetime
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import Field, Strict, ValidationError, create_model, model_validator
+from pydantic import Field, Strict, create_model, model_validator
 
+from .casedoc import (
+    MAX_FILE_BYTES,  # noqa: F401  (the file-size limit, kept importable here)
+    case_file_model,
+    read_case_document,
+    read_case_text,
+    validate_document,
+)
 from .drives import LAW_FIELDS, Drive, _prefixed, law_from_table
 from .errors import InputError
 from .model import Hub, Link, Manipulator, Material, Payload, RigidBody, Section, _of_material
 from .scenario import Scenario
-from .schema import _short, _Strict, build, check_fields, field_types, fields_model, input_error
+from .schema import _Strict, build, check_fields, field_types, fields_model
 
 __all__ = [
     "Case",
@@ -30,9 +36,6 @@ __all__ = [
     "save_case",
     "validate_case_file",
 ]
-
-#: a case file larger than this is refused before parsing (bytes)
-MAX_FILE_BYTES = 16 * 2**20
 
 
 def check_case(case, model_type: type, model_name: str, count: str, joint: str) -> None:
@@ -57,7 +60,28 @@ def check_case(case, model_type: type, model_name: str, count: str, joint: str) 
 
 
 @dataclass(frozen=True)
-class Case:
+class CaseBase:
+    """The fields and checks every case class shares (planar :class:`Case`, spatial
+    :class:`dttmm.spatial.SpatialCase`): ``model``, ``scenario``, ``name`` and ``provenance``.
+    ``MODEL`` says (model class, its name in errors, the model's attribute counting the joints,
+    what a joint is) for :func:`check_case`."""
+
+    model: Any
+    scenario: Scenario
+    name: str = ""
+    provenance: dict | None = field(default=None, compare=False)
+    MODEL = (Manipulator, "dttmm.Manipulator", "n_links", "joint")
+
+    def __post_init__(self):
+        check_case(self, *self.MODEL)
+
+    @property
+    def n_joints(self) -> int:
+        return getattr(self.model, self.MODEL[2])
+
+
+@dataclass(frozen=True)
+class Case(CaseBase):
     """The physical problem every method solves: a manipulator and a scenario.
 
     ``provenance`` is free-form metadata of the case (source, published values, tolerance, …),
@@ -65,16 +89,6 @@ class Case:
     """
 
     model: Manipulator
-    scenario: Scenario
-    name: str = ""
-    provenance: dict | None = field(default=None, compare=False)
-
-    def __post_init__(self):
-        check_case(self, Manipulator, "dttmm.Manipulator", "n_links", "joint")
-
-    @property
-    def n_joints(self) -> int:
-        return self.model.n_links
 
 
 # --- the file format: models composed from the fields the classes declare ---------------------
@@ -157,23 +171,12 @@ class ScenarioFile(fields_model(Scenario)):
     drives: Annotated[list[DriveFile], Strict()] = []
 
 
-class CaseFile(_Strict):
-    """A whole case file. ``provenance`` is free-form metadata kept on the Case."""
-
-    name: str = ""
-    model: ModelFile
-    scenario: ScenarioFile
-    provenance: dict[str, Any] | None = None
+CaseFile = case_file_model("CaseFile", __name__, ModelFile, ScenarioFile)
 
 
 def validate_case_file(data) -> CaseFile:
     """Validate a parsed case document; raises :class:`InputError` naming the first bad key."""
-    if not isinstance(data, dict):
-        raise InputError("case", _short(data), "must be a table (a TOML document)")
-    try:
-        return CaseFile.model_validate(data)
-    except ValidationError as exc:
-        raise input_error(exc, CaseFile) from None
+    return validate_document(CaseFile, data)
 
 
 # --- objects from a validated file (its values are not validated again) -----------------------
@@ -226,35 +229,6 @@ def case_from_dict(data: dict) -> Case:
     return case_from_spec(validate_case_file(data))
 
 
-def read_case_text(path) -> str:
-    """The text of a case file; every way it can be unreadable is an InputError on the path."""
-    path = Path(path)
-    where = str(path)
-    try:
-        if path.is_dir():
-            raise InputError(where, "<directory>", "is a directory, not a case file")
-        size = path.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise InputError(
-                where, f"<{size} bytes>", f"is too large for a case file (limit {MAX_FILE_BYTES})"
-            )
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError(where, "<file>", "does not exist") from None
-    except PermissionError:
-        raise InputError(where, "<file>", "cannot be read (permission denied)") from None
-    except OSError as exc:
-        raise InputError(where, "<file>", f"cannot be read ({exc.strerror or exc})") from None
-    if b"\x00" in raw:
-        raise InputError(where, "<file>", "is a binary file, not a TOML case file")
-    try:
-        return raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(
-            where, "<file>", f"is not UTF-8 text (byte {raw[exc.start]:#04x} at offset {exc.start})"
-        ) from None
-
-
 def load_case(path) -> Case:
     """Read a case TOML file (format: docs/cases.md). The name defaults to the file's stem.
 
@@ -263,13 +237,7 @@ def load_case(path) -> Case:
     InputError
         For an unreadable file, invalid TOML, or any key or value the schema refuses.
     """
-    text = read_case_text(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
-    if "name" not in data:
-        data["name"] = Path(path).stem
+    data, _ = read_case_document(path)
     return case_from_dict(data)
 
 

@@ -1,15 +1,14 @@
-"""Case files of both kinds: ``load_case`` reads a planar case file (docs/cases.md) or, when
-the file says ``kind = "spatial"``, a spatial one (docs/cases.md "Spatial cases");
-``case_to_dict`` writes either kind of case as its document. These are ``dttmm.load_case`` and
-``dttmm.case_to_dict``; ``dttmm.case`` and ``dttmm.spatial.case`` hold each kind's own."""
+"""Case files of both kinds: ``load_case`` reads a planar case file (docs/cases.md), a spatial
+one (``kind = "spatial"``, docs/cases.md "Spatial cases") or a robot from its URDF (a
+``[model]`` naming a ``urdf``, docs/urdf.md); ``case_to_dict`` writes either kind of case as
+its document. These are ``dttmm.load_case`` and ``dttmm.case_to_dict``; ``dttmm.case`` and
+``dttmm.spatial.case`` hold each kind's own, all read by :func:`dttmm.casedoc.read_case_document`."""
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
-from . import case as planar
-from .errors import InputError
+from .casedoc import read_case_document
 
 __all__ = ["case_to_dict", "load_case"]
 
@@ -20,29 +19,27 @@ def load_case(path):
     the file's stem. InputError (one line, naming the
     field and value) for an unreadable file, invalid TOML, or any key or value the schema
     refuses."""
-    text = planar.read_case_text(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
-    if "name" not in data:
-        data["name"] = Path(path).stem
-    model = data.get("model")
-    if isinstance(model, dict) and "urdf" in model:  # a robot from its URDF (docs/urdf.md)
+    data, kind = read_case_document(path)
+    if kind == "urdf":  # a robot from its URDF (docs/urdf.md)
         from .urdf_import import case_from_urdf_dict
 
         return case_from_urdf_dict(data, Path(path).parent)
-    if data.get("kind") == "spatial":
+    if kind == "spatial":
         from .spatial.case import case_from_dict as spatial_from_dict
 
         return spatial_from_dict(data)
-    return planar.case_from_dict(data)
+    from .case import case_from_dict
+
+    return case_from_dict(data)
 
 
 def case_to_dict(case) -> dict:
     """The case as a document of its file format (planar or spatial)."""
-    if isinstance(case, planar.Case):
-        return planar.case_to_dict(case)
+    from .case import Case
+    from .case import case_to_dict as planar_to_dict
+
+    if isinstance(case, Case):
+        return planar_to_dict(case)
     from .spatial.case import case_to_dict as spatial_to_dict
 
     return spatial_to_dict(case)

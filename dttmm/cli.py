@@ -15,14 +15,18 @@ import re
 import socket
 import sys
 
-EXIT_OK, EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK = 0, 1, 2, 3
+from .cliparse import (
+    EXIT_FAILED,
+    EXIT_INPUT,
+    EXIT_NOT_OK,
+    EXIT_OK,
+    OneLineParser,
+    add_option,
+    bad_input,
+    number,
+)
 
-
-class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line on stderr (exit 2), without the usage block."""
-
-    def error(self, message: str):
-        self.exit(EXIT_INPUT, f"{self.prog}: bad option: {message} (see {self.prog} --help)\n")
+__all__ = ["EXIT_FAILED", "EXIT_INPUT", "EXIT_NOT_OK", "EXIT_OK", "OneLineParser", "main", "simulate_parser"]
 
 
 def _iterations(text: str):
@@ -34,13 +38,6 @@ def _iterations(text: str):
         raise argparse.ArgumentTypeError(f"--iterations = {text!r}: an integer ≥ 0 or 'auto'") from None
 
 
-def _float(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-
-
 def simulate_parser() -> argparse.ArgumentParser:
     p = OneLineParser(
         prog="dttmm simulate",
@@ -48,29 +45,16 @@ def simulate_parser() -> argparse.ArgumentParser:
         epilog=__doc__.split("\n", 2)[2],
     )
     p.add_argument("case", help="case TOML file, planar or spatial (format: docs/cases.md)")
-    p.add_argument("--elements", "-k", type=int, required=True, help="elements per link")
-    p.add_argument("--h", type=_float, required=True, help="time step (s)")
+    add_option(p, "elements", required=True)
+    add_option(p, "h", required=True)
     p.add_argument("--integrator", default="newmark", help="newmark | generalized-alpha | rk4")
     p.add_argument("--sweep", default="riccati", help="riccati | plain")
-    p.add_argument(
-        "--iterations",
-        type=_iterations,
-        default=None,
-        help="corrections per step: an integer m (m + 1 sweeps), 'auto', or omit to converge",
-    )
-    p.add_argument("--tol", type=_float, default=1e-10, help="iteration tolerance (default 1e-10)")
-    p.add_argument(
-        "--rho-inf",
-        type=_float,
-        default=None,
-        help="spectral radius at infinity of generalized-alpha (default 0.9)",
-    )
-    p.add_argument(
-        "--strain",
-        default="linear",
-        choices=["linear", "second-order"],
-        help="axial strain of the elements (default linear)",
-    )
+    iterations = "corrections per step: an integer m (m + 1 sweeps), 'auto', or omit to converge"
+    p.add_argument("--iterations", type=_iterations, default=None, help=iterations)
+    p.add_argument("--tol", type=number, default=1e-10, help="iteration tolerance (default 1e-10)")
+    rho_inf = "spectral radius at infinity of generalized-alpha (default 0.9)"
+    p.add_argument("--rho-inf", type=number, default=None, help=rho_inf)
+    add_option(p, "strain")
     p.add_argument(
         "--engine", default=None, choices=["numba", "python"], help="default: numba when installed"
     )
@@ -87,7 +71,7 @@ def simulate_parser() -> argparse.ArgumentParser:
         help="default: the case's own (planar or spatial); spatial runs a planar case on the spatial kernel",
     )
     p.add_argument("--format", default="csv", choices=["csv", "parquet"])
-    p.add_argument("--out", default="out/simulate", help="output folder (created before the run)")
+    add_option(p, "out", default="out/simulate")
     return p
 
 
@@ -189,8 +173,7 @@ def main(argv=None) -> int:
     try:
         return _dispatch(argv)
     except InputError as exc:
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except SystemExit as exc:  # argparse: --help (0) or a bad option (2, message printed)
         return exc.code if isinstance(exc.code, int) else EXIT_INPUT
     except KeyboardInterrupt:

@@ -34,6 +34,7 @@ from .schema import (
     NonNegative,
     Positive,
     Until,
+    _set,
     _short,
     build,
     field_types,
@@ -62,11 +63,6 @@ __all__ = [
     "require_no_computed_torque",
     "require_open_loop",
 ]
-
-
-def _set(obj, values: dict):
-    for k, v in values.items():
-        object.__setattr__(obj, k, v)
 
 
 def _check_kind(law, kind: str, where: str):
@@ -128,6 +124,14 @@ class BangBang(Checked):
         return {"levels": list(self.levels), "switch_times": list(self.switch_times)}
 
 
+def _set_params(law, bound: str) -> dict:
+    """The optional parameters of ``law`` that are set: its ``phase``, ``offset`` or
+    ``moment_gain`` when nonzero, its ``bound`` (``until``, ``limit``) when finite."""
+    d = {k: v for k in ("phase", "offset", "moment_gain") if (v := getattr(law, k, 0.0))}
+    v = getattr(law, bound)
+    return {**d, bound: v} if math.isfinite(v) else d
+
+
 @dataclass(frozen=True)
 class Sine(Checked):
     """amplitude·sin(2π·frequency·t + phase) + offset for t < until, offset afterwards."""
@@ -162,14 +166,7 @@ class Sine(Checked):
         return (self.until,) if math.isfinite(self.until) else ()
 
     def params(self) -> dict:
-        d = {"amplitude": self.amplitude, "frequency": self.frequency}
-        if self.phase:
-            d["phase"] = self.phase
-        if self.offset:
-            d["offset"] = self.offset
-        if math.isfinite(self.until):
-            d["until"] = self.until
-        return d
+        return {"amplitude": self.amplitude, "frequency": self.frequency, **_set_params(self, "until")}
 
 
 @dataclass(frozen=True)
@@ -401,11 +398,7 @@ class PD(Checked):
         d["reference"] = {"law": self.reference.name, **self.reference.params()}
         if self.feedforward is not None:
             d["feedforward"] = {"law": self.feedforward.name, **self.feedforward.params()}
-        if self.moment_gain:
-            d["moment_gain"] = self.moment_gain
-        if math.isfinite(self.limit):
-            d["limit"] = self.limit
-        return d
+        return {**d, **_set_params(self, "limit")}
 
 
 @dataclass(frozen=True)

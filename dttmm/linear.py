@@ -45,6 +45,7 @@ from .modal import (  # noqa: F401 - _STENCIL and STEP are read as dttmm.linear'
     check_n,
     derivative,
     eigen_modes,
+    modes_of,
     state_pair,
 )
 from .result import tip_deflection
@@ -280,18 +281,8 @@ def modes(
     lin = linearize(case, elements_per_link, t, state, strain=strain, torque=torque)
     st = build_structure(case, elements_per_link, strain)
     check_n(n)
-    freq, lam, V, zeta, warn = eigen_modes(lin, n, zero_tol)
     s_nodes = tuple(np.linspace(0.0, lk.length, lk.k + 1) for lk in st.links)
-    return Modes(
-        frequencies=freq,
-        eigenvalues=lam,
-        shapes=V,
-        s=s_nodes,
-        deflections=_deflections(st, lin, V),
-        damping_ratios=zeta,
-        linearization=lin,
-        warnings=warn,
-    )
+    return modes_of(lin, n, zero_tol, s_nodes, lambda V: (_deflections(st, lin, V), None))
 
 
 def frequencies(case: Case, elements_per_link: int, n: int | None = None) -> np.ndarray:

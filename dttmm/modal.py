@@ -200,6 +200,15 @@ def eigen_modes(lin: Linearization, n, zero_tol: float):
     return freq, lam, V, zeta, warn
 
 
+def modes_of(lin: Linearization, n, zero_tol: float, s: tuple, deflect) -> Modes:
+    """The :class:`Modes` of ``lin``: its first ``n`` modes (:func:`eigen_modes`), the nodes'
+    arc lengths ``s`` per link and ``deflect(V)`` → (deflections, twists or None) of the shapes V
+    (planar and spatial arms alike)."""
+    freq, lam, V, zeta, warn = eigen_modes(lin, n, zero_tol)
+    deflections, twists = deflect(V)
+    return Modes(freq, lam, V, s, deflections, zeta, lin, warn, twists)
+
+
 def state_pair(state, n_dof: int) -> tuple[np.ndarray, np.ndarray]:
     """A user's linearisation point ``state = (q, qd)`` as two float arrays of ``n_dof`` finite
     numbers (copies); InputError naming the part otherwise."""

@@ -15,8 +15,35 @@ from .schema import Bounded, Checked, NonNegative, Positive, check_fields, tuple
 __all__ = ["Hub", "Link", "Manipulator", "Payload", "RigidBody", "Section"]
 
 
+class _Beam:
+    """What a beam (:class:`Section`, :class:`dttmm.spatial.SpatialSection`) derives from its
+    ``length``, ``rhoA`` and ``EA``."""
+
+    @property
+    def mass(self) -> float:
+        return self.rhoA * self.length
+
+    @property
+    def extensible(self) -> bool:
+        return self.EA is not None
+
+
+class BodyValue:
+    """A link's property read from one of its bodies: ``attr`` of its ``body`` (``"hub"`` or
+    ``"payload"``), or ``empty()`` when the link has no such body (planar and spatial links)."""
+
+    def __init__(self, body: str, attr: str, empty=float):
+        self.body, self.attr, self.empty = body, attr, empty
+
+    def __get__(self, link, owner=None):
+        if link is None:
+            return self
+        b = getattr(link, self.body)
+        return self.empty() if b is None else getattr(b, self.attr)
+
+
 @dataclass(frozen=True)
-class Section(Checked):
+class Section(Checked, _Beam):
     """Uniform Euler-Bernoulli beam data of one link.
 
     Parameters
@@ -48,14 +75,6 @@ class Section(Checked):
         thickness (m). ``EA=True`` derives E·A; ``EA=None`` makes the link inextensible."""
         m = check_fields(Material, where, E=E, rho=rho, width=width, thickness=thickness)
         return cls(length, *_of_material(**m, EA=EA), damping, _where=where)
-
-    @property
-    def mass(self) -> float:
-        return self.rhoA * self.length
-
-    @property
-    def extensible(self) -> bool:
-        return self.EA is not None
 
 
 def _of_material(E, rho, width, thickness, *, EA):
@@ -147,25 +166,11 @@ class Link:
     def length(self) -> float:
         return self.beam.length
 
-    @property
-    def payload_offset(self) -> tuple:
-        return self.payload.offset if self.payload else (0.0, 0.0)
-
-    @property
-    def hub_mass(self) -> float:
-        return self.hub.mass if self.hub else 0.0
-
-    @property
-    def hub_inertia(self) -> float:
-        return self.hub.inertia if self.hub else 0.0
-
-    @property
-    def payload_mass(self) -> float:
-        return self.payload.mass if self.payload else 0.0
-
-    @property
-    def payload_inertia(self) -> float:
-        return self.payload.inertia if self.payload else 0.0
+    payload_offset = BodyValue("payload", "offset", lambda: (0.0, 0.0))
+    hub_mass = BodyValue("hub", "mass")
+    hub_inertia = BodyValue("hub", "inertia")
+    payload_mass = BodyValue("payload", "mass")
+    payload_inertia = BodyValue("payload", "inertia")
 
 
 @dataclass(frozen=True)

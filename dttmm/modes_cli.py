@@ -19,21 +19,21 @@ from pathlib import Path
 import numpy as np
 
 from .casefiles import load_case
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_OK, OneLineParser
+from .cliparse import (
+    EXIT_FAILED,
+    EXIT_OK,
+    OneLineParser,
+    add_option,
+    bad_input,
+    number,
+    pyplot,
+    save_figure,
+)
 from .errors import InputError
 
 __all__ = ["modes_parser", "run_modes"]
 
 N_PLOT = 4  # elastic modes drawn in the PNG
-
-
-def _float(text: str) -> float:
-    import argparse
-
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
 
 
 def modes_parser() -> OneLineParser:
@@ -43,21 +43,16 @@ def modes_parser() -> OneLineParser:
         "(motion-driven joints held, torque-driven joints free).",
     )
     p.add_argument("case", help="case TOML file (format: docs/cases.md)")
-    p.add_argument("--elements", "-k", type=int, required=True, help="elements per link")
+    add_option(p, "elements", required=True)
     p.add_argument("--n", type=int, default=6, help="number of lowest modes (default 6)")
-    p.add_argument("--t", type=_float, default=0.0, help="time of the drives' laws (s, default 0)")
-    p.add_argument(
-        "--strain",
-        default="linear",
-        choices=["linear", "second-order"],
-        help="axial strain of the elements (default linear)",
-    )
+    p.add_argument("--t", type=number, default=0.0, help="time of the drives' laws (s, default 0)")
+    add_option(p, "strain")
     p.add_argument(
         "--equilibrium",
         action="store_true",
         help="spatial arms: linearise about the static equilibrium under gravity and loads (default: rest)",
     )
-    p.add_argument("--out", default="out/modes", help="output folder (created before the run)")
+    add_option(p, "out", default="out/modes")
     p.add_argument(
         "--animate", action="store_true", help="also write the first elastic modes oscillating (.mp4 or .gif)"
     )
@@ -118,11 +113,7 @@ def plot_modes(m, path: Path, title: str = "") -> Path:
     against the arc length along the arm, links one after the other (spatial arms: the offsets
     along the link frame's y (solid) and z (dashed) and the twist in rad (dotted), scaled
     together)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     offsets = np.concatenate(([0.0], np.cumsum([s[-1] for s in m.s])))
     fig, ax = plt.subplots(figsize=(7, 4))
     elastic = [i for i in range(m.frequencies.size) if m.frequencies[i] > 0][:N_PLOT]
@@ -137,13 +128,7 @@ def plot_modes(m, path: Path, title: str = "") -> Path:
         ax.axvline(o, color="0.6", lw=0.8, ls="--")
     ax.set_xlabel("arc length along the arm [m]")
     ax.set_ylabel("deflection in the link's root frame [-]")
-    ax.grid(alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, [ax], path, title)
 
 
 def run_modes(a) -> int:
@@ -163,8 +148,7 @@ def run_modes(a) -> int:
         out = prepare_out(a.out)
         m = modes(case, a.elements, a.t, "equilibrium" if a.equilibrium else None, n=a.n, strain=a.strain)
     except InputError as exc:
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except np.linalg.LinAlgError as exc:
         print(f"dttmm: modes failed: singular system at t = {a.t:g} s ({exc})", file=sys.stderr)
         return EXIT_FAILED
@@ -180,7 +164,6 @@ def run_modes(a) -> int:
         try:
             paths.append(save(mode_animation(m, case), out / f"{name}_modes.mp4"))
         except InputError as exc:
-            print(f"dttmm: bad input: {exc}", file=sys.stderr)
-            return EXIT_INPUT
+            return bad_input(exc)
     print(f"wrote {', '.join(str(p) for p in paths)}")
     return EXIT_OK

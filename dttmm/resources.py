@@ -96,14 +96,7 @@ def _gib(x: float) -> str:
 
 
 def check_run_size(
-    case,
-    elements_per_link: int,
-    h: float,
-    *,
-    cut_loads: bool = True,
-    energy: bool = True,
-    limit_bytes: float | None = None,
-    shape_points: int = 0,
+    case, elements_per_link: int, h: float, *, limit_bytes: float | None = None, **recorded
 ) -> float:
     """Refuse a run whose arrays would exceed ``limit_bytes`` (default: half the available memory).
 
@@ -112,9 +105,10 @@ def check_run_size(
     case : dttmm.Case or dttmm.spatial.SpatialCase
     elements_per_link : int, elements per link k (≥ 1)
     h : float, time step (s)
-    cut_loads, energy : whether the run records the cut loads and the energy
-    shape_points : link shape points per link the run records (0: none)
     limit_bytes : float, optional
+    recorded : what the run records, as in :func:`estimate_run_bytes`: ``cut_loads``,
+        ``energy`` (whether the cut loads and the energy; default True) and ``shape_points``
+        (link shape points per link; default 0: none)
 
     Returns
     -------
@@ -129,9 +123,7 @@ def check_run_size(
     """
     k = _check_k(elements_per_link)
     h = step_size(h)
-    total, n_steps, n_out = estimate_run_bytes(
-        case, k, h, cut_loads=cut_loads, energy=energy, shape_points=shape_points
-    )
+    total, n_steps, n_out = estimate_run_bytes(case, k, h, **recorded)
     limit = available_memory() / 2 if limit_bytes is None else float(limit_bytes)
     if total <= limit:
         return total

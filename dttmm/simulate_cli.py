@@ -12,19 +12,17 @@ from pathlib import Path
 
 from .api import simulate
 from .casefiles import load_case
-from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK  # noqa: F401
+from .cliparse import EXIT_FAILED, EXIT_INPUT, EXIT_NOT_OK, EXIT_OK, bad_input, pyplot, save_figure  # noqa: F401
 from .errors import InputError, SimulationError
 from .resources import check_run_size
+
+#: the options of ``dttmm simulate`` that are keywords of :func:`dttmm.simulate` by the same name
+SOLVER_OPTIONS = ("integrator", "sweep", "iterations", "tol", "rho_inf", "strain", "engine")
 
 
 def plot_result(res, path: Path, title: str = "") -> Path:
     """PNG with tip deflections (top) and joint angles (bottom) against time."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5.5), sharex=True)
+    fig, (a1, a2) = pyplot().subplots(2, 1, figsize=(7, 5.5), sharex=True)
     defl = res.tip_deflection
     if defl.ndim == 3:  # a spatial arm: the deflections along the link frame's y and z
         for i in range(defl.shape[1]):
@@ -38,14 +36,7 @@ def plot_result(res, path: Path, title: str = "") -> Path:
     a1.set_ylabel("tip deflection [mm]")
     a2.set_ylabel("joint angle [rad]")
     a2.set_xlabel("t [s]")
-    for a in (a1, a2):
-        a.grid(alpha=0.3)
-        a.legend(loc="best", fontsize=8)
-    a1.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, [a1, a2], path, title)
 
 
 def prepare_out(out) -> Path:
@@ -108,25 +99,12 @@ def run_simulate(a) -> int:
         case = load_case(a.case)  # the input is accepted before anything is written
         check_run_size(case, a.elements, a.h, shape_points=getattr(a, "shape_points", 0))
         out = prepare_out(a.out)
-        res = simulate(
-            case,
-            elements_per_link=a.elements,
-            h=a.h,
-            integrator=a.integrator,
-            sweep=a.sweep,
-            iterations=a.iterations,
-            tol=a.tol,
-            rho_inf=a.rho_inf,
-            strain=a.strain,
-            engine=a.engine,
-            progress=True,
-            shape_points=getattr(a, "shape_points", 0),
-            kernel=getattr(a, "kernel", None),
-        )
+        options = {k: getattr(a, k) for k in SOLVER_OPTIONS}
+        options.update(shape_points=getattr(a, "shape_points", 0), kernel=getattr(a, "kernel", None))
+        res = simulate(case, elements_per_link=a.elements, h=a.h, progress=True, **options)
     except InputError as exc:
         _close_progress_bars()
-        print(f"dttmm: bad input: {exc}", file=sys.stderr)
-        return EXIT_INPUT
+        return bad_input(exc)
     except SimulationError as exc:
         res = exc.partial
         msg = f"dttmm: simulation failed: {' '.join(str(exc).split())}"

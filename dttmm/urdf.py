@@ -70,6 +70,21 @@ def _fixed(robot, name, parent, child, x=0.0):
     ET.SubElement(joint, "child", link=child)
 
 
+def _link_tip(robot, i: int, L: float) -> tuple[str, float]:
+    """Link ``i``'s tip frame, ``L`` along its x axis; the (parent, offset) of the next joint."""
+    _fixed(robot, f"link{i}_tip_joint", f"link{i}", f"link{i}_tip", L)
+    _link(robot, f"link{i}_tip")
+    return f"link{i}", L
+
+
+def _robot_text(robot, parent: str, x: float) -> str:
+    """The URDF text of ``robot``, closed by the arm's ``tip`` frame (``x`` along ``parent``)."""
+    _fixed(robot, "tip_joint", parent, "tip", x)
+    _link(robot, "tip")
+    ET.indent(robot)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
 def _inertia(parent, mass, xyz, J):
     inertial = ET.SubElement(parent, "inertial")
     ET.SubElement(inertial, "origin", xyz=" ".join(_num(v) for v in xyz), rpy="0 0 0")
@@ -149,13 +164,8 @@ def _spatial_urdf(case, name):
                 (0.0, 0.0, 0.0),
                 link.payload.inertia,
             )
-        _fixed(robot, f"link{i}_tip_joint", f"link{i}", f"link{i}_tip", L)
-        _link(robot, f"link{i}_tip")
-        parent, x = f"link{i}", L
-    _fixed(robot, "tip_joint", parent, "tip", x)
-    _link(robot, "tip")
-    ET.indent(robot)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+        parent, x = _link_tip(robot, i, L)
+    return _robot_text(robot, parent, x)
 
 
 def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
@@ -193,13 +203,8 @@ def case_to_urdf(case: Case | Manipulator, name: str | None = None) -> str:
         if link.payload is not None:
             _fixed(robot, f"payload{i}_joint", f"link{i}", f"payload{i}", L)
             _link(robot, f"payload{i}", link.payload.mass, izz=link.payload.inertia)
-        _fixed(robot, f"link{i}_tip_joint", f"link{i}", f"link{i}_tip", L)
-        _link(robot, f"link{i}_tip")
-        parent, x = f"link{i}", L
-    _fixed(robot, "tip_joint", parent, "tip", x)
-    _link(robot, "tip")
-    ET.indent(robot)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+        parent, x = _link_tip(robot, i, L)
+    return _robot_text(robot, parent, x)
 
 
 def _load_any(path):

@@ -53,16 +53,25 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
 from pydantic import Strict, ValidationError
 
 from .case import _drive
+from .casedoc import case_file_model, validate_document
 from .errors import InputError
 from .schema import BIG, Finite, NonNegative, _short, _Strict, input_error
 from .sections import IBeam, Material, Rectangle, Tube, section_properties
-from .spatial.case import BeamDataFile, SpatialCase, SpatialScenarioFile, _load
+from .spatial.case import (
+    BEAM_DATA,
+    BEAM_REQUIRED,
+    BaseFile,
+    BeamDataFile,
+    SpatialCase,
+    SpatialScenarioFile,
+    _load,
+)
 from .spatial.model import (
     RESERVED_NAMES,
     BoundedVector3,
@@ -71,7 +80,6 @@ from .spatial.model import (
     SpatialManipulator,
     SpatialRigidBody,
     SpatialSection,
-    Vector3,
 )
 from .spatial.rotation import rpy_matrix
 from .spatial.scenario import SpatialScenario
@@ -403,9 +411,6 @@ class FlexibleFile(BeamDataFile):
     damping: NonNegative = 0.0
 
 
-_BEAM = ("EA", "GJ", "EIy", "EIz", "rhoA", "rhoJ", "rhoIy", "rhoIz")
-
-
 def _overlay(spec, where: str) -> FlexibleFile:
     if isinstance(spec, FlexibleFile):
         return spec
@@ -416,7 +421,7 @@ def _overlay(spec, where: str) -> FlexibleFile:
 
 
 def _section_data(ov: FlexibleFile, where: str) -> dict:
-    given = [k for k in _BEAM if getattr(ov, k) is not None]
+    given = [k for k in BEAM_DATA if getattr(ov, k) is not None]
     if ov.section is not None:
         if given:
             raise InputError(
@@ -434,7 +439,7 @@ def _section_data(ov: FlexibleFile, where: str) -> dict:
     else:
         if ov.material is not None:
             raise InputError(f"{where}.material", _short(ov.material), "needs a section")
-        for k in ("GJ", "EIy", "EIz", "rhoA", "rhoJ"):
+        for k in BEAM_REQUIRED:
             if getattr(ov, k) is None:
                 raise InputError(f"{where}.{k}", None, "is required (or give section and material)")
         data = {k: getattr(ov, k) for k in given}
@@ -668,39 +673,31 @@ def load_urdf(source, flexible: dict | None = None, **options) -> SpatialManipul
 
 
 # --- the case file ----------------------------------------------------------------------------
-class UrdfBaseFile(_Strict):
-    xyz: BoundedVector3 = [0.0, 0.0, 0.0]
-    rpy: Vector3 = [0.0, 0.0, 0.0]
-
-
 class UrdfModelFile(_Strict):
     """``[model]`` of a case read from a URDF (docs/urdf.md "Case files")."""
 
     urdf: Annotated[str, Strict()]
     gravity: BoundedVector3 = [0.0, 0.0, -9.81]
-    base: UrdfBaseFile = UrdfBaseFile()
+    base: BaseFile = BaseFile()
     lock: Annotated[list[Annotated[str, Strict()]], Strict()] = []
     tool: Annotated[str, Strict()] | None = None
     flexible: dict[str, FlexibleFile] = {}
 
 
-class UrdfCaseFile(_Strict):
-    """A whole case file whose arm comes from a URDF (``kind = "spatial"``, optional)."""
-
-    kind: Literal["spatial"] = "spatial"
-    name: str = ""
-    model: UrdfModelFile
-    scenario: SpatialScenarioFile
-    provenance: dict[str, Any] | None = None
+UrdfCaseFile = case_file_model(
+    "UrdfCaseFile",
+    __name__,
+    UrdfModelFile,
+    SpatialScenarioFile,
+    spatial=True,
+    doc='A whole case file whose arm comes from a URDF (``kind = "spatial"``, optional).',
+)
 
 
 def case_from_urdf_dict(data: dict, base_dir=None):
     """A :class:`dttmm.spatial.SpatialCase` from a parsed case document whose ``[model]`` names a
     ``urdf`` (a path relative to ``base_dir``, or ``example-robot-data:<path>``)."""
-    try:
-        spec = UrdfCaseFile.model_validate(data)
-    except ValidationError as exc:
-        raise input_error(exc, UrdfCaseFile) from None
+    spec = validate_document(UrdfCaseFile, data)
     m = spec.model
     try:
         path = resolve_urdf(m.urdf, base_dir)

@@ -53,25 +53,15 @@ def verdict(meta: dict, *, iterations, tol: float, max_iterations: int, n_steps:
     closed-loop laws did (``meta["unconverged_solves"]``), when the residual check of a fixed
     sweep count or "auto" flagged a step (``meta["residual_*"]``), or when the energy grew with
     no input (``meta["energy_growth"]``) in a run with ``iterations`` set; else "ok"."""
+    stopped = f"stopped after max_iterations = {max_iterations} sweeps before reaching tol = {tol:g}"
     warns = []
-    status = "ok"
-    n_unconv = meta.get("unconverged_steps", 0)
-    if n_unconv:
-        status = "unconverged"
+    if n_unconv := meta.get("unconverged_steps", 0):
+        warns.append(f"{n_unconv} of {n_steps} steps {stopped}")
+    if n_fd := meta.get("unconverged_solves", 0):
         warns.append(
-            f"{n_unconv} of {n_steps} steps stopped after max_iterations = "
-            f"{max_iterations} sweeps before reaching tol = {tol:g}"
+            f"{n_fd} forward-dynamics solves with closed-loop laws (t = 0, restarts, RK4 stages) {stopped}"
         )
-    n_fd = meta.get("unconverged_solves", 0)
-    if n_fd:
-        status = "unconverged"
-        warns.append(
-            f"{n_fd} forward-dynamics solves with closed-loop laws (t = 0, restarts, RK4 stages) "
-            f"stopped after max_iterations = {max_iterations} sweeps before reaching tol = {tol:g}"
-        )
-    n_flag = meta.get("residual_flagged", 0)
-    if n_flag:
-        status = "unconverged"
+    if n_flag := meta.get("residual_flagged", 0):
         warns.append(
             f"iterations={iterations!r}: the step equations are not solved to the time-discretisation "
             f"error in {n_flag} of {meta['residual_checks']} checked steps (first at t = "
@@ -79,6 +69,7 @@ def verdict(meta: dict, *, iterations, tol: float, max_iterations: int, n_steps:
             f"sweep would change q̈ by {meta['residual_worst']:.3g} relative, "
             f"{meta['residual_worst_ratio']:.3g} × the truncation error)"
         )
+    status = "unconverged" if warns else "ok"
     growth = meta.get("energy_growth", 0.0)
     if growth > ENERGY_GROWTH:
         if iterations is not None:

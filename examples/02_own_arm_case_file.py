@@ -6,37 +6,30 @@ from _gallery import QUICK, figure_path
 
 import dttmm
 
-TOML = """
+# both links: aluminium strips 40 mm wide (the material form of a link: E, rho, width, thickness)
+ALUMINIUM = "E = 70.0e9\nrho = 2700.0\nwidth = 0.04"
+TOML = f"""
 name = "my_arm"
 [model]
 gravity = [0.0, -9.81]
 [[model.links]]
 length = 0.6
-E = 70.0e9
-rho = 2700.0
-width = 0.04
 thickness = 0.003
-hub = { mass = 0.0, inertia = 0.02 }
+{ALUMINIUM}
+hub = {{ mass = 0.0, inertia = 0.02 }}
 [[model.links]]
 length = 0.4
-E = 70.0e9
-rho = 2700.0
-width = 0.04
 thickness = 0.002
-hub = { mass = 0.3, inertia = 0.001 }
-payload = { mass = 0.2, inertia = 0.0 }
+{ALUMINIUM}
+hub = {{ mass = 0.3, inertia = 0.001 }}
+payload = {{ mass = 0.2, inertia = 0.0 }}
 [scenario]
 duration = 1.5
 output_step = 1e-3
-[[scenario.drives]]
-kind = "motion"
-law = "spin_up"
-rate = 1.5
-ramp_time = 0.8
-[[scenario.drives]]
-kind = "torque"
-law = "constant"
-value = 0.0
+drives = [
+    {{ kind = "motion", law = "spin_up", rate = 1.5, ramp_time = 0.8 }},  # joint 1 spins up
+    {{ kind = "torque", law = "constant", value = 0.0 }},  # joint 2 swings free
+]
 """
 
 path = figure_path("my_arm.toml")

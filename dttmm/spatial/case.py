@@ -3,32 +3,18 @@ unlocked joint, base first), or a :class:`SpatialScenario` that adds external lo
 
 from __future__ import annotations
 
-import tomllib
-from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from dataclasses import dataclass
+from typing import Annotated, Union
 
-from pydantic import Field, Strict, ValidationError, create_model
+from pydantic import Field, Strict, create_model
 
-from ..case import ScenarioFile, _drive, check_case, read_case_text
+from ..case import CaseBase, ScenarioFile, _drive
+from ..casedoc import case_file_model, read_case_document, validate_document
 from ..drives import OPEN_LAWS, _prefixed, _tagged, _union, law_from_table
 from ..errors import InputError
-from ..scenario import Scenario
-from ..schema import Finite, NonNegative, Positive, _short, _Strict, fields_model, input_error
-from .model import (
-    BoundedVector3,
-    InertiaValue,
-    SpatialClosure,
-    SpatialClosureFields,
-    SpatialHub,
-    SpatialJoint,
-    SpatialLink,
-    SpatialManipulator,
-    SpatialPayload,
-    SpatialRigidBody,
-    SpatialSection,
-    Vector3,
-)
+from ..schema import Finite, NonNegative, _Strict, build, check_fields, field_types, fields_model
+from . import model as _m
+from .model import BoundedVector3, InertiaValue, SpatialManipulator, SpatialSection, Vector3
 from .scenario import LOAD_LAWS, SpatialLoad, SpatialLoadFields, SpatialScenario, check_load_links
 
 __all__ = [
@@ -42,92 +28,88 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class SpatialCase:
+class SpatialCase(CaseBase):
     """The physical problem of a spatial arm: ``model`` and ``scenario`` (a :class:`dttmm.Scenario`,
     or a :class:`SpatialScenario` with external loads); ``provenance`` is free-form metadata (no
     part in equality)."""
 
     model: SpatialManipulator
-    scenario: Scenario
-    name: str = ""
-    provenance: dict | None = field(default=None, compare=False)
+    MODEL = (SpatialManipulator, "dttmm.spatial.SpatialManipulator", "n_joints", "unlocked joint")
 
     def __post_init__(self):
-        check_case(self, SpatialManipulator, "dttmm.spatial.SpatialManipulator", "n_joints", "unlocked joint")
+        super().__post_init__()
         check_load_links(self)
         if self.model.closures:
             from .topology import check_initial_closures
 
             check_initial_closures(self)
 
-    @property
-    def n_joints(self) -> int:
-        return self.model.n_joints
-
 
 # --- the spatial case file (docs/cases.md "Spatial cases") ----------------------------------
-class JointFile(_Strict):
-    axis: Vector3 = [0.0, 0.0, 1.0]
-    origin_xyz: BoundedVector3 = [0.0, 0.0, 0.0]
-    origin_rpy: Vector3 = [0.0, 0.0, 0.0]
-    locked: bool = False
-
+JointFile = fields_model(_m.SpatialJoint)
 
 InertiaEntry = Union[InertiaValue, BoundedVector3]  # noqa: UP007
 
 
-class HubFile(_Strict):
-    mass: NonNegative = 0.0
-    inertia: InertiaEntry = [0.0, 0.0, 0.0]
+def _body_file(cls, name: str, doc: str):
+    """The file table of the spatial body ``cls``: its fields (a rigid body's ``length`` is the
+    link's) and its inertia, a 3×3 matrix or its diagonal (default 0)."""
+    body = {k: v for k, v in field_types(cls).items() if k != "length"}
+    return create_model(
+        name,
+        __base__=_Strict,
+        __module__=__name__,
+        __doc__=doc,
+        **body,
+        inertia=(InertiaEntry, [0.0, 0.0, 0.0]),
+    )
 
 
-class PayloadFile(_Strict):
-    mass: NonNegative = 0.0
-    offset: BoundedVector3 = [0.0, 0.0, 0.0]
-    inertia: InertiaEntry = [0.0, 0.0, 0.0]
+HubFile = _body_file(_m.SpatialHub, "HubFile", "A link's ``hub`` table.")
+PayloadFile = _body_file(_m.SpatialPayload, "PayloadFile", "A link's ``payload`` table.")
+RigidFile = _body_file(
+    _m.SpatialRigidBody,
+    "RigidFile",
+    "A rigid link's body: ``rigid = { mass, com, inertia }`` (docs/cases.md).",
+)
+
+#: the keys of a spatial link's beam (SpatialSection's fields): those a flexible link must give,
+#: every beam key (a rigid link takes none), and the beam data proper (no roll or damping)
+_SECTION = field_types(SpatialSection)
+BEAM_REQUIRED = tuple(k for k, (_, d) in _SECTION.items() if d is ... and k != "length")
+BEAM_KEYS = tuple(k for k in _SECTION if k != "length")
+BEAM_DATA = tuple(k for k in BEAM_KEYS if k not in ("roll", "damping"))
+_LENGTH = fields_model(SpatialSection, ("length",))
 
 
-class RigidFile(_Strict):
-    """A rigid link's body: ``rigid = { mass, com, inertia }`` (docs/cases.md)."""
-
-    mass: NonNegative = 0.0
-    com: BoundedVector3 = [0.0, 0.0, 0.0]
-    inertia: InertiaEntry = [0.0, 0.0, 0.0]
+def _optional(keys, **types) -> dict:
+    """The SpatialSection fields ``keys``, each optional (None when absent)."""
+    return {k: (types.get(k, _SECTION[k][0]) | None, None) for k in keys}
 
 
-#: the beam keys of a flexible link that have no default (a rigid link takes none of the beam keys)
-BEAM_REQUIRED = ("GJ", "EIy", "EIz", "rhoA", "rhoJ")
-BEAM_KEYS = ("EA", *BEAM_REQUIRED, "rhoIy", "rhoIz", "roll", "damping")
+BeamDataFile = create_model(
+    "BeamDataFile",
+    __base__=_Strict,
+    __module__=__name__,
+    __doc__="The beam data of a spatial link as a file gives them, each optional (what a link "
+    "needs is checked where the link is built): EA, GJ, EIy, EIz (N, N·m²), rhoA (kg/m), rhoJ, "
+    "rhoIy, rhoIz (kg·m).",
+    **_optional(BEAM_DATA),
+)
 
-
-class BeamDataFile(_Strict):
-    """The beam data of a spatial link as a file gives them, each optional (what a link needs is
-    checked where the link is built): EA, GJ, EIy, EIz (N, N·m²), rhoA (kg/m), rhoJ, rhoIy, rhoIz
-    (kg·m)."""
-
-    EA: Positive | None = None
-    GJ: Positive | None = None
-    EIy: Positive | None = None
-    EIz: Positive | None = None
-    rhoA: Positive | None = None
-    rhoJ: Positive | None = None
-    rhoIy: NonNegative | None = None
-    rhoIz: NonNegative | None = None
-
-
-class SpatialLinkFile(BeamDataFile):
-    """One ``[[model.links]]`` table of a spatial case: a flexible link (the beam keys) or a
-    rigid one (``rigid``, and ``length`` ≥ 0 to its tip frame, default 0)."""
-
-    length: NonNegative | None = None
-    roll: Finite | None = None
-    damping: NonNegative | None = None
-    rigid: RigidFile | None = None
-    joint: JointFile = JointFile()
-    hub: HubFile | None = None
-    payload: PayloadFile | None = None
-    name: Annotated[str, Strict()] = ""
-    parent: Annotated[str, Strict()] | None = None
+SpatialLinkFile = create_model(
+    "SpatialLinkFile",
+    __base__=BeamDataFile,
+    __module__=__name__,
+    __doc__="One ``[[model.links]]`` table of a spatial case: a flexible link (the beam keys) or a "
+    "rigid one (``rigid``, and ``length`` ≥ 0 to its tip frame, default 0).",
+    **_optional(("length", "roll", "damping"), length=NonNegative),
+    rigid=(RigidFile | None, None),
+    joint=(JointFile, JointFile()),
+    hub=(HubFile | None, None),
+    payload=(PayloadFile | None, None),
+    **field_types(_m.SpatialLink),
+)
 
 
 class BaseFile(_Strict):
@@ -139,7 +121,7 @@ class SpatialModelFile(_Strict):
     gravity: BoundedVector3 = [0.0, 0.0, 0.0]
     base: BaseFile = BaseFile()
     links: Annotated[list[SpatialLinkFile], Strict(), Field(min_length=1)]
-    closures: Annotated[list[SpatialClosureFields], Strict()] = []
+    closures: Annotated[list[_m.SpatialClosureFields], Strict()] = []
     end_effector: Annotated[str, Strict()] | None = None
 
 
@@ -167,56 +149,32 @@ class SpatialScenarioFile(ScenarioFile):
     loads: Annotated[list[LoadFile], Strict()] = []
 
 
-class SpatialCaseFile(_Strict):
-    """A whole spatial case file; ``kind = "spatial"`` marks it (optional)."""
-
-    kind: Literal["spatial"] = "spatial"
-    name: str = ""
-    model: SpatialModelFile
-    scenario: SpatialScenarioFile
-    provenance: dict[str, Any] | None = None
+SpatialCaseFile = case_file_model("SpatialCaseFile", __name__, SpatialModelFile, SpatialScenarioFile, True)
 
 
 def validate_spatial_file(data) -> SpatialCaseFile:
-    """Validate a parsed spatial case document; InputError naming the first bad key (an
-    unknown key with the nearest valid one)."""
-    if not isinstance(data, dict):
-        raise InputError("case", _short(data), "must be a table (a TOML document)")
-    try:
-        return SpatialCaseFile.model_validate(data)
-    except ValidationError as exc:
-        raise input_error(exc, SpatialCaseFile) from None
+    """Validate a parsed spatial case document (:func:`dttmm.casefiles.validate_document`)."""
+    return validate_document(SpatialCaseFile, data)
 
 
 def case_from_dict(data: dict) -> SpatialCase:
-    """Build a :class:`SpatialCase` from a parsed spatial case document."""
+    """Build a :class:`SpatialCase` from a parsed spatial case document: validated once by
+    :data:`SpatialCaseFile`, its parts built from the validated values (:func:`dttmm.schema.build`
+    runs only the rules that span fields: unit axes, inertia tensors, closures)."""
     spec = validate_spatial_file(data)
     links = []
     for i, d in enumerate(spec.model.links):
         w = f"model.links[{i}]"
         beam = _link_body(d, w)
-        j = d.joint
-        joint = SpatialJoint(j.axis, j.origin_xyz, j.origin_rpy, j.locked, _where=f"{w}.joint")
-        hub = None if d.hub is None else SpatialHub(d.hub.mass, d.hub.inertia, _where=f"{w}.hub")
+        joint = build(_m.SpatialJoint, **dict(d.joint), _where=f"{w}.joint")
+        hub = None if d.hub is None else build(_m.SpatialHub, **dict(d.hub), _where=f"{w}.hub")
         pay = (
-            None
-            if d.payload is None
-            else SpatialPayload(d.payload.mass, d.payload.offset, d.payload.inertia, _where=f"{w}.payload")
+            None if d.payload is None else build(_m.SpatialPayload, **dict(d.payload), _where=f"{w}.payload")
         )
-        links.append(SpatialLink(beam, joint, hub, pay, d.name, d.parent, _where=w))
+        links.append(_m.SpatialLink(beam, joint, hub, pay, d.name, d.parent, _where=w))
     m = spec.model
     closures = tuple(
-        SpatialClosure(
-            c.kind,
-            c.link,
-            c.to,
-            tuple(c.point),
-            None if c.to_point is None else tuple(c.to_point),
-            tuple(c.axis),
-            c.name,
-            _where=f"model.closures[{j}]",
-        )
-        for j, c in enumerate(m.closures)
+        build(_m.SpatialClosure, **dict(c), _where=f"model.closures[{j}]") for j, c in enumerate(m.closures)
     )
     manip = SpatialManipulator(
         tuple(links), tuple(m.gravity), tuple(m.base.xyz), tuple(m.base.rpy), closures, m.end_effector
@@ -228,7 +186,7 @@ def case_from_dict(data: dict) -> SpatialCase:
     return SpatialCase(manip, SpatialScenario(sc.duration, sc.output_step, drives, loads), spec.name, prov)
 
 
-def _link_body(d: SpatialLinkFile, w: str):
+def _link_body(d, w: str):
     """The link's :class:`SpatialSection` (flexible) or :class:`SpatialRigidBody` (``rigid``)."""
     if d.rigid is not None:
         for key in BEAM_KEYS:
@@ -236,23 +194,13 @@ def _link_body(d: SpatialLinkFile, w: str):
                 raise InputError(
                     f"{w}.{key}", getattr(d, key), "is a beam key; a rigid link (`rigid`) takes none"
                 )
-        r = d.rigid
-        return SpatialRigidBody(d.length or 0.0, r.mass, r.com, r.inertia, _where=f"{w}.rigid")
+        return build(_m.SpatialRigidBody, length=d.length or 0.0, **dict(d.rigid), _where=f"{w}.rigid")
     for key in ("length", *BEAM_REQUIRED):
         if getattr(d, key) is None:
             raise InputError(f"{w}.{key}", None, "is required (a rigid link gives `rigid` instead)")
-    optional = {k: getattr(d, k) for k in ("rhoIy", "rhoIz", "roll", "damping") if getattr(d, k) is not None}
-    return SpatialSection(
-        length=d.length,
-        EA=d.EA,
-        GJ=d.GJ,
-        EIy=d.EIy,
-        EIz=d.EIz,
-        rhoA=d.rhoA,
-        rhoJ=d.rhoJ,
-        **optional,
-        _where=w,
-    )
+    given = {k: getattr(d, k) for k in _SECTION if getattr(d, k) is not None}
+    check_fields(_LENGTH, w, length=d.length)  # a beam's length is positive, a rigid link's ≥ 0
+    return build(SpatialSection, **given, _where=w)
 
 
 def _load(spec, j: int) -> SpatialLoad:
@@ -270,13 +218,7 @@ def load_case(path) -> SpatialCase:
     """Read a spatial case TOML file (docs/cases.md "Spatial cases"); the name defaults to the
     file's stem. Raises InputError for an unreadable file, invalid TOML, or any key or value the
     schema refuses."""
-    text = read_case_text(path)
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(str(path), "<file>", f"is not valid TOML: {exc}") from None
-    if "name" not in data:
-        data["name"] = Path(path).stem
+    data, _ = read_case_document(path)
     return case_from_dict(data)
 
 
@@ -288,7 +230,7 @@ def _load_to_dict(ld: SpatialLoad) -> dict:
     return d
 
 
-def _closure_to_dict(cl: SpatialClosure) -> dict:
+def _closure_to_dict(cl: _m.SpatialClosure) -> dict:
     """A ``[[model.closures]]`` table of the closure ``cl``."""
     d = {"kind": cl.kind, "link": cl.link, "to": cl.to, "point": list(cl.point)}
     if cl.to_point is not None:

@@ -34,7 +34,7 @@ from ..modal import (
     Modes,
     check_n,
     derivative,
-    eigen_modes,
+    modes_of,
     state_pair,
 )
 from .build import STRAINS, build_model, make_work
@@ -309,20 +309,10 @@ def modes(
     case = as_spatial_case(case)
     check_n(n)
     lin = linearize(case, elements_per_link, t, state, strain=strain, torque=torque, engine=engine)
-    freq, lam, V, zeta, warn = eigen_modes(lin, n, zero_tol)
-    arm = _Arm(case, lin.elements_per_link, strain, engine)
-    defl, twist = _deflections(arm, case, lin, V)
     s_nodes = tuple(np.linspace(0.0, lk.beam.length, lin.elements_per_link + 1) for lk in case.model.links)
-    return Modes(
-        frequencies=freq,
-        eigenvalues=lam,
-        shapes=V,
-        s=s_nodes,
-        deflections=defl,
-        damping_ratios=zeta,
-        linearization=lin,
-        warnings=warn,
-        twists=twist,
+    k = lin.elements_per_link
+    return modes_of(
+        lin, n, zero_tol, s_nodes, lambda V: _deflections(_Arm(case, k, strain, engine), case, lin, V)
     )
 
 

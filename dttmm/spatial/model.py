@@ -14,8 +14,20 @@ import numpy as np
 from pydantic import Field, Strict
 
 from ..errors import InputError
-from ..model import Manipulator
-from ..schema import Bounded, Finite, NonNegative, Positive, _short, _Strict, check_fields
+from ..model import BodyValue, Manipulator, _Beam
+from ..schema import (
+    Bounded,
+    Checked,
+    Finite,
+    NonNegative,
+    Positive,
+    _set,
+    _short,
+    _Strict,
+    check_fields,
+    fields_model,
+    tuple_of,
+)
 from .rotation import rpy_matrix
 
 __all__ = [
@@ -44,81 +56,31 @@ InertiaValue = Annotated[
 ]
 
 
-class SpatialSectionFields(_Strict):
-    """Beam of one link (docs/spatial.md §1)."""
-
-    length: Positive
-    EA: Positive | None = None
-    GJ: Positive
-    EIy: Positive
-    EIz: Positive
-    rhoA: Positive
-    rhoJ: Positive
-    rhoIy: NonNegative = 0.0
-    rhoIz: NonNegative = 0.0
-    roll: Finite = 0.0
-    damping: NonNegative = 0.0
-
-
-class SpatialJointFields(_Strict):
-    axis: Vector3 = [0.0, 0.0, 1.0]
-    origin_xyz: BoundedVector3 = [0.0, 0.0, 0.0]
-    origin_rpy: Vector3 = [0.0, 0.0, 0.0]
-    locked: bool = False
-
-
-class MassFields(_Strict):
-    mass: NonNegative = 0.0
-
-
-class OffsetFields(_Strict):
-    offset: BoundedVector3 = [0.0, 0.0, 0.0]
+#: the value types of the spatial fields, kept as tuples
+Vec3 = tuple_of(Finite, min_length=3, max_length=3)
+BoundedVec3 = tuple_of(Bounded, min_length=3, max_length=3)
+Name = Annotated[str, Strict()]
 
 
 class InertiaFields(_Strict):
     inertia: InertiaValue
 
 
-class RigidBodyFields(_Strict):
-    length: NonNegative = 0.0
-    mass: NonNegative = 0.0
-    com: BoundedVector3 = [0.0, 0.0, 0.0]
-
-
-class GravityFields(_Strict):
-    gravity: BoundedVector3 = [0.0, 0.0, 0.0]
-    base_xyz: BoundedVector3 = [0.0, 0.0, 0.0]
-    base_rpy: Vector3 = [0.0, 0.0, 0.0]
-
-
-class LinkNameFields(_Strict):
-    name: Annotated[str, Strict()] = ""
-    parent: Annotated[str, Strict()] | None = None
-
-
 #: the number of position-level constraint equations of each closure kind
 CLOSURE_EQUATIONS = {"revolute": 5, "spherical": 3, "weld": 6}
-
-
-class SpatialClosureFields(_Strict):
-    """A loop closure (docs/spatial.md "Trees and closed loops")."""
-
-    kind: Literal["revolute", "spherical", "weld"]
-    link: Annotated[str, Strict()]
-    to: Annotated[str, Strict()] = "ground"
-    point: BoundedVector3 = [0.0, 0.0, 0.0]
-    to_point: BoundedVector3 | None = None
-    axis: Vector3 = [0.0, 0.0, 1.0]
-    name: Annotated[str, Strict()] = ""
 
 
 #: names a link may not take: the base frame and the ground of a closure
 RESERVED_NAMES = ("base", "ground")
 
 
-def _set(obj, values: dict):
-    for k, v in values.items():
-        object.__setattr__(obj, k, v)
+def _unit(value, field_: str) -> tuple:
+    """The unit vector ``value`` (normalised); an InputError on ``field_`` when its norm is not 1."""
+    a = np.array(value, dtype=float)
+    n = float(np.linalg.norm(a))
+    if not abs(n - 1.0) <= 1e-6:
+        raise InputError(field_, value, f"must be a unit vector (its norm is {n:.6g})")
+    return tuple(float(x) for x in a / n)
 
 
 def _inertia(value, where: str) -> tuple:
@@ -145,8 +107,20 @@ def _inertia(value, where: str) -> tuple:
     return tuple(tuple(float(x) for x in r) for r in m)
 
 
+class _InertiaBody(Checked):
+    """A rigid body whose ``inertia`` is a 3×3 tensor (three numbers give its diagonal), checked
+    symmetric and positive semi-definite after the other fields."""
+
+    def _rules(self):
+        object.__setattr__(self, "inertia", _inertia(self.inertia, self._where))
+
+    @property
+    def inertia_matrix(self) -> np.ndarray:
+        return np.array(self.inertia, dtype=float)
+
+
 @dataclass(frozen=True)
-class SpatialSection:
+class SpatialSection(Checked, _Beam):
     """Uniform spatial Euler-Bernoulli beam of one link (docs/spatial.md §1).
 
     length (m); EA (N, None: inextensible); GJ, EIy, EIz (N·m²: EIz bends along y, EIy along z);
@@ -154,54 +128,32 @@ class SpatialSection:
     roll (rad: principal axes about x relative to the link frame); damping μ (s, D = μK).
     """
 
-    length: float
-    GJ: float
-    EIy: float
-    EIz: float
-    rhoA: float
-    rhoJ: float
-    EA: float | None = None
-    rhoIy: float = 0.0
-    rhoIz: float = 0.0
-    roll: float = 0.0
-    damping: float = 0.0
+    length: Positive
+    GJ: Positive
+    EIy: Positive
+    EIz: Positive
+    rhoA: Positive
+    rhoJ: Positive
+    EA: Positive | None = None
+    rhoIy: NonNegative = 0.0
+    rhoIz: NonNegative = 0.0
+    roll: Finite = 0.0
+    damping: NonNegative = 0.0
     _where: str = field(default="section", repr=False, compare=False)
-
-    def __post_init__(self):
-        names = ("length", "EA", "GJ", "EIy", "EIz", "rhoA", "rhoJ", "rhoIy", "rhoIz", "roll", "damping")
-        _set(self, check_fields(SpatialSectionFields, self._where, **{k: getattr(self, k) for k in names}))
-
-    @property
-    def mass(self) -> float:
-        return self.rhoA * self.length
-
-    @property
-    def extensible(self) -> bool:
-        return self.EA is not None
 
 
 @dataclass(frozen=True)
-class SpatialRigidBody:
+class SpatialRigidBody(_InertiaBody):
     """The body of a rigid link, in place of its beam (docs/spatial.md §1): ``length`` L (m, ≥ 0:
     the tip frame is the link frame moved by L along its x axis), ``mass`` (kg), ``com`` (m, the
     centre of mass in the link frame), ``inertia`` (3×3, kg·m², about the centre of mass, in the
     link frame; three numbers give its diagonal). No elastic coordinates."""
 
-    length: float = 0.0
-    mass: float = 0.0
-    com: tuple = (0.0, 0.0, 0.0)
+    length: NonNegative = 0.0
+    mass: NonNegative = 0.0
+    com: BoundedVec3 = (0.0, 0.0, 0.0)
     inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     _where: str = field(default="rigid", repr=False, compare=False)
-
-    def __post_init__(self):
-        ok = check_fields(RigidBodyFields, self._where, length=self.length, mass=self.mass, com=self.com)
-        ok["com"] = tuple(float(x) for x in ok["com"])
-        _set(self, ok)
-        object.__setattr__(self, "inertia", _inertia(self.inertia, self._where))
-
-    @property
-    def inertia_matrix(self) -> np.ndarray:
-        return np.array(self.inertia, dtype=float)
 
     @property
     def com_vector(self) -> np.ndarray:
@@ -209,34 +161,19 @@ class SpatialRigidBody:
 
 
 @dataclass(frozen=True)
-class SpatialJoint:
+class SpatialJoint(Checked):
     """A revolute joint: ``axis`` (unit vector in the joint frame), ``origin_xyz`` (m) and
     ``origin_rpy`` (rad, URDF roll-pitch-yaw) of the joint frame in the parent frame, ``locked``
     (no coordinate: a rigid connection at the origin's angle)."""
 
-    axis: tuple = (0.0, 0.0, 1.0)
-    origin_xyz: tuple = (0.0, 0.0, 0.0)
-    origin_rpy: tuple = (0.0, 0.0, 0.0)
-    locked: bool = False
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    origin_xyz: BoundedVec3 = (0.0, 0.0, 0.0)
+    origin_rpy: Vec3 = (0.0, 0.0, 0.0)
+    locked: Annotated[bool, Strict()] = False
     _where: str = field(default="joint", repr=False, compare=False)
 
-    def __post_init__(self):
-        ok = check_fields(
-            SpatialJointFields,
-            self._where,
-            axis=self.axis,
-            origin_xyz=self.origin_xyz,
-            origin_rpy=self.origin_rpy,
-            locked=self.locked,
-        )
-        a = np.array(ok["axis"], dtype=float)
-        n = float(np.linalg.norm(a))
-        if not abs(n - 1.0) <= 1e-6:
-            raise InputError(
-                f"{self._where}.axis", ok["axis"], f"must be a unit vector (its norm is {n:.6g})"
-            )
-        ok["axis"] = tuple(float(x) for x in a / n)
-        _set(self, ok)
+    def _rules(self):
+        object.__setattr__(self, "axis", _unit(self.axis, f"{self._where}.axis"))
 
     @property
     def rotation(self) -> np.ndarray:
@@ -245,41 +182,24 @@ class SpatialJoint:
 
 
 @dataclass(frozen=True)
-class SpatialHub:
+class SpatialHub(_InertiaBody):
     """Rigid body at a link's root point: mass (kg), inertia (3×3, kg·m², about the root point,
     in the link frame; three numbers give its diagonal)."""
 
-    mass: float = 0.0
+    mass: NonNegative = 0.0
     inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     _where: str = field(default="hub", repr=False, compare=False)
 
-    def __post_init__(self):
-        _set(self, check_fields(MassFields, self._where, mass=self.mass))
-        object.__setattr__(self, "inertia", _inertia(self.inertia, self._where))
-
-    @property
-    def inertia_matrix(self) -> np.ndarray:
-        return np.array(self.inertia, dtype=float)
-
 
 @dataclass(frozen=True)
-class SpatialPayload:
+class SpatialPayload(_InertiaBody):
     """Rigid body fixed to a link's tip frame: mass (kg), offset (m, its centre in the tip frame),
     inertia (3×3, kg·m², about its centre, in the tip frame; three numbers give its diagonal)."""
 
-    mass: float = 0.0
-    offset: tuple = (0.0, 0.0, 0.0)
+    mass: NonNegative = 0.0
+    offset: BoundedVec3 = (0.0, 0.0, 0.0)
     inertia: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
     _where: str = field(default="payload", repr=False, compare=False)
-
-    def __post_init__(self):
-        _set(self, check_fields(MassFields, self._where, mass=self.mass))
-        _set(self, check_fields(OffsetFields, self._where, offset=self.offset))
-        object.__setattr__(self, "inertia", _inertia(self.inertia, self._where))
-
-    @property
-    def inertia_matrix(self) -> np.ndarray:
-        return np.array(self.inertia, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -294,13 +214,13 @@ class SpatialLink:
     joint: SpatialJoint = field(default_factory=SpatialJoint)
     hub: SpatialHub | None = None
     payload: SpatialPayload | None = None
-    name: str = ""
-    parent: str | None = None
+    name: Name = ""
+    parent: Name | None = None
     _where: str = field(default="link", repr=False, compare=False)
 
     def __post_init__(self):
         w = self._where
-        _set(self, check_fields(LinkNameFields, w, name=self.name, parent=self.parent))
+        _set(self, check_fields(SpatialLink, w, name=self.name, parent=self.parent))
         if self.name in RESERVED_NAMES:
             raise InputError(
                 f"{w}.name", self.name, f"is reserved ({' and '.join(RESERVED_NAMES)} name frames)"
@@ -330,29 +250,18 @@ class SpatialLink:
         """The section's roll (0 for a rigid link: its element frames are its link frame)."""
         return 0.0 if self.rigid else self.beam.roll
 
-    @property
-    def hub_mass(self) -> float:
-        return self.hub.mass if self.hub else 0.0
-
-    @property
-    def hub_inertia(self) -> np.ndarray:
-        return self.hub.inertia_matrix if self.hub else np.zeros((3, 3))
-
-    @property
-    def payload_mass(self) -> float:
-        return self.payload.mass if self.payload else 0.0
+    hub_mass = BodyValue("hub", "mass")
+    hub_inertia = BodyValue("hub", "inertia_matrix", lambda: np.zeros((3, 3)))
+    payload_mass = BodyValue("payload", "mass")
+    payload_inertia = BodyValue("payload", "inertia_matrix", lambda: np.zeros((3, 3)))
 
     @property
     def payload_offset(self) -> np.ndarray:
         return np.array(self.payload.offset if self.payload else (0.0, 0.0, 0.0), dtype=float)
 
-    @property
-    def payload_inertia(self) -> np.ndarray:
-        return self.payload.inertia_matrix if self.payload else np.zeros((3, 3))
-
 
 @dataclass(frozen=True)
-class SpatialClosure:
+class SpatialClosure(Checked):
     """A joint that closes a loop (docs/spatial.md "Trees and closed loops"): ``kind``
     "revolute" (5 equations), "spherical" (3) or "weld" (6) between the point ``point`` of link
     ``link`` (m, in its tip frame) and the point ``to_point`` of ``to`` (another link's name, in
@@ -360,45 +269,32 @@ class SpatialClosure:
     ``axis`` (revolute): unit vector in ``link``'s tip frame, its image in ``to``'s frame fixed at
     the initial state; ``name`` ("" → "closure{j}", 1-based)."""
 
-    kind: str
-    link: str
-    to: str = "ground"
-    point: tuple = (0.0, 0.0, 0.0)
-    to_point: tuple | None = None
-    axis: tuple = (0.0, 0.0, 1.0)
-    name: str = ""
+    kind: Literal["revolute", "spherical", "weld"]
+    link: Name
+    to: Name = "ground"
+    point: BoundedVec3 = (0.0, 0.0, 0.0)
+    to_point: BoundedVec3 | None = None
+    axis: Vec3 = (0.0, 0.0, 1.0)
+    name: Name = ""
     _where: str = field(default="closure", repr=False, compare=False)
 
-    def __post_init__(self):
+    def _rules(self):
         w = self._where
-        ok = check_fields(
-            SpatialClosureFields,
-            w,
-            kind=self.kind,
-            link=self.link,
-            to=self.to,
-            point=self.point,
-            to_point=self.to_point,
-            axis=self.axis,
-            name=self.name,
-        )
-        ok["point"] = tuple(float(x) for x in ok["point"])
-        if ok["to_point"] is not None:
-            ok["to_point"] = tuple(float(x) for x in ok["to_point"])
-        a = np.array(ok["axis"], dtype=float)
-        n = float(np.linalg.norm(a))
-        if not abs(n - 1.0) <= 1e-6:
-            raise InputError(f"{w}.axis", ok["axis"], f"must be a unit vector (its norm is {n:.6g})")
-        ok["axis"] = tuple(float(x) for x in a / n)
-        if ok["link"] == "ground":
-            raise InputError(f"{w}.link", ok["link"], "must name a link (`to` may be the ground)")
-        if ok["link"] == ok["to"]:
-            raise InputError(f"{w}.to", ok["to"], "must differ from `link` (a closure joins two bodies)")
-        _set(self, ok)
+        object.__setattr__(self, "axis", _unit(self.axis, f"{w}.axis"))
+        if self.link == "ground":
+            raise InputError(f"{w}.link", self.link, "must name a link (`to` may be the ground)")
+        if self.link == self.to:
+            raise InputError(f"{w}.to", self.to, "must differ from `link` (a closure joins two bodies)")
 
     @property
     def n_equations(self) -> int:
         return CLOSURE_EQUATIONS[self.kind]
+
+
+#: the strict models of the fields (derived from the dataclasses, the one declaration)
+SpatialSectionFields = fields_model(SpatialSection)
+SpatialJointFields = fields_model(SpatialJoint)
+SpatialClosureFields = fields_model(SpatialClosure)
 
 
 @dataclass(frozen=True)
@@ -412,9 +308,9 @@ class SpatialManipulator:
     """
 
     links: tuple
-    gravity: tuple = (0.0, 0.0, 0.0)
-    base_xyz: tuple = (0.0, 0.0, 0.0)
-    base_rpy: tuple = (0.0, 0.0, 0.0)
+    gravity: BoundedVec3 = (0.0, 0.0, 0.0)
+    base_xyz: BoundedVec3 = (0.0, 0.0, 0.0)
+    base_rpy: Vec3 = (0.0, 0.0, 0.0)
     closures: tuple = ()
     end_effector: str | None = None
 
@@ -433,7 +329,11 @@ class SpatialManipulator:
         _set(
             self,
             check_fields(
-                GravityFields, "model", gravity=self.gravity, base_xyz=self.base_xyz, base_rpy=self.base_rpy
+                SpatialManipulator,
+                "model",
+                gravity=self.gravity,
+                base_xyz=self.base_xyz,
+                base_rpy=self.base_rpy,
             ),
         )
         names = tuple(link.name or f"link{i + 1}" for i, link in enumerate(links))
@@ -582,7 +482,7 @@ def embed_planar(manipulator: Manipulator, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0
     """
     if not isinstance(manipulator, Manipulator):
         raise InputError("manipulator", _short(manipulator), "must be a dttmm.Manipulator")
-    rot = rpy_matrix(check_fields(GravityFields, "base", base_rpy=base_rpy)["base_rpy"])
+    rot = rpy_matrix(check_fields(SpatialManipulator, "base", base_rpy=base_rpy)["base_rpy"])
     links = []
     for i, link in enumerate(manipulator.links):
         b, w = link.beam, f"model.links[{i}]"
