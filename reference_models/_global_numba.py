@@ -658,9 +658,9 @@ def solve_partitioned(P, A, rhs, x, lu=False):
 
 
 @njit(cache=True)
-def forward(P, q, qd, Qtau, pres_acc):
-    """q̈ of M q̈ = Q − h − f_int − f_d with the prescribed q̈ given; joint torques of the
-    prescribed joints. ``q``, ``qd`` hold the prescribed values."""
+def _forward_system(P, q, qd, Qtau, pres_acc):
+    """(M, Q − h − f_int − f_d, q̈ holding the prescribed accelerations, 0 elsewhere) of the
+    forward dynamics at (q, q̇)."""
     N = q.size
     M = np.empty((N, N))
     f = np.empty(N)
@@ -670,6 +670,14 @@ def forward(P, q, qd, Qtau, pres_acc):
     for r in range(P.presc.size):
         x[P.presc[r]] = pres_acc[r]
     add_elastic(P, q, qd, 0.0, 0.0, M, rhs, x)
+    return M, rhs, x
+
+
+@njit(cache=True)
+def forward(P, q, qd, Qtau, pres_acc):
+    """q̈ of M q̈ = Q − h − f_int − f_d with the prescribed q̈ given; joint torques of the
+    prescribed joints. ``q``, ``qd`` hold the prescribed values."""
+    M, rhs, x = _forward_system(P, q, qd, Qtau, pres_acc)
     tau = solve_partitioned(P, M, rhs, x)
     return x, tau
 
@@ -751,15 +759,7 @@ def forward_closed(P, C, t, left, q, qd, Qtau, pres_acc, ff, ref, z, used, tol, 
     user laws' torques, in and out): the laws' dependence on ω̇ is iterated until
     :func:`dttmm.iteration.stop_rule` holds (relative tolerance ``tol``, at most ``maxit``
     solves). Returns (q̈, τ of prescribed joints, τ of the closed-loop joints, converged)."""
-    N = q.size
-    M0 = np.empty((N, N))
-    f = np.empty(N)
-    assemble(P, q, qd, M0, f)
-    rhs0 = f + Qtau
-    x = np.zeros(N)
-    for r in range(P.presc.size):
-        x[P.presc[r]] = pres_acc[r]
-    add_elastic(P, q, qd, 0.0, 0.0, M0, rhs0, x)
+    M0, rhs0, x = _forward_system(P, q, qd, Qtau, pres_acc)
     nc = C.row.size
     tau_c = np.zeros(nc)
     dz = np.zeros(nc)

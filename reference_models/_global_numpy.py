@@ -844,15 +844,7 @@ def _link_frames(lay: _Layout, q: np.ndarray) -> dict:
 
 
 def energy(case, elements_per_link, q, qd, strain="linear") -> dict:
-    """Mechanical energy at a state.
-
-    Parameters
-    ----------
-    case : dttmm.Case
-    elements_per_link : int
-    q, qd : (N,) array_like
-    strain : {"linear", "second-order"}
-        Element strain measure (see :func:`elastic_forces`).
+    """Mechanical energy at a state (the arguments as in :func:`damping_forces`).
 
     Returns
     -------

@@ -15,6 +15,7 @@ pin = pytest.importorskip("pinocchio")
 import dttmm  # noqa: E402
 import dttmm.spatial  # noqa: E402
 from dttmm import Constant, Drive, SpinUp  # noqa: E402
+from dttmm.drives import PD, Sine  # noqa: E402
 from reference_models import pinocchio_spatial as ps  # noqa: E402
 from reference_models import spatial_global as sg  # noqa: E402
 from tests.test_spatial_global import _case, _torque_drives, arm  # noqa: E402
@@ -154,7 +155,7 @@ def test_rigid_limit_global_solver():
 def test_bad_input():
     case = _case(arm(2), _torque_drives(2))
     with pytest.raises(dttmm.InputError, match="integrator"):
-        ps.simulate(case, h=1e-3, integrator="dop853")
+        ps.simulate(case, h=1e-3, integrator="euler")
     with pytest.raises(dttmm.InputError, match="tol"):
         ps.simulate(case, h=1e-3, tol=1e-9)
     with pytest.raises(dttmm.InputError, match="case"):
@@ -216,3 +217,35 @@ def test_an_arm_without_free_joints_runs_under_newmark_as_under_rk4():
     assert newmark.status == "ok" and newmark.joint_angle.shape == (3, 0)
     np.testing.assert_array_equal(newmark.link_tip, rk4.link_tip)
     np.testing.assert_allclose(newmark.link_tip[-1, -1], [1.2, 0.0, 0.0], atol=1e-15)
+
+
+def test_dop853_agrees_with_rk4():
+    """The adaptive DOP853 (rtol = atol = 1e-12) against RK4 at h = 1 ms on the 3-D arm over 0.3 s
+    (joints turn by up to 1.1 rad): measured 3.6e-11 rad, RK4's own step error."""
+    case = _case(arm(3), _torque_drives(3), duration=0.3)
+    a = ps.simulate(case, h=1e-3)
+    b = ps.simulate(case, h=1e-3, integrator="dop853")
+    np.testing.assert_array_equal(a.t, b.t)
+    assert np.abs(a.joint_angle - b.joint_angle).max() <= 1e-9
+    assert b.meta["nfev"] > 0 and b.n_steps > 0
+
+
+def test_closed_loop_drives_on_a_spatial_arm():
+    """pd + computed-torque feedforward (the RNEA of this rigid model) holds the 3-D arm on its
+    references from a start on them (measured 1.8e-8 rad over 0.5 s); pd alone lags (0.15 rad)."""
+    refs = [Sine(0.4, 0.8), Sine(-0.3, 0.6, phase=0.2), Sine(0.2, 1.0, offset=0.1)]
+
+    def run(feedforward):
+        drives = [Drive("torque", PD(40.0, 6.0, r, feedforward), *r.motion(0.0)[:2]) for r in refs]
+        return ps.simulate(_case(arm(3), drives, duration=0.5), h=2e-3)
+
+    ct, pd = run({"law": "computed_torque"}), run(None)
+    ref = np.array([[r.motion(t)[0] for r in refs] for t in ct.t])
+    assert np.abs(ct.joint_angle - ref).max() <= 1e-6
+    assert np.abs(pd.joint_angle - ref).max() > 0.05
+    case = _case(arm(3), [Drive("torque", PD(40.0, 6.0, r)) for r in refs])
+    with pytest.raises(dttmm.InputError, match="rk4 only"):
+        ps.simulate(case, h=2e-3, integrator="newmark")
+    case = _case(arm(3), [Drive("torque", PD(40.0, 6.0, r, moment_gain=0.1)) for r in refs])
+    with pytest.raises(dttmm.InputError, match="moment_gain"):
+        ps.simulate(case, h=2e-3)
