@@ -92,12 +92,14 @@ from dttmm.control_state import ControlState
 from dttmm.drives import UserLaw, require_open_loop
 from dttmm.errors import InputError, SimulationError
 from dttmm.iteration import stop_rule
+from dttmm.jit import HAVE_NUMBA
 from dttmm.shapes import frame_shapes
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.timegrid import step_schedule
 
 from . import _checks
+from . import _spatial_numba as _sn
 from ._spatial_mechanics import (
     GAUSS_WEIGHTS,
     element_stiffness,
@@ -128,6 +130,9 @@ __all__ = [
 ]
 
 INTEGRATORS = ("newmark", "generalized-alpha", "rk4")
+#: "numba": the compiled mechanics (:mod:`reference_models._spatial_numba`, O(N²) per state);
+#: "numpy": the readable dense-Jacobian mechanics of this module (its independent check)
+ENGINES = ("numba", "numpy")
 STRAINS = _checks.STRAINS
 _STEPPED = ("newmark", "generalized-alpha")
 _EPS = 1e-30  # complex step
@@ -192,6 +197,7 @@ class _Layout:
     outboard: np.ndarray  # (n, n) bool: link j lies in the subtree of link i (j ≠ i)
     end_effector: int = -1  # the link whose tip is the end effector
     closures: tuple = ()  # (_Closure, …)
+    compiled: tuple | None = None  # the compiled mechanics' arrays (engine "numba"), or None
 
 
 def _check_case(case) -> SpatialCase:
@@ -411,6 +417,14 @@ def _frames(lay: _Layout, q: np.ndarray) -> _Frames:
     return _Frames(e=e, **out)
 
 
+def _tip_frames(lay: _Layout, q: np.ndarray, qd=None):
+    """The link and tip frames with their Jacobians at q (q + iε q̇ with ``qd``): the numpy
+    :func:`_frames`, or the compiled engine's :class:`reference_models._spatial_numba.Frames`."""
+    if lay.compiled is not None:
+        return _sn.Frames(lay.compiled, q if qd is None else q + 1j * _EPS * qd, qd)
+    return _frames(lay, q if qd is None else q + 1j * _EPS * qd)
+
+
 @dataclass
 class _Bodies:
     """Point masses (m, r, J_v) and rotary inertias (I, R, J_ω) of the discretised arm."""
@@ -472,7 +486,12 @@ def _mass(b: _Bodies) -> np.ndarray:
 
 def _assemble(lay: _Layout, q: np.ndarray, qd: np.ndarray):
     """M(q) and f = Q_g − h(q, q̇): one complex evaluation of the bodies at q + iε q̇ gives the
-    Jacobians (real part) and J̇q̇ (imaginary part of J q̇, divided by ε)."""
+    Jacobians (real part) and J̇q̇ (imaginary part of J q̇, divided by ε). With the compiled
+    engine, the same quantities by composite inertias (:mod:`reference_models._spatial_numba`)."""
+    if lay.compiled is not None:
+        M, f = np.empty((lay.n_dof, lay.n_dof)), np.empty(lay.n_dof)
+        _sn.assemble(lay.compiled[0], q, qd, lay.compiled[1], M, f)
+        return M, f
     b = _bodies(lay, q + 1j * _EPS * qd)
     M = _mass(b)
     vel = b.Jv @ qd
@@ -521,36 +540,35 @@ def _cut_loads(lay: _Layout, q, qd, qdd, tip_loads=None, point_loads=()) -> np.n
     of its link up to and including the tip, like a payload) and ``point_loads`` ((link, point,
     force, moment), …: world components, the moment about the point, at a point fixed in the
     link's tip frame, with a tip load's reach: the closure loads)."""
-    b = _bodies(lay, q + 1j * _EPS * qd)
-    fr = _frames(lay, q)
-    Jv, Jw = b.Jv.real, b.Jw.real
-    acc = Jv @ qdd + (b.Jv @ qd).imag / _EPS
-    om = Jw @ qd
-    dom = Jw @ qdd + (b.Jw @ qd).imag / _EPS
-    I = b.I.real
-    r = b.r.real
-    force = b.m[:, None] * (acc - lay.gravity)
+    if lay.compiled is not None:
+        m, r, I, om, acc, dom, rI, p_tip = _sn.body_motion(lay.compiled, q, qd, qdd)
+    else:
+        b = _bodies(lay, q + 1j * _EPS * qd)
+        fr = _frames(lay, q)
+        Jv, Jw = b.Jv.real, b.Jw.real
+        acc = Jv @ qdd + (b.Jv @ qd).imag / _EPS
+        om = Jw @ qd
+        dom = Jw @ qdd + (b.Jw @ qd).imag / _EPS
+        I = b.I.real
+        r = b.r.real
+        m, rI, p_tip = b.m, fr.rI, fr.p_tip
+    force = m[:, None] * (acc - lay.gravity)
     spin = np.einsum("pij,pj->pi", I, dom) + np.cross(om, np.einsum("pij,pj->pi", I, om))
     n, k = lay.n_links, lay.k
-    points = np.concatenate(
-        [np.concatenate([fr.rI[i * k : (i + 1) * k], fr.p_tip[i : i + 1]]) for i in range(n)]
-    )
+    points = np.concatenate([np.concatenate([rI[i * k : (i + 1) * k], p_tip[i : i + 1]]) for i in range(n)])
     table = _cut_table(lay)
-    nb = b.m.size
+    nb = m.size
     out = np.zeros((points.shape[0], 6))
-    for c, rc in enumerate(points):
-        sel = table[c, :nb]
-        out[c, :3] = force[sel].sum(axis=0)
-        out[c, 3:] = np.cross(r[sel] - rc, force[sel]).sum(axis=0) + spin[sel].sum(axis=0)
-    loads = (
-        [] if tip_loads is None else [(i, fr.p_tip[i], tip_loads[i, :3], tip_loads[i, 3:]) for i in range(n)]
-    )
+    outboard = table[:, :nb].astype(float)
+    out[:, :3] = outboard @ force
+    arms = np.cross(r[None] - points[:, None], force[None])  # (cuts, bodies, 3)
+    out[:, 3:] = np.einsum("cb,cbi->ci", outboard, arms) + outboard @ spin
+    loads = [] if tip_loads is None else [(i, p_tip[i], tip_loads[i, :3], tip_loads[i, 3:]) for i in range(n)]
     loads += list(point_loads)
-    for c, rc in enumerate(points):
-        for i, at, F, M in loads:
-            if table[c, nb + i]:
-                out[c, :3] -= F
-                out[c, 3:] -= np.cross(at - rc, F) + M
+    for i, at, F, M in loads:
+        on = table[:, nb + i]
+        out[on, :3] -= F
+        out[on, 3:] -= np.cross(at - points[on], F) + M
     return out
 
 
@@ -592,6 +610,15 @@ def _element_e(lay, x):
     return np.einsum("esn,n->es", lay.sel, x)
 
 
+def _scatter(lay: _Layout, el: int, fe, Ke, f, K) -> None:
+    """f += Sᵀ fe and K += Sᵀ Ke S for element el's selection S (its coordinates' slots)."""
+    idx = lay.e_idx[el]
+    have = idx >= 0
+    at = idx[have]
+    f[at] += fe[have]
+    K[np.ix_(at, at)] += Ke[np.ix_(have, have)]
+
+
 def _elastic(lay: _Layout, q):
     """Strain energy U, internal force f_int (N,) and tangent K_T (N, N)."""
     if not lay.second.any():
@@ -611,10 +638,8 @@ def _elastic(lay: _Layout, q):
             Ue += 0.5 * c * eps * eps
             fe = fe + c * eps * g
             Ke = Ke + c * (np.outer(g, g) + eps * H)
-        S = lay.sel[el]
         U += Ue
-        f += S.T @ fe
-        KT += S.T @ Ke @ S
+        _scatter(lay, el, fe, Ke, f, KT)
     return float(U), f, KT
 
 
@@ -634,9 +659,7 @@ def _damping(lay: _Layout, q, qd):
             c = lay.EA[el] * lay.length[el]
             fe = fe + c * (g @ ed[el]) * g
             De = De + c * np.outer(g, g)
-        S = lay.sel[el]
-        f += lay.mu[el] * (S.T @ fe)
-        Dt += lay.mu[el] * (S.T @ De @ S)
+        _scatter(lay, el, lay.mu[el] * fe, lay.mu[el] * De, f, Dt)
     return f, Dt
 
 
@@ -674,7 +697,7 @@ def _load_forces(case, lay: _Layout, q, t, left) -> np.ndarray:
     frame's velocity Jacobians of :func:`_frames`), at the configuration q."""
     if not getattr(case.scenario, "loads", ()):
         return np.zeros(lay.n_dof)
-    fr = _frames(lay, q)
+    fr = _tip_frames(lay, q)
     L = _tip_loads(case, lay, fr, t, left)
     return np.einsum("nim,ni->m", fr.Jr_tip, L[:, :3]) + np.einsum("nim,ni->m", fr.Jw_tip, L[:, 3:])
 
@@ -779,7 +802,7 @@ class _Control:
     def hub(self, q, qd):
         """(h (nc, N), h₀ (nc,)): H = h q̈ + h₀ of every closed-loop joint at (q, q̇)."""
         lay = self.lay
-        fr = _frames(lay, q + 1j * _EPS * qd)
+        fr = _tip_frames(lay, q, qd)
         rows, h0 = np.zeros((len(self.joints), lay.n_dof)), np.zeros(len(self.joints))
         for c, i in enumerate(self.links):
             Jw = fr.Jw_link[i].real
@@ -1040,9 +1063,9 @@ def _closure_terms(lay: _Layout, fr):
 def _constraints(lay: _Layout, q, qd=None):
     """g(q) (m,), J = ∂g/∂q (m, N) and, with q̇, J̇q̇ (m,) (complex step along q̇)."""
     if qd is None:
-        terms = _closure_terms(lay, _frames(lay, q))
+        terms = _closure_terms(lay, _tip_frames(lay, q))
         return np.concatenate([t[0] for t in terms]), np.vstack([t[1] for t in terms]), None
-    terms = _closure_terms(lay, _frames(lay, q + 1j * _EPS * qd))
+    terms = _closure_terms(lay, _tip_frames(lay, q, qd))
     J = np.vstack([t[1] for t in terms])
     return np.concatenate([t[0].real for t in terms]), J.real, (J @ qd).imag / _EPS
 
@@ -1175,6 +1198,9 @@ def energy(case, elements_per_link, q, qd, strain="linear") -> dict:
 
 
 def _energy(lay, q, qd) -> dict:
+    if lay.compiled is not None:
+        kinetic, gravity = _sn.kinetic_potential(lay.compiled, q, qd)
+        return {"kinetic": kinetic, "elastic": _elastic(lay, q)[0], "gravity": gravity}
     return {"kinetic": _kinetic(lay, q, qd), "elastic": _elastic(lay, q)[0], "gravity": _potential(lay, q)}
 
 
@@ -1198,7 +1224,7 @@ def _link_shapes(case, lay, q, p: int) -> np.ndarray:
     nt, nel = q.shape[0], lay.n_links * lay.k
     RI, rI, e = np.zeros((nt, nel, 3, 3)), np.zeros((nt, nel, 3)), np.zeros((nt, nel, 6))
     for j in range(nt):
-        fr = _frames(lay, q[j])
+        fr = _tip_frames(lay, q[j])
         RI[j], rI[j], e[j] = fr.RI, fr.rI, fr.e
     lengths = [lk.beam.length for lk in case.model.links]
     tables = lambda i, xi: shape_matrices(lay.length[i * lay.k], xi)[:2]
@@ -1206,7 +1232,7 @@ def _link_shapes(case, lay, q, p: int) -> np.ndarray:
 
 
 def _link_frames(lay, q) -> dict:
-    fr = _frames(lay, q)
+    fr = _tip_frames(lay, q)
     d = fr.p_tip - fr.p_link
     defl = np.einsum("nij,ni->nj", fr.R_link, d)[:, 1:]
     rel = np.swapaxes(fr.R_link, -1, -2) @ fr.R_tip
@@ -1510,7 +1536,7 @@ class _Recorder:
                 t = float(self.t[i])
                 lam = self.lam[i] if nc else None
                 qdd = _forward(self.case, lay, self.q[i], self.qd[i], t, t > 0.0, self.tau[i], lam)[0]
-                ext = _tip_loads(self.case, lay, _frames(lay, self.q[i]), t, t > 0.0)
+                ext = _tip_loads(self.case, lay, _tip_frames(lay, self.q[i]), t, t > 0.0)
                 points = _closure_loads(lay, self.q[i], lam)[1] if nc else ()
                 loads[i] = _cut_loads(lay, self.q[i], self.qd[i], qdd, ext, points)
         shapes = _link_shapes(self.case, lay, self.q[:n], self.shape_points) if self.shape_points else None
@@ -1545,6 +1571,16 @@ def _result_closure_fields(closure: dict, meta: dict) -> dict:
     out = {k: v for k, v in closure.items() if k in fields}
     meta.update({k: v for k, v in closure.items() if k not in fields})
     return out
+
+
+def _check_engine(engine) -> str:
+    """The engine (None: "numba" where numba is installed, else "numpy")."""
+    if engine is None:
+        return "numba" if HAVE_NUMBA else "numpy"
+    plumbing.choice("engine", engine, ENGINES)
+    if engine == "numba" and not HAVE_NUMBA:
+        raise InputError("engine", engine, "numba is not installed; use engine='numpy'")
+    return engine
 
 
 def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
@@ -1585,6 +1621,7 @@ def simulate(
     max_iterations=50,
     cut_loads=False,
     shape_points=0,
+    engine=None,
     **options,
 ) -> SpatialResult:
     """Simulate a spatial case with the global equations of the spatial discretisation.
@@ -1607,6 +1644,11 @@ def simulate(
     shape_points : int
         p ≥ 2 records ``link_shapes`` (nt, n, p, 3): the deflected centre line of every link from
         this module's element frames and shape matrices (:func:`link_shapes`); 0 (default): none.
+    engine : {"numba", "numpy"} or None
+        The mechanics at each state: "numba" (the default where numba is installed) assembles
+        M and the forces by composite inertias in compiled code (O(N²)); "numpy" by the dense
+        Jacobians of this module (O(N³), the readable form and the check of the compiled one).
+        They agree to round-off.
 
     Returns
     -------
@@ -1624,8 +1666,11 @@ def simulate(
     case = _check_case(case)
     h = plumbing.step_size(h, case.scenario.duration)
     opt = _check_options(integrator, tol, max_iterations, options)
+    engine = _check_engine(engine)
     _check_closed_loop(case, integrator)
     lay = _layout(case, elements_per_link, strain)
+    if engine == "numba":
+        lay.compiled = _sn.pack(lay)
     if lay.closures and integrator not in _STEPPED:
         raise InputError(
             "integrator",
@@ -1640,6 +1685,7 @@ def simulate(
         "h": float(h),
         "integrator": integrator,
         "strain": strain,
+        "engine": engine,
         "n_dof": lay.n_dof,
         "coordinates": list(lay.names),
         "versions": plumbing.versions(),
