@@ -79,6 +79,10 @@ Pack = namedtuple(
         "body_c",
         "body_J",
         "anc",
+        "K_el",
+        "EA",
+        "mu",
+        "second",
     ],
 )
 
@@ -171,6 +175,10 @@ def pack(lay) -> tuple[Pack, Work, np.ndarray, np.ndarray]:
         body_c=np.concatenate([zeros3, lay.pay_c, lay.rb_c]).astype(float),
         body_J=np.concatenate([lay.hub_J, lay.pay_J, lay.rb_J]).astype(float),
         anc=np.ascontiguousarray(anc[group][:, group]),
+        K_el=np.ascontiguousarray(lay.K_el, float),
+        EA=np.array([np.nan if ea is None else ea for ea in lay.EA], float),
+        mu=lay.mu.astype(float),
+        second=lay.second.astype(np.bool_),
     )
     nb = nel * ng + 3 * n
     c = np.complex128
@@ -650,3 +658,78 @@ def _jacobians(tw, points, moves):
     v = tw[None, :, 3:] + np.cross(w[None], points[:, None, :])
     Jr = np.where(moves[:, None, :], np.swapaxes(v, 1, 2), 0.0)
     return Jr, Jw
+
+
+# ----------------------------------------------------------------------------------------------
+# elastic and damping forces of the second-order strain (the linear strain is K q, D q̇)
+# ----------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _strain_terms(l, e, second, grad, hess):
+    """Axial strain ε of an extensible element and its gradient and Hessian on e (as
+    spatial_global's ``strain_terms``): ε = u/l (+ ½ (bᵀGb + cᵀGc)), b = (v, φz), c = (w, −φy)."""
+    grad[:] = 0.0
+    hess[:] = 0.0
+    grad[0] = 1.0 / l
+    eps = e[0] / l
+    if second:
+        g00, g01, g11 = 6.0 / (5.0 * l * l), -1.0 / (10.0 * l), 2.0 / 15.0
+        gb0, gb1 = g00 * e[1] + g01 * e[5], g01 * e[1] + g11 * e[5]
+        gc0, gc1 = g00 * e[2] - g01 * e[4], g01 * e[2] - g11 * e[4]
+        eps += 0.5 * (e[1] * gb0 + e[5] * gb1 + e[2] * gc0 - e[4] * gc1)
+        grad[1], grad[5], grad[2], grad[4] = gb0, gb1, gc0, -gc1
+        hess[1, 1], hess[1, 5], hess[5, 1], hess[5, 5] = g00, g01, g01, g11
+        hess[2, 2], hess[2, 4], hess[4, 2], hess[4, 4] = g00, -g01, -g01, g11
+    return eps
+
+
+@njit(cache=True)
+def strain_forces(P, q, qd, fi, KT, fd, Dt):
+    """Strain energy U (returned), internal force fi and tangent KT, damping force fd and its
+    rate tangent Dt of every element with the axial strain ε (linear bending and torsion; the
+    Kelvin–Voigt dissipation ½μ[EA l ε̇² + ėᵀK_b ė])."""
+    fi[:] = 0.0
+    KT[:] = 0.0
+    fd[:] = 0.0
+    Dt[:] = 0.0
+    e, ed = np.empty(6), np.empty(6)
+    fe, fde = np.empty(6), np.empty(6)
+    Ke, De, Kb = np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6))
+    grad, hess = np.empty(6), np.empty((6, 6))
+    U = 0.0
+    for el in range(P.e_idx.shape[0]):
+        idx = P.e_idx[el]
+        for s in range(6):
+            e[s] = q[idx[s]] if idx[s] >= 0 else 0.0
+            ed[s] = qd[idx[s]] if idx[s] >= 0 else 0.0
+        Kb[:] = P.K_el[el]
+        Kb[0, 0] = 0.0  # the axial part comes from ε
+        fe[:] = Kb @ e
+        fde[:] = Kb @ ed
+        Ue = 0.5 * (e @ fe)
+        Ke[:] = Kb
+        De[:] = Kb
+        if not np.isnan(P.EA[el]):
+            eps = _strain_terms(P.length[el], e, P.second[el], grad, hess)
+            c = P.EA[el] * P.length[el]
+            Ue += 0.5 * c * eps * eps
+            rate = grad @ ed
+            for i in range(6):
+                fe[i] += c * eps * grad[i]
+                fde[i] += c * rate * grad[i]
+                for j in range(6):
+                    Ke[i, j] += c * (grad[i] * grad[j] + eps * hess[i, j])
+                    De[i, j] += c * grad[i] * grad[j]
+        U += Ue
+        mu = P.mu[el]
+        for i in range(6):
+            if idx[i] < 0:
+                continue
+            fi[idx[i]] += fe[i]
+            fd[idx[i]] += mu * fde[i]
+            for j in range(6):
+                if idx[j] >= 0:
+                    KT[idx[i], idx[j]] += Ke[i, j]
+                    Dt[idx[i], idx[j]] += mu * De[i, j]
+    return U

@@ -619,11 +619,21 @@ def _scatter(lay: _Layout, el: int, fe, Ke, f, K) -> None:
     K[np.ix_(at, at)] += Ke[np.ix_(have, have)]
 
 
+def _strain_compiled(lay: _Layout, q, qd):
+    """(U, f_int, K_T, f_d, D_t) of the second-order strain by the compiled engine."""
+    N = lay.n_dof
+    fi, KT, fd, Dt = np.empty(N), np.empty((N, N)), np.empty(N), np.empty((N, N))
+    U = _sn.strain_forces(lay.compiled[0], q, qd, fi, KT, fd, Dt)
+    return float(U), fi, KT, fd, Dt
+
+
 def _elastic(lay: _Layout, q):
     """Strain energy U, internal force f_int (N,) and tangent K_T (N, N)."""
     if not lay.second.any():
         f = lay.K @ q
         return 0.5 * float(q @ f), f, lay.K
+    if lay.compiled is not None:
+        return _strain_compiled(lay, q, np.zeros(lay.n_dof))[:3]
     e = _element_e(lay, q)
     U, f, KT = 0.0, np.zeros(lay.n_dof), np.zeros((lay.n_dof, lay.n_dof))
     for el in range(e.shape[0]):
@@ -647,6 +657,8 @@ def _damping(lay: _Layout, q, qd):
     """Damping force f_d (N,) and its rate tangent D_t (N, N): R = ½μ[EA l ε̇² + ėᵀK_b ė]."""
     if not lay.second.any():
         return lay.D @ qd, lay.D
+    if lay.compiled is not None:
+        return _strain_compiled(lay, q, qd)[3:]
     e, ed = _element_e(lay, q), _element_e(lay, qd)
     f, Dt = np.zeros(lay.n_dof), np.zeros((lay.n_dof, lay.n_dof))
     for el in range(e.shape[0]):

@@ -135,3 +135,18 @@ def test_bad_engine_is_a_one_line_input_error():
     with pytest.raises(InputError, match="engine") as info:
         sg.simulate(_case("cantilever_3d.toml", 0.01), elements_per_link=1, h=1e-3, engine="fortran")
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("name", ["three_joint_arm.toml", "rigid/mixed_arm.toml", "bend_45deg.toml"])
+def test_second_order_strain_forces_equal_the_numpy_mechanics(name):
+    lay = sg._layout(_case(name), 2, "second-order")
+    comp = dc.replace(lay, compiled=sn.pack(lay))
+    q, qd = _state(lay, 5)
+    q *= 0.1  # moderate strains
+    U0, f0, K0 = sg._elastic(lay, q)
+    U1, f1, K1 = sg._elastic(comp, q)
+    assert U1 == pytest.approx(U0, rel=1e-13)
+    assert _rel(f1, f0) <= 1e-13 and _rel(K1, K0) <= 1e-13
+    d0, D0 = sg._damping(lay, q, qd)
+    d1, D1 = sg._damping(comp, q, qd)
+    assert _rel(d1, d0) <= 1e-13 and _rel(D1, D0) <= 1e-13
