@@ -99,6 +99,7 @@ from dttmm.spatial import SpatialCase, SpatialResult
 from dttmm.timegrid import step_schedule
 
 from . import _checks
+from ._global_driver import convergence
 from . import _spatial_numba as _sn
 from ._spatial_mechanics import (
     GAUSS_WEIGHTS,
@@ -1718,23 +1719,11 @@ def simulate(
             meta.update(tol=opt["tol"], max_iterations=opt["max_iterations"])
             stats = _newmark_run(case, lay, h, opt, coef, rec, ctl if ctl else None)
     wall = time.perf_counter() - wall0
-    unc = stats["unconverged"]
     meta.update(
         iterations_mean=stats["iterations_mean"],
         iterations_max=stats["iterations_max"],
-        unconverged_steps=len(unc),
         time_per_step=wall / stats["n_steps"],
     )
-    warns = []
-    if ctl and ctl.unconverged_solves:
-        meta["unconverged_solves"] = ctl.unconverged_solves
-        warns.append(
-            f"{ctl.unconverged_solves} forward-dynamics solves with closed-loop laws (t = 0, restarts) "
-            f"did not converge (tol {opt['tol']:g}) within {opt['max_iterations']} solves"
-        )
-    if unc:
-        warns.append(
-            f"iteration not converged (tol {opt['tol']:g}) within {opt['max_iterations']} solves at "
-            f"{len(unc)} step(s), first at t = {float(stats['t_end'][unc[0]]):.6g} s"
-        )
-    return rec.result(wall, stats["n_steps"], meta, "unconverged" if warns else "ok", warns)
+    solves = ctl.unconverged_solves if ctl else 0
+    status, warns = convergence(meta, stats["unconverged"], stats["t_end"], opt, solves)
+    return rec.result(wall, stats["n_steps"], meta, status, warns)
