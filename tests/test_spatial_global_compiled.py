@@ -24,6 +24,7 @@ from dttmm.drives import PD, Constant, Drive, Table
 from dttmm.errors import InputError
 from dttmm.jit import HAVE_NUMBA
 from reference_models import _spatial_numba as sn
+from reference_models import _spatial_numpy as sgm
 from reference_models import spatial_global as sg
 
 pytestmark = pytest.mark.skipif(not HAVE_NUMBA, reason="the compiled engine needs numba")
@@ -53,10 +54,10 @@ def _rel(a, b):
 def test_mass_matrix_and_forces_equal_the_numpy_mechanics(name):
     case = _case(name)
     for k in (1, 3):
-        lay = sg._layout(case, k)
+        lay = sgm._layout(case, k)
         packed = sn.pack(lay)
         q, qd = _state(lay, k)
-        M0, f0 = sg._assemble(lay, q, qd)
+        M0, f0 = sgm._assemble(lay, q, qd)
         M, f = np.empty_like(M0), np.empty_like(f0)
         sn.assemble(packed[0], q, qd, packed[1], M, f)
         assert _rel(M, M0) <= 1e-13, (name, k)
@@ -66,31 +67,33 @@ def test_mass_matrix_and_forces_equal_the_numpy_mechanics(name):
 
 @pytest.mark.parametrize("name", ["three_joint_arm.toml", "topology/five_bar.toml", "robots/ur5.toml"])
 def test_frames_jacobians_and_their_rates_equal_the_numpy_frames(name):
-    lay = sg._layout(_case(name), 2)
+    lay = sgm._layout(_case(name), 2)
     packed = sn.pack(lay)
     q, qd = _state(lay, 7)
     fields = ("R_link", "p_link", "R_tip", "p_tip", "Jr_link", "Jw_link", "Jr_tip", "Jw_tip")
-    a, b = sg._frames(lay, q), sn.Frames(packed, q)
+    a, b = sgm._frames(lay, q), sn.Frames(packed, q)
     for f in (*fields, "RI", "rI", "nodes", "e"):
         assert np.abs(getattr(a, f) - getattr(b, f)).max() <= 1e-14, f
     # complex step along q̇: the imaginary parts over ε are the rates J̇q̇ of the loads and closures
-    a, b = sg._frames(lay, q + 1j * sg._EPS * qd), sn.Frames(packed, q + 1j * sg._EPS * qd, qd)
+    a, b = sgm._frames(lay, q + 1j * sgm._EPS * qd), sn.Frames(packed, q + 1j * sgm._EPS * qd, qd)
     for f in fields:
         x, y = getattr(a, f), getattr(b, f)
         assert np.abs(x.real - y.real).max() <= 1e-14, f
-        assert np.abs(x.imag - y.imag).max() / sg._EPS <= 1e-13 * max(1.0, np.abs(x.imag).max() / sg._EPS), f
+        assert np.abs(x.imag - y.imag).max() / sgm._EPS <= 1e-13 * max(
+            1.0, np.abs(x.imag).max() / sgm._EPS
+        ), f
 
 
 def test_energy_and_cut_loads_equal_the_numpy_mechanics():
     case = _case("three_joint_arm.toml")
-    lay = sg._layout(case, 3)
+    lay = sgm._layout(case, 3)
     comp = dc.replace(lay, compiled=sn.pack(lay))
     q, qd = _state(lay, 3)
     qdd = np.random.default_rng(4).standard_normal(lay.n_dof)
-    e0, e1 = sg._energy(lay, q, qd), sg._energy(comp, q, qd)
+    e0, e1 = sgm._energy(lay, q, qd), sgm._energy(comp, q, qd)
     for key in ("kinetic", "gravity"):
         assert e1[key] == pytest.approx(e0[key], rel=1e-13, abs=1e-13)
-    c0, c1 = sg._cut_loads(lay, q, qd, qdd), sg._cut_loads(comp, q, qd, qdd)
+    c0, c1 = sgm._cut_loads(lay, q, qd, qdd), sgm._cut_loads(comp, q, qd, qdd)
     assert _rel(c1, c0) <= 1e-12
 
 
@@ -139,14 +142,14 @@ def test_bad_engine_is_a_one_line_input_error():
 
 @pytest.mark.parametrize("name", ["three_joint_arm.toml", "rigid/mixed_arm.toml", "bend_45deg.toml"])
 def test_second_order_strain_forces_equal_the_numpy_mechanics(name):
-    lay = sg._layout(_case(name), 2, "second-order")
+    lay = sgm._layout(_case(name), 2, "second-order")
     comp = dc.replace(lay, compiled=sn.pack(lay))
     q, qd = _state(lay, 5)
     q *= 0.1  # moderate strains
-    U0, f0, K0 = sg._elastic(lay, q)
-    U1, f1, K1 = sg._elastic(comp, q)
+    U0, f0, K0 = sgm._elastic(lay, q)
+    U1, f1, K1 = sgm._elastic(comp, q)
     assert U1 == pytest.approx(U0, rel=1e-13)
     assert _rel(f1, f0) <= 1e-13 and _rel(K1, K0) <= 1e-13
-    d0, D0 = sg._damping(lay, q, qd)
-    d1, D1 = sg._damping(comp, q, qd)
+    d0, D0 = sgm._damping(lay, q, qd)
+    d1, D1 = sgm._damping(comp, q, qd)
     assert _rel(d1, d0) <= 1e-13 and _rel(D1, D0) <= 1e-13
