@@ -52,15 +52,18 @@ def _kernel(engine):
 
 
 def as_spatial_case(case) -> SpatialCase:
-    """A :class:`SpatialCase`, or a (SpatialManipulator, Scenario) pair made one."""
+    """A :class:`SpatialCase`, a (SpatialManipulator, Scenario) pair made one, or a planar
+    :class:`dttmm.Case` embedded (:meth:`SpatialCase.from_planar`, docs/spatial.md §1)."""
     if isinstance(case, SpatialCase):
         return case
+    if isinstance(case, Case):
+        return SpatialCase.from_planar(case)
     if isinstance(case, tuple) and len(case) == 2:
         return SpatialCase(case[0], case[1])
     raise InputError(
         "case",
         type(case).__name__,
-        "must be a dttmm.spatial.SpatialCase or a (SpatialManipulator, Scenario) pair",
+        "must be a dttmm.spatial.SpatialCase, a dttmm.Case or a (SpatialManipulator, Scenario) pair",
     )
 
 
