@@ -183,3 +183,24 @@ def test_load_case_errors_name_the_field(tmp_path):
         load_case(tmp_path / "kind.toml")
     with pytest.raises(InputError, match="does not exist"):
         load_case(tmp_path / "missing.toml")
+
+
+def test_spatial_linearisation_and_forward_dynamics_take_a_planar_case():
+    """``dttmm.spatial.linear.linearize`` of a planar Case (embedded): its in-plane mass and
+    stiffness blocks are the planar linearisation's; ``dttmm.spatial.accelerations`` of a planar
+    Case is that of its embedding (as ``dttmm.accelerations(..., kernel="spatial")``)."""
+    from dttmm.spatial import linear
+
+    case = dttmm.load_case(ROOT / "benchmarks" / "deluca_link2_clamped.toml")
+    lin_s = linear.linearize(case, 2)
+    lin_p = dttmm.linearize(case, 2)
+    ip = np.array(
+        [i for i, s in enumerate(lin_s.coordinates) if s.endswith(("angle", ", u", ", v", ", phiz"))]
+    )
+    assert ip.size == lin_p.n_free < lin_s.n_free
+    assert np.abs(lin_s.M[np.ix_(ip, ip)] - lin_p.M).max() <= 1e-9 * np.abs(lin_p.M).max()
+    assert np.abs(lin_s.K[np.ix_(ip, ip)] - lin_p.K).max() <= 1e-8 * np.abs(lin_p.K).max()
+    n = lin_s.n_free + sum(not d.closed_loop and d.kind == "motion" for d in case.scenario.drives)
+    q = np.linspace(0.0, 0.01, n)
+    a = dttmm.spatial.accelerations(case, 2, q, np.zeros(n))
+    assert a.tobytes() == dttmm.accelerations(case, 2, q, np.zeros(n), kernel="spatial").tobytes()

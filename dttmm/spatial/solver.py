@@ -245,7 +245,8 @@ def accelerations(
     engine: str | None = None,
     loads: bool = False,
 ):
-    """Forward dynamics of the discretised spatial arm: q̈ (n_dof,) at (q, q̇) and time t.
+    """Forward dynamics of the discretised spatial arm: q̈ (n_dof,) at (q, q̇) and time t
+    (``case``: as :func:`as_spatial_case` takes it; a planar :class:`dttmm.Case` embedded).
 
     Coordinates q = [α_1, e_11, …, e_1k, α_2, …] (no α for a locked joint; e = (u, v, w, φx, φy,
     φz), without u for an inextensible link). Motion-driven joints take the law's α, α̇, α̈.
