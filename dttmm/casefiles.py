@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .casedoc import read_case_document
 
-__all__ = ["case_to_dict", "load_case"]
+__all__ = ["case_from_document", "case_to_dict", "load_case"]
 
 
 def load_case(path):
@@ -20,10 +20,16 @@ def load_case(path):
     field and value) for an unreadable file, invalid TOML, or any key or value the schema
     refuses."""
     data, kind = read_case_document(path)
+    return case_from_document(data, kind, Path(path).parent)
+
+
+def case_from_document(data: dict, kind: str, folder):
+    """The case of a parsed case document of ``kind`` (:func:`dttmm.casedoc.read_case_document`),
+    built by that kind's reader; ``folder``: the file's folder (a URDF path is relative to it)."""
     if kind == "urdf":  # a robot from its URDF (docs/urdf.md)
         from .urdf_import import case_from_urdf_dict
 
-        return case_from_urdf_dict(data, Path(path).parent)
+        return case_from_urdf_dict(data, folder)
     if kind == "spatial":
         from .spatial.case import case_from_dict as spatial_from_dict
 

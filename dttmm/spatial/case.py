@@ -4,11 +4,12 @@ unlocked joint, base first), or a :class:`SpatialScenario` that adds external lo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Annotated, Union
 
 from pydantic import Field, Strict, create_model
 
-from ..case import CaseBase, ScenarioFile, _drive
+from ..case import Case, CaseBase, ScenarioFile, _drive
 from ..casedoc import case_file_model, read_case_document, validate_document
 from ..drives import OPEN_LAWS, _prefixed, _tagged, _union, law_from_table
 from ..errors import InputError
@@ -43,6 +44,17 @@ class SpatialCase(CaseBase):
             from .topology import check_initial_closures
 
             check_initial_closures(self)
+
+    @classmethod
+    def from_planar(cls, case: Case, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0.0, 0.0, 0.0)) -> SpatialCase:
+        """The planar ``case`` (a :class:`dttmm.Case`) as the spatial case it is (docs/spatial.md
+        §1): its manipulator embedded by :func:`dttmm.spatial.embed_planar` in the plane of the
+        base frame (``base_rpy``, ``base_xyz``; default the world's x–y plane), with the same
+        scenario object, name and provenance. InputError (one line) for anything else."""
+        if not isinstance(case, Case):
+            raise InputError("case", type(case).__name__, "must be a dttmm.Case (a planar case) to embed")
+        prov = None if case.provenance is None else dict(case.provenance)
+        return cls(_m.embed_planar(case.model, base_rpy, base_xyz), case.scenario, case.name, prov)
 
 
 # --- the spatial case file (docs/cases.md "Spatial cases") ----------------------------------
@@ -215,11 +227,29 @@ def _load(spec, j: int) -> SpatialLoad:
 
 
 def load_case(path) -> SpatialCase:
-    """Read a spatial case TOML file (docs/cases.md "Spatial cases"); the name defaults to the
-    file's stem. Raises InputError for an unreadable file, invalid TOML, or any key or value the
-    schema refuses."""
-    data, _ = read_case_document(path)
-    return case_from_dict(data)
+    """Read a case file of any kind as a :class:`SpatialCase`; the name defaults to the file's
+    stem. A spatial file (``kind = "spatial"``, docs/cases.md "Spatial cases") and a URDF case
+    document (a ``[model]`` naming a ``urdf``, docs/urdf.md) are read as
+    :func:`dttmm.load_case` reads them; a planar case file is read by the planar reader and
+    embedded (:meth:`SpatialCase.from_planar`, its plane the world's x–y plane). The
+    ``kind = "spatial"`` marker is optional here: a file without it that the planar reader
+    refuses is read as a spatial file when the spatial schema takes it (else the planar
+    reader's error stands). Raises InputError (one line, naming the field and value) for an
+    unreadable file, invalid TOML, or any key or value the schema refuses."""
+    from ..casefiles import case_from_document
+
+    data, kind = read_case_document(path)
+    if kind == "planar" and "kind" not in data:
+        try:
+            case = case_from_document(data, kind, Path(path).parent)
+        except InputError as exc:
+            try:
+                return case_from_dict(data)  # a spatial file without its marker
+            except InputError:
+                raise exc from None
+    else:
+        case = case_from_document(data, kind, Path(path).parent)
+    return SpatialCase.from_planar(case) if isinstance(case, Case) else case
 
 
 def _load_to_dict(ld: SpatialLoad) -> dict:
