@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dttmm import plumbing
+from dttmm.case import Case
 from dttmm.drives import require_open_loop
 from dttmm.errors import InputError
 from dttmm.shapes import frame_shapes
@@ -103,8 +104,12 @@ class _Layout:
 
 
 def _check_case(case) -> SpatialCase:
+    """The spatial case; a planar :class:`dttmm.Case` as the spatial case it is
+    (:meth:`dttmm.spatial.SpatialCase.from_planar`, its plane the world's x–y plane)."""
+    if isinstance(case, Case):
+        return SpatialCase.from_planar(case)
     if not isinstance(case, SpatialCase):
-        raise InputError("case", case, "must be a dttmm.spatial.SpatialCase")
+        raise InputError("case", type(case).__name__, "must be a dttmm.spatial.SpatialCase or a dttmm.Case")
     return case
 
 

@@ -135,7 +135,8 @@ def simulate(
 
     Parameters
     ----------
-    case : dttmm.spatial.SpatialCase
+    case : dttmm.spatial.SpatialCase, or a planar dttmm.Case (run as its embedding,
+        :meth:`dttmm.spatial.SpatialCase.from_planar`)
     elements_per_link : int
         k ≥ 1 elements per link.
     h : float

@@ -153,3 +153,19 @@ def test_second_order_strain_forces_equal_the_numpy_mechanics(name):
     d0, D0 = sgm._damping(lay, q, qd)
     d1, D1 = sgm._damping(comp, q, qd)
     assert _rel(d1, d0) <= 1e-13 and _rel(D1, D0) <= 1e-13
+
+
+@pytest.mark.parametrize("name", ["three_link", "benchmarks/deluca_bang_bang"])
+def test_a_planar_case_runs_as_its_embedding_and_equals_the_planar_global_solver(name):
+    """A planar dttmm.Case runs on the spatial global solver as its embedding
+    (SpatialCase.from_planar); the planar global solver (its own planar formulation) agrees."""
+    from reference_models import global_newmark
+
+    case = dttmm.load_case(CASES.parent / f"{name}.toml")
+    case = dc.replace(case, scenario=dc.replace(case.scenario, duration=0.05, output_step=0.01))
+    a = global_newmark.simulate(case, elements_per_link=2, h=1e-3)
+    b = sg.simulate(case, elements_per_link=2, h=1e-3)
+    assert np.abs(a.joint_angle - b.joint_angle).max() <= 1e-12
+    assert np.abs(a.end_effector - b.end_effector[:, :2]).max() <= 1e-12
+    assert np.abs(b.end_effector[:, 2]).max() == 0.0
+    assert np.abs(a.joint_torque - b.joint_torque).max() <= 1e-9 * max(1.0, np.abs(a.joint_torque).max())
