@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .casedoc import read_case_document
 
-__all__ = ["case_from_document", "case_to_dict", "load_case"]
+__all__ = ["case_from_document", "case_to_dict", "load_case", "load_spatial_case"]
 
 
 def load_case(path):
@@ -37,6 +37,34 @@ def case_from_document(data: dict, kind: str, folder):
     from .case import case_from_dict
 
     return case_from_dict(data)
+
+
+def load_spatial_case(path):
+    """Read a case file of any kind as a :class:`SpatialCase`; the name defaults to the file's
+    stem. A spatial file (``kind = "spatial"``, docs/cases.md "Spatial cases") and a URDF case
+    document (a ``[model]`` naming a ``urdf``, docs/urdf.md) are read as
+    :func:`dttmm.load_case` reads them; a planar case file is read by the planar reader and
+    embedded (:meth:`SpatialCase.from_planar`, its plane the world's x–y plane). The
+    ``kind = "spatial"`` marker is optional here: a file without it that the planar reader
+    refuses is read as a spatial file when the spatial schema takes it (else the planar
+    reader's error stands). Raises InputError (one line, naming the field and value) for an
+    unreadable file, invalid TOML, or any key or value the schema refuses."""
+    from .case import Case
+    from .errors import InputError
+    from .spatial.case import SpatialCase, case_from_dict
+
+    data, kind = read_case_document(path)
+    if kind == "planar" and "kind" not in data:
+        try:
+            case = case_from_document(data, kind, Path(path).parent)
+        except InputError as exc:
+            try:
+                return case_from_dict(data)  # a spatial file without its marker
+            except InputError:
+                raise exc from None
+    else:
+        case = case_from_document(data, kind, Path(path).parent)
+    return SpatialCase.from_planar(case) if isinstance(case, Case) else case
 
 
 def case_to_dict(case) -> dict:

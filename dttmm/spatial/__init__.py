@@ -10,7 +10,8 @@ helpers of the discretisation and the static equilibrium with the joints held
 (:func:`simulate`); link shapes at any coordinates: :func:`link_shapes`.
 """
 
-from .case import SpatialCase, case_from_dict, load_case
+from ..casefiles import load_spatial_case as load_case
+from .case import SpatialCase, case_from_dict
 from .model import (
     SpatialClosure,
     SpatialHub,

@@ -4,7 +4,6 @@ unlocked joint, base first), or a :class:`SpatialScenario` that adds external lo
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Annotated, Union
 
 from pydantic import Field, Strict, create_model
@@ -227,29 +226,12 @@ def _load(spec, j: int) -> SpatialLoad:
 
 
 def load_case(path) -> SpatialCase:
-    """Read a case file of any kind as a :class:`SpatialCase`; the name defaults to the file's
-    stem. A spatial file (``kind = "spatial"``, docs/cases.md "Spatial cases") and a URDF case
-    document (a ``[model]`` naming a ``urdf``, docs/urdf.md) are read as
-    :func:`dttmm.load_case` reads them; a planar case file is read by the planar reader and
-    embedded (:meth:`SpatialCase.from_planar`, its plane the world's x–y plane). The
-    ``kind = "spatial"`` marker is optional here: a file without it that the planar reader
-    refuses is read as a spatial file when the spatial schema takes it (else the planar
-    reader's error stands). Raises InputError (one line, naming the field and value) for an
-    unreadable file, invalid TOML, or any key or value the schema refuses."""
-    from ..casefiles import case_from_document
-
-    data, kind = read_case_document(path)
-    if kind == "planar" and "kind" not in data:
-        try:
-            case = case_from_document(data, kind, Path(path).parent)
-        except InputError as exc:
-            try:
-                return case_from_dict(data)  # a spatial file without its marker
-            except InputError:
-                raise exc from None
-    else:
-        case = case_from_document(data, kind, Path(path).parent)
-    return SpatialCase.from_planar(case) if isinstance(case, Case) else case
+    """Read a spatial case TOML file (docs/cases.md "Spatial cases"); the name defaults to the
+    file's stem. Raises InputError for an unreadable file, invalid TOML, or any key or value the
+    schema refuses. :func:`dttmm.spatial.load_case` reads a case file of any kind as a
+    :class:`SpatialCase` (:func:`dttmm.casefiles.load_spatial_case`)."""
+    data, _ = read_case_document(path)
+    return case_from_dict(data)
 
 
 def _load_to_dict(ld: SpatialLoad) -> dict:
