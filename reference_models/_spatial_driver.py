@@ -20,7 +20,6 @@ from dttmm.drives import UserLaw
 from dttmm.errors import InputError, SimulationError
 from dttmm.iteration import stop_rule
 from dttmm.jit import HAVE_NUMBA
-from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialResult
 from dttmm.timegrid import step_schedule
 
@@ -30,7 +29,6 @@ from ._global_driver import convergence
 from ._spatial_numpy import (
     _EPS,
     _assemble,
-    _check_case,
     _closure_gaps,
     _closure_loads,
     _constraints,
@@ -43,7 +41,6 @@ from ._spatial_numpy import (
     _initial_state,
     _joint_torques,
     _Layout,
-    _layout,
     _link_frames,
     _link_shapes,
     _load_forces,
@@ -543,7 +540,7 @@ def _result_closure_fields(closure: dict, meta: dict) -> dict:
     return out
 
 
-def _check_engine(engine) -> str:
+def check_engine(engine) -> str:
     """The engine (None: "numba" where numba is installed, else "numpy")."""
     if engine is None:
         return "numba" if HAVE_NUMBA else "numpy"
@@ -553,7 +550,7 @@ def _check_engine(engine) -> str:
     return engine
 
 
-def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
+def check_options(integrator, tol, max_iterations, options: dict) -> dict:
     """The integrator's options with their defaults (None: the Newmark family's defaults)."""
     _checks.integrator(integrator, INTEGRATORS)
     allowed = {"newmark": ("beta", "gamma"), "generalized-alpha": ("rho_inf",), "rk4": ()}[integrator]
@@ -564,7 +561,7 @@ def _check_options(integrator, tol, max_iterations, options: dict) -> dict:
     return opt
 
 
-def _check_closed_loop(case, integrator: str) -> None:
+def check_closed_loop(case, integrator: str) -> None:
     """Refuse the closed-loop drives this solver cannot run: any with RK4 (the laws are solved
     implicitly with a Newmark step). A ``computed_torque`` feedforward is tabulated by
     :func:`dttmm.control.computed_torque` (the spatial rigid recursive Newton–Euler)."""
@@ -580,26 +577,8 @@ def _check_closed_loop(case, integrator: str) -> None:
             )
 
 
-def run(
-    case,
-    elements_per_link,
-    h,
-    integrator,
-    strain,
-    tol,
-    max_iterations,
-    cut_loads,
-    shape_points,
-    engine,
-    options,
-):
-    """The run of :func:`reference_models.spatial_global.simulate` (its parameters, checked here)."""
-    case = _check_case(case)
-    h = plumbing.step_size(h, case.scenario.duration)
-    opt = _check_options(integrator, tol, max_iterations, options)
-    engine = _check_engine(engine)
-    _check_closed_loop(case, integrator)
-    lay = _layout(case, elements_per_link, strain)
+def run(case, lay, h: float, integrator: str, opt: dict, engine: str, cut_loads: bool, shape_points: int):
+    """The run of :func:`reference_models.spatial_global.simulate`, its settings checked there."""
     if engine == "numba":
         lay.compiled = _sn.pack(lay)
     if lay.closures and integrator not in _STEPPED:
@@ -615,7 +594,7 @@ def run(
         "elements_per_link": lay.k,
         "h": float(h),
         "integrator": integrator,
-        "strain": strain,
+        "strain": lay.strain,
         "engine": engine,
         "n_dof": lay.n_dof,
         "coordinates": list(lay.names),
@@ -623,8 +602,8 @@ def run(
     }
     rec = _Recorder(case, lay, h)
     rec.meta = meta
-    rec.want_loads = bool(cut_loads)
-    rec.shape_points = check_shape_points(shape_points)
+    rec.want_loads = cut_loads
+    rec.shape_points = shape_points
     wall0 = time.perf_counter()
     with np.errstate(over="ignore", invalid="ignore"):  # non-finite states are caught and reported
         if integrator == "rk4":

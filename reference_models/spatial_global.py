@@ -79,12 +79,16 @@ schedule, the Newmark-family coefficients, the stop rule of the iteration and th
 
 from __future__ import annotations
 
+from dttmm import plumbing
+from dttmm.shapes import shape_points as shape_points_of
 from dttmm.spatial import SpatialResult
 
 from . import _spatial_driver
 from ._spatial_driver import ENGINES, INTEGRATORS
 from ._spatial_numpy import (
     STRAINS,
+    _check_case,
+    _layout,
     accelerations,
     coordinate_names,
     cut_loads,
@@ -171,16 +175,12 @@ def simulate(
     dttmm.SimulationError
         Non-finite state (``partial`` holds the outputs so far).
     """
+    case = _check_case(case)
+    h = plumbing.step_size(h, case.scenario.duration)
+    opt = _spatial_driver.check_options(integrator, tol, max_iterations, options)
+    engine = _spatial_driver.check_engine(engine)
+    _spatial_driver.check_closed_loop(case, integrator)
+    lay = _layout(case, elements_per_link, strain)
     return _spatial_driver.run(
-        case,
-        elements_per_link,
-        h,
-        integrator,
-        strain,
-        tol,
-        max_iterations,
-        cut_loads,
-        shape_points,
-        engine,
-        options,
+        case, lay, h, integrator, opt, engine, bool(cut_loads), shape_points_of(shape_points)
     )
