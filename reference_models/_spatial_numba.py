@@ -376,6 +376,19 @@ def _gauss_bodies(P, W, el, R, p, V, e, ed):
 
 
 @njit(cache=True)
+def _turn(tw, w, c, rate, V):
+    """tw = (ω, c × ω): the twist at the world origin of a turn with angular velocity ω about
+    the point c, per unit rate; V += tw · rate."""
+    v = np.empty(3, np.complex128)
+    _cross(c, w, v)
+    for i in range(3):
+        tw[i] = w[i]
+        tw[3 + i] = v[i]
+        V[i] += w[i] * rate
+        V[3 + i] += v[i] * rate
+
+
+@njit(cache=True)
 def chain(P, q, qd, W):
     """The frames (W.Rl, pl: link frames; W.Rt, pt: tip frames), their twists (W.Vl, Vt) and the
     twist of every coordinate (W.tw, at the world origin) at the complex configuration q
@@ -406,12 +419,7 @@ def chain(P, q, qd, W):
         a = P.alpha_idx[L]
         if a >= 0:
             _mv(R, P.axis[L] + 0j, tmp)
-            _cross(p, tmp, tmp2)
-            for i in range(3):
-                W.tw[a, i] = tmp[i]
-                W.tw[a, 3 + i] = tmp2[i]
-            for i in range(6):
-                V[i] += W.tw[a, i] * qd[a]
+            _turn(W.tw[a], tmp, p, qd[a], V)
             _rot_axis(P.axis[L], q[a], T)
             _mm(R, T, R2)
             R[:] = R2
@@ -443,18 +451,12 @@ def chain(P, q, qd, W):
                 idx = P.e_idx[el, s]
                 if idx < 0:
                     continue
-                if s < 3:
+                if s < 3:  # a shift along the element frame's axis s
                     for i in range(3):
                         W.tw[idx, 3 + i] = R[i, s]
+                        V[3 + i] += R[i, s] * ed[s]
                 else:
-                    for i in range(3):
-                        tmp2[i] = R2[i, s - 3]
-                    _cross(p, tmp2, tmp)
-                    for i in range(3):
-                        W.tw[idx, i] = tmp2[i]
-                        W.tw[idx, 3 + i] = tmp[i]
-                for i in range(6):
-                    V[i] += W.tw[idx, i] * ed[s]
+                    _turn(W.tw[idx], R2[:, s - 3], p, ed[s], V)
             _exp(e[3:], T)
             _mm(R, T, R2)
             R[:] = R2
@@ -515,6 +517,19 @@ def _body_wrenches(P, W, F, Nr, wr):
 
 
 @njit(cache=True)
+def _own_mass(P, W, el, s, t, Ib):
+    """Σ_g m a_g,s·a_g,t + b_g,sᵀ I_g b_g,t: the element's own Gauss points in M_st."""
+    ng = P.I_g.shape[1]
+    val = 0.0
+    for g in range(ng):
+        b = el * ng + g
+        _mv(W.bI[b], W.B[el, g, :, t], Ib)
+        for i in range(3):
+            val += P.body_m[b] * W.A[el, g, i, s] * W.A[el, g, i, t] + W.B[el, g, i, s] * Ib[i]
+    return val
+
+
+@njit(cache=True)
 def _element_block(P, W, el, IC, WC, tw, F, Nr, M, f):
     """The element's coordinates: their columns c_j (W.col), forces and the element's own
     block of M, with the composite (IC, WC) of the bodies outboard of its node."""
@@ -544,14 +559,7 @@ def _element_block(P, W, el, IC, WC, tw, F, Nr, M, f):
             if cj < 0:
                 continue
             _mv6(IC, tw[cj], c)
-            val = _dot6(tw[ci], c)
-            for gg in range(ng):
-                b = el * ng + gg
-                a_s, b_s = W.A[el, gg, :, s], W.B[el, gg, :, s]
-                a_t, b_t = W.A[el, gg, :, s2], W.B[el, gg, :, s2]
-                _mv(W.bI[b], b_t, Ib)
-                for i in range(3):
-                    val += P.body_m[b] * a_s[i] * a_t[i] + b_s[i] * Ib[i]
+            val = _dot6(tw[ci], c) + _own_mass(P, W, el, s, s2, Ib)
             M[ci, cj] = val
             M[cj, ci] = val
 
