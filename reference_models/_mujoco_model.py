@@ -1,6 +1,11 @@
-"""The MuJoCo model of a planar flexible arm: every link a chain of rigid pieces and hinge springs.
+"""The MuJoCo model of a flexible arm, planar or spatial: every link a chain of rigid pieces
+joined by elastic hinges. What both chains share lives here once: the pieces' mass properties
+(:func:`piece_properties`; a planar link's pieces, :func:`link_pieces`, are that rule applied to
+the link's spatial embedding), the number format of the MJCF (:func:`_f`), the exact inertias
+written into a compiled model (:func:`set_inertias`), and the linearised chain's eigenvalues
+(:func:`stability_limit`, :func:`frequencies`).
 
-Lumping rule ("modified rigid finite elements"), link of length L, k segments, l = L/k:
+Lumping rule ("modified rigid finite elements") of a planar link, length L, k segments, l = L/k:
 
 * k elastic hinges (axis z) at x_j = (j − ½) l, j = 1..k, each a rotational spring of stiffness
   EI/l and a damper of coefficient μ·EI/l (Kelvin–Voigt damping D = μK of the beam);
@@ -20,11 +25,24 @@ gear 1 on every arm joint apply the drive torques.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
-__all__ = ["INTEGRATORS", "ChainLayout", "chain_xml", "layout", "link_pieces"]
+__all__ = [
+    "INTEGRATORS",
+    "ChainLayout",
+    "chain_xml",
+    "eig_mk",
+    "frequencies",
+    "layout",
+    "link_pieces",
+    "piece_properties",
+    "set_inertias",
+    "stability_limit",
+]
 
 #: integrators offered (MuJoCo's names) and their explicit stability factor c in h < c/ω_max
 INTEGRATORS = {"implicitfast": 2.0, "euler": 2.0, "implicit": 2.0, "rk4": 2.0 * np.sqrt(2.0)}
@@ -48,39 +66,105 @@ class ChainLayout:
     tip_site: np.ndarray
 
 
+def _rx(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
 def _combine(parts):
-    """Total mass, centre x and Izz about the centre of point/rod parts (mass, x, Izz_own)."""
+    """(mass, centre (3,), inertia (3, 3) about the centre) of parts (mass, centre, own inertia)."""
     m = sum(p[0] for p in parts)
-    c = sum(p[0] * p[1] for p in parts) / m
-    izz = sum(p[2] + p[0] * (p[1] - c) ** 2 for p in parts)
-    return m, c, izz
+    c = sum(p[0] * np.asarray(p[1], float) for p in parts) / m
+    J = np.zeros((3, 3))
+    for mp, cp, Jp in parts:
+        d = np.asarray(cp, float) - c
+        J += np.asarray(Jp, float) + mp * (d @ d * np.eye(3) - np.outer(d, d))
+    return m, c, 0.5 * (J + J.T)
 
 
-def link_pieces(link, k: int) -> list[tuple[float, float, float, float]]:
-    """The rigid pieces of one link: (body offset from its parent frame, mass, centre, Izz).
+def piece_properties(link, k: int):
+    """The rigid pieces of one spatial link (``dttmm.spatial.SpatialLink``): list of (body offset
+    (3,), mass, centre (3,), inertia (3, 3)).
 
-    Offsets and centres (m) are along the link axis in the piece's own frame, whose origin is
-    the hinge in front of it (the arm joint for piece 0). Izz (kg·m²) is about the centre.
-    Piece 0 includes the hub, piece k the payload.
+    Each piece carries its share of the beam: mass ρA·len at its centre, the rod inertia
+    ρA·len³/12 about the two transverse axes and the section inertia len·Rx(roll) diag(ρJ, ρIy,
+    ρIz) Rx(roll)ᵀ. Offsets and centres (m) are in the piece's own frame, whose origin is the
+    station in front of it (the joint for piece 0) and whose axes are the link frame's when
+    undeformed; the inertia (kg·m²) is about the centre. Piece 0 includes the hub (full inertia
+    about the root point), piece k the payload (at its offset in the tip frame, full inertia
+    about its centre).
     """
-    beam = link.beam
-    L, rhoA = beam.length, beam.rhoA
-    l = L / k
+    b = link.beam
+    l = b.length / k
+    Rr = _rx(b.roll)
+    section = Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
     out = []
     for j in range(k + 1):
         ln = l / 2 if j in (0, k) else l
-        parts = [(rhoA * ln, ln / 2, rhoA * ln**3 / 12)]
-        if j == 0 and link.hub_mass + link.hub_inertia > 0:
-            parts.append((link.hub_mass, 0.0, link.hub_inertia))
-        if j == k and link.payload_mass + link.payload_inertia > 0:
-            parts.append((link.payload_mass, ln, link.payload_inertia))
+        rod = b.rhoA * ln**3 / 12
+        parts = [(b.rhoA * ln, (ln / 2, 0.0, 0.0), np.diag([0.0, rod, rod]) + ln * section)]
+        if j == 0 and link.hub is not None and link.hub.mass > 0:
+            parts.append((link.hub.mass, (0.0, 0.0, 0.0), link.hub_inertia))
+        elif j == 0 and link.hub is not None:  # inertia without mass: a pure rotor at the root
+            parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.hub_inertia)
+        if j == k and link.payload is not None:
+            c = np.array([ln, 0.0, 0.0]) + link.payload_offset
+            if link.payload.mass > 0:
+                parts.append((link.payload.mass, c, link.payload_inertia))
+            else:
+                parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.payload_inertia)
         offset = 0.0 if j == 0 else (l / 2 if j == 1 else l)
-        out.append((offset, *_combine(parts)))
+        out.append((np.array([offset, 0.0, 0.0]), *_combine(parts)))
     return out
 
 
-def _f(x: float) -> str:
-    return repr(float(x))
+def link_pieces(link, k: int) -> list[tuple[float, float, float, float]]:
+    """The rigid pieces of one planar link: (body offset from its parent frame, mass, centre, Izz).
+
+    The spatial rule (:func:`piece_properties`) on the link's embedding
+    (:func:`dttmm.spatial.embed_planar`), read in the plane: offsets and centres (m) along the
+    link axis in the piece's own frame, whose origin is the hinge in front of it (the arm joint
+    for piece 0); Izz (kg·m²) about the centre. Piece 0 includes the hub, piece k the payload.
+    """
+    from dttmm.model import Manipulator
+    from dttmm.spatial import embed_planar
+
+    spatial = embed_planar(Manipulator((link,))).links[0]
+    return [
+        (float(o[0]), float(m), float(c[0]), float(J[2, 2])) for o, m, c, J in piece_properties(spatial, k)
+    ]
+
+
+def _f(x) -> str:
+    """MJCF text of a number or a vector (round-trip exact)."""
+    return " ".join(repr(float(v)) for v in np.atleast_1d(x))
+
+
+def _quat(R) -> np.ndarray:
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
+    return q
+
+
+def inertial(pad: str, mass: float, centre, diag) -> str:
+    """The ``<inertial>`` line of a body: mass at ``centre`` (3,), principal inertia ``diag`` (3,)."""
+    return f'{pad}  <inertial pos="{_f(centre)}" mass="{_f(mass)}" diaginertia="{_f(diag)}"/>'
+
+
+def set_inertias(m, links, k: int) -> None:
+    """Write the exact mass properties of every piece (:func:`piece_properties` of the spatial
+    ``links``; bodies ``link{i}_{j}``) into the compiled model ``m``: mass, centre, principal
+    axes (``body_iquat``) and inertia. ``mj_setConst`` must follow."""
+    for i, link in enumerate(links):
+        for j, (_, mass, c, J) in enumerate(piece_properties(link, k)):
+            bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}")
+            w, V = np.linalg.eigh(J)
+            if np.linalg.det(V) < 0:
+                V[:, 0] = -V[:, 0]
+            m.body_mass[bid] = mass
+            m.body_ipos[bid] = c
+            m.body_iquat[bid] = _quat(V)
+            m.body_inertia[bid] = np.maximum(w, 0.0)
 
 
 def chain_xml(manipulator, k: int, h: float, integrator: str, *, clamp_first: bool = False) -> str:
@@ -120,10 +204,7 @@ def chain_xml(manipulator, k: int, h: float, integrator: str, *, clamp_first: bo
                     f'stiffness="{_f(stiff)}" damping="{_f(damp)}" springref="0"/>'
                 )
             # planar motion: only Izz enters; Ixx = Iyy = Izz keeps the triangle inequality
-            lines.append(
-                f'{pad}  <inertial pos="{_f(c)} 0 0" mass="{_f(m)}" '
-                f'diaginertia="{_f(izz)} {_f(izz)} {_f(izz)}"/>'
-            )
+            lines.append(inertial(pad, m, (c, 0.0, 0.0), (izz, izz, izz)))
             if j == k:
                 lines.append(f'{pad}  <site name="tip{i}" pos="{_f(l / 2)} 0 0"/>')
             closers.append(f"{pad}</body>")
@@ -159,3 +240,27 @@ def layout(model, n_links: int, k: int, *, clamp_first: bool = False) -> ChainLa
             [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, f"tip{i}") for i in range(n_links)], int
         ),
     )
+
+
+def eig_mk(m, d, vectors: bool = True):
+    """Generalised eigenvalues ω² (ascending; zeros for free joints) of (K, M) at the state in d,
+    K the joint stiffnesses and M MuJoCo's mass matrix; with ``vectors`` the pair (ω², modes)."""
+    import scipy.linalg
+
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    K = np.diag(m.jnt_stiffness[m.dof_jntid])
+    return scipy.linalg.eigh(K, M, eigvals_only=not vectors)
+
+
+def stability_limit(m, d, integrator: str = "implicitfast") -> tuple[float, float]:
+    """(ω_max rad/s, the largest stable step c/ω_max s) of the undamped linearised chain at d."""
+    w2 = eig_mk(m, d)[0]
+    wmax = math.sqrt(max(float(w2[-1]), 0.0))
+    return wmax, (INTEGRATORS[integrator] / wmax if wmax > 0 else math.inf)
+
+
+def frequencies(w2) -> np.ndarray:
+    """Natural frequencies (rad/s) of the eigenvalues ω² (round-off negatives as 0)."""
+    return np.sqrt(np.clip(w2, 0.0, None))

@@ -35,7 +35,7 @@ Outputs follow the suite's definitions: joint angle i = root piece angle of link
 piece angle of link i − 1 (the arm joint's coordinate); tip deflection in the clamped-root frame;
 energy = kinetic + gravitational + spring energy (MuJoCo's, zero at y = 0).
 
-MuJoCo (``pip install 'dttmm[mujoco]'``) is imported here only; without it this module does
+MuJoCo (``pip install 'dttmm[mujoco]'``) is imported by the MuJoCo modules only; without it this module does
 not import and the method is reported unavailable.
 """
 
@@ -59,7 +59,7 @@ from dttmm.shapes import polyline_shapes, shape_points, stations
 from dttmm.timegrid import step_schedule
 
 from . import _checks
-from ._mujoco_model import INTEGRATORS, chain_xml, layout
+from ._mujoco_model import INTEGRATORS, chain_xml, eig_mk, frequencies, layout, stability_limit
 
 __all__ = ["INTEGRATORS", "build", "natural_frequencies", "simulate", "stability_limit"]
 
@@ -89,33 +89,13 @@ def build(manipulator, k: int, h: float, integrator: str = "implicitfast", *, cl
     return m, mj.MjData(m), layout(m, manipulator.n_links, k, clamp_first=clamp_first)
 
 
-def _eig_mk(m, d):
-    """Generalised eigenvalues ω² of (K, M) at the state in d (ascending; zeros for free joints)."""
-    import scipy.linalg
-
-    mj = mujoco
-    mj.mj_forward(m, d)
-    M = np.zeros((m.nv, m.nv))
-    mj.mj_fullM(m, d, M)
-    K = np.diag(m.jnt_stiffness[m.dof_jntid])
-    return scipy.linalg.eigh(K, M, eigvals_only=True)
-
-
-def stability_limit(m, d, integrator: str) -> tuple[float, float]:
-    """(ω_max rad/s, the largest stable step c/ω_max s) of the undamped linearised chain at d."""
-    w2 = _eig_mk(m, d)
-    wmax = math.sqrt(max(float(w2[-1]), 0.0))
-    return wmax, (INTEGRATORS[integrator] / wmax if wmax > 0 else math.inf)
-
-
 def natural_frequencies(link, k: int, n_modes: int = 3) -> np.ndarray:
     """First ``n_modes`` natural frequencies (rad/s) of one link clamped at its root (hub welded,
     no gravity), from the chain's mass matrix and joint stiffnesses."""
     from dttmm.model import Manipulator
 
     m, d, _ = build(Manipulator((link,)), k, 1e-3, clamp_first=True)
-    w2 = _eig_mk(m, d)
-    return np.sqrt(np.clip(w2[:n_modes], 0.0, None))
+    return frequencies(eig_mk(m, d, vectors=False)[:n_modes])
 
 
 class _Stepper:

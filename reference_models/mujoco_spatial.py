@@ -66,12 +66,11 @@ log(R_rootᵀ R_tip)), end effector, energy (MuJoCo's kinetic + gravity + spring
 zero at the world origin); with closures ``closure_loads``, ``closure_residual`` and
 ``closure_angle_residual`` as the DT-TMM's. Cut loads: not computed (None).
 
-MuJoCo is imported here only.
+MuJoCo is imported by the MuJoCo modules only (this one, mujoco_chain, _mujoco_model).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import mujoco
@@ -88,7 +87,19 @@ from dttmm.spatial.scenario import require_no_loads
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
 from . import _checks
-from ._mujoco_model import _MJCF_NAME, INTEGRATORS
+from ._mujoco_model import (
+    _MJCF_NAME,
+    INTEGRATORS,
+    _f,
+    _quat,
+    _rx,
+    eig_mk,
+    frequencies,
+    inertial,
+    piece_properties,
+    set_inertias,
+    stability_limit,
+)
 from .mujoco_chain import _free_controls, _meta, _rollout, _step_warning, polylines, step_nodes
 from .mujoco_chain import _Stepper as _PlanarStepper
 
@@ -131,63 +142,6 @@ class SpatialLayout:
     hub_body: np.ndarray
     tip_body: np.ndarray
     tip_site: np.ndarray
-
-
-def _rx(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def _combine(parts):
-    """(mass, centre (3,), inertia (3, 3) about the centre) of parts (mass, centre, own inertia)."""
-    m = sum(p[0] for p in parts)
-    c = sum(p[0] * np.asarray(p[1], float) for p in parts) / m
-    J = np.zeros((3, 3))
-    for mp, cp, Jp in parts:
-        d = np.asarray(cp, float) - c
-        J += np.asarray(Jp, float) + mp * (d @ d * np.eye(3) - np.outer(d, d))
-    return m, c, 0.5 * (J + J.T)
-
-
-def piece_properties(link, k: int):
-    """The rigid pieces of one link: list of (body offset (3,), mass, centre (3,), inertia (3, 3)).
-
-    Offsets and centres (m) are in the piece's own frame, whose origin is the station in front
-    of it (the joint for piece 0) and whose axes are the link frame's when undeformed; the
-    inertia (kg·m²) is about the centre. Piece 0 includes the hub, piece k the payload.
-    """
-    b = link.beam
-    l = b.length / k
-    Rr = _rx(b.roll)
-    section = Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
-    out = []
-    for j in range(k + 1):
-        ln = l / 2 if j in (0, k) else l
-        rod = b.rhoA * ln**3 / 12
-        parts = [(b.rhoA * ln, (ln / 2, 0.0, 0.0), np.diag([0.0, rod, rod]) + ln * section)]
-        if j == 0 and link.hub is not None and link.hub.mass > 0:
-            parts.append((link.hub.mass, (0.0, 0.0, 0.0), link.hub_inertia))
-        elif j == 0 and link.hub is not None:  # inertia without mass: a pure rotor at the root
-            parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.hub_inertia)
-        if j == k and link.payload is not None:
-            c = np.array([ln, 0.0, 0.0]) + link.payload_offset
-            if link.payload.mass > 0:
-                parts.append((link.payload.mass, c, link.payload_inertia))
-            else:
-                parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.payload_inertia)
-        offset = 0.0 if j == 0 else (l / 2 if j == 1 else l)
-        out.append((np.array([offset, 0.0, 0.0]), *_combine(parts)))
-    return out
-
-
-def _f(x) -> str:
-    return " ".join(repr(float(v)) for v in np.atleast_1d(x))
-
-
-def _quat(R) -> np.ndarray:
-    q = np.empty(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
-    return q
 
 
 def xml(
@@ -258,8 +212,8 @@ def xml(
                         f'{pad}  <joint name="{tag}{i}_{j}" type="hinge" axis="{_f(Rr @ np.array(axis))}" '
                         f'stiffness="{_f(stiff)}" damping="{_f(b.damping * stiff)}" springref="0"/>'
                     )
-            ev = max(float(np.trace(J)) / 3.0, 1e-12)
-            lines.append(f'{pad}  <inertial pos="{_f(c)}" mass="{_f(m)}" diaginertia="{_f([ev, ev, ev])}"/>')
+            ev = max(float(np.trace(J)) / 3.0, 1e-12)  # a placeholder (set_inertias)
+            lines.append(inertial(pad, m, c, (ev, ev, ev)))
             if j == k:
                 lines.append(f'{pad}  <site name="tip{i}" pos="{_f(l / 2 if k > 0 else 0.0)} 0 0"/>')
                 lines.extend(f"{pad}  {x}" for x in sites.get(i, ()))
@@ -347,20 +301,6 @@ def closure_equalities(manipulator, k: int, h: float, angles=None):
     return sites, eqs
 
 
-def _set_inertias(m, manipulator, k):
-    """Write the exact mass properties of every piece into the compiled model."""
-    for i, link in enumerate(manipulator.links):
-        for j, (_, mass, c, J) in enumerate(piece_properties(link, k)):
-            bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}")
-            w, V = np.linalg.eigh(J)
-            if np.linalg.det(V) < 0:
-                V[:, 0] = -V[:, 0]
-            m.body_mass[bid] = mass
-            m.body_ipos[bid] = c
-            m.body_iquat[bid] = _quat(V)
-            m.body_inertia[bid] = np.maximum(w, 0.0)
-
-
 def layout(m, manipulator, k: int) -> SpatialLayout:
     """Index maps of a compiled :func:`xml` model."""
 
@@ -401,30 +341,10 @@ def build(
         raise InputError("model", manipulator, "must be a dttmm.spatial.SpatialManipulator")
     k = plumbing.elements_per_link(k)
     m = mujoco.MjModel.from_xml_string(xml(manipulator, k, h, integrator, station, angles))
-    _set_inertias(m, manipulator, k)
+    set_inertias(m, manipulator.links, k)
     d = mujoco.MjData(m)
     mujoco.mj_setConst(m, d)
     return m, d, layout(m, manipulator, k)
-
-
-def _eig_mk(m, d, dofs=None):
-    """Generalised eigenpairs (ω², modes) of (K, M) at the state in d over ``dofs`` (all if None)."""
-    import scipy.linalg
-
-    mujoco.mj_forward(m, d)
-    M = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, M)
-    K = np.diag(m.jnt_stiffness[m.dof_jntid])
-    if dofs is not None:
-        M, K = M[np.ix_(dofs, dofs)], K[np.ix_(dofs, dofs)]
-    return scipy.linalg.eigh(K, M)
-
-
-def stability_limit(m, d, integrator: str = "implicitfast") -> tuple[float, float]:
-    """(ω_max rad/s, the largest stable step c/ω_max s) of the undamped linearised chain at d."""
-    w2 = _eig_mk(m, d)[0]
-    wmax = math.sqrt(max(float(w2[-1]), 0.0))
-    return wmax, (INTEGRATORS[integrator] / wmax if wmax > 0 else math.inf)
 
 
 def natural_frequencies(link, k: int, n_modes: int = 3) -> dict:
@@ -440,12 +360,11 @@ def natural_frequencies(link, k: int, n_modes: int = 3) -> dict:
     link = dataclasses.replace(link, joint=SpatialJoint(locked=True))
     manip = SpatialManipulator((link,))
     m, d, lay = build(manip, k)
-    w2, V = _eig_mk(m, d)
+    w2, V = eig_mk(m, d)
     fam = np.argmax([np.sum(V[lay.flex_qpos[0, :, c]] ** 2, axis=0) for c in range(3)], axis=0)
     out = {}
     for c, (_, _, key) in enumerate(STATION):
-        sel = np.sqrt(np.clip(w2[fam == c], 0.0, None))
-        out[key] = sel[:n_modes]
+        out[key] = frequencies(w2[fam == c])[:n_modes]
     return out
 
 
