@@ -3,7 +3,10 @@
 The lumping rule (see ``_mujoco_model``): k elastic hinges per link at x = (j − ½)·L/k with
 rotational springs EI·k/L and dampers μ·EI·k/L, half pieces at both ends, each piece with its
 own mass and rod inertia; hubs join the root piece, payloads the tip piece. Errors are
-O(1/k²) in statics, natural frequencies and dynamics (measured, see docs/mujoco.md).
+O(1/k²) in statics, natural frequencies and dynamics (measured, see docs/mujoco.md). The model
+is the arm's spatial embedding (:func:`dttmm.spatial.embed_planar`) built by the spatial chain's
+builder with one hinge about z per station (:func:`build`, ``_mujoco_model.build_planar``): the
+planar degrees of freedom alone; the outputs are read in the plane.
 
 Time integration: MuJoCo's ``implicitfast`` (semi-implicit Euler, velocity forces implicit)
 with the fixed step h, no contacts, no constraints. The joint springs are integrated
@@ -59,7 +62,8 @@ from dttmm.shapes import polyline_shapes, shape_points, stations
 from dttmm.timegrid import step_schedule
 
 from . import _checks
-from ._mujoco_model import INTEGRATORS, chain_xml, eig_mk, frequencies, layout, stability_limit
+from ._mujoco_model import INTEGRATORS, eig_mk, frequencies, stability_limit
+from ._mujoco_model import build_planar as build
 
 __all__ = ["INTEGRATORS", "build", "natural_frequencies", "simulate", "stability_limit"]
 
@@ -80,13 +84,6 @@ def _check(case, k, h, integrator, options):
     if isinstance(mi, bool) or not isinstance(mi, int) or mi < 1:
         raise InputError("motion_max_iter", mi, "must be an integer >= 1")
     return int(k), h, opts
-
-
-def build(manipulator, k: int, h: float, integrator: str = "implicitfast", *, clamp_first=False):
-    """Compile the chain: returns (MjModel, MjData, ChainLayout)."""
-    mj = mujoco
-    m = mj.MjModel.from_xml_string(chain_xml(manipulator, k, h, integrator, clamp_first=clamp_first))
-    return m, mj.MjData(m), layout(m, manipulator.n_links, k, clamp_first=clamp_first)
 
 
 def natural_frequencies(link, k: int, n_modes: int = 3) -> np.ndarray:

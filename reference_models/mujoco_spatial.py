@@ -71,8 +71,6 @@ MuJoCo is imported by the MuJoCo modules only (this one, mujoco_chain, _mujoco_m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import mujoco
 import numpy as np
 
@@ -82,34 +80,37 @@ from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
-from dttmm.spatial.rotation import log_so3, rpy_matrix
+from dttmm.spatial.rotation import log_so3
 from dttmm.spatial.scenario import require_no_loads
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
 from . import _checks
 from ._mujoco_model import (
-    _MJCF_NAME,
     INTEGRATORS,
-    _f,
-    _quat,
-    _rx,
+    STATION,
+    STATIONS,
+    SpatialLayout,
+    build,
+    closure_equalities,
     eig_mk,
     frequencies,
-    inertial,
+    layout,
     piece_properties,
-    set_inertias,
     stability_limit,
+    xml,
 )
 from .mujoco_chain import _free_controls, _meta, _rollout, _step_warning, polylines, step_nodes
 from .mujoco_chain import _Stepper as _PlanarStepper
 
 __all__ = [
     "INTEGRATORS",
+    "STATIONS",
     "SpatialLayout",
     "build",
     "check_case",
     "closure_equalities",
     "closure_loads",
+    "layout",
     "natural_frequencies",
     "piece_properties",
     "simulate",
@@ -120,231 +121,6 @@ __all__ = [
 
 METHOD = "mujoco-spatial"
 _OPTIONS = {"motion_tol": 1e-12, "motion_max_iter": 10, "station": "hinges"}
-STATIONS = ("hinges", "hinges-zyx", "ball")
-#: the three hinges of an elastic station: name suffix, axis in the section frame, stiffness key
-STATION = (("bz", (0.0, 0.0, 1.0), "EIz"), ("by", (0.0, 1.0, 0.0), "EIy"), ("tx", (1.0, 0.0, 0.0), "GJ"))
-
-
-@dataclass(frozen=True)
-class SpatialLayout:
-    """Where things are in the compiled model (m unlocked joints, n links, k stations).
-
-    arm_qpos, arm_dof : (m,) qpos and dof index of each unlocked joint, in drive order
-    flex_qpos : (n, k, 3) qpos indices of the hinges (bend z, bend y, twist) of every station
-        (−1 for ball stations)
-    hub_body, tip_body : (n,) body id of each link's root piece and tip piece
-    tip_site : (n,) site id of each link tip
-    """
-
-    arm_qpos: np.ndarray
-    arm_dof: np.ndarray
-    flex_qpos: np.ndarray
-    hub_body: np.ndarray
-    tip_body: np.ndarray
-    tip_site: np.ndarray
-
-
-def xml(
-    manipulator: SpatialManipulator,
-    k: int,
-    h: float,
-    integrator: str = "implicitfast",
-    station: str = "hinges",
-    angles=None,
-) -> str:
-    """MJCF of the spatial arm (undeformed links, every joint angle 0); body inertias are
-    placeholders (see the module notes: :func:`build` writes the exact ones). Links hang from
-    their parents' tip pieces (a tree), closures are equality constraints
-    (:func:`closure_equalities`) whose attachment data are resolved with the links undeformed at
-    the joint angles ``angles`` (the unlocked joints; None: all 0), the case's initial state.
-
-    ``station``: ``"hinges"`` (three hinges, the order bend z, bend y, twist at odd stations and
-    reversed at even ones), ``"hinges-zyx"`` (the same order everywhere) or ``"ball"`` (a ball
-    joint whose three stiffnesses and dampers are affine-bias actuators on the section axes, the
-    torque −(K φ + μ K ω) with φ the ball's rotation vector). The last two exist for the
-    comparison in docs/mujoco.md."""
-    g = manipulator.gravity
-    lines = [
-        '<mujoco model="dttmm-spatial-chain">',
-        '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{_f(h)}" integrator="{_MJCF_NAME[integrator]}" gravity="{_f(g)}"'
-        + (f' tolerance="{_f(CLOSURE_SOLVER_TOL)}"' if manipulator.closures else "")
-        + ">",
-        '    <flag contact="disable" energy="enable"/>',
-        "  </option>",
-        "  <worldbody>",
-        f'    <body name="base" pos="{_f(manipulator.base_xyz)}" quat="{_f(_quat(manipulator.base_rotation))}">',
-    ]
-    acts = []
-    sites, equalities = closure_equalities(manipulator, k, h, angles) if manipulator.closures else ({}, [])
-
-    def emit(i, depth, parent_tip):
-        # link i's pieces nested in one another, its children inside its tip piece; the pieces'
-        # closing tags after the children (a chain: the same text as one nested body list)
-        link = manipulator.links[i]
-        b, jn = link.beam, link.joint
-        l = b.length / k
-        Rr = _rx(b.roll)
-        closers = []
-        for j, (offset, m, c, J) in enumerate(piece_properties(link, k)):
-            pad = " " * depth
-            if j == 0:
-                pos = np.array([parent_tip, 0.0, 0.0]) + np.array(jn.origin_xyz)
-                quat = _quat(rpy_matrix(jn.origin_rpy))
-                lines.append(f'{pad}<body name="link{i}_0" pos="{_f(pos)}" quat="{_f(quat)}">')
-                if not jn.locked:
-                    lines.append(f'{pad}  <joint name="arm{i}" type="hinge" axis="{_f(jn.axis)}"/>')
-            else:
-                lines.append(f'{pad}<body name="link{i}_{j}" pos="{_f(offset)}">')
-                seq = STATION if (station == "hinges-zyx" or j % 2 == 1) else STATION[::-1]
-                if station == "ball":
-                    seq = ()
-                    lines.append(f'{pad}  <joint name="ball{i}_{j}" type="ball"/>')
-                    for _, axis, key in STATION:
-                        stiff = getattr(b, key) / l
-                        acts.append(
-                            f'    <general joint="ball{i}_{j}" gear="{_f(Rr @ np.array(axis))} 0 0 0" gainprm="0" '
-                            f'biastype="affine" biasprm="0 {_f(-stiff)} {_f(-b.damping * stiff)}"/>'
-                        )
-                for tag, axis, key in seq:
-                    stiff = getattr(b, key) / l
-                    lines.append(
-                        f'{pad}  <joint name="{tag}{i}_{j}" type="hinge" axis="{_f(Rr @ np.array(axis))}" '
-                        f'stiffness="{_f(stiff)}" damping="{_f(b.damping * stiff)}" springref="0"/>'
-                    )
-            ev = max(float(np.trace(J)) / 3.0, 1e-12)  # a placeholder (set_inertias)
-            lines.append(inertial(pad, m, c, (ev, ev, ev)))
-            if j == k:
-                lines.append(f'{pad}  <site name="tip{i}" pos="{_f(l / 2 if k > 0 else 0.0)} 0 0"/>')
-                lines.extend(f"{pad}  {x}" for x in sites.get(i, ()))
-                for child in manipulator.children(i):
-                    emit(child, depth + 2, l / 2)
-            closers.append(f"{pad}</body>")
-            depth += 2
-        lines.extend(closers[::-1])
-
-    for i in manipulator.children(-1):
-        emit(i, 6, 0.0)
-    lines.append("    </body>")
-    lines.extend(f"    {x}" for x in sites.get(-1, ()))
-    lines.append("  </worldbody>")
-    if manipulator.closures:
-        lines += ["  <equality>", *(f"    {x}" for x in equalities), "  </equality>"]
-    lines.append("  <actuator>")
-    for i in manipulator.unlocked:
-        lines.append(f'    <motor name="drive{i}" joint="arm{i}" gear="1"/>')
-    lines += acts
-    lines += ["  </actuator>", "</mujoco>"]
-    return "\n".join(lines)
-
-
-#: the closures' equality constraints: solref (time constant in steps, damping ratio) and solimp
-#: (impedance 0.9999 throughout: regularisation 1e-4 of the constraint's own inertia); the time
-#: constant is the least MuJoCo's ``refsafe`` takes (2 steps): the stiffest stable constraint
-CLOSURE_TIMECONST_STEPS, CLOSURE_DAMPRATIO = 2.0, 1.0
-CLOSURE_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-#: the constraint solver's tolerance with closures (MuJoCo's default 1e-8)
-CLOSURE_SOLVER_TOL = 1e-12
-#: a revolute closure: two ``connect`` constraints at the points ± d·axis about the joint, d this
-#: fraction of the shorter of the two links (the ground: the link's length)
-REVOLUTE_ARM = 0.5
-
-
-def revolute_arm(manipulator, closure) -> float:
-    """d (m): half the distance of a revolute closure's two connect points along its axis."""
-    lengths = [manipulator.links[manipulator.link_index(closure.link)].beam.length]
-    if closure.to != "ground":
-        lengths.append(manipulator.links[manipulator.link_index(closure.to)].beam.length)
-    return REVOLUTE_ARM * min(lengths)
-
-
-def closure_equalities(manipulator, k: int, h: float, angles=None):
-    """The closures as MJCF: ({link index (−1: the world): site lines on its tip piece}, equality
-    lines). Spherical: one ``connect`` of a site at ``point`` (link's tip frame) to a site at
-    ``to_point`` (to's). Revolute: two ``connect`` pairs at ``point`` ± d·axis and their images
-    (:func:`revolute_arm`): the two points hold the axis, the rotation about it stays free (6
-    equations of rank 5; MuJoCo's regularised constraint solver takes the redundant one). Weld:
-    one ``weld`` of two sites whose frames coincide at the initial state. Attachment data from
-    :func:`dttmm.spatial.topology.resolve_closures` at the links undeformed at ``angles``."""
-
-    if angles is None:
-        angles = np.zeros(manipulator.n_joints)
-    R, p = rigid_tip_frames(manipulator, angles)
-    rc = resolve_closures(manipulator, R, p)
-    solref = (
-        f'solref="{_f(CLOSURE_TIMECONST_STEPS * h)} {_f(CLOSURE_DAMPRATIO)}" solimp="{_f(CLOSURE_SOLIMP)}"'
-    )
-    sites, eqs = {}, []
-
-    def site(i, name, pos, quat=None):
-        # a site on link i's tip piece (origin l/2 behind the tip, the tip frame's axes) or the world
-        off = np.array([manipulator.links[i].beam.length / k / 2, 0.0, 0.0]) if i >= 0 else np.zeros(3)
-        q = f' quat="{_f(quat)}"' if quat is not None else ""
-        sites.setdefault(i, []).append(f'<site name="{name}" pos="{_f(off + pos)}"{q}/>')
-
-    for j, cl in enumerate(manipulator.closures):
-        a, b = int(rc.a[j]), int(rc.b[j])
-        if cl.kind == "revolute":
-            d = revolute_arm(manipulator, cl)
-            for c, sgn in enumerate((1.0, -1.0)):
-                site(a, f"cl{j}_a{c}", rc.pa[j] + sgn * d * rc.ua[j])
-                site(b, f"cl{j}_b{c}", rc.pb[j] + sgn * d * rc.ub[j])
-                eqs.append(f'<connect name="closure{j}_{c}" site1="cl{j}_a{c}" site2="cl{j}_b{c}" {solref}/>')
-        elif cl.kind == "spherical":
-            site(a, f"cl{j}_a0", rc.pa[j])
-            site(b, f"cl{j}_b0", rc.pb[j])
-            eqs.append(f'<connect name="closure{j}_0" site1="cl{j}_a0" site2="cl{j}_b0" {solref}/>')
-        else:
-            site(a, f"cl{j}_a0", rc.pa[j], (1.0, 0.0, 0.0, 0.0))
-            site(b, f"cl{j}_b0", rc.pb[j], _quat(rc.R0[j].T))
-            eqs.append(f'<weld name="closure{j}_0" site1="cl{j}_a0" site2="cl{j}_b0" {solref}/>')
-    return sites, eqs
-
-
-def layout(m, manipulator, k: int) -> SpatialLayout:
-    """Index maps of a compiled :func:`xml` model."""
-
-    def jq(name):
-        return int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)])
-
-    def bid(name):
-        return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
-
-    n = manipulator.n_links
-    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "bz0_1") < 0:  # ball stations
-        flex = np.full((n, k, 3), -1, int)
-    else:
-        flex = [[[jq(f"{tag}{i}_{j}") for tag, _, _ in STATION] for j in range(1, k + 1)] for i in range(n)]
-    arm = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"arm{i}") for i in manipulator.unlocked]
-    return SpatialLayout(
-        arm_qpos=np.array([jq(f"arm{i}") for i in manipulator.unlocked], int),
-        arm_dof=np.array([m.jnt_dofadr[j] for j in arm], int),
-        flex_qpos=np.array(flex, int).reshape(n, k, 3),
-        hub_body=np.array([bid(f"link{i}_0") for i in range(n)], int),
-        tip_body=np.array([bid(f"link{i}_{k}") for i in range(n)], int),
-        tip_site=np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"tip{i}") for i in range(n)], int),
-    )
-
-
-def build(
-    manipulator: SpatialManipulator,
-    k: int,
-    h: float = 1e-3,
-    integrator: str = "implicitfast",
-    station="hinges",
-    angles=None,
-):
-    """Compile the chain with the exact piece inertias: returns (MjModel, MjData, SpatialLayout).
-    ``angles``: the joint angles at which the closures are assembled (:func:`xml`)."""
-    plumbing.choice("station", station, STATIONS)
-    if not isinstance(manipulator, SpatialManipulator):
-        raise InputError("model", manipulator, "must be a dttmm.spatial.SpatialManipulator")
-    k = plumbing.elements_per_link(k)
-    m = mujoco.MjModel.from_xml_string(xml(manipulator, k, h, integrator, station, angles))
-    set_inertias(m, manipulator.links, k)
-    d = mujoco.MjData(m)
-    mujoco.mj_setConst(m, d)
-    return m, d, layout(m, manipulator, k)
 
 
 def natural_frequencies(link, k: int, n_modes: int = 3) -> dict:
