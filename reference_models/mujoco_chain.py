@@ -327,6 +327,20 @@ def _kinematics_and_energy(mj, m, d):
     mj.mj_energyVel(m, d)
 
 
+def _drive_outputs(st, t, node, ctrl, q, v, tau):
+    """The open-loop drives' entries of one output row at time t (step node ``node``): a torque
+    drive's torque is the law's (left limit; right limit at t = 0), as every method reports it;
+    a prescribed joint's angle and rate are the law's, its torque the mean of the motor torques
+    ``ctrl`` of the steps around the node."""
+    for i in st.free:
+        if not st.drives[i].closed_loop:
+            tau[i] = st.drives[i].torque(t, t > 0)
+    for i in st.pres:
+        q[i], v[i], _ = st.drives[i].motion(t)
+        around = ctrl[max(node - 1, 0) : min(node + 1, ctrl.shape[0]), i]
+        tau[i] = around.mean() if around.size else 0.0
+
+
 def _outputs(st, X, t, ctrl, T, fb=None):
     """Result fields at the output times t from the kept states X (rows); fb: closed-loop
     torques at the step nodes (N + 1, n_closed)."""
@@ -352,15 +366,7 @@ def _outputs(st, X, t, ctrl, T, fb=None):
         energy[s] = d.energy[0] + d.energy[1]
         for c, i in enumerate(st.closed):  # the torque the law gives at this node's state
             tau[s, i] = fb[node[s], c]
-        for i in st.free:  # the law (left limit; right limit at t = 0), as every method reports it
-            if not st.drives[i].closed_loop:
-                tau[s, i] = st.drives[i].torque(float(t[s]), t[s] > 0)
-        for i in st.pres:  # prescribed: the law's angle and rate; torque: mean of the steps around
-            a, ad, _ = st.drives[i].motion(float(t[s]))
-            q[s, i], v[s, i] = a, ad
-            k = node[s]
-            around = ctrl[max(k - 1, 0) : min(k + 1, ctrl.shape[0]), i]
-            tau[s, i] = around.mean() if around.size else 0.0
+        _drive_outputs(st, float(t[s]), node[s], ctrl, q[s], v[s], tau[s])
     fields = {
         "joint_angle": q,
         "joint_rate": v,
@@ -501,22 +507,23 @@ def _meta(method, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opt
     }
 
 
-def piece_shapes(st, case, X, p: int) -> np.ndarray:
-    """Link shapes (nt, n, p, 2) m from the kept states X (rows): per link the polyline
-    through its root, its k elastic hinges (at the reference arc lengths (j − ½)·L/k) and its
-    tip — the rigid pieces themselves — sampled at the p shape points."""
+def piece_shapes(st, case, X, p: int, dim: int = 2) -> np.ndarray:
+    """Link shapes (nt, n, p, dim) m from the kept states X (rows): per link the polyline
+    through its root, its k elastic stations (at the reference arc lengths (j − ½)·L/k) and its
+    tip — the rigid pieces themselves — sampled at the p shape points; ``dim`` 2 (a planar arm:
+    the plane's coordinates) or 3 (a spatial arm)."""
     mj, m, d, lay = st.mj, st.m, st.d, st.lay
-    nt, n, k = X.shape[0], st.n, st.k
+    nt, n, k = X.shape[0], lay.hub_body.size, st.k
     bodies = np.array(
         [[mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, f"link{i}_{j}") for j in range(1, k + 1)] for i in range(n)]
     )
-    pts = np.empty((nt, n, k + 2, 2))
+    pts = np.empty((nt, n, k + 2, dim))
     for s in range(nt):
         mj.mj_setState(m, d, X[s], st.spec)
         mj.mj_kinematics(m, d)
-        pts[s, :, 0] = d.xpos[lay.hub_body, :2]
-        pts[s, :, 1:-1] = d.xpos[bodies, :2]
-        pts[s, :, -1] = d.site_xpos[lay.tip_site, :2]
+        pts[s, :, 0] = d.xpos[lay.hub_body, :dim]
+        pts[s, :, 1:-1] = d.xpos[bodies, :dim]
+        pts[s, :, -1] = d.site_xpos[lay.tip_site, :dim]
     return polylines(case, k, pts, p)
 
 

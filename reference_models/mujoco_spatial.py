@@ -99,7 +99,16 @@ from ._mujoco_model import (
     stability_limit,
     xml,
 )
-from .mujoco_chain import _free_controls, _meta, _rollout, _step_warning, polylines, step_nodes
+from .mujoco_chain import (
+    _drive_outputs,
+    _free_controls,
+    _kinematics_and_energy,
+    _meta,
+    _rollout,
+    _step_warning,
+    piece_shapes,
+    step_nodes,
+)
 from .mujoco_chain import _Stepper as _PlanarStepper
 
 __all__ = [
@@ -294,22 +303,11 @@ def _outputs(st, X, t, ctrl, T):
     node = np.clip(np.searchsorted(T, t - 1e-9 * st.h), 0, T.size - 1)
     for s in range(nt):
         mujoco.mj_setState(m, d, X[s], st.spec)
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        mujoco.mj_makeM(m, d)
-        mujoco.mj_energyPos(m, d)
-        mujoco.mj_energyVel(m, d)
+        _kinematics_and_energy(mujoco, m, d)
         q[s], v[s] = d.qpos[lay.arm_qpos], d.qvel[lay.arm_dof]
         root[s], Rl[s], tip[s], Rt[s] = _frames(m, d, lay)
         energy[s] = d.energy[0] + d.energy[1]
-        for i in st.free:  # the law (left limit; right limit at t = 0), as every method reports it
-            tau[s, i] = st.drives[i].torque(float(t[s]), t[s] > 0)
-        for i in st.pres:  # the law's angle and rate; torque: mean of the steps around the node
-            a, ad, _ = st.drives[i].motion(float(t[s]))
-            q[s, i], v[s, i] = a, ad
-            kk = node[s]
-            around = ctrl[max(kk - 1, 0) : min(kk + 1, ctrl.shape[0]), i]
-            tau[s, i] = around.mean() if around.size else 0.0
+        _drive_outputs(st, float(t[s]), node[s], ctrl, q[s], v[s], tau[s])
     defl, twist = _deflection_twist(root, Rl, tip, Rt)
     closures = {}
     if st.case_model.closures:
@@ -410,29 +408,6 @@ def _check(case, k, h, integrator, options):
     return k, h, opts
 
 
-def piece_shapes(st, case, X, p: int) -> np.ndarray:
-    """Link shapes (nt, n, p, 3) m from the kept states X (rows): per link the polyline through
-    its root, its k elastic stations (at the reference arc lengths (j − ½)·L/k) and its tip —
-    the rigid pieces themselves — sampled at the p shape points (as
-    :func:`reference_models.mujoco_chain.piece_shapes` in the plane)."""
-    m, d, lay = st.m, st.d, st.lay
-    nt, n, k = X.shape[0], lay.hub_body.size, lay.flex_qpos.shape[1]
-    bodies = np.array(
-        [
-            [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}") for j in range(1, k + 1)]
-            for i in range(n)
-        ]
-    )
-    pts = np.empty((nt, n, k + 2, 3))
-    for s in range(nt):
-        mujoco.mj_setState(m, d, X[s], st.spec)
-        mujoco.mj_kinematics(m, d)
-        pts[s, :, 0] = d.xpos[lay.hub_body]
-        pts[s, :, 1:-1] = d.xpos[bodies]
-        pts[s, :, -1] = d.site_xpos[lay.tip_site]
-    return polylines(case, k, pts, p)
-
-
 def simulate(
     case, *, elements_per_link, h, integrator="implicitfast", shape_points=0, **options
 ) -> SpatialResult:
@@ -490,7 +465,7 @@ def simulate(
     res = SpatialResult(
         t=tg,
         **fields,
-        link_shapes=piece_shapes(st, case, X[: tg.size], shape_points) if shape_points else None,
+        link_shapes=piece_shapes(st, case, X[: tg.size], shape_points, 3) if shape_points else None,
         wall_time=wall,
         n_steps=int(n_steps),
         meta=meta,
