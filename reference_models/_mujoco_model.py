@@ -156,19 +156,28 @@ def inertial(pad: str, mass: float, centre, diag) -> str:
     return f'{pad}  <inertial pos="{_f(centre)}" mass="{_f(mass)}" diaginertia="{_f(diag)}"/>'
 
 
-def set_inertias(m, links, k: int) -> None:
+def set_inertias(m, links, k: int, *, link_axes: bool = False) -> None:
     """Write the exact mass properties of every piece (:func:`piece_properties` of the spatial
     ``links``; bodies ``link{i}_{j}``) into the compiled model ``m``: mass, centre, principal
-    axes (``body_iquat``) and inertia. ``mj_setConst`` must follow."""
+    axes (``body_iquat``) and inertia. ``mj_setConst`` must follow.
+
+    ``link_axes``: a piece whose inertia is diagonal in the link frame keeps that frame (identity
+    ``body_iquat``, the diagonal as it is) instead of its eigenvectors in ascending order. A
+    planar arm's embedding uses it: its in-plane inertia Izz then enters exactly, where a
+    rotated principal frame would mix the out-of-plane inertias into it at round-off."""
     for i, link in enumerate(links):
         for j, (_, mass, c, J) in enumerate(piece_properties(link, k)):
             bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}")
-            w, V = np.linalg.eigh(J)
-            if np.linalg.det(V) < 0:
-                V[:, 0] = -V[:, 0]
+            if link_axes and not np.any(J - np.diag(np.diag(J))):
+                w, q = np.diag(J).copy(), np.array([1.0, 0.0, 0.0, 0.0])
+            else:
+                w, V = np.linalg.eigh(J)
+                if np.linalg.det(V) < 0:
+                    V[:, 0] = -V[:, 0]
+                q = _quat(V)
             m.body_mass[bid] = mass
             m.body_ipos[bid] = c
-            m.body_iquat[bid] = _quat(V)
+            m.body_iquat[bid] = q
             m.body_inertia[bid] = np.maximum(w, 0.0)
 
 
@@ -397,7 +406,7 @@ def build(
         raise InputError("model", manipulator, "must be a dttmm.spatial.SpatialManipulator")
     k = plumbing.elements_per_link(k)
     m = mujoco.MjModel.from_xml_string(xml(manipulator, k, h, integrator, station, angles))
-    set_inertias(m, manipulator.links, k)
+    set_inertias(m, manipulator.links, k, link_axes=station == PLANAR_STATION)
     d = mujoco.MjData(m)
     mujoco.mj_setConst(m, d)
     return m, d, layout(m, manipulator, k)
