@@ -415,17 +415,7 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     k, h, opts = _check(case, elements_per_link, h, integrator, options)
     T, t_out, keep = step_nodes(case.scenario, h)
     st = _Stepper(case, k, h, integrator)
-    x0 = st.initial_state()
-    wmax, h_stable = stability_limit(st.m, st.d, integrator)
-    warnings = _step_warning(h, wmax, h_stable)
-    ctrl = _free_controls(st, T)
-    stats = {}
-    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size or st.closed.size)
-    meta = _meta("mujoco-chain", st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
-    if st.closed.size:
-        meta["feedback"] = "zero-order hold: law evaluated at the step start"
-    if "motion_iterations_mean" in stats and st.pres.size:
-        meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
+    X, n_steps, ctrl, wall, meta, stats, warnings = _run(st, T, keep, integrator, k, opts, "mujoco-chain")
     tg = t_out[: X.shape[0]]
     fields, energy = _outputs(st, X, tg, ctrl[:n_steps], T, stats.get("feedback"))  # the steps taken
     res = make_result(
@@ -435,16 +425,41 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
         n_steps=n_steps,
         meta=meta,
         energy=energy,
-        warnings=warnings + [f"MuJoCo: {w}" for w in st.messages],
+        warnings=warnings,
         link_shapes=piece_shapes(st, case, X[: tg.size], p) if p else None,
     )
+    _raise_failure(st, stats, "mujoco-chain", res)
+    return res
+
+
+def _run(st, T, keep, integrator, k, opts, method):
+    """Step the chain ``st`` from its initial state over the nodes T (both chains): (kept
+    states X, steps taken, motor controls per step, wall time, the Result's meta, the run's
+    stats, warnings: the step above the stability limit, MuJoCo's own). The stability limit is
+    that of the hinges (None with ball joints)."""
+    h = st.h
+    x0 = st.initial_state()
+    wmax, h_stable = stability_limit(st.m, st.d, integrator) if st.m.nq == st.m.nv else (None, None)
+    warnings = _step_warning(h, wmax, h_stable)
+    ctrl = _free_controls(st, T)
+    if st.m.nu > st.n:  # the ball stations' spring actuators: control 0
+        ctrl = np.hstack([ctrl, np.zeros((ctrl.shape[0], st.m.nu - st.n))])
+    stats = {}
+    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size or st.closed.size)
+    meta = _meta(method, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
+    if st.closed.size:
+        meta["feedback"] = "zero-order hold: law evaluated at the step start"
+    if "motion_iterations_mean" in stats and st.pres.size:
+        meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
+    return X, n_steps, ctrl, wall, meta, stats, warnings + [f"MuJoCo: {w}" for w in st.messages]
+
+
+def _raise_failure(st, stats, method, res):
+    """The SimulationError of a failed run (``stats["fail"]``), its partial result ``res``."""
     if "fail" in stats:
         j, tf, *why = stats["fail"]
         msg = why[0] if why else ("; ".join(st.messages) or "non-finite state")
-        raise SimulationError(
-            f"mujoco-chain: {msg}", t=float(tf), step=int(j), component="state", partial=res
-        )
-    return res
+        raise SimulationError(f"{method}: {msg}", t=float(tf), step=int(j), component="state", partial=res)
 
 
 def step_nodes(scen, h):

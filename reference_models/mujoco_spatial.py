@@ -101,11 +101,9 @@ from ._mujoco_model import (
 )
 from .mujoco_chain import (
     _drive_outputs,
-    _free_controls,
     _kinematics_and_energy,
-    _meta,
-    _rollout,
-    _step_warning,
+    _raise_failure,
+    _run,
     piece_shapes,
     step_nodes,
 )
@@ -449,17 +447,7 @@ def simulate(
     shape_points = check_shape_points(shape_points)
     T, t_out, keep = step_nodes(case.scenario, h)
     st = _Stepper(case, k, h, integrator, opts["station"])
-    x0 = st.initial_state()
-    wmax, h_stable = stability_limit(st.m, st.d, integrator) if st.m.nq == st.m.nv else (None, None)
-    warnings = _step_warning(h, wmax, h_stable)
-    ctrl = _free_controls(st, T)
-    if st.m.nu > st.n:
-        ctrl = np.hstack([ctrl, np.zeros((ctrl.shape[0], st.m.nu - st.n))])
-    stats = {}
-    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size)
-    meta = _meta(METHOD, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
-    if st.pres.size and "motion_iterations_mean" in stats:
-        meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
+    X, n_steps, ctrl, wall, meta, stats, warnings = _run(st, T, keep, integrator, k, opts, METHOD)
     tg = t_out[: X.shape[0]]
     fields = _outputs(st, X, tg, ctrl[:n_steps], T)
     res = SpatialResult(
@@ -470,10 +458,7 @@ def simulate(
         n_steps=int(n_steps),
         meta=meta,
         status="ok" if "fail" not in stats else "failed",
-        warnings=tuple(warnings + [f"MuJoCo: {w}" for w in st.messages]),
+        warnings=tuple(warnings),
     )
-    if "fail" in stats:
-        j, tf, *why = stats["fail"]
-        msg = why[0] if why else ("; ".join(st.messages) or "non-finite state")
-        raise SimulationError(f"{METHOD}: {msg}", t=float(tf), step=int(j), component="state", partial=res)
+    _raise_failure(st, stats, METHOD, res)
     return res
