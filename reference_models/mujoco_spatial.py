@@ -1,5 +1,8 @@
 """MuJoCo peer for spatial arms: every flexible link a chain of k rigid pieces joined by
-three-hinge elastic stations (docs/mujoco.md, "Spatial chain").
+three-hinge elastic stations (docs/mujoco.md, "Spatial chain"). The model is built by
+``_mujoco_model`` (:func:`build`, :func:`xml`, :func:`layout`, re-exported here), the builder of
+the planar chain too; this module is the spatial adapter: input checks, the stepper, the outputs,
+the closures' loads and statics.
 
 Lumping rule, link of length L, k segments of length l = L/k (the planar chain's rule in 3-D):
 
