@@ -528,8 +528,8 @@ _BUILTIN = (
         spatial="reference_models.spatial_global:simulate",
         spatial_options=(("integrator", "newmark"),),
         # compiled mechanics (reference_models/_spatial_numba.py): on three_joint_arm with cut
-        # loads at every step, 1.5 ms a step at k = 4, 3.0 ms at k = 8, 8.3 ms at k = 16, 46 ms at
-        # k = 32 (measured; the numpy engine 13, 38 and 122 ms)
+        # loads at every step, 1.6 ms a step at k = 4, 3.2 ms at k = 8, 9.0 ms at k = 16, 47 ms at
+        # k = 32 (benchmarks/spatial_global_cpu.py; the numpy engine 13, 29 and 115 ms)
         spatial_cut_loads=True,
         label="global equations (Newmark, compiled)",
         spatial_label="global equations (Newmark, compiled)",
