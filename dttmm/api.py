@@ -3,9 +3,10 @@ planar :class:`dttmm.Case` or a spatial :class:`dttmm.spatial.SpatialCase` (as
 :func:`dttmm.load_case` reads either) and pick the kernel (:func:`kernel_of`): a planar arm runs
 on the planar kernel (:mod:`dttmm.solver`, the fast path; its results are those of a direct call,
 bit for bit), a spatial arm on the spatial kernel (:mod:`dttmm.spatial`). ``kernel="spatial"``
-runs a planar arm on the spatial kernel too, embedded by :func:`dttmm.spatial.embed_planar` (for
-comparison; the Result is then a :class:`dttmm.spatial.SpatialResult`). These are
-``dttmm.simulate``, ``dttmm.accelerations`` and ``dttmm.statics``.
+runs a planar arm on the spatial kernel too, embedded by
+:meth:`dttmm.spatial.SpatialCase.from_planar` (for comparison; the Result is then a
+:class:`dttmm.spatial.SpatialResult`). These are ``dttmm.simulate``, ``dttmm.accelerations``
+and ``dttmm.statics``.
 """
 
 from __future__ import annotations
@@ -49,12 +50,11 @@ def kernel_of(case, kernel: str | None = None) -> str:
 
 
 def _spatial_case(case):
-    """``case`` for the spatial kernel: a planar case embedded (docs/spatial.md §1)."""
-    from .spatial import SpatialCase, embed_planar
+    """``case`` for the spatial kernel: a planar case embedded (:meth:`SpatialCase.from_planar`,
+    docs/spatial.md §1)."""
+    from .spatial import SpatialCase
 
-    if isinstance(case, Case):
-        return SpatialCase(embed_planar(case.model), case.scenario, name=case.name)
-    return case
+    return SpatialCase.from_planar(case) if isinstance(case, Case) else case
 
 
 def _riccati_only(sweep: str) -> None:
@@ -162,8 +162,8 @@ def statics(case, *, elements_per_link: int, **options):
     """Static equilibrium of any arm with its joints held (at ``angles``, default 0) under its
     gravity and loads: :func:`dttmm.spatial.statics` (its options: ``loads``, ``t``, ``strain``,
     ``tol``, ``max_iterations``, ``steps``, ``angles``, ``engine``). A planar case is solved on
-    the spatial kernel, embedded by :func:`dttmm.spatial.embed_planar` (its plane is the world's
-    x–y plane); returns a :class:`dttmm.spatial.StaticResult` (3-component positions)."""
+    the spatial kernel, embedded by :meth:`dttmm.spatial.SpatialCase.from_planar` (its plane is
+    the world's x–y plane); returns a :class:`dttmm.spatial.StaticResult` (3-component positions)."""
     kernel_of(case, "spatial")
     from .spatial.statics import statics as spatial_statics
 

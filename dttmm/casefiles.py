@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .casedoc import read_case_document
 
-__all__ = ["case_to_dict", "load_case"]
+__all__ = ["case_from_document", "case_to_dict", "load_case", "load_spatial_case"]
 
 
 def load_case(path):
@@ -20,10 +20,16 @@ def load_case(path):
     field and value) for an unreadable file, invalid TOML, or any key or value the schema
     refuses."""
     data, kind = read_case_document(path)
+    return case_from_document(data, kind, Path(path).parent)
+
+
+def case_from_document(data: dict, kind: str, folder):
+    """The case of a parsed case document of ``kind`` (:func:`dttmm.casedoc.read_case_document`),
+    built by that kind's reader; ``folder``: the file's folder (a URDF path is relative to it)."""
     if kind == "urdf":  # a robot from its URDF (docs/urdf.md)
         from .urdf_import import case_from_urdf_dict
 
-        return case_from_urdf_dict(data, Path(path).parent)
+        return case_from_urdf_dict(data, folder)
     if kind == "spatial":
         from .spatial.case import case_from_dict as spatial_from_dict
 
@@ -31,6 +37,34 @@ def load_case(path):
     from .case import case_from_dict
 
     return case_from_dict(data)
+
+
+def load_spatial_case(path):
+    """Read a case file of any kind as a :class:`SpatialCase`; the name defaults to the file's
+    stem. A spatial file (``kind = "spatial"``, docs/cases.md "Spatial cases") and a URDF case
+    document (a ``[model]`` naming a ``urdf``, docs/urdf.md) are read as
+    :func:`dttmm.load_case` reads them; a planar case file is read by the planar reader and
+    embedded (:meth:`SpatialCase.from_planar`, its plane the world's x–y plane). The
+    ``kind = "spatial"`` marker is optional here: a file without it that the planar reader
+    refuses is read as a spatial file when the spatial schema takes it (else the planar
+    reader's error stands). Raises InputError (one line, naming the field and value) for an
+    unreadable file, invalid TOML, or any key or value the schema refuses."""
+    from .case import Case
+    from .errors import InputError
+    from .spatial.case import SpatialCase, case_from_dict
+
+    data, kind = read_case_document(path)
+    if kind == "planar" and "kind" not in data:
+        try:
+            case = case_from_document(data, kind, Path(path).parent)
+        except InputError as exc:
+            try:
+                return case_from_dict(data)  # a spatial file without its marker
+            except InputError:
+                raise exc from None
+    else:
+        case = case_from_document(data, kind, Path(path).parent)
+    return SpatialCase.from_planar(case) if isinstance(case, Case) else case
 
 
 def case_to_dict(case) -> dict:

@@ -527,12 +527,12 @@ _BUILTIN = (
         scans=("elements", "links"),
         spatial="reference_models.spatial_global:simulate",
         spatial_options=(("integrator", "newmark"),),
-        # the spatial global solver is the readable numpy one: 6 ms a step at k = 2 on
-        # three_joint_arm, 12 ms at k = 4, 92 ms at k = 16 (measured); it checks DT-TMM at small k
-        spatial_max_k=2,
+        # compiled mechanics (reference_models/_spatial_numba.py): on three_joint_arm with cut
+        # loads at every step, 1.6 ms a step at k = 4, 3.2 ms at k = 8, 9.0 ms at k = 16, 47 ms at
+        # k = 32 (benchmarks/spatial_global_cpu.py; the numpy engine 13, 29 and 115 ms)
         spatial_cut_loads=True,
         label="global equations (Newmark, compiled)",
-        spatial_label="global equations (Newmark, numpy)",
+        spatial_label="global equations (Newmark, compiled)",
         style=Style("C3", "^", "--", 4),
     ),
     Method(
@@ -555,10 +555,9 @@ _BUILTIN = (
         ),
         spatial="reference_models.spatial_global:simulate",
         spatial_options=(("strain", "second-order"), ("integrator", "generalized-alpha"), ("rho_inf", 0.8)),
-        spatial_max_k=2,
         spatial_cut_loads=True,
         label="global equations (2nd-order strain, gen-α 0.8, compiled)",
-        spatial_label="global equations (2nd-order strain, gen-α 0.8, numpy)",
+        spatial_label="global equations (2nd-order strain, gen-α 0.8, compiled)",
         style=Style("C6", "<", "--", 5),
     ),
     Method(

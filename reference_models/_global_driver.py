@@ -178,7 +178,7 @@ def _base_meta(lay, k, h, integrator, opt) -> dict:
     return meta
 
 
-def _convergence(meta: dict, unconverged, t_end, opt, unconverged_solves: int = 0):
+def convergence(meta: dict, unconverged, t_end, opt, unconverged_solves: int = 0):
     """Record the unconverged steps (and forward-dynamics solves with closed-loop laws, at t = 0
     and restarts) in ``meta``; status and warnings for the Result."""
     meta.update({"unconverged_steps": len(unconverged), "unconverged_step_indices": list(unconverged[:20])})
@@ -411,7 +411,7 @@ def run(case, lay, k, h, integrator, opt, engine):
         }
     )
     fd = int(stats[6]) + (not ok0)
-    status, warn = _convergence(meta, [int(i) for i in np.flatnonzero(uncon)], t_end, opt, fd)
+    status, warn = convergence(meta, [int(i) for i in np.flatnonzero(uncon)], t_end, opt, fd)
     return rec.result(lay, wall, n_steps, meta, status=status, warnings=warn, kinetic=kinetic)
 
 

@@ -3,7 +3,10 @@
 The lumping rule (see ``_mujoco_model``): k elastic hinges per link at x = (j − ½)·L/k with
 rotational springs EI·k/L and dampers μ·EI·k/L, half pieces at both ends, each piece with its
 own mass and rod inertia; hubs join the root piece, payloads the tip piece. Errors are
-O(1/k²) in statics, natural frequencies and dynamics (measured, see docs/mujoco.md).
+O(1/k²) in statics, natural frequencies and dynamics (measured, see docs/mujoco.md). The model
+is the arm's spatial embedding (:func:`dttmm.spatial.embed_planar`) built by the spatial chain's
+builder with one hinge about z per station (:func:`build`, ``_mujoco_model.build_planar``): the
+planar degrees of freedom alone; the outputs are read in the plane.
 
 Time integration: MuJoCo's ``implicitfast`` (semi-implicit Euler, velocity forces implicit)
 with the fixed step h, no contacts, no constraints. The joint springs are integrated
@@ -35,7 +38,7 @@ Outputs follow the suite's definitions: joint angle i = root piece angle of link
 piece angle of link i − 1 (the arm joint's coordinate); tip deflection in the clamped-root frame;
 energy = kinetic + gravitational + spring energy (MuJoCo's, zero at y = 0).
 
-MuJoCo (``pip install 'dttmm[mujoco]'``) is imported here only; without it this module does
+MuJoCo (``pip install 'dttmm[mujoco]'``) is imported by the MuJoCo modules only; without it this module does
 not import and the method is reported unavailable.
 """
 
@@ -59,7 +62,8 @@ from dttmm.shapes import polyline_shapes, shape_points, stations
 from dttmm.timegrid import step_schedule
 
 from . import _checks
-from ._mujoco_model import INTEGRATORS, chain_xml, layout
+from ._mujoco_model import INTEGRATORS, eig_mk, frequencies, stability_limit
+from ._mujoco_model import build_planar as build
 
 __all__ = ["INTEGRATORS", "build", "natural_frequencies", "simulate", "stability_limit"]
 
@@ -82,40 +86,13 @@ def _check(case, k, h, integrator, options):
     return int(k), h, opts
 
 
-def build(manipulator, k: int, h: float, integrator: str = "implicitfast", *, clamp_first=False):
-    """Compile the chain: returns (MjModel, MjData, ChainLayout)."""
-    mj = mujoco
-    m = mj.MjModel.from_xml_string(chain_xml(manipulator, k, h, integrator, clamp_first=clamp_first))
-    return m, mj.MjData(m), layout(m, manipulator.n_links, k, clamp_first=clamp_first)
-
-
-def _eig_mk(m, d):
-    """Generalised eigenvalues ω² of (K, M) at the state in d (ascending; zeros for free joints)."""
-    import scipy.linalg
-
-    mj = mujoco
-    mj.mj_forward(m, d)
-    M = np.zeros((m.nv, m.nv))
-    mj.mj_fullM(m, d, M)
-    K = np.diag(m.jnt_stiffness[m.dof_jntid])
-    return scipy.linalg.eigh(K, M, eigvals_only=True)
-
-
-def stability_limit(m, d, integrator: str) -> tuple[float, float]:
-    """(ω_max rad/s, the largest stable step c/ω_max s) of the undamped linearised chain at d."""
-    w2 = _eig_mk(m, d)
-    wmax = math.sqrt(max(float(w2[-1]), 0.0))
-    return wmax, (INTEGRATORS[integrator] / wmax if wmax > 0 else math.inf)
-
-
 def natural_frequencies(link, k: int, n_modes: int = 3) -> np.ndarray:
     """First ``n_modes`` natural frequencies (rad/s) of one link clamped at its root (hub welded,
     no gravity), from the chain's mass matrix and joint stiffnesses."""
     from dttmm.model import Manipulator
 
     m, d, _ = build(Manipulator((link,)), k, 1e-3, clamp_first=True)
-    w2 = _eig_mk(m, d)
-    return np.sqrt(np.clip(w2[:n_modes], 0.0, None))
+    return frequencies(eig_mk(m, d, vectors=False)[:n_modes])
 
 
 class _Stepper:
@@ -350,6 +327,20 @@ def _kinematics_and_energy(mj, m, d):
     mj.mj_energyVel(m, d)
 
 
+def _drive_outputs(st, t, node, ctrl, q, v, tau):
+    """The open-loop drives' entries of one output row at time t (step node ``node``): a torque
+    drive's torque is the law's (left limit; right limit at t = 0), as every method reports it;
+    a prescribed joint's angle and rate are the law's, its torque the mean of the motor torques
+    ``ctrl`` of the steps around the node."""
+    for i in st.free:
+        if not st.drives[i].closed_loop:
+            tau[i] = st.drives[i].torque(t, t > 0)
+    for i in st.pres:
+        q[i], v[i], _ = st.drives[i].motion(t)
+        around = ctrl[max(node - 1, 0) : min(node + 1, ctrl.shape[0]), i]
+        tau[i] = around.mean() if around.size else 0.0
+
+
 def _outputs(st, X, t, ctrl, T, fb=None):
     """Result fields at the output times t from the kept states X (rows); fb: closed-loop
     torques at the step nodes (N + 1, n_closed)."""
@@ -375,15 +366,7 @@ def _outputs(st, X, t, ctrl, T, fb=None):
         energy[s] = d.energy[0] + d.energy[1]
         for c, i in enumerate(st.closed):  # the torque the law gives at this node's state
             tau[s, i] = fb[node[s], c]
-        for i in st.free:  # the law (left limit; right limit at t = 0), as every method reports it
-            if not st.drives[i].closed_loop:
-                tau[s, i] = st.drives[i].torque(float(t[s]), t[s] > 0)
-        for i in st.pres:  # prescribed: the law's angle and rate; torque: mean of the steps around
-            a, ad, _ = st.drives[i].motion(float(t[s]))
-            q[s, i], v[s, i] = a, ad
-            k = node[s]
-            around = ctrl[max(k - 1, 0) : min(k + 1, ctrl.shape[0]), i]
-            tau[s, i] = around.mean() if around.size else 0.0
+        _drive_outputs(st, float(t[s]), node[s], ctrl, q[s], v[s], tau[s])
     fields = {
         "joint_angle": q,
         "joint_rate": v,
@@ -432,17 +415,7 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
     k, h, opts = _check(case, elements_per_link, h, integrator, options)
     T, t_out, keep = step_nodes(case.scenario, h)
     st = _Stepper(case, k, h, integrator)
-    x0 = st.initial_state()
-    wmax, h_stable = stability_limit(st.m, st.d, integrator)
-    warnings = _step_warning(h, wmax, h_stable)
-    ctrl = _free_controls(st, T)
-    stats = {}
-    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size or st.closed.size)
-    meta = _meta("mujoco-chain", st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
-    if st.closed.size:
-        meta["feedback"] = "zero-order hold: law evaluated at the step start"
-    if "motion_iterations_mean" in stats and st.pres.size:
-        meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
+    X, n_steps, ctrl, wall, meta, stats, warnings = _run(st, T, keep, integrator, k, opts, "mujoco-chain")
     tg = t_out[: X.shape[0]]
     fields, energy = _outputs(st, X, tg, ctrl[:n_steps], T, stats.get("feedback"))  # the steps taken
     res = make_result(
@@ -452,16 +425,41 @@ def simulate(case, *, elements_per_link, h, integrator="implicitfast", **options
         n_steps=n_steps,
         meta=meta,
         energy=energy,
-        warnings=warnings + [f"MuJoCo: {w}" for w in st.messages],
+        warnings=warnings,
         link_shapes=piece_shapes(st, case, X[: tg.size], p) if p else None,
     )
+    _raise_failure(st, stats, "mujoco-chain", res)
+    return res
+
+
+def _run(st, T, keep, integrator, k, opts, method):
+    """Step the chain ``st`` from its initial state over the nodes T (both chains): (kept
+    states X, steps taken, motor controls per step, wall time, the Result's meta, the run's
+    stats, warnings: the step above the stability limit, MuJoCo's own). The stability limit is
+    that of the hinges (None with ball joints)."""
+    h = st.h
+    x0 = st.initial_state()
+    wmax, h_stable = stability_limit(st.m, st.d, integrator) if st.m.nq == st.m.nv else (None, None)
+    warnings = _step_warning(h, wmax, h_stable)
+    ctrl = _free_controls(st, T)
+    if st.m.nu > st.n:  # the ball stations' spring actuators: control 0
+        ctrl = np.hstack([ctrl, np.zeros((ctrl.shape[0], st.m.nu - st.n))])
+    stats = {}
+    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size or st.closed.size)
+    meta = _meta(method, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
+    if st.closed.size:
+        meta["feedback"] = "zero-order hold: law evaluated at the step start"
+    if "motion_iterations_mean" in stats and st.pres.size:
+        meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
+    return X, n_steps, ctrl, wall, meta, stats, warnings + [f"MuJoCo: {w}" for w in st.messages]
+
+
+def _raise_failure(st, stats, method, res):
+    """The SimulationError of a failed run (``stats["fail"]``), its partial result ``res``."""
     if "fail" in stats:
         j, tf, *why = stats["fail"]
         msg = why[0] if why else ("; ".join(st.messages) or "non-finite state")
-        raise SimulationError(
-            f"mujoco-chain: {msg}", t=float(tf), step=int(j), component="state", partial=res
-        )
-    return res
+        raise SimulationError(f"{method}: {msg}", t=float(tf), step=int(j), component="state", partial=res)
 
 
 def step_nodes(scen, h):
@@ -524,22 +522,23 @@ def _meta(method, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opt
     }
 
 
-def piece_shapes(st, case, X, p: int) -> np.ndarray:
-    """Link shapes (nt, n, p, 2) m from the kept states X (rows): per link the polyline
-    through its root, its k elastic hinges (at the reference arc lengths (j − ½)·L/k) and its
-    tip — the rigid pieces themselves — sampled at the p shape points."""
+def piece_shapes(st, case, X, p: int, dim: int = 2) -> np.ndarray:
+    """Link shapes (nt, n, p, dim) m from the kept states X (rows): per link the polyline
+    through its root, its k elastic stations (at the reference arc lengths (j − ½)·L/k) and its
+    tip — the rigid pieces themselves — sampled at the p shape points; ``dim`` 2 (a planar arm:
+    the plane's coordinates) or 3 (a spatial arm)."""
     mj, m, d, lay = st.mj, st.m, st.d, st.lay
-    nt, n, k = X.shape[0], st.n, st.k
+    nt, n, k = X.shape[0], lay.hub_body.size, st.k
     bodies = np.array(
         [[mj.mj_name2id(m, mj.mjtObj.mjOBJ_BODY, f"link{i}_{j}") for j in range(1, k + 1)] for i in range(n)]
     )
-    pts = np.empty((nt, n, k + 2, 2))
+    pts = np.empty((nt, n, k + 2, dim))
     for s in range(nt):
         mj.mj_setState(m, d, X[s], st.spec)
         mj.mj_kinematics(m, d)
-        pts[s, :, 0] = d.xpos[lay.hub_body, :2]
-        pts[s, :, 1:-1] = d.xpos[bodies, :2]
-        pts[s, :, -1] = d.site_xpos[lay.tip_site, :2]
+        pts[s, :, 0] = d.xpos[lay.hub_body, :dim]
+        pts[s, :, 1:-1] = d.xpos[bodies, :dim]
+        pts[s, :, -1] = d.site_xpos[lay.tip_site, :dim]
     return polylines(case, k, pts, p)
 
 

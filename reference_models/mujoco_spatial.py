@@ -1,5 +1,8 @@
 """MuJoCo peer for spatial arms: every flexible link a chain of k rigid pieces joined by
-three-hinge elastic stations (docs/mujoco.md, "Spatial chain").
+three-hinge elastic stations (docs/mujoco.md, "Spatial chain"). The model is built by
+``_mujoco_model`` (:func:`build`, :func:`xml`, :func:`layout`, re-exported here), the builder of
+the planar chain too; this module is the spatial adapter: input checks, the stepper, the outputs,
+the closures' loads and statics.
 
 Lumping rule, link of length L, k segments of length l = L/k (the planar chain's rule in 3-D):
 
@@ -66,13 +69,10 @@ log(R_rootᵀ R_tip)), end effector, energy (MuJoCo's kinetic + gravity + spring
 zero at the world origin); with closures ``closure_loads``, ``closure_residual`` and
 ``closure_angle_residual`` as the DT-TMM's. Cut loads: not computed (None).
 
-MuJoCo is imported here only.
+MuJoCo is imported by the MuJoCo modules only (this one, mujoco_chain, _mujoco_model).
 """
 
 from __future__ import annotations
-
-import math
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -83,22 +83,44 @@ from dttmm.errors import InputError, SimulationError
 from dttmm.shapes import shape_points as check_shape_points
 from dttmm.spatial import SpatialCase, SpatialManipulator, SpatialResult
 from dttmm.spatial.model import require_flexible, require_serial
-from dttmm.spatial.rotation import log_so3, rpy_matrix
+from dttmm.spatial.rotation import log_so3
 from dttmm.spatial.scenario import require_no_loads
 from dttmm.spatial.topology import closure_gaps, initial_angles, resolve_closures, rigid_tip_frames
 
 from . import _checks
-from ._mujoco_model import _MJCF_NAME, INTEGRATORS
-from .mujoco_chain import _free_controls, _meta, _rollout, _step_warning, polylines, step_nodes
+from ._mujoco_model import (
+    INTEGRATORS,
+    STATION,
+    STATIONS,
+    SpatialLayout,
+    build,
+    closure_equalities,
+    eig_mk,
+    frequencies,
+    layout,
+    piece_properties,
+    stability_limit,
+    xml,
+)
+from .mujoco_chain import (
+    _drive_outputs,
+    _kinematics_and_energy,
+    _raise_failure,
+    _run,
+    piece_shapes,
+    step_nodes,
+)
 from .mujoco_chain import _Stepper as _PlanarStepper
 
 __all__ = [
     "INTEGRATORS",
+    "STATIONS",
     "SpatialLayout",
     "build",
     "check_case",
     "closure_equalities",
     "closure_loads",
+    "layout",
     "natural_frequencies",
     "piece_properties",
     "simulate",
@@ -109,322 +131,6 @@ __all__ = [
 
 METHOD = "mujoco-spatial"
 _OPTIONS = {"motion_tol": 1e-12, "motion_max_iter": 10, "station": "hinges"}
-STATIONS = ("hinges", "hinges-zyx", "ball")
-#: the three hinges of an elastic station: name suffix, axis in the section frame, stiffness key
-STATION = (("bz", (0.0, 0.0, 1.0), "EIz"), ("by", (0.0, 1.0, 0.0), "EIy"), ("tx", (1.0, 0.0, 0.0), "GJ"))
-
-
-@dataclass(frozen=True)
-class SpatialLayout:
-    """Where things are in the compiled model (m unlocked joints, n links, k stations).
-
-    arm_qpos, arm_dof : (m,) qpos and dof index of each unlocked joint, in drive order
-    flex_qpos : (n, k, 3) qpos indices of the hinges (bend z, bend y, twist) of every station
-        (−1 for ball stations)
-    hub_body, tip_body : (n,) body id of each link's root piece and tip piece
-    tip_site : (n,) site id of each link tip
-    """
-
-    arm_qpos: np.ndarray
-    arm_dof: np.ndarray
-    flex_qpos: np.ndarray
-    hub_body: np.ndarray
-    tip_body: np.ndarray
-    tip_site: np.ndarray
-
-
-def _rx(angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def _combine(parts):
-    """(mass, centre (3,), inertia (3, 3) about the centre) of parts (mass, centre, own inertia)."""
-    m = sum(p[0] for p in parts)
-    c = sum(p[0] * np.asarray(p[1], float) for p in parts) / m
-    J = np.zeros((3, 3))
-    for mp, cp, Jp in parts:
-        d = np.asarray(cp, float) - c
-        J += np.asarray(Jp, float) + mp * (d @ d * np.eye(3) - np.outer(d, d))
-    return m, c, 0.5 * (J + J.T)
-
-
-def piece_properties(link, k: int):
-    """The rigid pieces of one link: list of (body offset (3,), mass, centre (3,), inertia (3, 3)).
-
-    Offsets and centres (m) are in the piece's own frame, whose origin is the station in front
-    of it (the joint for piece 0) and whose axes are the link frame's when undeformed; the
-    inertia (kg·m²) is about the centre. Piece 0 includes the hub, piece k the payload.
-    """
-    b = link.beam
-    l = b.length / k
-    Rr = _rx(b.roll)
-    section = Rr @ np.diag([b.rhoJ, b.rhoIy, b.rhoIz]) @ Rr.T
-    out = []
-    for j in range(k + 1):
-        ln = l / 2 if j in (0, k) else l
-        rod = b.rhoA * ln**3 / 12
-        parts = [(b.rhoA * ln, (ln / 2, 0.0, 0.0), np.diag([0.0, rod, rod]) + ln * section)]
-        if j == 0 and link.hub is not None and link.hub.mass > 0:
-            parts.append((link.hub.mass, (0.0, 0.0, 0.0), link.hub_inertia))
-        elif j == 0 and link.hub is not None:  # inertia without mass: a pure rotor at the root
-            parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.hub_inertia)
-        if j == k and link.payload is not None:
-            c = np.array([ln, 0.0, 0.0]) + link.payload_offset
-            if link.payload.mass > 0:
-                parts.append((link.payload.mass, c, link.payload_inertia))
-            else:
-                parts[0] = (parts[0][0], parts[0][1], parts[0][2] + link.payload_inertia)
-        offset = 0.0 if j == 0 else (l / 2 if j == 1 else l)
-        out.append((np.array([offset, 0.0, 0.0]), *_combine(parts)))
-    return out
-
-
-def _f(x) -> str:
-    return " ".join(repr(float(v)) for v in np.atleast_1d(x))
-
-
-def _quat(R) -> np.ndarray:
-    q = np.empty(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
-    return q
-
-
-def xml(
-    manipulator: SpatialManipulator,
-    k: int,
-    h: float,
-    integrator: str = "implicitfast",
-    station: str = "hinges",
-    angles=None,
-) -> str:
-    """MJCF of the spatial arm (undeformed links, every joint angle 0); body inertias are
-    placeholders (see the module notes: :func:`build` writes the exact ones). Links hang from
-    their parents' tip pieces (a tree), closures are equality constraints
-    (:func:`closure_equalities`) whose attachment data are resolved with the links undeformed at
-    the joint angles ``angles`` (the unlocked joints; None: all 0), the case's initial state.
-
-    ``station``: ``"hinges"`` (three hinges, the order bend z, bend y, twist at odd stations and
-    reversed at even ones), ``"hinges-zyx"`` (the same order everywhere) or ``"ball"`` (a ball
-    joint whose three stiffnesses and dampers are affine-bias actuators on the section axes, the
-    torque −(K φ + μ K ω) with φ the ball's rotation vector). The last two exist for the
-    comparison in docs/mujoco.md."""
-    g = manipulator.gravity
-    lines = [
-        '<mujoco model="dttmm-spatial-chain">',
-        '  <compiler angle="radian" autolimits="true"/>',
-        f'  <option timestep="{_f(h)}" integrator="{_MJCF_NAME[integrator]}" gravity="{_f(g)}"'
-        + (f' tolerance="{_f(CLOSURE_SOLVER_TOL)}"' if manipulator.closures else "")
-        + ">",
-        '    <flag contact="disable" energy="enable"/>',
-        "  </option>",
-        "  <worldbody>",
-        f'    <body name="base" pos="{_f(manipulator.base_xyz)}" quat="{_f(_quat(manipulator.base_rotation))}">',
-    ]
-    acts = []
-    sites, equalities = closure_equalities(manipulator, k, h, angles) if manipulator.closures else ({}, [])
-
-    def emit(i, depth, parent_tip):
-        # link i's pieces nested in one another, its children inside its tip piece; the pieces'
-        # closing tags after the children (a chain: the same text as one nested body list)
-        link = manipulator.links[i]
-        b, jn = link.beam, link.joint
-        l = b.length / k
-        Rr = _rx(b.roll)
-        closers = []
-        for j, (offset, m, c, J) in enumerate(piece_properties(link, k)):
-            pad = " " * depth
-            if j == 0:
-                pos = np.array([parent_tip, 0.0, 0.0]) + np.array(jn.origin_xyz)
-                quat = _quat(rpy_matrix(jn.origin_rpy))
-                lines.append(f'{pad}<body name="link{i}_0" pos="{_f(pos)}" quat="{_f(quat)}">')
-                if not jn.locked:
-                    lines.append(f'{pad}  <joint name="arm{i}" type="hinge" axis="{_f(jn.axis)}"/>')
-            else:
-                lines.append(f'{pad}<body name="link{i}_{j}" pos="{_f(offset)}">')
-                seq = STATION if (station == "hinges-zyx" or j % 2 == 1) else STATION[::-1]
-                if station == "ball":
-                    seq = ()
-                    lines.append(f'{pad}  <joint name="ball{i}_{j}" type="ball"/>')
-                    for _, axis, key in STATION:
-                        stiff = getattr(b, key) / l
-                        acts.append(
-                            f'    <general joint="ball{i}_{j}" gear="{_f(Rr @ np.array(axis))} 0 0 0" gainprm="0" '
-                            f'biastype="affine" biasprm="0 {_f(-stiff)} {_f(-b.damping * stiff)}"/>'
-                        )
-                for tag, axis, key in seq:
-                    stiff = getattr(b, key) / l
-                    lines.append(
-                        f'{pad}  <joint name="{tag}{i}_{j}" type="hinge" axis="{_f(Rr @ np.array(axis))}" '
-                        f'stiffness="{_f(stiff)}" damping="{_f(b.damping * stiff)}" springref="0"/>'
-                    )
-            ev = max(float(np.trace(J)) / 3.0, 1e-12)
-            lines.append(f'{pad}  <inertial pos="{_f(c)}" mass="{_f(m)}" diaginertia="{_f([ev, ev, ev])}"/>')
-            if j == k:
-                lines.append(f'{pad}  <site name="tip{i}" pos="{_f(l / 2 if k > 0 else 0.0)} 0 0"/>')
-                lines.extend(f"{pad}  {x}" for x in sites.get(i, ()))
-                for child in manipulator.children(i):
-                    emit(child, depth + 2, l / 2)
-            closers.append(f"{pad}</body>")
-            depth += 2
-        lines.extend(closers[::-1])
-
-    for i in manipulator.children(-1):
-        emit(i, 6, 0.0)
-    lines.append("    </body>")
-    lines.extend(f"    {x}" for x in sites.get(-1, ()))
-    lines.append("  </worldbody>")
-    if manipulator.closures:
-        lines += ["  <equality>", *(f"    {x}" for x in equalities), "  </equality>"]
-    lines.append("  <actuator>")
-    for i in manipulator.unlocked:
-        lines.append(f'    <motor name="drive{i}" joint="arm{i}" gear="1"/>')
-    lines += acts
-    lines += ["  </actuator>", "</mujoco>"]
-    return "\n".join(lines)
-
-
-#: the closures' equality constraints: solref (time constant in steps, damping ratio) and solimp
-#: (impedance 0.9999 throughout: regularisation 1e-4 of the constraint's own inertia); the time
-#: constant is the least MuJoCo's ``refsafe`` takes (2 steps): the stiffest stable constraint
-CLOSURE_TIMECONST_STEPS, CLOSURE_DAMPRATIO = 2.0, 1.0
-CLOSURE_SOLIMP = (0.9999, 0.9999, 0.001, 0.5, 2.0)
-#: the constraint solver's tolerance with closures (MuJoCo's default 1e-8)
-CLOSURE_SOLVER_TOL = 1e-12
-#: a revolute closure: two ``connect`` constraints at the points ± d·axis about the joint, d this
-#: fraction of the shorter of the two links (the ground: the link's length)
-REVOLUTE_ARM = 0.5
-
-
-def revolute_arm(manipulator, closure) -> float:
-    """d (m): half the distance of a revolute closure's two connect points along its axis."""
-    lengths = [manipulator.links[manipulator.link_index(closure.link)].beam.length]
-    if closure.to != "ground":
-        lengths.append(manipulator.links[manipulator.link_index(closure.to)].beam.length)
-    return REVOLUTE_ARM * min(lengths)
-
-
-def closure_equalities(manipulator, k: int, h: float, angles=None):
-    """The closures as MJCF: ({link index (−1: the world): site lines on its tip piece}, equality
-    lines). Spherical: one ``connect`` of a site at ``point`` (link's tip frame) to a site at
-    ``to_point`` (to's). Revolute: two ``connect`` pairs at ``point`` ± d·axis and their images
-    (:func:`revolute_arm`): the two points hold the axis, the rotation about it stays free (6
-    equations of rank 5; MuJoCo's regularised constraint solver takes the redundant one). Weld:
-    one ``weld`` of two sites whose frames coincide at the initial state. Attachment data from
-    :func:`dttmm.spatial.topology.resolve_closures` at the links undeformed at ``angles``."""
-
-    if angles is None:
-        angles = np.zeros(manipulator.n_joints)
-    R, p = rigid_tip_frames(manipulator, angles)
-    rc = resolve_closures(manipulator, R, p)
-    solref = (
-        f'solref="{_f(CLOSURE_TIMECONST_STEPS * h)} {_f(CLOSURE_DAMPRATIO)}" solimp="{_f(CLOSURE_SOLIMP)}"'
-    )
-    sites, eqs = {}, []
-
-    def site(i, name, pos, quat=None):
-        # a site on link i's tip piece (origin l/2 behind the tip, the tip frame's axes) or the world
-        off = np.array([manipulator.links[i].beam.length / k / 2, 0.0, 0.0]) if i >= 0 else np.zeros(3)
-        q = f' quat="{_f(quat)}"' if quat is not None else ""
-        sites.setdefault(i, []).append(f'<site name="{name}" pos="{_f(off + pos)}"{q}/>')
-
-    for j, cl in enumerate(manipulator.closures):
-        a, b = int(rc.a[j]), int(rc.b[j])
-        if cl.kind == "revolute":
-            d = revolute_arm(manipulator, cl)
-            for c, sgn in enumerate((1.0, -1.0)):
-                site(a, f"cl{j}_a{c}", rc.pa[j] + sgn * d * rc.ua[j])
-                site(b, f"cl{j}_b{c}", rc.pb[j] + sgn * d * rc.ub[j])
-                eqs.append(f'<connect name="closure{j}_{c}" site1="cl{j}_a{c}" site2="cl{j}_b{c}" {solref}/>')
-        elif cl.kind == "spherical":
-            site(a, f"cl{j}_a0", rc.pa[j])
-            site(b, f"cl{j}_b0", rc.pb[j])
-            eqs.append(f'<connect name="closure{j}_0" site1="cl{j}_a0" site2="cl{j}_b0" {solref}/>')
-        else:
-            site(a, f"cl{j}_a0", rc.pa[j], (1.0, 0.0, 0.0, 0.0))
-            site(b, f"cl{j}_b0", rc.pb[j], _quat(rc.R0[j].T))
-            eqs.append(f'<weld name="closure{j}_0" site1="cl{j}_a0" site2="cl{j}_b0" {solref}/>')
-    return sites, eqs
-
-
-def _set_inertias(m, manipulator, k):
-    """Write the exact mass properties of every piece into the compiled model."""
-    for i, link in enumerate(manipulator.links):
-        for j, (_, mass, c, J) in enumerate(piece_properties(link, k)):
-            bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}")
-            w, V = np.linalg.eigh(J)
-            if np.linalg.det(V) < 0:
-                V[:, 0] = -V[:, 0]
-            m.body_mass[bid] = mass
-            m.body_ipos[bid] = c
-            m.body_iquat[bid] = _quat(V)
-            m.body_inertia[bid] = np.maximum(w, 0.0)
-
-
-def layout(m, manipulator, k: int) -> SpatialLayout:
-    """Index maps of a compiled :func:`xml` model."""
-
-    def jq(name):
-        return int(m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)])
-
-    def bid(name):
-        return mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
-
-    n = manipulator.n_links
-    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "bz0_1") < 0:  # ball stations
-        flex = np.full((n, k, 3), -1, int)
-    else:
-        flex = [[[jq(f"{tag}{i}_{j}") for tag, _, _ in STATION] for j in range(1, k + 1)] for i in range(n)]
-    arm = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"arm{i}") for i in manipulator.unlocked]
-    return SpatialLayout(
-        arm_qpos=np.array([jq(f"arm{i}") for i in manipulator.unlocked], int),
-        arm_dof=np.array([m.jnt_dofadr[j] for j in arm], int),
-        flex_qpos=np.array(flex, int).reshape(n, k, 3),
-        hub_body=np.array([bid(f"link{i}_0") for i in range(n)], int),
-        tip_body=np.array([bid(f"link{i}_{k}") for i in range(n)], int),
-        tip_site=np.array([mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"tip{i}") for i in range(n)], int),
-    )
-
-
-def build(
-    manipulator: SpatialManipulator,
-    k: int,
-    h: float = 1e-3,
-    integrator: str = "implicitfast",
-    station="hinges",
-    angles=None,
-):
-    """Compile the chain with the exact piece inertias: returns (MjModel, MjData, SpatialLayout).
-    ``angles``: the joint angles at which the closures are assembled (:func:`xml`)."""
-    plumbing.choice("station", station, STATIONS)
-    if not isinstance(manipulator, SpatialManipulator):
-        raise InputError("model", manipulator, "must be a dttmm.spatial.SpatialManipulator")
-    k = plumbing.elements_per_link(k)
-    m = mujoco.MjModel.from_xml_string(xml(manipulator, k, h, integrator, station, angles))
-    _set_inertias(m, manipulator, k)
-    d = mujoco.MjData(m)
-    mujoco.mj_setConst(m, d)
-    return m, d, layout(m, manipulator, k)
-
-
-def _eig_mk(m, d, dofs=None):
-    """Generalised eigenpairs (ω², modes) of (K, M) at the state in d over ``dofs`` (all if None)."""
-    import scipy.linalg
-
-    mujoco.mj_forward(m, d)
-    M = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, M)
-    K = np.diag(m.jnt_stiffness[m.dof_jntid])
-    if dofs is not None:
-        M, K = M[np.ix_(dofs, dofs)], K[np.ix_(dofs, dofs)]
-    return scipy.linalg.eigh(K, M)
-
-
-def stability_limit(m, d, integrator: str = "implicitfast") -> tuple[float, float]:
-    """(ω_max rad/s, the largest stable step c/ω_max s) of the undamped linearised chain at d."""
-    w2 = _eig_mk(m, d)[0]
-    wmax = math.sqrt(max(float(w2[-1]), 0.0))
-    return wmax, (INTEGRATORS[integrator] / wmax if wmax > 0 else math.inf)
 
 
 def natural_frequencies(link, k: int, n_modes: int = 3) -> dict:
@@ -440,12 +146,11 @@ def natural_frequencies(link, k: int, n_modes: int = 3) -> dict:
     link = dataclasses.replace(link, joint=SpatialJoint(locked=True))
     manip = SpatialManipulator((link,))
     m, d, lay = build(manip, k)
-    w2, V = _eig_mk(m, d)
+    w2, V = eig_mk(m, d)
     fam = np.argmax([np.sum(V[lay.flex_qpos[0, :, c]] ** 2, axis=0) for c in range(3)], axis=0)
     out = {}
     for c, (_, _, key) in enumerate(STATION):
-        sel = np.sqrt(np.clip(w2[fam == c], 0.0, None))
-        out[key] = sel[:n_modes]
+        out[key] = frequencies(w2[fam == c])[:n_modes]
     return out
 
 
@@ -599,22 +304,11 @@ def _outputs(st, X, t, ctrl, T):
     node = np.clip(np.searchsorted(T, t - 1e-9 * st.h), 0, T.size - 1)
     for s in range(nt):
         mujoco.mj_setState(m, d, X[s], st.spec)
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_comPos(m, d)
-        mujoco.mj_makeM(m, d)
-        mujoco.mj_energyPos(m, d)
-        mujoco.mj_energyVel(m, d)
+        _kinematics_and_energy(mujoco, m, d)
         q[s], v[s] = d.qpos[lay.arm_qpos], d.qvel[lay.arm_dof]
         root[s], Rl[s], tip[s], Rt[s] = _frames(m, d, lay)
         energy[s] = d.energy[0] + d.energy[1]
-        for i in st.free:  # the law (left limit; right limit at t = 0), as every method reports it
-            tau[s, i] = st.drives[i].torque(float(t[s]), t[s] > 0)
-        for i in st.pres:  # the law's angle and rate; torque: mean of the steps around the node
-            a, ad, _ = st.drives[i].motion(float(t[s]))
-            q[s, i], v[s, i] = a, ad
-            kk = node[s]
-            around = ctrl[max(kk - 1, 0) : min(kk + 1, ctrl.shape[0]), i]
-            tau[s, i] = around.mean() if around.size else 0.0
+        _drive_outputs(st, float(t[s]), node[s], ctrl, q[s], v[s], tau[s])
     defl, twist = _deflection_twist(root, Rl, tip, Rt)
     closures = {}
     if st.case_model.closures:
@@ -715,29 +409,6 @@ def _check(case, k, h, integrator, options):
     return k, h, opts
 
 
-def piece_shapes(st, case, X, p: int) -> np.ndarray:
-    """Link shapes (nt, n, p, 3) m from the kept states X (rows): per link the polyline through
-    its root, its k elastic stations (at the reference arc lengths (j − ½)·L/k) and its tip —
-    the rigid pieces themselves — sampled at the p shape points (as
-    :func:`reference_models.mujoco_chain.piece_shapes` in the plane)."""
-    m, d, lay = st.m, st.d, st.lay
-    nt, n, k = X.shape[0], lay.hub_body.size, lay.flex_qpos.shape[1]
-    bodies = np.array(
-        [
-            [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"link{i}_{j}") for j in range(1, k + 1)]
-            for i in range(n)
-        ]
-    )
-    pts = np.empty((nt, n, k + 2, 3))
-    for s in range(nt):
-        mujoco.mj_setState(m, d, X[s], st.spec)
-        mujoco.mj_kinematics(m, d)
-        pts[s, :, 0] = d.xpos[lay.hub_body]
-        pts[s, :, 1:-1] = d.xpos[bodies]
-        pts[s, :, -1] = d.site_xpos[lay.tip_site]
-    return polylines(case, k, pts, p)
-
-
 def simulate(
     case, *, elements_per_link, h, integrator="implicitfast", shape_points=0, **options
 ) -> SpatialResult:
@@ -779,31 +450,18 @@ def simulate(
     shape_points = check_shape_points(shape_points)
     T, t_out, keep = step_nodes(case.scenario, h)
     st = _Stepper(case, k, h, integrator, opts["station"])
-    x0 = st.initial_state()
-    wmax, h_stable = stability_limit(st.m, st.d, integrator) if st.m.nq == st.m.nv else (None, None)
-    warnings = _step_warning(h, wmax, h_stable)
-    ctrl = _free_controls(st, T)
-    if st.m.nu > st.n:
-        ctrl = np.hstack([ctrl, np.zeros((ctrl.shape[0], st.m.nu - st.n))])
-    stats = {}
-    X, n_steps, ctrl, wall, cpu = _rollout(st, x0, T, keep, ctrl, opts, stats, st.pres.size)
-    meta = _meta(METHOD, st, h, integrator, k, wmax, h_stable, n_steps, cpu, stats, opts)
-    if st.pres.size and "motion_iterations_mean" in stats:
-        meta["motion_iterations_mean"] = stats["motion_iterations_mean"]
+    X, n_steps, ctrl, wall, meta, stats, warnings = _run(st, T, keep, integrator, k, opts, METHOD)
     tg = t_out[: X.shape[0]]
     fields = _outputs(st, X, tg, ctrl[:n_steps], T)
     res = SpatialResult(
         t=tg,
         **fields,
-        link_shapes=piece_shapes(st, case, X[: tg.size], shape_points) if shape_points else None,
+        link_shapes=piece_shapes(st, case, X[: tg.size], shape_points, 3) if shape_points else None,
         wall_time=wall,
         n_steps=int(n_steps),
         meta=meta,
         status="ok" if "fail" not in stats else "failed",
-        warnings=tuple(warnings + [f"MuJoCo: {w}" for w in st.messages]),
+        warnings=tuple(warnings),
     )
-    if "fail" in stats:
-        j, tf, *why = stats["fail"]
-        msg = why[0] if why else ("; ".join(st.messages) or "non-finite state")
-        raise SimulationError(f"{METHOD}: {msg}", t=float(tf), step=int(j), component="state", partial=res)
+    _raise_failure(st, stats, METHOD, res)
     return res

@@ -246,7 +246,7 @@ def crossover_text(
                 else "at no k measured"
             )
             solver = (
-                "the spatial global solver (one dense system, numpy)"
+                "the spatial global solver (one dense system, compiled)"
                 if spatial
                 else "the compiled global solver"
             )

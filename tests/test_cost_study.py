@@ -3,6 +3,7 @@ exponents per case, and the report's figure and text (reports/peers.py)."""
 
 from __future__ import annotations
 
+import dataclasses as dc
 from types import SimpleNamespace
 
 import numpy as np
@@ -28,15 +29,13 @@ def test_quick_cost_runs_on_the_spatial_arm_with_the_methods_that_can(quick):
     runs = study_tasks(quick, "cost")
     on_arm = {(t.method, t.k) for t in runs if t.case == SPATIAL}
     ks = (1, 2, 4, 8, 16, 32)
-    # the spatial DT-TMM kernel and Exudyn's 3-D beam at every k; the spatial global solver up to
-    # its spatial_max_k (2); no spatial engine (assumed modes), or refused (the ANCF cable: the
-    # arm's EIy ≠ EIz), no run at all
-    want = {(m, k) for m in ("dttmm", "dttmm-2nd", "exudyn-beam") for k in ks} | {
-        ("global", 1),
-        ("global", 2),
-    }
+    # the spatial DT-TMM kernel and Exudyn's 3-D beam at every k; the global solver (compiled in
+    # both spaces) up to its cost@quick limit 16; no spatial engine (assumed modes), or refused
+    # (the ANCF cable: the arm's EIy ≠ EIz), no run at all
+    want = {(m, k) for m in ("dttmm", "dttmm-2nd", "exudyn-beam") for k in ks}
+    want |= {("global", k) for k in ks if k <= 16}
     assert on_arm == want
-    assert methods.get("global").spatial_max_k == 2
+    assert dict(methods.get("global").max_k) == {"cost@quick": 16}
     planar = {t.method for t in runs if t.case == PLANAR}
     assert {"amm", "exudyn-ancf"} <= planar  # they do run the planar arm
     # one step and the arm's quick duration: up to k = 16 these are convergence_k's own runs
@@ -119,16 +118,18 @@ def test_the_figure_has_one_panel_per_case():
     # each panel's legend carries that case's exponent
     legend = [[x.get_text() for x in ax.get_legend().get_texts()] for ax in fig.axes]
     assert "DT-TMM (Newmark) (∝ k^1.00)" in legend[0] and "DT-TMM (Newmark) (∝ k^0.50)" in legend[1]
-    # the global solver is the compiled one on planar arms, the numpy one on spatial arms
+    # the global solver is compiled on both arms (one point at k ≥ 2 on the spatial one: no exponent)
     assert "global equations (Newmark, compiled) (∝ k^2.00)" in legend[0]
-    assert "global equations (Newmark, numpy)" in legend[1]
-    assert not any("compiled" in x for x in legend[1])
+    assert "global equations (Newmark, compiled)" in legend[1]
     one = cost.analyse(None, _table(spatial=False))
     fig = peers.cost_figure(one["cost"], one["cost_exponents"])
     assert [ax.get_title() for ax in fig.axes] == [f"{PLANAR} (planar): CPU time against k (hollow: noisy)"]
 
 
-def test_the_text_gives_exponents_and_crossover_per_case():
+def test_the_text_gives_exponents_and_crossover_per_case(monkeypatch):
+    # a method with a spatial k limit (Method.spatial_max_k; no built-in method has one now)
+    limited, real_get = dc.replace(methods.get("global"), spatial_max_k=2), methods.get
+    monkeypatch.setattr(methods, "get", lambda m: limited if m == "global" else real_get(m))
     tables = cost.analyse(None, _table())
     text = peers.cost_text(tables["cost"], tables["cost_exponents"])
     assert text[0].startswith("Fitted exponents of CPU time ∝ k^p (k ≥ 2): on three_link (planar) ")
@@ -142,7 +143,7 @@ def test_the_text_gives_exponents_and_crossover_per_case():
     assert "50 at k = 1, 50 at k = 2." in joined
     # which planar methods the arm lacks, and which stop at their spatial k limit
     assert "assumed modes (consistent) sits it out" in joined
-    assert "global equations (Newmark, numpy) runs it up to k = 2 only (its spatial k limit" in joined
+    assert "global equations (Newmark, compiled) runs it up to k = 2 only (its spatial k limit" in joined
     # without the spatial global solver's points, no spatial crossover sentence
     tables = cost.analyse(None, _table(spatial_global=False))
     joined = " ".join(peers.cost_text(tables["cost"], tables["cost_exponents"]))

@@ -25,6 +25,7 @@ from dttmm.spatial import (
     SpatialRigidBody,
     SpatialSection,
 )
+from reference_models import _spatial_numpy as sgm
 from reference_models import spatial_global as sg
 from reference_models._spatial_mechanics import rpy_matrix
 from tests.test_spatial_global import CASES, _torque_drives, arm
@@ -340,17 +341,17 @@ def test_closure_jacobian_is_the_derivative_of_the_closure_equations(kind, to):
         model = dataclasses.replace(model, closures=(SpatialClosure(kind, link="BC", name="C"),))
     drives = [Drive("torque", Constant(0.0))] * 3
     case = _case(model, drives, 0.02, 0.01)
-    lay = sg._layout(case, 2)
-    g0 = sg._constraints(lay, np.zeros(lay.n_dof))[0]
+    lay = sgm._layout(case, 2)
+    g0 = sgm._constraints(lay, np.zeros(lay.n_dof))[0]
     assert g0.size == {"revolute": 5, "spherical": 3, "weld": 6}[kind] == model.n_closure_equations
     assert np.max(np.abs(g0)) < 1e-16
     rng = np.random.default_rng(7)
     for _ in range(2):
         q = 0.05 * rng.standard_normal(lay.n_dof)
-        J = sg._constraints(lay, q)[1]
+        J = sgm._constraints(lay, q)[1]
         fd = np.column_stack(
             [
-                (sg._constraints(lay, q + 1e-6 * e)[0] - sg._constraints(lay, q - 1e-6 * e)[0]) / 2e-6
+                (sgm._constraints(lay, q + 1e-6 * e)[0] - sgm._constraints(lay, q - 1e-6 * e)[0]) / 2e-6
                 for e in np.eye(lay.n_dof)
             ]
         )

@@ -3,13 +3,15 @@
 The model (:class:`SpatialManipulator` and its parts), cases (:class:`SpatialCase`: a spatial
 manipulator with the planar suite's :class:`dttmm.Scenario`, or a :class:`SpatialScenario` that
 adds external loads, :class:`SpatialLoad`), the embedding of a planar arm
-(:func:`embed_planar`), the rotation helpers of the discretisation and the static equilibrium
-with the joints held (:func:`statics`). :func:`dttmm.simulate` runs a spatial case on this
-package's kernel (:func:`simulate`); link shapes at any coordinates:
-:func:`link_shapes`.
+(:func:`embed_planar`; :meth:`SpatialCase.from_planar` makes a planar :class:`dttmm.Case` the
+spatial case it is, and :func:`load_case` reads a case file of any kind as one), the rotation
+helpers of the discretisation and the static equilibrium with the joints held
+(:func:`statics`). :func:`dttmm.simulate` runs a spatial case on this package's kernel
+(:func:`simulate`); link shapes at any coordinates: :func:`link_shapes`.
 """
 
-from .case import SpatialCase, case_from_dict, load_case
+from ..casefiles import load_spatial_case as load_case
+from .case import SpatialCase, case_from_dict
 from .model import (
     SpatialClosure,
     SpatialHub,

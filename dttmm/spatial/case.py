@@ -8,7 +8,7 @@ from typing import Annotated, Union
 
 from pydantic import Field, Strict, create_model
 
-from ..case import CaseBase, ScenarioFile, _drive
+from ..case import Case, CaseBase, ScenarioFile, _drive
 from ..casedoc import case_file_model, read_case_document, validate_document
 from ..drives import OPEN_LAWS, _prefixed, _tagged, _union, law_from_table
 from ..errors import InputError
@@ -43,6 +43,17 @@ class SpatialCase(CaseBase):
             from .topology import check_initial_closures
 
             check_initial_closures(self)
+
+    @classmethod
+    def from_planar(cls, case: Case, base_rpy=(0.0, 0.0, 0.0), base_xyz=(0.0, 0.0, 0.0)) -> SpatialCase:
+        """The planar ``case`` (a :class:`dttmm.Case`) as the spatial case it is (docs/spatial.md
+        §1): its manipulator embedded by :func:`dttmm.spatial.embed_planar` in the plane of the
+        base frame (``base_rpy``, ``base_xyz``; default the world's x–y plane), with the same
+        scenario object, name and provenance. InputError (one line) for anything else."""
+        if not isinstance(case, Case):
+            raise InputError("case", type(case).__name__, "must be a dttmm.Case (a planar case) to embed")
+        prov = None if case.provenance is None else dict(case.provenance)
+        return cls(_m.embed_planar(case.model, base_rpy, base_xyz), case.scenario, case.name, prov)
 
 
 # --- the spatial case file (docs/cases.md "Spatial cases") ----------------------------------
@@ -217,7 +228,8 @@ def _load(spec, j: int) -> SpatialLoad:
 def load_case(path) -> SpatialCase:
     """Read a spatial case TOML file (docs/cases.md "Spatial cases"); the name defaults to the
     file's stem. Raises InputError for an unreadable file, invalid TOML, or any key or value the
-    schema refuses."""
+    schema refuses. :func:`dttmm.spatial.load_case` reads a case file of any kind as a
+    :class:`SpatialCase` (:func:`dttmm.casefiles.load_spatial_case`)."""
     data, _ = read_case_document(path)
     return case_from_dict(data)
 

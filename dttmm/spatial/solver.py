@@ -52,15 +52,18 @@ def _kernel(engine):
 
 
 def as_spatial_case(case) -> SpatialCase:
-    """A :class:`SpatialCase`, or a (SpatialManipulator, Scenario) pair made one."""
+    """A :class:`SpatialCase`, a (SpatialManipulator, Scenario) pair made one, or a planar
+    :class:`dttmm.Case` embedded (:meth:`SpatialCase.from_planar`, docs/spatial.md §1)."""
     if isinstance(case, SpatialCase):
         return case
+    if isinstance(case, Case):
+        return SpatialCase.from_planar(case)
     if isinstance(case, tuple) and len(case) == 2:
         return SpatialCase(case[0], case[1])
     raise InputError(
         "case",
         type(case).__name__,
-        "must be a dttmm.spatial.SpatialCase or a (SpatialManipulator, Scenario) pair",
+        "must be a dttmm.spatial.SpatialCase, a dttmm.Case or a (SpatialManipulator, Scenario) pair",
     )
 
 
@@ -242,7 +245,8 @@ def accelerations(
     engine: str | None = None,
     loads: bool = False,
 ):
-    """Forward dynamics of the discretised spatial arm: q̈ (n_dof,) at (q, q̇) and time t.
+    """Forward dynamics of the discretised spatial arm: q̈ (n_dof,) at (q, q̇) and time t
+    (``case``: as :func:`as_spatial_case` takes it; a planar :class:`dttmm.Case` embedded).
 
     Coordinates q = [α_1, e_11, …, e_1k, α_2, …] (no α for a locked joint; e = (u, v, w, φx, φy,
     φz), without u for an inextensible link). Motion-driven joints take the law's α, α̇, α̈.

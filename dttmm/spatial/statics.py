@@ -281,8 +281,8 @@ def statics(
     angles=None,
     engine: str | None = None,
 ) -> StaticResult:
-    """Static equilibrium of ``case`` (a :class:`SpatialCase` or a (SpatialManipulator,
-    Scenario) pair; its drives are not used) under its gravity, the external loads of its
+    """Static equilibrium of ``case`` (a :class:`SpatialCase`, a (SpatialManipulator,
+    Scenario) pair or a planar :class:`dttmm.Case`, embedded; its drives are not used) under its gravity, the external loads of its
     scenario (``SpatialScenario.loads``, their factor laws at time ``t``, default the scenario's
     duration) and the extra tip ``loads`` (``{"force": (3,), "moment": (3,)}``, world
     components, fixed in direction, at the end-effector's tip), by Newton's method on the elastic
