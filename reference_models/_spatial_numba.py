@@ -94,7 +94,6 @@ Work = namedtuple(
         "pl",
         "Rt",
         "pt",
-        "Vl",
         "Vt",
         "RI",
         "rI",
@@ -188,7 +187,6 @@ def pack(lay) -> tuple[Pack, Work, np.ndarray, np.ndarray]:
         pl=np.zeros((n, 3), c),
         Rt=np.zeros((n, 3, 3), c),
         pt=np.zeros((n, 3), c),
-        Vl=np.zeros((n, 6), c),
         Vt=np.zeros((n, 6), c),
         RI=np.zeros((nel, 3, 3)),
         rI=np.zeros((nel, 3)),
@@ -390,7 +388,7 @@ def _turn(tw, w, c, rate, V):
 
 @njit(cache=True)
 def chain(P, q, qd, W):
-    """The frames (W.Rl, pl: link frames; W.Rt, pt: tip frames), their twists (W.Vl, Vt) and the
+    """The frames (W.Rl, pl: link frames; W.Rt, pt: tip frames), the tip frames' twists (W.Vt) and the
     twist of every coordinate (W.tw, at the world origin) at the complex configuration q
     (q + iε q̇ for the accelerations J̇q̇); the bodies' positions, world inertias, angular
     velocities, accelerations at q̈ = 0 (real) and the own-element maps (:func:`_gauss_bodies`)."""
@@ -423,7 +421,7 @@ def chain(P, q, qd, W):
             _rot_axis(P.axis[L], q[a], T)
             _mm(R, T, R2)
             R[:] = R2
-        W.Rl[L], W.pl[L], W.Vl[L] = R, p, V
+        W.Rl[L], W.pl[L] = R, p
         _rigid_body(P, W, nel * ng + L, L, p, R, V)  # hub
         _rigid_body(P, W, nel * ng + 2 * n + L, 2 * n + L, p, R, V)  # rigid link body
         _mm(R, P.roll_R[L] + 0j, R2)
@@ -693,17 +691,14 @@ def _strain_terms(l, e, second, grad, hess):
 
 
 @njit(cache=True)
-def strain_forces(P, q, qd, fi, KT, fd, Dt):
-    """Strain energy U (returned), internal force fi and tangent KT, damping force fd and its
-    rate tangent Dt of every element with the axial strain ε (linear bending and torsion; the
-    Kelvin–Voigt dissipation ½μ[EA l ε̇² + ėᵀK_b ė])."""
-    fi[:] = 0.0
-    KT[:] = 0.0
-    fd[:] = 0.0
-    Dt[:] = 0.0
-    e, ed = np.empty(6), np.empty(6)
-    fe, fde = np.empty(6), np.empty(6)
-    Ke, De, Kb = np.empty((6, 6)), np.empty((6, 6)), np.empty((6, 6))
+def strain_forces(P, q, qd, f, K, damping):
+    """Of every element with the axial strain ε (linear bending and torsion): the internal force
+    f and tangent K, returning the strain energy U; or, with ``damping``, the Kelvin–Voigt force
+    f and rate tangent K of the dissipation ½μ[EA l ε̇² + ėᵀK_b ė] (returning 0)."""
+    f[:] = 0.0
+    K[:] = 0.0
+    e, ed, fe = np.empty(6), np.empty(6), np.empty(6)
+    Ke = np.empty((6, 6))
     grad, hess = np.empty(6), np.empty((6, 6))
     U = 0.0
     for el in range(P.e_idx.shape[0]):
@@ -711,33 +706,28 @@ def strain_forces(P, q, qd, fi, KT, fd, Dt):
         for s in range(6):
             e[s] = q[idx[s]] if idx[s] >= 0 else 0.0
             ed[s] = qd[idx[s]] if idx[s] >= 0 else 0.0
-        Kb[:] = P.K_el[el]
-        Kb[0, 0] = 0.0  # the axial part comes from ε
-        fe[:] = Kb @ e
-        fde[:] = Kb @ ed
-        Ue = 0.5 * (e @ fe)
-        Ke[:] = Kb
-        De[:] = Kb
+        Ke[:] = P.K_el[el]
+        Ke[0, 0] = 0.0  # the axial part comes from ε
+        x = ed if damping else e
+        fe[:] = Ke @ x
+        if not damping:
+            U += 0.5 * (e @ fe)
         if not np.isnan(P.EA[el]):
             eps = _strain_terms(P.length[el], e, P.second[el], grad, hess)
             c = P.EA[el] * P.length[el]
-            Ue += 0.5 * c * eps * eps
-            rate = grad @ ed
+            amount = grad @ ed if damping else eps
+            if not damping:
+                U += 0.5 * c * eps * eps
             for i in range(6):
-                fe[i] += c * eps * grad[i]
-                fde[i] += c * rate * grad[i]
+                fe[i] += c * amount * grad[i]
                 for j in range(6):
-                    Ke[i, j] += c * (grad[i] * grad[j] + eps * hess[i, j])
-                    De[i, j] += c * grad[i] * grad[j]
-        U += Ue
-        mu = P.mu[el]
+                    Ke[i, j] += c * (grad[i] * grad[j] + (0.0 if damping else eps * hess[i, j]))
+        w = P.mu[el] if damping else 1.0
         for i in range(6):
             if idx[i] < 0:
                 continue
-            fi[idx[i]] += fe[i]
-            fd[idx[i]] += mu * fde[i]
+            f[idx[i]] += w * fe[i]
             for j in range(6):
                 if idx[j] >= 0:
-                    KT[idx[i], idx[j]] += Ke[i, j]
-                    Dt[idx[i], idx[j]] += mu * De[i, j]
+                    K[idx[i], idx[j]] += w * Ke[i, j]
     return U

@@ -526,12 +526,13 @@ def _scatter(lay: _Layout, el: int, fe, Ke, f, K) -> None:
     K[np.ix_(at, at)] += Ke[np.ix_(have, have)]
 
 
-def _strain_compiled(lay: _Layout, q, qd):
-    """(U, f_int, K_T, f_d, D_t) of the second-order strain by the compiled engine."""
+def _strain_compiled(lay: _Layout, q, qd, damping: bool):
+    """The second-order strain by the compiled engine: (U, f_int, K_T), or (f_d, D_t) with
+    ``damping``."""
     N = lay.n_dof
-    fi, KT, fd, Dt = np.empty(N), np.empty((N, N)), np.empty(N), np.empty((N, N))
-    U = _sn.strain_forces(lay.compiled[0], q, qd, fi, KT, fd, Dt)
-    return float(U), fi, KT, fd, Dt
+    f, K = np.empty(N), np.empty((N, N))
+    U = _sn.strain_forces(lay.compiled[0], q, qd, f, K, damping)
+    return (f, K) if damping else (float(U), f, K)
 
 
 def _elastic(lay: _Layout, q):
@@ -540,7 +541,7 @@ def _elastic(lay: _Layout, q):
         f = lay.K @ q
         return 0.5 * float(q @ f), f, lay.K
     if lay.compiled is not None:
-        return _strain_compiled(lay, q, np.zeros(lay.n_dof))[:3]
+        return _strain_compiled(lay, q, np.zeros(lay.n_dof), False)
     e = _element_e(lay, q)
     U, f, KT = 0.0, np.zeros(lay.n_dof), np.zeros((lay.n_dof, lay.n_dof))
     for el in range(e.shape[0]):
@@ -565,7 +566,7 @@ def _damping(lay: _Layout, q, qd):
     if not lay.second.any():
         return lay.D @ qd, lay.D
     if lay.compiled is not None:
-        return _strain_compiled(lay, q, qd)[3:]
+        return _strain_compiled(lay, q, qd, True)
     e, ed = _element_e(lay, q), _element_e(lay, qd)
     f, Dt = np.zeros(lay.n_dof), np.zeros((lay.n_dof, lay.n_dof))
     for el in range(e.shape[0]):
